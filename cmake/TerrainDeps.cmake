@@ -1,0 +1,49 @@
+# Third-party packages, all from Debian 12 (installed by scripts/setup.sh).
+find_package(zstd CONFIG REQUIRED)          # zstd::libzstd_shared (no zstd::libzstd in 1.5.4)
+find_package(ZLIB REQUIRED)                 # crc32 for checksums, gzip input
+find_package(fmt CONFIG REQUIRED)
+find_package(nlohmann_json CONFIG REQUIRED)
+find_package(CLI11 CONFIG REQUIRED)
+find_package(Threads REQUIRED)
+find_package(PkgConfig REQUIRED)
+
+# OpenImageIO: its config lists /usr/include/opencv4 (needs libopencv-core-dev); strip it if absent.
+find_package(OpenImageIO CONFIG REQUIRED)
+if(NOT EXISTS /usr/include/opencv4 AND TARGET OpenImageIO::OpenImageIO)
+  get_target_property(_oiio_inc OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
+  list(REMOVE_ITEM _oiio_inc /usr/include/opencv4)
+  set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_oiio_inc}")
+endif()
+find_package(OpenEXR CONFIG REQUIRED)
+find_package(Imath CONFIG REQUIRED)
+
+# GeographicLib: Debian ships no config file, use pkg-config.
+find_package(GeographicLib CONFIG QUIET)
+if(NOT TARGET GeographicLib::GeographicLib)
+  pkg_check_modules(GeographicLib REQUIRED IMPORTED_TARGET geographiclib)
+  add_library(GeographicLib::GeographicLib ALIAS PkgConfig::GeographicLib)
+endif()
+
+# libgeotiff + libtiff: no config or pkg-config file for geotiff on Debian.
+find_package(TIFF REQUIRED)
+find_path(GEOTIFF_INCLUDE_DIR geotiff/geotiff.h REQUIRED)
+find_library(GEOTIFF_LIBRARY geotiff REQUIRED)
+add_library(terrain_geotiff INTERFACE)
+target_include_directories(terrain_geotiff SYSTEM INTERFACE ${GEOTIFF_INCLUDE_DIR} ${GEOTIFF_INCLUDE_DIR}/geotiff)
+target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
+
+pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)
+pkg_check_modules(squish REQUIRED IMPORTED_TARGET libsquish)
+find_path(STB_INCLUDE_DIR stb/stb_dxt.h REQUIRED)
+
+if(TERRAIN_BUILD_TESTS)
+  find_package(GTest CONFIG REQUIRED)
+  include(GoogleTest)
+endif()
+if(TERRAIN_BUILD_BENCHMARKS)
+  find_package(benchmark CONFIG QUIET)
+endif()
+if(TERRAIN_BUILD_VIEWER)
+  find_package(Vulkan REQUIRED COMPONENTS glslc)
+  pkg_check_modules(glfw3 REQUIRED IMPORTED_TARGET glfw3)
+endif()

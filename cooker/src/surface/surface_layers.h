@@ -1,0 +1,61 @@
+// Contract between the height pyramid (cooker/src) and the surface layers (cooker/src/surface):
+// everything of a node's payload except its heights, cooked from the canonical quantized heights.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "terrain/format.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+// Heights of one level's vertex lattice around a node, as every renderer dequantizes them.
+// Vertex (i, j) of the node (0..128) is window element (i + kWindowMargin, j + kWindowMargin);
+// the margin holds the neighbours' vertices (same canonical values they store), so aprons and
+// normals are computed from real neighbour data and agree across node edges.
+inline constexpr int kWindowMargin = 4;
+inline constexpr int kWindowSize = kHeightSamples + 2 * kWindowMargin;  // 137
+inline constexpr int kWindowCount = kWindowSize * kWindowSize;
+
+enum class BcQuality : uint8_t { fast, balanced, best };
+
+struct SurfaceOptions {
+  std::string materials_path;   // JSON rules file; empty = built-in default rules and palette
+  BcQuality bc_quality = BcQuality::balanced;
+  // Later: orthophoto albedo and hole mask rasters (resampled to the frame by the pyramid side).
+};
+
+// Material rules and palette, loaded once per cook (owned by the surface side).
+struct MaterialRules;  // defined in cooker/src/surface/materials.h
+Status load_material_rules(const SurfaceOptions& options, std::shared_ptr<const MaterialRules>& out);
+const std::vector<Material>& palette_of(const MaterialRules& rules);
+
+struct SurfaceInput {
+  NodeKey key;
+  double x0_m = 0, y0_m = 0;    // frame coords of vertex (0, 0) (south-west corner)
+  double spacing_m = 0;         // vertex_spacing_m(key.level)
+  const float* heights_m = nullptr;  // kWindowCount, metres; NaN where outside the data
+  const uint8_t* holes = nullptr;    // kWindowCount, 1 = hole vertex (also outside the data)
+  // Optional RGB orthophoto colour per window vertex (kWindowCount * 3, sRGB), or null.
+  const uint8_t* albedo_rgb = nullptr;
+  const MaterialRules* rules = nullptr;
+  BcQuality bc_quality = BcQuality::balanced;
+};
+
+struct SurfaceStats {  // summed over nodes by the caller
+  double seconds_normals = 0, seconds_albedo = 0, seconds_splat = 0, seconds_cones = 0;
+  double normal_err_max_deg = 0, normal_err_sum_deg = 0;  // decoded BC3 vs float normals
+  uint64_t normal_samples = 0;
+  double albedo_sq_err_sum = 0;  // decoded BC1 vs uncompressed, over opaque texels (for PSNR)
+  uint64_t albedo_samples = 0;
+};
+
+// Fills out.normals_bc3, out.albedo_bc1, out.splat and out.cones_bc3 (heights untouched).
+// `node_heights` is the node's own R16 grid with its offset and level step (cones use the exact
+// triangles the renderer draws); it may be the same object as `out`. Thread-safe; deterministic.
+Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset,
+                           int step_log2, NodeData& out, SurfaceStats* stats);
+
+}  // namespace terrain::cook

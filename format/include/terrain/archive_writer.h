@@ -1,0 +1,56 @@
+// Streaming, deterministic, atomic archive writer.
+// Payloads are appended as they come (never the whole archive in memory); the directory and
+// metadata follow at finish(), then the header is written and the temp file renamed over `path`.
+// A writer destroyed or failed before finish() removes its temp file: any earlier archive at
+// `path` stays untouched.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "terrain/format.h"
+#include "terrain/status.h"
+
+namespace terrain {
+
+struct PayloadOptions {
+  int zstd_level = 9;           // applied to every section
+  bool height_predictor = true;  // false: plain zstd of the R16 grid (for benchmarks)
+};
+
+// Encodes one node's payload (section table + zstd sections) into `out` (replaced).
+// Thread-safe; deterministic for the same inputs and options.
+Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out);
+
+// Decodes `bytes` (one node's stored payload, checksum already verified or not) into `out`.
+// Only the sections in `sections` are written. Safe on any bytes: bounds-checked, never trusts sizes.
+Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, NodeData& out);
+
+class ArchiveWriter {
+ public:
+  ArchiveWriter();
+  ~ArchiveWriter();  // aborts (removes the temp file) unless finish() succeeded
+  ArchiveWriter(const ArchiveWriter&) = delete;
+  ArchiveWriter& operator=(const ArchiveWriter&) = delete;
+
+  // Creates `path`.tmp-<pid> next to `path`.
+  Status open(const std::string& path);
+  // Appends one node. `record` payload fields are ignored and filled in. Nodes may come in any
+  // order (the payload order is the call order: call in a deterministic order for identical
+  // bytes); the directory is sorted by key at finish(). Duplicate keys are an error.
+  Status add_node(const NodeRecord& record, std::span<const uint8_t> payload);
+  // Writes directory, metadata and header, flushes, fsyncs and renames over the final path.
+  Status finish(const WorldInfo& world);
+  // Removes the temp file; the final path is left as it was.
+  void abort();
+
+  uint64_t bytes_written() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace terrain

@@ -1,0 +1,18 @@
+// Lossless codec for one node's 129x129 R16 heights: a hierarchical interpolating predictor
+// (coarse-to-fine midpoints, see format/SPEC.md "Height section") followed by zstd.
+// Exposed for benchmarks and tests; archive payloads use it through encode_node_payload().
+#pragma once
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "terrain/status.h"
+
+namespace terrain {
+
+// Residuals of the predictor, in the SPEC's order and byte layout, before zstd (replaces `out`).
+void heights_to_residuals(std::span<const uint16_t> heights129, std::vector<uint8_t>& out);
+// Inverse of heights_to_residuals. `residuals` must be exactly 2 * 129 * 129 bytes.
+Status residuals_to_heights(std::span<const uint8_t> residuals, std::span<uint16_t> heights129);
+
+}  // namespace terrain

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Configures and builds one flavour into build/<flavour>: release (default), asan, tsan.
+# Usage: scripts/build.sh [release|asan|tsan] [extra cmake args...]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+flavour=${1:-release}
+shift || true
+args=(-G Ninja -DCMAKE_BUILD_TYPE=Release)
+case "$flavour" in
+  release) ;;
+  asan) args=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DTERRAIN_SANITIZE=address,undefined"
+              -DTERRAIN_BUILD_BENCHMARKS=OFF) ;;
+  tsan) args=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRAIN_SANITIZE=thread -DTERRAIN_BUILD_VIEWER=OFF
+              -DTERRAIN_BUILD_BENCHMARKS=OFF) ;;
+  *) echo "build.sh: unknown flavour '$flavour' (release, asan, tsan)" >&2; exit 2 ;;
+esac
+dir="$root/build/$flavour"
+cmake -S "$root" -B "$dir" "${args[@]}" "$@" >/dev/null
+cmake --build "$dir" -j "$(nproc)"
+echo "build.sh: $flavour build in $dir (binaries in $dir/bin)"
