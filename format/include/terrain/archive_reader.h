@@ -26,6 +26,9 @@ class ArchiveReader {
   ArchiveReader& operator=(ArchiveReader&&) noexcept;
 
   Status open(const std::string& path);
+  // Opens an archive held in memory (the bytes are copied; used by the fuzzer and tests).
+  // Same checks as open().
+  Status open_memory(std::span<const uint8_t> bytes);
   bool is_open() const;
 
   const WorldInfo& world() const;

@@ -15,4 +15,12 @@ void heights_to_residuals(std::span<const uint16_t> heights129, std::vector<uint
 // Inverse of heights_to_residuals. `residuals` must be exactly 2 * 129 * 129 bytes.
 Status residuals_to_heights(std::span<const uint8_t> residuals, std::span<uint16_t> heights129);
 
+// Common power-of-two factor: the largest t (0..15) such that every sample is a multiple of 2^t
+// (15 for an all-zero grid). Integer-metre sources quantized at a fine step leave several low bits
+// always zero; the payload then codes heights >> t and shifts back (SPEC "height_shift").
+int heights_common_shift(std::span<const uint16_t> heights129);
+// The same on heights >> shift; decoding shifts left by `shift`. Exact when shift <= heights_common_shift.
+void heights_to_residuals(std::span<const uint16_t> heights129, int shift, std::vector<uint8_t>& out);
+Status residuals_to_heights(std::span<const uint8_t> residuals, int shift, std::span<uint16_t> heights129);
+
 }  // namespace terrain

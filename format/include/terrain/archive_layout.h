@@ -1,0 +1,113 @@
+// Archive format v1: byte offsets and limits of every fixed structure (format/SPEC.md tables).
+// Names follow the SPEC's field names. Exposed so tests and independent tools can address fields
+// directly (e.g. to corrupt one on purpose); normal users go through ArchiveReader/ArchiveWriter.
+#pragma once
+#include <array>
+#include <cstdint>
+
+namespace terrain::layout {
+
+// ---- File header (SPEC "Header"): 128 bytes at offset 0 -----------------------------------------
+inline constexpr std::array<uint8_t, 8> kMagic = {'T', 'E', 'R', 'R', 'A', 'I', 'N', 0x1A};
+inline constexpr uint32_t kFormatVersion = 1;
+inline constexpr uint32_t kHeaderSize = 128;
+namespace header {
+inline constexpr uint32_t magic = 0;             // 8 bytes
+inline constexpr uint32_t format_version = 8;    // u32
+inline constexpr uint32_t header_size = 12;      // u32
+inline constexpr uint32_t header_flags = 16;     // u32, reserved (0)
+inline constexpr uint32_t node_count = 20;       // u32
+inline constexpr uint32_t file_size = 24;        // u64
+inline constexpr uint32_t payload_offset = 32;   // u64
+inline constexpr uint32_t payload_size = 40;     // u64
+inline constexpr uint32_t directory_offset = 48; // u64
+inline constexpr uint32_t directory_size = 56;   // u64
+inline constexpr uint32_t metadata_offset = 64;  // u64
+inline constexpr uint32_t metadata_size = 72;    // u64
+inline constexpr uint32_t directory_crc32 = 80;  // u32
+inline constexpr uint32_t metadata_crc32 = 84;   // u32
+inline constexpr uint32_t reserved = 88;         // 36 bytes, reserved (0)
+inline constexpr uint32_t header_crc32 = 124;    // u32, CRC-32 of bytes 0..123
+}  // namespace header
+
+// ---- Directory entry (SPEC "Directory"): 48 bytes per node -------------------------------------
+inline constexpr uint32_t kEntrySize = 48;
+namespace entry {
+inline constexpr uint32_t level = 0;              // u8
+inline constexpr uint32_t child_mask = 1;         // u8
+inline constexpr uint32_t flags = 2;              // u8
+inline constexpr uint32_t reserved0 = 3;          // u8, reserved (0)
+inline constexpr uint32_t x = 4;                  // u32
+inline constexpr uint32_t y = 8;                  // u32
+inline constexpr uint32_t height_offset = 12;     // i32
+inline constexpr uint32_t min_height = 16;        // i32
+inline constexpr uint32_t max_height = 20;        // i32
+inline constexpr uint32_t geometric_error_m = 24; // f32
+inline constexpr uint32_t payload_crc32 = 28;     // u32
+inline constexpr uint32_t payload_offset = 32;    // u64
+inline constexpr uint32_t payload_size = 40;      // u32
+inline constexpr uint32_t reserved1 = 44;         // u32, reserved (0)
+}  // namespace entry
+
+// ---- Metadata (SPEC "Metadata"): 168-byte fixed part, then variable data ------------------------
+inline constexpr uint32_t kMetadataFixedSize = 168;
+inline constexpr uint32_t kMaterialRecordSize = 52;
+inline constexpr uint32_t kMaterialNameBytes = 32;  // NUL-padded, at most 31 bytes of name
+namespace metadata {
+inline constexpr uint32_t level_count = 0;          // u32 (6)
+inline constexpr uint32_t height_samples = 4;       // u32 (129)
+inline constexpr uint32_t level0_node_size_m = 8;   // f64 (64.0)
+inline constexpr uint32_t height_unit_log2 = 16;    // i32 (-10)
+inline constexpr uint32_t roots_x = 20;             // u32
+inline constexpr uint32_t roots_y = 24;             // u32
+inline constexpr uint32_t step_log2 = 28;           // u8[6]
+inline constexpr uint32_t reserved0 = 34;           // u16, reserved (0)
+inline constexpr uint32_t reserved1 = 36;           // u32, reserved (0)
+inline constexpr uint32_t origin_x_m = 40;          // f64
+inline constexpr uint32_t origin_y_m = 48;          // f64
+inline constexpr uint32_t extent_min_x_m = 56;      // f64
+inline constexpr uint32_t extent_min_y_m = 64;      // f64
+inline constexpr uint32_t extent_max_x_m = 72;      // f64
+inline constexpr uint32_t extent_max_y_m = 80;      // f64
+inline constexpr uint32_t projection_kind = 88;     // u8
+inline constexpr uint32_t reserved2 = 89;           // u8[3], reserved (0)
+inline constexpr uint32_t epsg = 92;                // i32
+inline constexpr uint32_t semi_major_m = 96;        // f64
+inline constexpr uint32_t inverse_flattening = 104; // f64
+inline constexpr uint32_t lat0_deg = 112;           // f64
+inline constexpr uint32_t lon0_deg = 120;           // f64
+inline constexpr uint32_t scale_k0 = 128;           // f64
+inline constexpr uint32_t false_easting_m = 136;    // f64
+inline constexpr uint32_t false_northing_m = 144;   // f64
+inline constexpr uint32_t crs_name_size = 152;      // u32
+inline constexpr uint32_t palette_count = 156;      // u32
+inline constexpr uint32_t cook_info_size = 160;     // u32
+inline constexpr uint32_t reserved3 = 164;          // u32, reserved (0)
+}  // namespace metadata
+
+// ---- Node payload (SPEC "Payload"): section table, then section data ---------------------------
+inline constexpr uint32_t kSectionCount = 5;
+inline constexpr uint32_t kPayloadTableEntrySize = 12;
+inline constexpr uint32_t kPayloadHeaderSize = 4 + kSectionCount * kPayloadTableEntrySize;  // 64
+enum class SectionId : uint8_t { heights = 0, normals = 1, albedo = 2, splat = 3, cones = 4 };
+enum class Codec : uint8_t {
+  stored = 0,             // raw bytes
+  zstd = 1,               // one zstd frame of the raw bytes
+  height_predictor = 2,   // one zstd frame of the height residual planes (heights only)
+};
+// Raw (decoded) size of each section, indexed by SectionId.
+inline constexpr std::array<uint32_t, kSectionCount> kSectionRawSize = {
+    2 * 129 * 129, 33 * 33 * 16, 33 * 33 * 8, 65 * 65, 2 * 2 * 16};
+inline constexpr std::array<const char*, kSectionCount> kSectionName = {"heights", "normals", "albedo",
+                                                                        "splat", "cones"};
+
+// ---- Reader limits (SPEC "Limits") --------------------------------------------------------------
+inline constexpr uint32_t kMaxPayloadSize = 1u << 20;      // bytes per node payload
+inline constexpr uint32_t kMaxNodeCount = 1u << 24;
+inline constexpr uint32_t kMaxRoots = 1u << 16;            // per axis
+inline constexpr uint32_t kMaxCrsNameSize = 1024;
+inline constexpr uint32_t kMaxPaletteCount = 256;
+inline constexpr uint32_t kMaxCookInfoSize = 16u << 20;
+inline constexpr uint32_t kMaxStepLog2 = 14;
+
+}  // namespace terrain::layout

@@ -1,0 +1,268 @@
+// Memory-mapped reader. open() checks header, metadata and directory before anything else is
+// believed; payload bytes are checked (CRC-32, then the section table) on every decode.
+#include "terrain/archive_reader.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "bytes.h"
+#include "layout.h"
+#include "payload.h"
+#include "terrain/archive_writer.h"
+#include "terrain/bc_decode.h"
+
+namespace terrain {
+
+struct ArchiveReader::Impl {
+  const uint8_t* map = nullptr;  // mmap'ed file, or owned.data()
+  size_t size = 0;
+  bool mapped = false;
+  std::vector<uint8_t> owned;
+  detail::Header header;
+  WorldInfo world;
+  std::vector<NodeRecord> nodes;
+  std::array<uint32_t, kLevelCount> per_level{};
+  std::array<size_t, kLevelCount + 1> level_begin{};
+
+  ~Impl() {
+    if (mapped && map) ::munmap(const_cast<uint8_t*>(map), size);
+  }
+
+  Status parse() {
+    const std::span<const uint8_t> file(map, size);
+    if (Status s = detail::decode_header(file, header); !s.ok()) return s;
+    const auto metadata = file.subspan(header.metadata_offset, header.metadata_size);
+    if (detail::crc32_of(metadata) != header.metadata_crc32)
+      return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
+                                                           std::to_string(header.metadata_offset) + ")");
+    if (Status s = detail::decode_metadata(metadata, world); !s.ok()) return s;
+    const auto directory = file.subspan(header.directory_offset, header.directory_size);
+    if (detail::crc32_of(directory) != header.directory_crc32)
+      return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +
+                                                            std::to_string(header.directory_offset) + ")");
+    if (Status s = detail::decode_directory(directory, header.node_count, world, header, nodes); !s.ok()) return s;
+    per_level.fill(0);
+    for (const NodeRecord& r : nodes) ++per_level[r.key.level];
+    level_begin[0] = 0;
+    for (int l = 0; l < kLevelCount; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
+    return Status::success();
+  }
+};
+
+ArchiveReader::ArchiveReader() = default;
+ArchiveReader::~ArchiveReader() = default;
+ArchiveReader::ArchiveReader(ArchiveReader&&) noexcept = default;
+ArchiveReader& ArchiveReader::operator=(ArchiveReader&&) noexcept = default;
+
+Status ArchiveReader::open(const std::string& path) {
+  impl_.reset();
+  auto impl = std::make_unique<Impl>();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::failure(Error::io_open, path + ": cannot open: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    const int e = errno;
+    ::close(fd);
+    return Status::failure(Error::io_read, path + ": cannot stat: " + std::strerror(e));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status::failure(Error::io_open, path + ": not a regular file");
+  }
+  impl->size = size_t(st.st_size);
+  if (impl->size == 0) {
+    ::close(fd);
+    return Status::failure(Error::truncated, path + ": file is empty");
+  }
+  void* m = ::mmap(nullptr, impl->size, PROT_READ, MAP_PRIVATE, fd, 0);
+  const int e = errno;
+  ::close(fd);
+  if (m == MAP_FAILED) return Status::failure(Error::io_read, path + ": mmap failed: " + std::strerror(e));
+  impl->map = static_cast<const uint8_t*>(m);
+  impl->mapped = true;
+  if (Status s = impl->parse(); !s.ok()) {
+    s.message = path + ": " + s.message;
+    return s;
+  }
+  impl_ = std::move(impl);
+  return Status::success();
+}
+
+Status ArchiveReader::open_memory(std::span<const uint8_t> bytes) {
+  impl_.reset();
+  auto impl = std::make_unique<Impl>();
+  impl->owned.assign(bytes.begin(), bytes.end());
+  impl->map = impl->owned.data();
+  impl->size = impl->owned.size();
+  if (impl->size == 0) return Status::failure(Error::truncated, "archive is empty");
+  if (Status s = impl->parse(); !s.ok()) return s;
+  impl_ = std::move(impl);
+  return Status::success();
+}
+
+bool ArchiveReader::is_open() const { return impl_ != nullptr; }
+
+const WorldInfo& ArchiveReader::world() const {
+  static const WorldInfo empty;
+  return impl_ ? impl_->world : empty;
+}
+uint32_t ArchiveReader::format_version() const { return impl_ ? impl_->header.format_version : 0; }
+uint64_t ArchiveReader::file_size() const { return impl_ ? impl_->size : 0; }
+
+std::span<const NodeRecord> ArchiveReader::nodes() const {
+  if (!impl_) return {};
+  return impl_->nodes;
+}
+
+int64_t ArchiveReader::find(const NodeKey& key) const {
+  if (!impl_ || key.level >= uint32_t(kLevelCount)) return -1;
+  const auto begin = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level]);
+  const auto end = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level + 1]);
+  const auto it = std::lower_bound(begin, end, key, [](const NodeRecord& r, const NodeKey& k) { return key_less(r.key, k); });
+  if (it == end || !(it->key == key)) return -1;
+  return it - impl_->nodes.begin();
+}
+
+std::array<uint32_t, kLevelCount> ArchiveReader::nodes_per_level() const {
+  return impl_ ? impl_->per_level : std::array<uint32_t, kLevelCount>{};
+}
+
+std::span<const uint8_t> ArchiveReader::payload(size_t index) const {
+  if (!impl_ || index >= impl_->nodes.size()) return {};
+  const NodeRecord& r = impl_->nodes[index];
+  return {impl_->map + r.payload_offset, r.payload_size};
+}
+
+Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (index >= impl_->nodes.size())
+    return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
+                                                      std::to_string(impl_->nodes.size()) + " nodes)");
+  const NodeRecord& r = impl_->nodes[index];
+  const auto bytes = payload(index);
+  const std::string where = "node " + detail::node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
+  if (detail::crc32_of(bytes) != r.payload_crc32) return Status::failure(Error::payload_checksum, where + "payload CRC-32 mismatch");
+  if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
+    s.message = where + s.message;
+    return s;
+  }
+  return Status::success();
+}
+
+Status ArchiveReader::section_bytes(SectionBytes& out) const {
+  out = {};
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  for (size_t i = 0; i < impl_->nodes.size(); ++i) {
+    detail::PayloadTable table;
+    if (Status s = detail::parse_payload_table(payload(i), table); !s.ok()) {
+      s.message = "node " + detail::node_name(impl_->nodes[i].key) + ": " + s.message;
+      return s;
+    }
+    for (size_t s = 0; s < layout::kSectionCount; ++s) {
+      out.stored[s] += table[s].stored_size;
+      out.raw[s] += table[s].raw_size;
+    }
+  }
+  return Status::success();
+}
+
+Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void* user) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  const auto& nodes = impl_->nodes;
+  const WorldInfo& world = impl_->world;
+  // Decoded heights (units) and hole masks of one node; neighbours are decoded on demand.
+  struct Grid {
+    std::vector<int32_t> units = std::vector<int32_t>(size_t(kHeightCount));
+    std::vector<uint8_t> holes = std::vector<uint8_t>(size_t(kHeightCount));
+  };
+  auto node_data = std::make_unique<NodeData>();
+  auto load = [&](size_t index, Grid& g, unsigned sections) -> Status {
+    NodeData& d = *node_data;
+    if (Status s = decode_node(index, d, sections); !s.ok()) return s;
+    const NodeRecord& r = nodes[index];
+    const int step = world.step_log2[r.key.level];
+    for (size_t k = 0; k < size_t(kHeightCount); ++k) g.units[k] = vertex_units(r.height_offset, d.heights[k], step);
+    decode_hole_mask(d, g.holes.data());
+    return Status::success();
+  };
+  Grid self, other;
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    if (progress) progress(double(i) / double(nodes.size()), user);
+    const NodeRecord& r = nodes[i];
+    const std::string where = "node " + detail::node_name(r.key) + ": ";
+    if (Status s = load(i, self, kSectionAll); !s.ok()) return s;
+    // Section contents the directory promises.
+    int holes = 0;
+    for (size_t k = 0; k < size_t(kHeightCount); ++k) {
+      if (self.holes[k]) {
+        ++holes;
+        continue;
+      }
+      if (self.units[k] < r.min_height || self.units[k] > r.max_height)
+        return Status::failure(Error::payload_invalid, where + "vertex (" + std::to_string(k % kHeightSamples) + ", " +
+                                                           std::to_string(k / kHeightSamples) + ") = " + std::to_string(self.units[k]) +
+                                                           " units is outside [min_height, max_height] = [" +
+                                                           std::to_string(r.min_height) + ", " + std::to_string(r.max_height) + "]");
+    }
+    if ((holes > 0) != bool(r.flags & kNodeFlagHasHoles))
+      return Status::failure(Error::payload_invalid, where + "has_holes flag is " + ((r.flags & kNodeFlagHasHoles) ? "set" : "clear") +
+                                                         " but the albedo alpha has " + std::to_string(holes) + " hole vertices");
+    if (!world.palette.empty())
+      for (size_t k = 0; k < node_data->splat.size(); ++k)
+        if (node_data->splat[k] >= world.palette.size())
+          return Status::failure(Error::payload_invalid, where + "splat sample " + std::to_string(k) + " uses material " +
+                                                             std::to_string(node_data->splat[k]) + " but the palette has " +
+                                                             std::to_string(world.palette.size()));
+    // Shared vertices must carry one canonical value (format.h): west and south neighbours, parent.
+    auto compare = [&](const NodeKey& key, auto&& map_vertex, const char* what) -> Status {
+      const int64_t j = find(key);
+      if (j < 0) return Status::success();
+      if (Status s = load(size_t(j), other, kSectionHeights | kSectionAlbedo); !s.ok()) return s;
+      for (int v = 0; v < kHeightSamples; ++v)
+        for (int u = 0; u < kHeightSamples; ++u) {
+          int ou = 0, ov = 0;
+          if (!map_vertex(u, v, ou, ov)) continue;
+          const size_t a = size_t(v * kHeightSamples + u), b = size_t(ov * kHeightSamples + ou);
+          if (self.holes[a] || other.holes[b]) continue;
+          if (self.units[a] != other.units[b])
+            return Status::failure(Error::payload_invalid, where + "vertex (" + std::to_string(u) + ", " + std::to_string(v) + ") = " +
+                                                               std::to_string(self.units[a]) + " units but " + what + " " +
+                                                               detail::node_name(key) + " stores " + std::to_string(other.units[b]) +
+                                                               " at the same point");
+        }
+      return Status::success();
+    };
+    if (r.key.x > 0)
+      if (Status s = compare({r.key.level, r.key.x - 1, r.key.y},
+                             [](int u, int v, int& ou, int& ov) { ou = kQuadsPerSide; ov = v; return u == 0; }, "west neighbour");
+          !s.ok())
+        return s;
+    if (r.key.y > 0)
+      if (Status s = compare({r.key.level, r.key.x, r.key.y - 1},
+                             [](int u, int v, int& ou, int& ov) { ou = u; ov = kQuadsPerSide; return v == 0; }, "south neighbour");
+          !s.ok())
+        return s;
+    if (r.key.level < uint32_t(kRootLevel)) {
+      const int cx = int(r.key.x & 1) * 64, cy = int(r.key.y & 1) * 64;
+      if (Status s = compare(parent_of(r.key),
+                             [cx, cy](int u, int v, int& ou, int& ov) {
+                               ou = cx + u / 2;
+                               ov = cy + v / 2;
+                               return (u % 2) == 0 && (v % 2) == 0;
+                             },
+                             "parent");
+          !s.ok())
+        return s;
+    }
+  }
+  if (progress) progress(1.0, user);
+  return Status::success();
+}
+
+}  // namespace terrain

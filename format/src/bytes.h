@@ -1,0 +1,37 @@
+// Little-endian loads and stores (the archive is little-endian everywhere, SPEC "Conventions").
+#pragma once
+#include <bit>
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <vector>
+
+namespace terrain::detail {
+
+inline uint16_t load_u16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
+inline uint32_t load_u32(const uint8_t* p) {
+  return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
+}
+inline uint64_t load_u64(const uint8_t* p) { return uint64_t(load_u32(p)) | (uint64_t(load_u32(p + 4)) << 32); }
+inline int32_t load_i32(const uint8_t* p) { return int32_t(load_u32(p)); }
+inline float load_f32(const uint8_t* p) { return std::bit_cast<float>(load_u32(p)); }
+inline double load_f64(const uint8_t* p) { return std::bit_cast<double>(load_u64(p)); }
+
+inline void store_u16(uint8_t* p, uint16_t v) {
+  p[0] = uint8_t(v);
+  p[1] = uint8_t(v >> 8);
+}
+inline void store_u32(uint8_t* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+inline void store_u64(uint8_t* p, uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+inline void store_i32(uint8_t* p, int32_t v) { store_u32(p, uint32_t(v)); }
+inline void store_f32(uint8_t* p, float v) { store_u32(p, std::bit_cast<uint32_t>(v)); }
+inline void store_f64(uint8_t* p, double v) { store_u64(p, std::bit_cast<uint64_t>(v)); }
+
+// CRC-32 (ISO-HDLC, zlib's crc32) of a byte range of any length.
+uint32_t crc32_of(std::span<const uint8_t> bytes);
+
+}  // namespace terrain::detail

@@ -1,0 +1,374 @@
+#include "layout.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "bytes.h"
+
+namespace terrain::detail {
+namespace {
+
+Status fail(Error e, std::string msg) { return Status::failure(e, std::move(msg)); }
+bool all_zero(const uint8_t* p, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (p[i]) return false;
+  return true;
+}
+bool finite(double v) { return std::isfinite(v); }
+
+}  // namespace
+
+std::string node_name(const NodeKey& k) {
+  return std::to_string(k.level) + "/" + std::to_string(k.x) + "/" + std::to_string(k.y);
+}
+
+// ---- header ---------------------------------------------------------------------------------------
+void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]) {
+  namespace f = layout::header;
+  std::memset(out, 0, layout::kHeaderSize);
+  std::memcpy(out + f::magic, layout::kMagic.data(), layout::kMagic.size());
+  store_u32(out + f::format_version, h.format_version);
+  store_u32(out + f::header_size, layout::kHeaderSize);
+  store_u32(out + f::header_flags, 0);
+  store_u32(out + f::node_count, h.node_count);
+  store_u64(out + f::file_size, h.file_size);
+  store_u64(out + f::payload_offset, h.payload_offset);
+  store_u64(out + f::payload_size, h.payload_size);
+  store_u64(out + f::directory_offset, h.directory_offset);
+  store_u64(out + f::directory_size, h.directory_size);
+  store_u64(out + f::metadata_offset, h.metadata_offset);
+  store_u64(out + f::metadata_size, h.metadata_size);
+  store_u32(out + f::directory_crc32, h.directory_crc32);
+  store_u32(out + f::metadata_crc32, h.metadata_crc32);
+  store_u32(out + f::header_crc32, crc32_of({out, f::header_crc32}));
+}
+
+Status decode_header(std::span<const uint8_t> file, Header& h) {
+  namespace f = layout::header;
+  const uint8_t* p = file.data();
+  if (file.size() < layout::kMagic.size() || std::memcmp(p, layout::kMagic.data(), layout::kMagic.size()) != 0)
+    return fail(Error::bad_magic, "not a terrain archive (the first 8 bytes are not \"TERRAIN\\x1A\")");
+  if (file.size() < 12) return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " bytes)");
+  h.format_version = load_u32(p + f::format_version);
+  if (h.format_version != layout::kFormatVersion)
+    return fail(Error::unsupported_version, "archive format version " + std::to_string(h.format_version) +
+                                                ", this reader supports version " + std::to_string(layout::kFormatVersion));
+  if (file.size() < layout::kHeaderSize)
+    return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " of 128 bytes)");
+  const uint32_t stored_crc = load_u32(p + f::header_crc32);
+  const uint32_t crc = crc32_of({p, f::header_crc32});
+  if (stored_crc != crc) return fail(Error::header_checksum, "header CRC-32 mismatch");
+  if (load_u32(p + f::header_size) != layout::kHeaderSize)
+    return fail(Error::header_invalid, "header_size is " + std::to_string(load_u32(p + f::header_size)) + ", expected 128");
+  if (load_u32(p + f::header_flags) != 0) return fail(Error::header_invalid, "reserved header_flags bits are set");
+  if (!all_zero(p + f::reserved, f::header_crc32 - f::reserved))
+    return fail(Error::header_invalid, "reserved header bytes 88..123 are not zero");
+  h.node_count = load_u32(p + f::node_count);
+  h.file_size = load_u64(p + f::file_size);
+  h.payload_offset = load_u64(p + f::payload_offset);
+  h.payload_size = load_u64(p + f::payload_size);
+  h.directory_offset = load_u64(p + f::directory_offset);
+  h.directory_size = load_u64(p + f::directory_size);
+  h.metadata_offset = load_u64(p + f::metadata_offset);
+  h.metadata_size = load_u64(p + f::metadata_size);
+  h.directory_crc32 = load_u32(p + f::directory_crc32);
+  h.metadata_crc32 = load_u32(p + f::metadata_crc32);
+
+  if (h.file_size > file.size())
+    return fail(Error::truncated, "file is " + std::to_string(file.size()) + " bytes, the header says " +
+                                      std::to_string(h.file_size));
+  if (h.file_size < file.size())
+    return fail(Error::header_invalid, std::to_string(file.size() - h.file_size) +
+                                           " trailing bytes after the end the header declares (" +
+                                           std::to_string(h.file_size) + ")");
+  if (h.node_count > layout::kMaxNodeCount)
+    return fail(Error::header_invalid, "node_count " + std::to_string(h.node_count) + " exceeds the limit " +
+                                           std::to_string(layout::kMaxNodeCount));
+  // Sections are contiguous: header | payloads | directory | metadata (sizes are bounded by the
+  // file size before any sum, so nothing overflows).
+  auto section_bad = [&](uint64_t off, uint64_t size) { return off > h.file_size || size > h.file_size - off; };
+  if (h.payload_offset != layout::kHeaderSize || section_bad(h.payload_offset, h.payload_size))
+    return fail(Error::section_out_of_bounds, "payload section [" + std::to_string(h.payload_offset) + ", +" +
+                                                  std::to_string(h.payload_size) + ") is not inside the file after the header");
+  if (h.directory_offset != h.payload_offset + h.payload_size || section_bad(h.directory_offset, h.directory_size))
+    return fail(Error::section_out_of_bounds, "directory section at " + std::to_string(h.directory_offset) + " size " +
+                                                  std::to_string(h.directory_size) + " does not follow the payloads inside the file");
+  if (h.directory_size != uint64_t(h.node_count) * layout::kEntrySize)
+    return fail(Error::section_out_of_bounds, "directory_size " + std::to_string(h.directory_size) + " is not node_count (" +
+                                                  std::to_string(h.node_count) + ") x 48");
+  if (h.metadata_offset != h.directory_offset + h.directory_size || section_bad(h.metadata_offset, h.metadata_size) ||
+      h.metadata_offset + h.metadata_size != h.file_size)
+    return fail(Error::section_out_of_bounds, "metadata section at " + std::to_string(h.metadata_offset) + " size " +
+                                                  std::to_string(h.metadata_size) + " does not end the file after the directory");
+  return Status::success();
+}
+
+// ---- metadata --------------------------------------------------------------------------------------
+Status validate_world(const WorldInfo& w) {
+  auto bad = [](std::string msg) { return fail(Error::metadata_invalid, std::move(msg)); };
+  const FrameCrs& c = w.crs;
+  if (c.kind != ProjectionKind::local && c.kind != ProjectionKind::transverse_mercator)
+    return bad("unknown projection_kind " + std::to_string(int(c.kind)) + " (0 = local, 1 = transverse_mercator)");
+  for (double v : {c.semi_major_m, c.inverse_flattening, c.lat0_deg, c.lon0_deg, c.scale_k0, c.false_easting_m,
+                   c.false_northing_m, w.origin_x_m, w.origin_y_m, w.extent_min_x_m, w.extent_min_y_m, w.extent_max_x_m,
+                   w.extent_max_y_m})
+    if (!finite(v)) return bad("a CRS, origin or extent value is not finite");
+  if (c.epsg < 0) return bad("negative EPSG code " + std::to_string(c.epsg));
+  if (c.kind == ProjectionKind::transverse_mercator) {
+    if (!(c.semi_major_m > 0)) return bad("transverse_mercator needs semi_major_m > 0");
+    if (!(c.inverse_flattening == 0 || c.inverse_flattening > 1)) return bad("inverse_flattening must be 0 (sphere) or > 1");
+    if (!(c.scale_k0 > 0)) return bad("scale_k0 must be > 0");
+    if (!(std::fabs(c.lat0_deg) <= 90 && std::fabs(c.lon0_deg) <= 180)) return bad("lat0/lon0 out of range");
+  }
+  if (c.name.size() > layout::kMaxCrsNameSize) return bad("CRS name longer than 1024 bytes");
+  if (w.roots_x < 1 || w.roots_y < 1 || w.roots_x > layout::kMaxRoots || w.roots_y > layout::kMaxRoots)
+    return bad("root grid " + std::to_string(w.roots_x) + " x " + std::to_string(w.roots_y) + " is outside 1..65536");
+  if (w.extent_min_x_m > w.extent_max_x_m || w.extent_min_y_m > w.extent_max_y_m) return bad("extent min > max");
+  for (int l = 0; l < kLevelCount; ++l)
+    if (w.step_log2[l] > layout::kMaxStepLog2)
+      return bad("step_log2[" + std::to_string(l) + "] = " + std::to_string(w.step_log2[l]) + " exceeds 14");
+  if (w.palette.size() > layout::kMaxPaletteCount) return bad("palette has more than 256 materials");
+  for (size_t i = 0; i < w.palette.size(); ++i) {
+    const Material& m = w.palette[i];
+    if (m.name.size() >= layout::kMaterialNameBytes || m.name.find('\0') != std::string::npos)
+      return bad("material " + std::to_string(i) + " name is longer than 31 bytes or contains NUL");
+    if (m.flags != 0) return bad("material " + std::to_string(i) + " has reserved flags set");
+    for (float v : {m.roughness, m.detail_scale_m, m.detail_strength, m.height_blend})
+      if (!std::isfinite(v)) return bad("material " + std::to_string(i) + " has a non-finite parameter");
+  }
+  if (w.cook_info_json.size() > layout::kMaxCookInfoSize) return bad("cook_info larger than 16 MiB");
+  if (!w.cook_info_json.empty()) {
+    const auto j = nlohmann::json::parse(w.cook_info_json, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.is_object()) return bad("cook_info is not a JSON object");
+  }
+  return Status::success();
+}
+
+void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
+  namespace f = layout::metadata;
+  const size_t size = layout::kMetadataFixedSize + w.crs.name.size() + w.palette.size() * layout::kMaterialRecordSize +
+                      w.cook_info_json.size();
+  out.assign(size, 0);
+  uint8_t* p = out.data();
+  store_u32(p + f::level_count, kLevelCount);
+  store_u32(p + f::height_samples, kHeightSamples);
+  store_f64(p + f::level0_node_size_m, kLevel0NodeSizeM);
+  store_i32(p + f::height_unit_log2, kHeightUnitLog2);
+  store_u32(p + f::roots_x, w.roots_x);
+  store_u32(p + f::roots_y, w.roots_y);
+  for (int l = 0; l < kLevelCount; ++l) p[f::step_log2 + l] = w.step_log2[l];
+  store_f64(p + f::origin_x_m, w.origin_x_m);
+  store_f64(p + f::origin_y_m, w.origin_y_m);
+  store_f64(p + f::extent_min_x_m, w.extent_min_x_m);
+  store_f64(p + f::extent_min_y_m, w.extent_min_y_m);
+  store_f64(p + f::extent_max_x_m, w.extent_max_x_m);
+  store_f64(p + f::extent_max_y_m, w.extent_max_y_m);
+  p[f::projection_kind] = uint8_t(w.crs.kind);
+  store_i32(p + f::epsg, w.crs.epsg);
+  store_f64(p + f::semi_major_m, w.crs.semi_major_m);
+  store_f64(p + f::inverse_flattening, w.crs.inverse_flattening);
+  store_f64(p + f::lat0_deg, w.crs.lat0_deg);
+  store_f64(p + f::lon0_deg, w.crs.lon0_deg);
+  store_f64(p + f::scale_k0, w.crs.scale_k0);
+  store_f64(p + f::false_easting_m, w.crs.false_easting_m);
+  store_f64(p + f::false_northing_m, w.crs.false_northing_m);
+  store_u32(p + f::crs_name_size, uint32_t(w.crs.name.size()));
+  store_u32(p + f::palette_count, uint32_t(w.palette.size()));
+  store_u32(p + f::cook_info_size, uint32_t(w.cook_info_json.size()));
+  size_t at = layout::kMetadataFixedSize;
+  std::memcpy(p + at, w.crs.name.data(), w.crs.name.size());
+  at += w.crs.name.size();
+  for (const Material& m : w.palette) {
+    uint8_t* r = p + at;
+    std::memcpy(r, m.name.data(), std::min<size_t>(m.name.size(), layout::kMaterialNameBytes - 1));
+    r[32] = m.albedo_srgb[0];
+    r[33] = m.albedo_srgb[1];
+    r[34] = m.albedo_srgb[2];
+    r[35] = m.flags;
+    store_f32(r + 36, m.roughness);
+    store_f32(r + 40, m.detail_scale_m);
+    store_f32(r + 44, m.detail_strength);
+    store_f32(r + 48, m.height_blend);
+    at += layout::kMaterialRecordSize;
+  }
+  std::memcpy(p + at, w.cook_info_json.data(), w.cook_info_json.size());
+}
+
+Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
+  namespace f = layout::metadata;
+  auto bad = [](std::string msg) { return fail(Error::metadata_invalid, std::move(msg)); };
+  if (bytes.size() < layout::kMetadataFixedSize)
+    return bad("metadata is " + std::to_string(bytes.size()) + " bytes, shorter than its 168-byte fixed part");
+  const uint8_t* p = bytes.data();
+  if (load_u32(p + f::level_count) != kLevelCount) return bad("level_count is not 6");
+  if (load_u32(p + f::height_samples) != kHeightSamples) return bad("height_samples is not 129");
+  if (load_f64(p + f::level0_node_size_m) != kLevel0NodeSizeM) return bad("level0_node_size_m is not 64");
+  if (load_i32(p + f::height_unit_log2) != kHeightUnitLog2) return bad("height_unit_log2 is not -10");
+  if (load_u16(p + f::reserved0) != 0 || load_u32(p + f::reserved1) != 0 || !all_zero(p + f::reserved2, 3) ||
+      load_u32(p + f::reserved3) != 0)
+    return bad("reserved metadata bytes are not zero");
+  w = WorldInfo{};
+  w.roots_x = load_u32(p + f::roots_x);
+  w.roots_y = load_u32(p + f::roots_y);
+  for (int l = 0; l < kLevelCount; ++l) w.step_log2[l] = p[f::step_log2 + l];
+  w.origin_x_m = load_f64(p + f::origin_x_m);
+  w.origin_y_m = load_f64(p + f::origin_y_m);
+  w.extent_min_x_m = load_f64(p + f::extent_min_x_m);
+  w.extent_min_y_m = load_f64(p + f::extent_min_y_m);
+  w.extent_max_x_m = load_f64(p + f::extent_max_x_m);
+  w.extent_max_y_m = load_f64(p + f::extent_max_y_m);
+  w.crs.kind = ProjectionKind(p[f::projection_kind]);
+  w.crs.epsg = load_i32(p + f::epsg);
+  w.crs.semi_major_m = load_f64(p + f::semi_major_m);
+  w.crs.inverse_flattening = load_f64(p + f::inverse_flattening);
+  w.crs.lat0_deg = load_f64(p + f::lat0_deg);
+  w.crs.lon0_deg = load_f64(p + f::lon0_deg);
+  w.crs.scale_k0 = load_f64(p + f::scale_k0);
+  w.crs.false_easting_m = load_f64(p + f::false_easting_m);
+  w.crs.false_northing_m = load_f64(p + f::false_northing_m);
+  const uint64_t name_size = load_u32(p + f::crs_name_size);
+  const uint64_t palette_count = load_u32(p + f::palette_count);
+  const uint64_t cook_size = load_u32(p + f::cook_info_size);
+  if (name_size > layout::kMaxCrsNameSize) return bad("crs_name_size " + std::to_string(name_size) + " exceeds 1024");
+  if (palette_count > layout::kMaxPaletteCount) return bad("palette_count " + std::to_string(palette_count) + " exceeds 256");
+  if (cook_size > layout::kMaxCookInfoSize) return bad("cook_info_size exceeds 16 MiB");
+  const uint64_t expected = layout::kMetadataFixedSize + name_size + palette_count * layout::kMaterialRecordSize + cook_size;
+  if (expected != bytes.size())
+    return bad("metadata_size is " + std::to_string(bytes.size()) + " but its fields add up to " + std::to_string(expected));
+  size_t at = layout::kMetadataFixedSize;
+  w.crs.name.assign(reinterpret_cast<const char*>(p + at), name_size);
+  at += name_size;
+  w.palette.resize(palette_count);
+  for (uint64_t i = 0; i < palette_count; ++i) {
+    const uint8_t* r = p + at;
+    Material& m = w.palette[i];
+    const size_t len = size_t(std::find(r, r + layout::kMaterialNameBytes, uint8_t(0)) - r);
+    if (len >= layout::kMaterialNameBytes || !all_zero(r + len, layout::kMaterialNameBytes - len))
+      return bad("material " + std::to_string(i) + " name is not NUL-terminated and zero-padded");
+    m.name.assign(reinterpret_cast<const char*>(r), len);
+    m.albedo_srgb = {r[32], r[33], r[34]};
+    m.flags = r[35];
+    m.roughness = load_f32(r + 36);
+    m.detail_scale_m = load_f32(r + 40);
+    m.detail_strength = load_f32(r + 44);
+    m.height_blend = load_f32(r + 48);
+    at += layout::kMaterialRecordSize;
+  }
+  w.cook_info_json.assign(reinterpret_cast<const char*>(p + at), cook_size);
+  return validate_world(w);
+}
+
+// ---- directory -------------------------------------------------------------------------------------
+void encode_entry(const NodeRecord& r, uint8_t out[layout::kEntrySize]) {
+  namespace f = layout::entry;
+  std::memset(out, 0, layout::kEntrySize);
+  out[f::level] = uint8_t(r.key.level);
+  out[f::child_mask] = r.child_mask;
+  out[f::flags] = r.flags;
+  store_u32(out + f::x, r.key.x);
+  store_u32(out + f::y, r.key.y);
+  store_i32(out + f::height_offset, r.height_offset);
+  store_i32(out + f::min_height, r.min_height);
+  store_i32(out + f::max_height, r.max_height);
+  store_f32(out + f::geometric_error_m, r.geometric_error_m);
+  store_u32(out + f::payload_crc32, r.payload_crc32);
+  store_u64(out + f::payload_offset, r.payload_offset);
+  store_u32(out + f::payload_size, r.payload_size);
+}
+
+Status validate_record(const NodeRecord& r, const WorldInfo* world) {
+  const std::string where = "node " + node_name(r.key) + ": ";
+  auto bad = [&](std::string msg) { return fail(Error::directory_invalid, where + msg); };
+  if (r.key.level >= uint32_t(kLevelCount)) return bad("level must be 0..5");
+  if (world) {
+    const uint64_t nx = uint64_t(world->roots_x) << (kRootLevel - int(r.key.level));
+    const uint64_t ny = uint64_t(world->roots_y) << (kRootLevel - int(r.key.level));
+    if (r.key.x >= nx || r.key.y >= ny)
+      return bad("outside the level's node grid " + std::to_string(nx) + " x " + std::to_string(ny));
+  }
+  if (r.key.level == 0 && r.child_mask != 0) return bad("a level-0 node cannot have children");
+  if (r.child_mask > 0xF) return bad("child_mask uses reserved bits 4..7");
+  if (r.flags & ~kNodeFlagHasHoles) return bad("reserved flag bits are set");
+  for (int32_t v : {r.height_offset, r.min_height, r.max_height})
+    if (v < -kMaxHeightUnits || v > kMaxHeightUnits) return bad("height value " + std::to_string(v) + " outside +-(2^24-1) units");
+  if (r.min_height > r.max_height) return bad("min_height > max_height");
+  if (!std::isfinite(r.geometric_error_m) || r.geometric_error_m < 0) return bad("geometric_error_m is negative or not finite");
+  if (r.payload_size < layout::kPayloadHeaderSize || r.payload_size > layout::kMaxPayloadSize)
+    return fail(Error::payload_out_of_bounds, where + "payload_size " + std::to_string(r.payload_size) + " outside 64..1 MiB");
+  return Status::success();
+}
+
+Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, const WorldInfo& world, const Header& header,
+                        std::vector<NodeRecord>& out) {
+  namespace f = layout::entry;
+  out.clear();
+  if (bytes.size() != uint64_t(node_count) * layout::kEntrySize) return fail(Error::directory_invalid, "directory size mismatch");
+  out.resize(node_count);
+  for (uint32_t n = 0; n < node_count; ++n) {
+    const uint8_t* e = bytes.data() + size_t(n) * layout::kEntrySize;
+    NodeRecord& r = out[n];
+    r.key = {e[f::level], load_u32(e + f::x), load_u32(e + f::y)};
+    r.child_mask = e[f::child_mask];
+    r.flags = e[f::flags];
+    r.height_offset = load_i32(e + f::height_offset);
+    r.min_height = load_i32(e + f::min_height);
+    r.max_height = load_i32(e + f::max_height);
+    r.geometric_error_m = load_f32(e + f::geometric_error_m);
+    r.payload_crc32 = load_u32(e + f::payload_crc32);
+    r.payload_offset = load_u64(e + f::payload_offset);
+    r.payload_size = load_u32(e + f::payload_size);
+    if (e[f::reserved0] != 0 || load_u32(e + f::reserved1) != 0)
+      return fail(Error::directory_invalid, "entry " + std::to_string(n) + " (node " + node_name(r.key) + "): reserved bytes are not zero");
+    if (Status s = validate_record(r, &world); !s.ok()) return s;
+    if (r.payload_offset < header.payload_offset || r.payload_offset - header.payload_offset > header.payload_size ||
+        r.payload_size > header.payload_size - (r.payload_offset - header.payload_offset))
+      return fail(Error::payload_out_of_bounds, "node " + node_name(r.key) + ": payload [" + std::to_string(r.payload_offset) +
+                                                    ", +" + std::to_string(r.payload_size) + ") is outside the payload section");
+  }
+  return validate_directory(out, header.payload_offset, header.payload_size);
+}
+
+Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size) {
+  for (size_t i = 1; i < nodes.size(); ++i)
+    if (!key_less(nodes[i - 1].key, nodes[i].key))
+      return fail(Error::directory_invalid, "entry " + std::to_string(i) + " (node " + node_name(nodes[i].key) +
+                                                ") is not after node " + node_name(nodes[i - 1].key) +
+                                                " (keys must be unique and sorted by level, y, x)");
+  // Payloads tile the payload section exactly: no gaps, no overlaps.
+  std::vector<std::pair<uint64_t, uint32_t>> spans;
+  spans.reserve(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) spans.emplace_back(nodes[i].payload_offset, uint32_t(i));
+  std::sort(spans.begin(), spans.end());
+  uint64_t at = payload_offset;
+  for (const auto& [off, i] : spans) {
+    if (off != at)
+      return fail(Error::payload_out_of_bounds, "node " + node_name(nodes[i].key) + ": payload at " + std::to_string(off) +
+                                                    (off < at ? " overlaps the previous payload" : " leaves a gap") +
+                                                    " (expected offset " + std::to_string(at) + ")");
+    at += nodes[i].payload_size;
+  }
+  if (at != payload_offset + payload_size)
+    return fail(Error::payload_out_of_bounds, "payloads end at " + std::to_string(at) + " but the payload section ends at " +
+                                                  std::to_string(payload_offset + payload_size));
+  auto exists = [&](const NodeKey& k) {
+    return std::binary_search(nodes.begin(), nodes.end(), NodeRecord{.key = k},
+                              [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+  };
+  for (const NodeRecord& r : nodes) {
+    if (r.key.level > 0)
+      for (int c = 0; c < 4; ++c) {
+        const bool has = exists(child_of(r.key, c));
+        if (has != bool(r.child_mask & (1u << c)))
+          return fail(Error::directory_invalid, "node " + node_name(r.key) + ": child_mask bit " + std::to_string(c) +
+                                                    (has ? " is clear but child " : " is set but child ") +
+                                                    node_name(child_of(r.key, c)) + (has ? " exists" : " is absent"));
+      }
+    if (r.key.level < uint32_t(kRootLevel) && !exists(parent_of(r.key)))
+      return fail(Error::directory_invalid, "node " + node_name(r.key) + ": parent " + node_name(parent_of(r.key)) + " is absent");
+  }
+  return Status::success();
+}
+
+}  // namespace terrain::detail

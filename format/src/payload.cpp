@@ -1,0 +1,194 @@
+// Node payloads: a 64-byte section table, then five sections, each stored, zstd, or (heights)
+// the hierarchical predictor's residual planes in zstd.
+#include "payload.h"
+
+#include <cstring>
+#include <string>
+
+#include "bytes.h"
+#include "terrain/archive_writer.h"
+#include "terrain/height_codec.h"
+#include "zstd_context.h"
+
+namespace terrain {
+namespace detail {
+
+Status parse_payload_table(std::span<const uint8_t> payload, PayloadTable& out) {
+  auto bad = [](std::string msg) { return Status::failure(Error::payload_invalid, std::move(msg)); };
+  if (payload.size() < layout::kPayloadHeaderSize)
+    return bad("payload is " + std::to_string(payload.size()) + " bytes, shorter than its 64-byte section table");
+  const uint8_t* p = payload.data();
+  if (p[0] != layout::kSectionCount) return bad("section_count is " + std::to_string(p[0]) + ", expected 5");
+  if (p[1] != 0 || p[2] != 0 || p[3] != 0) return bad("reserved payload header bytes are not zero");
+  uint64_t at = layout::kPayloadHeaderSize;
+  for (uint32_t s = 0; s < layout::kSectionCount; ++s) {
+    const uint8_t* e = p + 4 + s * layout::kPayloadTableEntrySize;
+    const std::string name = layout::kSectionName[s];
+    if (e[0] != s) return bad("section entry " + std::to_string(s) + " has id " + std::to_string(e[0]) + ", expected " + std::to_string(s));
+    const uint8_t codec = e[1];
+    const bool heights = s == uint32_t(layout::SectionId::heights);
+    // Byte 2 is height_shift for the height predictor, reserved otherwise; byte 3 is reserved.
+    const bool has_shift = heights && codec == uint8_t(layout::Codec::height_predictor);
+    if ((!has_shift && e[2] != 0) || e[3] != 0) return bad(name + " section entry has reserved bytes set");
+    if (has_shift && e[2] > 15) return bad("height_shift " + std::to_string(e[2]) + " outside 0..15");
+    if (codec > uint8_t(layout::Codec::height_predictor) || (codec == uint8_t(layout::Codec::height_predictor) && !heights))
+      return bad(name + " section has unknown codec " + std::to_string(codec));
+    PayloadSection& sec = out[s];
+    sec.codec = layout::Codec(codec);
+    sec.height_shift = has_shift ? e[2] : 0;
+    sec.stored_size = load_u32(e + 4);
+    sec.raw_size = load_u32(e + 8);
+    if (sec.raw_size != layout::kSectionRawSize[s])
+      return bad(name + " section raw_size is " + std::to_string(sec.raw_size) + ", expected " + std::to_string(layout::kSectionRawSize[s]));
+    if (sec.codec == layout::Codec::stored && sec.stored_size != sec.raw_size)
+      return bad(name + " section is stored but stored_size != raw_size");
+    if (sec.stored_size == 0) return bad(name + " section is empty");
+    if (sec.stored_size > payload.size() - at)
+      return bad(name + " section (" + std::to_string(sec.stored_size) + " bytes at " + std::to_string(at) + ") runs past the payload end (" +
+                 std::to_string(payload.size()) + ")");
+    sec.data_offset = uint32_t(at);
+    at += sec.stored_size;
+  }
+  if (at != payload.size())
+    return bad(std::to_string(payload.size() - at) + " trailing bytes after the last section");
+  return Status::success();
+}
+
+namespace {
+
+Status compress_section(std::span<const uint8_t> raw, int level, layout::Codec codec_if_compressed, std::vector<uint8_t>& out,
+                        uint8_t* entry) {
+  ZSTD_CCtx* cctx = thread_cctx();
+  if (!cctx) return Status::failure(Error::internal, "cannot create a zstd compression context");
+  const size_t start = out.size();
+  const size_t bound = ZSTD_compressBound(raw.size());
+  out.resize(start + bound);
+  ZSTD_CCtx_reset(cctx, ZSTD_reset_session_and_parameters);
+  ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level);
+  ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 1);
+  ZSTD_CCtx_setParameter(cctx, ZSTD_c_checksumFlag, 0);
+  const size_t n = ZSTD_compress2(cctx, out.data() + start, bound, raw.data(), raw.size());
+  if (ZSTD_isError(n)) return Status::failure(Error::internal, std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
+  layout::Codec codec = codec_if_compressed;
+  size_t stored = n;
+  if (n >= raw.size() && codec_if_compressed == layout::Codec::zstd) {  // incompressible: store as is
+    std::memcpy(out.data() + start, raw.data(), raw.size());
+    stored = raw.size();
+    codec = layout::Codec::stored;
+  }
+  out.resize(start + stored);
+  entry[1] = uint8_t(codec);
+  store_u32(entry + 4, uint32_t(stored));
+  store_u32(entry + 8, uint32_t(raw.size()));
+  return Status::success();
+}
+
+Status decompress_into(std::span<const uint8_t> src, uint8_t* dst, size_t dst_size, const char* name) {
+  ZSTD_DCtx* dctx = thread_dctx();
+  if (!dctx) return Status::failure(Error::internal, "cannot create a zstd decompression context");
+  // Exactly one frame that fills the whole stored size.
+  const size_t frame = ZSTD_findFrameCompressedSize(src.data(), src.size());
+  if (ZSTD_isError(frame) || frame != src.size())
+    return Status::failure(Error::decompress_failed, std::string(name) + " section is not exactly one zstd frame");
+  const unsigned long long content = ZSTD_getFrameContentSize(src.data(), src.size());
+  if (content != dst_size)
+    return Status::failure(Error::decompress_failed, std::string(name) + " section's zstd frame does not declare " +
+                                                         std::to_string(dst_size) + " bytes of content");
+  const size_t n = ZSTD_decompressDCtx(dctx, dst, dst_size, src.data(), src.size());
+  if (ZSTD_isError(n)) return Status::failure(Error::decompress_failed, std::string(name) + " section: zstd: " + ZSTD_getErrorName(n));
+  if (n != dst_size)
+    return Status::failure(Error::decompress_failed, std::string(name) + " section decompressed to " + std::to_string(n) + " bytes, expected " +
+                                                         std::to_string(dst_size));
+  return Status::success();
+}
+
+}  // namespace
+}  // namespace detail
+
+Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out) {
+  using namespace detail;
+  if (options.zstd_level < -7 || options.zstd_level > 22)
+    return Status::failure(Error::invalid_argument, "zstd_level " + std::to_string(options.zstd_level) + " outside -7..22");
+  out.assign(layout::kPayloadHeaderSize, 0);
+  out.reserve(layout::kPayloadHeaderSize + 40000);
+  out[0] = uint8_t(layout::kSectionCount);
+  uint8_t entries[layout::kSectionCount][layout::kPayloadTableEntrySize] = {};
+  const std::span<const uint8_t> raw[layout::kSectionCount] = {
+      {reinterpret_cast<const uint8_t*>(data.heights.data()), sizeof(data.heights)},
+      {data.normals_bc3.data(), data.normals_bc3.size()},
+      {data.albedo_bc1.data(), data.albedo_bc1.size()},
+      {data.splat.data(), data.splat.size()},
+      {data.cones_bc3.data(), data.cones_bc3.size()}};
+  std::vector<uint8_t> scratch;
+  for (uint32_t s = 0; s < layout::kSectionCount; ++s) {
+    entries[s][0] = uint8_t(s);
+    Status st;
+    if (s == uint32_t(layout::SectionId::heights)) {
+      if (options.height_predictor) {
+        const int shift = heights_common_shift(data.heights);
+        heights_to_residuals(data.heights, shift, scratch);
+        const size_t start = out.size();
+        st = compress_section(scratch, options.zstd_level, layout::Codec::height_predictor, out, entries[s]);
+        entries[s][2] = uint8_t(shift);
+        // Noisy grids (spiky first-return lidar) can predict worse than they repeat: when the
+        // predictor saves less than a quarter, also try plain zstd of the R16 bytes and keep the
+        // smaller (measured: below that the plain form never won, and trying costs a second pass).
+        if (st.ok() && (out.size() - start) * 4 > scratch.size() * 3) {
+          std::vector<uint8_t> plain(out.begin(), out.begin() + std::ptrdiff_t(start));
+          uint8_t plain_entry[layout::kPayloadTableEntrySize] = {uint8_t(s)};
+          for (int i = 0; i < kHeightCount; ++i) store_u16(scratch.data() + 2 * i, data.heights[size_t(i)]);
+          st = compress_section(scratch, options.zstd_level, layout::Codec::zstd, plain, plain_entry);
+          if (st.ok() && plain.size() < out.size()) {
+            out.swap(plain);
+            std::memcpy(entries[s], plain_entry, sizeof(plain_entry));
+          }
+        }
+      } else {
+        // Plain R16 little-endian bytes (benchmarks): serialise explicitly, not via host order.
+        scratch.resize(2 * size_t(kHeightCount));
+        for (int i = 0; i < kHeightCount; ++i) store_u16(scratch.data() + 2 * i, data.heights[size_t(i)]);
+        st = compress_section(scratch, options.zstd_level, layout::Codec::zstd, out, entries[s]);
+      }
+    } else {
+      st = compress_section(raw[s], options.zstd_level, layout::Codec::zstd, out, entries[s]);
+    }
+    if (!st.ok()) return st;
+  }
+  for (uint32_t s = 0; s < layout::kSectionCount; ++s)
+    std::memcpy(out.data() + 4 + s * layout::kPayloadTableEntrySize, entries[s], layout::kPayloadTableEntrySize);
+  return Status::success();
+}
+
+Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, NodeData& out) {
+  using namespace detail;
+  PayloadTable table;
+  if (Status s = parse_payload_table(bytes, table); !s.ok()) return s;
+  uint8_t* dst[layout::kSectionCount] = {nullptr, out.normals_bc3.data(), out.albedo_bc1.data(), out.splat.data(),
+                                         out.cones_bc3.data()};
+  for (uint32_t s = 0; s < layout::kSectionCount; ++s) {
+    if (!(sections & (1u << s))) continue;
+    const PayloadSection& sec = table[s];
+    const auto src = bytes.subspan(sec.data_offset, sec.stored_size);
+    const char* name = layout::kSectionName[s];
+    if (s == uint32_t(layout::SectionId::heights)) {
+      alignas(64) uint8_t buffer[2 * kHeightCount];
+      if (sec.codec == layout::Codec::stored) {
+        std::memcpy(buffer, src.data(), sizeof(buffer));
+      } else if (Status st = decompress_into(src, buffer, sizeof(buffer), name); !st.ok()) {
+        return st;
+      }
+      if (sec.codec == layout::Codec::height_predictor) {
+        if (Status st = residuals_to_heights(buffer, sec.height_shift, out.heights); !st.ok()) return st;
+      } else {
+        for (int i = 0; i < kHeightCount; ++i) out.heights[size_t(i)] = load_u16(buffer + 2 * i);
+      }
+    } else if (sec.codec == layout::Codec::stored) {
+      std::memcpy(dst[s], src.data(), sec.raw_size);
+    } else if (Status st = decompress_into(src, dst[s], sec.raw_size, name); !st.ok()) {
+      return st;
+    }
+  }
+  return Status::success();
+}
+
+}  // namespace terrain

@@ -1,0 +1,102 @@
+// Heights as the renderer draws them (SPEC "Surface"): finest node covering the point, quads split
+// along the south-west to north-east diagonal, triangles touching a hole vertex dropped.
+#include "terrain/sample.h"
+
+#include <algorithm>
+#include <cmath>
+#include <list>
+#include <vector>
+
+#include "terrain/bc_decode.h"
+
+namespace terrain {
+
+struct SurfaceSampler::Impl {
+  const ArchiveReader& reader;
+  struct Cached {
+    size_t index;
+    std::vector<int32_t> units;
+    std::vector<uint8_t> holes;
+  };
+  std::list<Cached> cache;  // most recent first
+  static constexpr size_t kCacheNodes = 16;
+  std::unique_ptr<NodeData> scratch = std::make_unique<NodeData>();
+
+  explicit Impl(const ArchiveReader& r) : reader(r) {}
+
+  Status get(size_t index, const Cached*& out) {
+    for (auto it = cache.begin(); it != cache.end(); ++it)
+      if (it->index == index) {
+        cache.splice(cache.begin(), cache, it);
+        out = &cache.front();
+        return Status::success();
+      }
+    if (Status s = reader.decode_node(index, *scratch, kSectionHeights | kSectionAlbedo); !s.ok()) return s;
+    Cached c{index, std::vector<int32_t>(size_t(kHeightCount)), std::vector<uint8_t>(size_t(kHeightCount))};
+    const NodeRecord& r = reader.nodes()[index];
+    const int step = reader.world().step_log2[r.key.level];
+    for (size_t k = 0; k < size_t(kHeightCount); ++k) c.units[k] = vertex_units(r.height_offset, scratch->heights[k], step);
+    decode_hole_mask(*scratch, c.holes.data());
+    cache.push_front(std::move(c));
+    if (cache.size() > kCacheNodes) cache.pop_back();
+    out = &cache.front();
+    return Status::success();
+  }
+};
+
+SurfaceSampler::SurfaceSampler(const ArchiveReader& reader) : impl_(std::make_unique<Impl>(reader)) {}
+SurfaceSampler::~SurfaceSampler() = default;
+
+Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<SurfaceSample>& out) {
+  out.reset();
+  if (!impl_->reader.is_open()) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (!std::isfinite(frame_x) || !std::isfinite(frame_y))
+    return Status::failure(Error::invalid_argument, "sample point is not finite");
+  const WorldInfo& w = impl_->reader.world();
+  const double rx = frame_x - w.origin_x_m, ry = frame_y - w.origin_y_m;
+  for (int level = 0; level < kLevelCount; ++level) {
+    const double size = node_size_m(level);
+    const double fx = rx / size, fy = ry / size;
+    const double grid_x = double(uint64_t(w.roots_x) << (kRootLevel - level));
+    const double grid_y = double(uint64_t(w.roots_y) << (kRootLevel - level));
+    if (fx < 0 || fy < 0 || fx > grid_x || fy > grid_y) return Status::success();  // outside the frame's grid
+    // The node containing the point; a point on a west/south node edge also lies on the
+    // neighbour's east/north edge, which answers when the first node is absent.
+    const double nx = std::floor(fx), ny = std::floor(fy);
+    for (int cand = 0; cand < 4; ++cand) {
+      const double cx = nx - ((cand & 1) ? 1 : 0), cy = ny - ((cand & 2) ? 1 : 0);
+      if ((cand & 1) && fx != nx) continue;
+      if ((cand & 2) && fy != ny) continue;
+      if (cx < 0 || cy < 0 || cx >= grid_x || cy >= grid_y) continue;
+      const NodeKey key{uint32_t(level), uint32_t(cx), uint32_t(cy)};
+      const int64_t index = impl_->reader.find(key);
+      if (index < 0) continue;
+      const Impl::Cached* node = nullptr;
+      if (Status s = impl_->get(size_t(index), node); !s.ok()) return s;
+      const double s = vertex_spacing_m(level);
+      const double u = (rx - cx * size) / s, v = (ry - cy * size) / s;  // 0..128
+      const int i = std::clamp(int(std::floor(u)), 0, kQuadsPerSide - 1);
+      const int j = std::clamp(int(std::floor(v)), 0, kQuadsPerSide - 1);
+      const double fu = std::clamp(u - i, 0.0, 1.0), fv = std::clamp(v - j, 0.0, 1.0);
+      auto at = [&](int a, int b) { return size_t(b * kHeightSamples + a); };
+      const size_t A = at(i, j), B = at(i + 1, j), C = at(i, j + 1), D = at(i + 1, j + 1);
+      const auto& H = node->units;
+      const auto& holes = node->holes;
+      double h = 0;
+      if (fu >= fv) {  // south-east triangle A, B, D
+        if (holes[A] || holes[B] || holes[D]) return Status::success();
+        h = units_to_metres(H[A]) + fu * (units_to_metres(H[B]) - units_to_metres(H[A])) +
+            fv * (units_to_metres(H[D]) - units_to_metres(H[B]));
+      } else {  // north-west triangle A, D, C
+        if (holes[A] || holes[D] || holes[C]) return Status::success();
+        h = units_to_metres(H[A]) + fv * (units_to_metres(H[C]) - units_to_metres(H[A])) +
+            fu * (units_to_metres(H[D]) - units_to_metres(H[C]));
+      }
+      out = SurfaceSample{h, key};
+      return Status::success();
+    }
+  }
+  return Status::success();
+}
+
+}  // namespace terrain

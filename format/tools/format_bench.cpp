@@ -1,0 +1,355 @@
+// terrain-format-bench: height codec (hierarchical predictor + zstd) against plain zstd on real
+// R16 tiles. Per dataset: bytes, ratios, encode ms per tile, decode MB/s next to zstd's own
+// decompression of plain-zstd tiles and memcpy; every decode is
+// checked against the input before a number is printed. Timings: fastest of --runs passes.
+#include <zstd.h>
+
+#include <CLI/CLI.hpp>
+#include <OpenImageIO/imageio.h>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "terrain/archive_reader.h"
+#include "terrain/archive_writer.h"
+#include "terrain/format.h"
+#include "terrain/height_codec.h"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using terrain::kHeightCount;
+using terrain::kHeightSamples;
+constexpr size_t kTileBytes = 2 * size_t(kHeightCount);
+
+struct Tile {
+  std::vector<uint16_t> r16;
+};
+struct Dataset {
+  std::string name, source;
+  int step_log2 = 0;
+  std::vector<Tile> tiles;
+};
+
+// Reads band 0 of a raster as metres (value * scale); nodata -> NaN. Integer rasters are read in
+// their own type so nodata compares exactly.
+bool read_raster(const std::string& path, double scale, std::optional<double> nodata, std::vector<float>& out, int& w, int& h) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return false;
+  const OIIO::ImageSpec& spec = in->spec();
+  w = spec.width;
+  h = spec.height;
+  const size_t count = size_t(w) * size_t(h), nc = size_t(spec.nchannels);
+  std::vector<double> values(count);
+  auto fetch = [&](auto tag, OIIO::TypeDesc type) {
+    std::vector<decltype(tag)> all(count * nc);
+    if (!in->read_image(0, 0, 0, spec.nchannels, type, all.data())) return false;
+    for (size_t k = 0; k < count; ++k) values[k] = double(all[k * nc]);
+    return true;
+  };
+  bool ok = false;
+  if (spec.format == OIIO::TypeDesc::INT16) ok = fetch(int16_t{}, OIIO::TypeDesc::INT16);
+  else if (spec.format == OIIO::TypeDesc::UINT16) ok = fetch(uint16_t{}, OIIO::TypeDesc::UINT16);
+  else if (spec.format == OIIO::TypeDesc::UINT8) ok = fetch(uint8_t{}, OIIO::TypeDesc::UINT8);
+  else ok = fetch(float{}, OIIO::TypeDesc::FLOAT);
+  if (!ok) return false;
+  out.resize(count);
+  for (size_t k = 0; k < count; ++k)
+    out[k] = (nodata && values[k] == *nodata) ? NAN : float(values[k] * scale);
+  return true;
+}
+
+// 129x129 windows on a 128 stride, rows flipped so row 0 is south; windows with nodata skipped.
+// Quantized as the cooker does for one level: units = round(m * 1024), one step for the level
+// (smallest that fits every tile's range), offset = tile min rounded down to the step.
+Dataset make_tiles(const std::string& name, const std::string& source, const std::vector<float>& m, int w, int h, size_t max_tiles) {
+  Dataset d{name, source, 0, {}};
+  std::vector<std::vector<int64_t>> units;
+  int64_t max_range = 0;
+  for (int ty = 0; ty + kHeightSamples <= h; ty += 128)
+    for (int tx = 0; tx + kHeightSamples <= w; tx += 128) {
+      std::vector<int64_t> u(static_cast<size_t>(kHeightCount));
+      bool ok = true;
+      for (int j = 0; j < kHeightSamples && ok; ++j)
+        for (int i = 0; i < kHeightSamples; ++i) {
+          const float v = m[size_t(ty + (kHeightSamples - 1 - j)) * size_t(w) + size_t(tx + i)];
+          if (!std::isfinite(v)) {
+            ok = false;
+            break;
+          }
+          u[size_t(j * kHeightSamples + i)] = std::llround(double(v) * 1024.0);
+        }
+      if (!ok) continue;
+      const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
+      max_range = std::max(max_range, *hi - *lo);
+      units.push_back(std::move(u));
+      if (units.size() >= max_tiles) break;
+    }
+  while ((int64_t(65535) << d.step_log2) < max_range + (int64_t(1) << d.step_log2)) ++d.step_log2;
+  const int s = d.step_log2;
+  for (const auto& u : units) {
+    const int64_t lo = *std::min_element(u.begin(), u.end());
+    const int64_t offset = (lo >> s) << s;
+    Tile t;
+    t.r16.resize(size_t(kHeightCount));
+    for (size_t k = 0; k < u.size(); ++k)
+      t.r16[k] = uint16_t(std::min<int64_t>(65535, (u[k] - offset + ((int64_t(1) << s) >> 1)) >> s));
+    d.tiles.push_back(std::move(t));
+  }
+  return d;
+}
+
+std::vector<uint8_t> le_bytes(const std::vector<uint16_t>& r16) {
+  std::vector<uint8_t> b(kTileBytes);
+  for (size_t k = 0; k < r16.size(); ++k) {
+    b[2 * k] = uint8_t(r16[k]);
+    b[2 * k + 1] = uint8_t(r16[k] >> 8);
+  }
+  return b;
+}
+
+std::vector<uint8_t> zstd_compress(const uint8_t* src, size_t n, int level) {
+  std::vector<uint8_t> out(ZSTD_compressBound(n));
+  const size_t c = ZSTD_compress(out.data(), out.size(), src, n, level);
+  out.resize(ZSTD_isError(c) ? 0 : c);
+  return out;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+// Seconds of the fastest of `runs` passes of fn() after one warm-up pass (as zstd's benchmark
+// does: the machine is shared, and the fastest run is the one least disturbed by others).
+// The median is reported next to it.
+struct Timing {
+  double best = 0, median = 0;  // seconds
+};
+template <typename F>
+Timing time_runs(int runs, F&& fn) {
+  fn();
+  std::vector<double> t;
+  for (int r = 0; r < runs; ++r) {
+    const auto a = Clock::now();
+    fn();
+    t.push_back(std::chrono::duration<double>(Clock::now() - a).count());
+  }
+  return {*std::min_element(t.begin(), t.end()), median(t)};
+}
+
+struct LevelResult {
+  int level = 0;
+  uint64_t bytes = 0;
+  double encode_ms_per_tile = 0;
+  double decode_mbps = 0, decode_mbps_median = 0;
+};
+struct Result {
+  std::string name, source;
+  size_t tiles = 0;
+  int step_log2 = 0;
+  uint64_t raw = 0, zstd19 = 0, zstd_default = 0;
+  double zstd19_decode_mbps = 0, zstd_default_decode_mbps = 0, memcpy_mbps = 0;
+  double zstd19_decode_mbps_median = 0;
+  std::vector<LevelResult> levels;
+};
+
+bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_level, int runs, Result& res) {
+  res.name = d.name;
+  res.source = d.source;
+  res.tiles = d.tiles.size();
+  res.step_log2 = d.step_log2;
+  res.raw = d.tiles.size() * kTileBytes;
+  const double mb = double(res.raw) / 1e6;
+  std::vector<std::vector<uint8_t>> raw;
+  for (const Tile& t : d.tiles) raw.push_back(le_bytes(t.r16));
+  std::vector<uint8_t> out(kTileBytes), out2(kTileBytes);
+  ZSTD_DCtx* dctx = ZSTD_createDCtx();
+  auto plain = [&](int level, uint64_t& bytes, double& mbps, double& mbps_median) {
+    std::vector<std::vector<uint8_t>> z;
+    bytes = 0;
+    for (const auto& r : raw) {
+      z.push_back(zstd_compress(r.data(), r.size(), level));
+      bytes += z.back().size();
+    }
+    for (size_t i = 0; i < z.size(); ++i) {  // verify
+      const size_t n = ZSTD_decompressDCtx(dctx, out.data(), out.size(), z[i].data(), z[i].size());
+      if (n != kTileBytes || std::memcmp(out.data(), raw[i].data(), kTileBytes) != 0) return false;
+    }
+    const Timing t = time_runs(runs, [&] {
+      for (const auto& zi : z) ZSTD_decompressDCtx(dctx, out.data(), out.size(), zi.data(), zi.size());
+    });
+    mbps = mb / t.best;
+    mbps_median = mb / t.median;
+    return true;
+  };
+  double unused = 0;
+  if (!plain(19, res.zstd19, res.zstd19_decode_mbps, res.zstd19_decode_mbps_median) ||
+      !plain(default_level, res.zstd_default, res.zstd_default_decode_mbps, unused)) {
+    ZSTD_freeDCtx(dctx);
+    return false;
+  }
+  ZSTD_freeDCtx(dctx);
+  res.memcpy_mbps = mb / time_runs(runs, [&] {
+                          for (const auto& r : raw) std::memcpy(out.data(), r.data(), kTileBytes);
+                          asm volatile("" : : "r"(out.data()) : "memory");
+                        }).best;
+  auto data = std::make_unique<terrain::NodeData>();  // other sections stay zero (tiny, not counted)
+  for (int level : levels) {
+    LevelResult lr;
+    lr.level = level;
+    std::vector<std::vector<uint8_t>> payloads(d.tiles.size());
+    terrain::PayloadOptions opt;
+    opt.zstd_level = level;
+    bool encoded = true;
+    const Timing enc = time_runs(3, [&] {
+      for (size_t i = 0; i < d.tiles.size(); ++i) {
+        std::copy(d.tiles[i].r16.begin(), d.tiles[i].r16.end(), data->heights.begin());
+        encoded &= terrain::encode_node_payload(*data, opt, payloads[i]).ok();
+      }
+    });
+    if (!encoded) return false;
+    lr.encode_ms_per_tile = 1e3 * enc.best / double(d.tiles.size());
+    for (size_t i = 0; i < d.tiles.size(); ++i) {
+      // Only the height section counts: its stored size is at table entry 0, bytes 4..7.
+      const uint8_t* e = payloads[i].data() + 4;
+      lr.bytes += uint64_t(e[4]) | (uint64_t(e[5]) << 8) | (uint64_t(e[6]) << 16) | (uint64_t(e[7]) << 24);
+      if (!terrain::decode_node_payload(payloads[i], terrain::kSectionHeights, *data).ok()) return false;
+      if (!std::equal(d.tiles[i].r16.begin(), d.tiles[i].r16.end(), data->heights.begin())) {
+        fmt::print(stderr, "{}: level {}: tile {} decodes wrong\n", d.name, level, i);
+        return false;
+      }
+    }
+    const Timing t = time_runs(runs, [&] {
+      for (const auto& p : payloads) (void)terrain::decode_node_payload(p, terrain::kSectionHeights, *data);
+    });
+    lr.decode_mbps = mb / t.best;
+    lr.decode_mbps_median = mb / t.median;
+    res.levels.push_back(lr);
+  }
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"terrain-format-bench: height codec vs plain zstd on real R16 tiles"};
+  std::string data_dir = TERRAIN_DEFAULT_DATA_DIR;
+  if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
+  std::vector<std::string> archives;
+  std::vector<int> levels = {1, 3, 6, 9, 19};
+  int default_level = 9;
+  int runs = 15;
+  size_t max_tiles = 400;
+  bool json = false;
+  app.add_option("--data", data_dir, "folder of the shared real DEMs")->capture_default_str();
+  app.add_option("--archive", archives, "also benchmark the height grids of every node of these cooked archives");
+  app.add_option("--levels", levels, "zstd levels for predictor+zstd")->capture_default_str();
+  app.add_option("--default-level", default_level, "zstd level of the plain-zstd speed baseline")->capture_default_str();
+  app.add_option("--runs", runs, "timed runs per measurement (the fastest is reported)")->capture_default_str()->check(CLI::Range(1, 1000));
+  app.add_option("--max-tiles", max_tiles, "tiles per dataset")->capture_default_str();
+  app.add_flag("--json", json, "print JSON instead of the table");
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<Dataset> sets;
+  struct Source {
+    const char* name;
+    const char* file;
+    double scale;
+    std::optional<double> nodata;
+  };
+  const Source sources[] = {
+      {"kilauea", "kilauea_utm5n.tif", 1.0, -32768.0},  {"oetztal", "srtm_oetztal.tif", 1.0, std::nullopt},
+      {"slovenia", "slovenia_TM1_564_146.tif", 1.0, std::nullopt}, {"tahoe", "tahoe_lidar_bareearth.tif", 1.0, std::nullopt},
+      {"tahoe_hh", "tahoe_lidar_highesthit.tif", 1.0, std::nullopt}, {"puget", "ps_height_1k.png", 0.1, std::nullopt},
+  };
+  for (const Source& s : sources) {
+    const std::string path = (std::filesystem::path(data_dir) / s.file).string();
+    std::vector<float> m;
+    int w = 0, h = 0;
+    if (!std::filesystem::exists(path) || !read_raster(path, s.scale, s.nodata, m, w, h)) {
+      fmt::print(stderr, "skipping {}: cannot read {}\n", s.name, path);
+      continue;
+    }
+    Dataset d = make_tiles(s.name, s.file, m, w, h, max_tiles);
+    if (!d.tiles.empty()) sets.push_back(std::move(d));
+  }
+  for (const std::string& a : archives) {
+    terrain::ArchiveReader reader;
+    if (terrain::Status st = reader.open(a); !st.ok()) {
+      fmt::print(stderr, "{}\n", st.to_string());
+      return 1;
+    }
+    Dataset d{std::filesystem::path(a).filename().string(), a, -1, {}};
+    auto node = std::make_unique<terrain::NodeData>();
+    for (size_t i = 0; i < reader.nodes().size() && d.tiles.size() < max_tiles; ++i) {
+      if (terrain::Status st = reader.decode_node(i, *node, terrain::kSectionHeights); !st.ok()) {
+        fmt::print(stderr, "{}\n", st.to_string());
+        return 1;
+      }
+      d.tiles.push_back({std::vector<uint16_t>(node->heights.begin(), node->heights.end())});
+    }
+    if (!d.tiles.empty()) sets.push_back(std::move(d));
+  }
+  if (sets.empty()) {
+    fmt::print(stderr, "no data: set --data or TERRAIN_DATA_DIR\n");
+    return 1;
+  }
+
+  std::vector<Result> results;
+  for (const Dataset& d : sets) {
+    Result r;
+    if (!run_dataset(d, levels, default_level, runs, r)) {
+      fmt::print(stderr, "{}: benchmark failed (decode mismatch or codec error)\n", d.name);
+      return 1;
+    }
+    results.push_back(std::move(r));
+  }
+  if (json) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const Result& r : results) {
+      nlohmann::json o = {{"dataset", r.name}, {"source", r.source}, {"tiles", r.tiles}, {"step_log2", r.step_log2},
+                          {"raw_bytes", r.raw}, {"zstd19_bytes", r.zstd19}, {"zstd19_decode_mbps", r.zstd19_decode_mbps}, {"zstd19_decode_mbps_median", r.zstd19_decode_mbps_median},
+                          {"zstd_default_level", default_level}, {"zstd_default_bytes", r.zstd_default},
+                          {"zstd_default_decode_mbps", r.zstd_default_decode_mbps}, {"memcpy_mbps", r.memcpy_mbps}};
+      for (const LevelResult& l : r.levels)
+        o["predictor"].push_back({{"zstd_level", l.level}, {"bytes", l.bytes},
+                                  {"ratio_vs_zstd19", double(l.bytes) / double(r.zstd19)},
+                                  {"encode_ms_per_tile", l.encode_ms_per_tile}, {"decode_mbps", l.decode_mbps},
+                                  {"decode_mbps_median", l.decode_mbps_median},
+                                  {"decode_vs_zstd19", l.decode_mbps / r.zstd19_decode_mbps}});
+      j.push_back(o);
+    }
+    fmt::print("{}\n", j.dump(2));
+    return 0;
+  }
+  fmt::print("# height codec benchmark: fastest of {} runs per timing (encode: fastest of 3 passes, per tile); MB/s of decoded R16 output\n", runs);
+  for (const Result& r : results) {
+    fmt::print("\n{} ({}): {} tiles of 129x129, step_log2 {}, raw {} B\n", r.name, r.source, r.tiles, r.step_log2, r.raw);
+    fmt::print("  plain zstd -19     {:>9} B  ratio {:5.2f}  decode {:7.0f} MB/s (median {:.0f})\n", r.zstd19,
+               double(r.raw) / double(r.zstd19), r.zstd19_decode_mbps, r.zstd19_decode_mbps_median);
+    fmt::print("  plain zstd -{:<2}     {:>9} B  ratio {:5.2f}  decode {:7.0f} MB/s\n", default_level, r.zstd_default,
+               double(r.raw) / double(r.zstd_default), r.zstd_default_decode_mbps);
+    fmt::print("  memcpy                                           {:7.0f} MB/s\n", r.memcpy_mbps);
+    for (const LevelResult& l : r.levels)
+      fmt::print("  predictor+zstd -{:<2} {:>9} B  ratio {:5.2f}  vs zstd19 {:4.2f}x  encode {:6.3f} ms/tile  decode {:7.0f} MB/s "
+                 "({:3.0f}% of zstd19; medians {:.0f} MB/s, {:.0f}%)\n",
+                 l.level, l.bytes, double(r.raw) / double(l.bytes), double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile,
+                 l.decode_mbps, 100.0 * l.decode_mbps / r.zstd19_decode_mbps, l.decode_mbps_median,
+                 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median);
+  }
+  fmt::print("\n# summary (tab-separated)\ndataset\ttiles\tzstd19_B\tlevel\tpred_B\tratio_vs_zstd19\tencode_ms\tdecode_MBps\tzstd19_decode_MBps\tpct\tpct_median\n");
+  for (const Result& r : results)
+    for (const LevelResult& l : r.levels)
+      fmt::print("{}\t{}\t{}\t{}\t{}\t{:.3f}\t{:.3f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\n", r.name, r.tiles, r.zstd19, l.level, l.bytes,
+                 double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile, l.decode_mbps, r.zstd19_decode_mbps,
+                 100.0 * l.decode_mbps / r.zstd19_decode_mbps, 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median);
+  return 0;
+}

@@ -1,0 +1,321 @@
+#include "inspect.h"
+
+#include <GeographicLib/TransverseMercator.hpp>
+#include <OpenImageIO/imageio.h>
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "terrain/archive_layout.h"
+#include "terrain/bc_decode.h"
+#include "terrain/sample.h"
+
+namespace terrain::inspect {
+namespace {
+
+const char* kind_name(ProjectionKind k) {
+  switch (k) {
+    case ProjectionKind::local: return "local";
+    case ProjectionKind::transverse_mercator: return "transverse_mercator";
+  }
+  return "unknown";
+}
+
+std::string key_text(const NodeKey& k) { return fmt::format("{}/{}/{}", k.level, k.x, k.y); }
+
+struct Facts {
+  SectionBytes sections;
+  std::array<uint32_t, kLevelCount> per_level{};
+  std::array<float, kLevelCount> max_error{};
+  int32_t min_units = 0, max_units = 0;
+  bool any = false;
+};
+
+Status gather(const ArchiveReader& reader, Facts& f) {
+  if (Status s = reader.section_bytes(f.sections); !s.ok()) return s;
+  f.per_level = reader.nodes_per_level();
+  for (const NodeRecord& r : reader.nodes()) {
+    f.max_error[r.key.level] = std::max(f.max_error[r.key.level], r.geometric_error_m);
+    if (!f.any || r.min_height < f.min_units) f.min_units = r.min_height;
+    if (!f.any || r.max_height > f.max_units) f.max_units = r.max_height;
+    f.any = true;
+  }
+  return Status::success();
+}
+
+}  // namespace
+
+Status summary_text(const ArchiveReader& reader, const std::string& path, std::string& out) {
+  Facts f;
+  if (Status s = gather(reader, f); !s.ok()) return s;
+  const WorldInfo& w = reader.world();
+  std::ostringstream o;
+  o << fmt::format("{}: terrain archive v{}, {} bytes, {} nodes\n", path, reader.format_version(), reader.file_size(),
+                   reader.nodes().size());
+  const FrameCrs& c = w.crs;
+  o << fmt::format("frame      {} \"{}\"", kind_name(c.kind), c.name);
+  if (c.epsg) o << fmt::format(" EPSG:{}", c.epsg);
+  o << "\n";
+  if (c.kind == ProjectionKind::transverse_mercator)
+    o << fmt::format("           ellipsoid a={} m 1/f={}; lat0={} lon0={} k0={} FE={} m FN={} m\n", c.semi_major_m,
+                     c.inverse_flattening, c.lat0_deg, c.lon0_deg, c.scale_k0, c.false_easting_m, c.false_northing_m);
+  o << fmt::format("origin     ({:.3f}, {:.3f}) m, {} x {} roots of {} m\n", w.origin_x_m, w.origin_y_m, w.roots_x, w.roots_y,
+                   node_size_m(kRootLevel));
+  o << fmt::format("extent     x {:.3f} .. {:.3f}, y {:.3f} .. {:.3f} ({:.3f} x {:.3f} km)\n", w.extent_min_x_m, w.extent_max_x_m,
+                   w.extent_min_y_m, w.extent_max_y_m, (w.extent_max_x_m - w.extent_min_x_m) / 1000,
+                   (w.extent_max_y_m - w.extent_min_y_m) / 1000);
+  o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m\n";
+  for (int l = kLevelCount - 1; l >= 0; --l)
+    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}\n", l, node_size_m(l), vertex_spacing_m(l),
+                     1000.0 * double(1 << w.step_log2[size_t(l)]) * kHeightUnitM, f.per_level[size_t(l)], f.max_error[size_t(l)]);
+  if (f.any)
+    o << fmt::format("heights    {:.3f} .. {:.3f} m\n", units_to_metres(f.min_units), units_to_metres(f.max_units));
+  o << "sections   section     stored_bytes      raw_bytes  ratio\n";
+  uint64_t st = 0, rw = 0;
+  for (size_t s = 0; s < layout::kSectionCount; ++s) {
+    st += f.sections.stored[s];
+    rw += f.sections.raw[s];
+    o << fmt::format("           {:<8} {:>15} {:>14} {:>6.2f}\n", layout::kSectionName[s], f.sections.stored[s], f.sections.raw[s],
+                     f.sections.stored[s] ? double(f.sections.raw[s]) / double(f.sections.stored[s]) : 0.0);
+  }
+  o << fmt::format("           {:<8} {:>15} {:>14} {:>6.2f}\n", "all", st, rw, st ? double(rw) / double(st) : 0.0);
+  o << fmt::format("palette    {} materials", w.palette.size());
+  for (size_t i = 0; i < w.palette.size(); ++i) o << (i ? ", " : ": ") << i << "=" << w.palette[i].name;
+  o << "\n";
+  if (!w.cook_info_json.empty()) o << "cook info  " << w.cook_info_json << "\n";
+  out = o.str();
+  return Status::success();
+}
+
+Status summary_json(const ArchiveReader& reader, const std::string& path, std::string& out) {
+  Facts f;
+  if (Status s = gather(reader, f); !s.ok()) return s;
+  const WorldInfo& w = reader.world();
+  using nlohmann::json;
+  json j;
+  j["file"] = path;
+  j["format_version"] = reader.format_version();
+  j["file_bytes"] = reader.file_size();
+  j["nodes"] = reader.nodes().size();
+  const FrameCrs& c = w.crs;
+  j["frame"] = {{"kind", kind_name(c.kind)}, {"epsg", c.epsg}, {"name", c.name}, {"semi_major_m", c.semi_major_m},
+                {"inverse_flattening", c.inverse_flattening}, {"lat0_deg", c.lat0_deg}, {"lon0_deg", c.lon0_deg},
+                {"scale_k0", c.scale_k0}, {"false_easting_m", c.false_easting_m}, {"false_northing_m", c.false_northing_m}};
+  j["origin_m"] = {w.origin_x_m, w.origin_y_m};
+  j["roots"] = {w.roots_x, w.roots_y};
+  j["extent_m"] = {{"min_x", w.extent_min_x_m}, {"min_y", w.extent_min_y_m}, {"max_x", w.extent_max_x_m}, {"max_y", w.extent_max_y_m}};
+  for (int l = 0; l < kLevelCount; ++l)
+    j["levels"].push_back({{"level", l}, {"node_size_m", node_size_m(l)}, {"vertex_spacing_m", vertex_spacing_m(l)},
+                           {"step_log2", w.step_log2[size_t(l)]}, {"nodes", f.per_level[size_t(l)]},
+                           {"max_geometric_error_m", f.max_error[size_t(l)]}});
+  if (f.any) j["height_range_m"] = {units_to_metres(f.min_units), units_to_metres(f.max_units)};
+  uint64_t st = 0, rw = 0;
+  for (size_t s = 0; s < layout::kSectionCount; ++s) {
+    st += f.sections.stored[s];
+    rw += f.sections.raw[s];
+    j["sections"][layout::kSectionName[s]] = {
+        {"stored_bytes", f.sections.stored[s]}, {"raw_bytes", f.sections.raw[s]},
+        {"ratio", f.sections.stored[s] ? double(f.sections.raw[s]) / double(f.sections.stored[s]) : 0.0}};
+  }
+  j["sections"]["all"] = {{"stored_bytes", st}, {"raw_bytes", rw}, {"ratio", st ? double(rw) / double(st) : 0.0}};
+  for (const Material& m : w.palette)
+    j["palette"].push_back({{"name", m.name}, {"albedo_srgb", m.albedo_srgb}, {"roughness", m.roughness},
+                            {"detail_scale_m", m.detail_scale_m}, {"detail_strength", m.detail_strength},
+                            {"height_blend", m.height_blend}});
+  if (!w.palette.size()) j["palette"] = json::array();
+  if (!w.cook_info_json.empty()) {
+    j["cook_info"] = json::parse(w.cook_info_json, nullptr, false);  // validated at open
+  }
+  out = j.dump(2) + "\n";
+  return Status::success();
+}
+
+Status lonlat_to_frame(const FrameCrs& crs, double lon_deg, double lat_deg, double& x, double& y) {
+  if (crs.kind != ProjectionKind::transverse_mercator)
+    return Status::failure(Error::invalid_argument,
+                           "this archive's frame is 'local' (no geodetic meaning): give frame metres with --sample/--sample-file "
+                           "instead of longitude/latitude");
+  if (!(std::fabs(lat_deg) <= 90) || !std::isfinite(lon_deg))
+    return Status::failure(Error::invalid_argument, fmt::format("latitude {} / longitude {} out of range", lat_deg, lon_deg));
+  const double f = crs.inverse_flattening > 0 ? 1.0 / crs.inverse_flattening : 0.0;
+  const GeographicLib::TransverseMercator tm(crs.semi_major_m, f, crs.scale_k0);
+  double x0 = 0, y0 = 0, e = 0, n = 0;
+  tm.Forward(crs.lon0_deg, crs.lat0_deg, crs.lon0_deg, x0, y0);
+  tm.Forward(crs.lon0_deg, lat_deg, lon_deg, e, n);
+  x = crs.false_easting_m + e;
+  y = crs.false_northing_m + n - y0;
+  return Status::success();
+}
+
+bool parse_pair(const std::string& text, double& a, double& b) {
+  std::string t = text;
+  std::replace(t.begin(), t.end(), ',', ' ');
+  std::istringstream in(t);
+  std::string extra;
+  if (!(in >> a >> b) || (in >> extra)) return false;
+  return std::isfinite(a) && std::isfinite(b);
+}
+
+bool parse_key(const std::string& text, NodeKey& out) {
+  unsigned l = 0, x = 0, y = 0;
+  char c1 = 0, c2 = 0;
+  std::istringstream in(text);
+  std::string extra;
+  if (!(in >> l >> c1 >> x >> c2 >> y) || c1 != '/' || c2 != '/' || (in >> extra) || l >= unsigned(kLevelCount)) return false;
+  out = {l, x, y};
+  return true;
+}
+
+Status read_point_file(const std::string& path, bool lonlat, std::vector<SamplePoint>& out) {
+  std::ifstream in(path);
+  if (!in) return Status::failure(Error::io_open, path + ": cannot open");
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    SamplePoint p;
+    p.lonlat = lonlat;
+    if (!parse_pair(line, p.x, p.y))
+      return Status::failure(Error::invalid_argument, fmt::format("{}:{}: expected two numbers ({}), got '{}'", path, number,
+                                                                  lonlat ? "lon lat" : "x y", line));
+    out.push_back(p);
+  }
+  return Status::success();
+}
+
+Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out) {
+  SurfaceSampler sampler(reader);
+  out.clear();
+  for (const SamplePoint& p : points) {
+    SampleAnswer a;
+    a.frame_x = p.x;
+    a.frame_y = p.y;
+    if (p.lonlat)
+      if (Status s = lonlat_to_frame(reader.world().crs, p.x, p.y, a.frame_x, a.frame_y); !s.ok()) return s;
+    std::optional<SurfaceSample> got;
+    if (Status s = sampler.sample(a.frame_x, a.frame_y, got); !s.ok()) return s;
+    if (got) {
+      a.height_m = got->height_m;
+      a.node = got->node;
+    }
+    out.push_back(a);
+  }
+  return Status::success();
+}
+
+namespace {
+
+// Writes an image north up (grid row 0 is south, image row 0 is north).
+Status write_image(const std::string& path, int w, int h, int channels, OIIO::TypeDesc type, const void* south_up_rows,
+                   size_t pixel_bytes) {
+  auto o = OIIO::ImageOutput::create(path);
+  if (!o) return Status::failure(Error::io_write, path + ": no image writer for this extension");
+  OIIO::ImageSpec spec(w, h, channels, type);
+  if (!o->open(path, spec)) return Status::failure(Error::io_write, path + ": " + o->geterror());
+  const auto* base = static_cast<const uint8_t*>(south_up_rows);
+  const OIIO::stride_t row_stride = OIIO::stride_t(size_t(w) * pixel_bytes);
+  // Start at the last (northern) row and walk backwards.
+  if (!o->write_image(type, base + size_t(h - 1) * size_t(row_stride), OIIO::AutoStride, -row_stride) || !o->close())
+    return Status::failure(Error::io_write, path + ": " + o->geterror());
+  return Status::success();
+}
+
+}  // namespace
+
+Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::string& dir, std::vector<std::string>& written) {
+  const int64_t index = reader.find(key);
+  if (index < 0) return Status::failure(Error::node_not_found, "no node " + key_text(key) + " in the archive");
+  auto d = std::make_unique<NodeData>();
+  if (Status s = reader.decode_node(size_t(index), *d); !s.ok()) return s;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Status::failure(Error::io_write, dir + ": cannot create: " + ec.message());
+  const NodeRecord& r = reader.nodes()[size_t(index)];
+  const WorldInfo& w = reader.world();
+  const int step = w.step_log2[key.level];
+  std::vector<uint8_t> holes(static_cast<size_t>(kHeightCount));
+  decode_hole_mask(*d, holes.data());
+  auto file = [&](const char* name) {
+    written.push_back((std::filesystem::path(dir) / name).string());
+    return written.back();
+  };
+  std::vector<float> metres(static_cast<size_t>(kHeightCount));
+  for (size_t k = 0; k < metres.size(); ++k)
+    metres[k] = holes[k] ? NAN : units_to_metres_f32(vertex_units(r.height_offset, d->heights[k], step));
+  if (Status s = write_image(file("heights.exr"), kHeightSamples, kHeightSamples, 1, OIIO::TypeDesc::FLOAT, metres.data(), 4); !s.ok())
+    return s;
+  if (Status s = write_image(file("heights.png"), kHeightSamples, kHeightSamples, 1, OIIO::TypeDesc::UINT16, d->heights.data(), 2);
+      !s.ok())
+    return s;
+  std::vector<uint8_t> rgba(size_t(kTexels) * kTexels * 4);
+  decode_bc3_image(d->normals_bc3.data(), kTexelBlocks, kTexelBlocks, rgba.data());
+  if (Status s = write_image(file("normals.png"), kTexels, kTexels, 4, OIIO::TypeDesc::UINT8, rgba.data(), 4); !s.ok()) return s;
+  decode_bc1_image(d->albedo_bc1.data(), kTexelBlocks, kTexelBlocks, rgba.data());
+  if (Status s = write_image(file("albedo.png"), kTexels, kTexels, 4, OIIO::TypeDesc::UINT8, rgba.data(), 4); !s.ok()) return s;
+  std::vector<uint8_t> cones(8 * 8 * 4);
+  decode_bc3_image(d->cones_bc3.data(), 2, 2, cones.data());
+  if (Status s = write_image(file("cones.png"), 8, 8, 4, OIIO::TypeDesc::UINT8, cones.data(), 4); !s.ok()) return s;
+  {  // raw ids as binary PGM, north up
+    std::ofstream pgm(file("splat.pgm"), std::ios::binary);
+    pgm << "P5\n" << kSplatSamples << " " << kSplatSamples << "\n255\n";
+    for (int j = kSplatSamples - 1; j >= 0; --j)
+      pgm.write(reinterpret_cast<const char*>(d->splat.data() + size_t(j) * kSplatSamples), kSplatSamples);
+    if (!pgm) return Status::failure(Error::io_write, written.back() + ": write failed");
+  }
+  std::vector<uint8_t> colours(size_t(kSplatCount) * 3);
+  for (size_t k = 0; k < size_t(kSplatCount); ++k) {
+    const uint8_t id = d->splat[k];
+    std::array<uint8_t, 3> c{};
+    if (id < w.palette.size()) {
+      c = w.palette[id].albedo_srgb;
+    } else {  // no palette entry: a stable false colour
+      c = {uint8_t(id * 97), uint8_t(id * 57 + 80), uint8_t(id * 23 + 160)};
+    }
+    std::copy(c.begin(), c.end(), colours.begin() + std::ptrdiff_t(k * 3));
+  }
+  if (Status s = write_image(file("splat.png"), kSplatSamples, kSplatSamples, 3, OIIO::TypeDesc::UINT8, colours.data(), 3); !s.ok())
+    return s;
+  nlohmann::json j;
+  const double size = node_size_m(int(key.level)), s = vertex_spacing_m(int(key.level));
+  const double x0 = w.origin_x_m + key.x * size, y0 = w.origin_y_m + key.y * size;
+  j["node"] = key_text(key);
+  j["south_west_corner_m"] = {x0, y0};
+  j["vertex_spacing_m"] = s;
+  j["height_offset_units"] = r.height_offset;
+  j["step_log2"] = step;
+  j["metres_from_png16"] = fmt::format("({} + (value << {})) / 1024", r.height_offset, step);
+  j["min_height_m"] = units_to_metres(r.min_height);
+  j["max_height_m"] = units_to_metres(r.max_height);
+  j["geometric_error_m"] = r.geometric_error_m;
+  j["child_mask"] = r.child_mask;
+  j["has_holes"] = bool(r.flags & kNodeFlagHasHoles);
+  j["hole_vertices"] = std::count(holes.begin(), holes.end(), uint8_t(1));
+  j["images"] = "north up; heights 129x129 vertices; normals/albedo 132x132 cell-centred texels with a 2-texel apron; "
+                "splat 65x65 at every second vertex; cones 8x8 patches";
+  std::ofstream js(file("node.json"));
+  js << j.dump(2) << "\n";
+  if (!js) return Status::failure(Error::io_write, written.back() + ": write failed");
+  return Status::success();
+}
+
+Status verify(const ArchiveReader& reader, const ProgressFn& progress) {
+  struct Ctx {
+    const ProgressFn* fn;
+  } ctx{&progress};
+  return reader.verify(
+      [](double fraction, void* user) {
+        const auto* c = static_cast<const Ctx*>(user);
+        if (*c->fn) (*c->fn)(fraction, "verify");
+      },
+      &ctx);
+}
+
+}  // namespace terrain::inspect

@@ -1,0 +1,49 @@
+// terrain-inspect as a library: summary, verification, point sampling and node export of an
+// archive. The tool's main() only parses arguments and maps the outcome to an exit code.
+// OpenImageIO and GeographicLib stay inside inspect.cpp.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "terrain/archive_reader.h"
+#include "terrain/progress.h"
+#include "terrain/status.h"
+
+namespace terrain::inspect {
+
+// Summary text (frame and CRS, extent, nodes per level, bytes per section, ratios, heights).
+Status summary_text(const ArchiveReader& reader, const std::string& path, std::string& out);
+// The same facts as a JSON document (doubles at full precision).
+Status summary_json(const ArchiveReader& reader, const std::string& path, std::string& out);
+
+// Frame coordinates of a geographic point, using the archive's CRS. Fails with invalid_argument
+// for a `local` frame.
+Status lonlat_to_frame(const FrameCrs& crs, double lon_deg, double lat_deg, double& x, double& y);
+
+struct SamplePoint {
+  double x = 0, y = 0;  // as given (frame metres, or lon/lat degrees)
+  bool lonlat = false;
+};
+struct SampleAnswer {
+  double frame_x = 0, frame_y = 0;
+  std::optional<double> height_m;  // nullopt: nodata
+  NodeKey node;
+};
+Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out);
+// Reads "a b" pairs (whitespace or comma separated; blank lines and # comments skipped).
+Status read_point_file(const std::string& path, bool lonlat, std::vector<SamplePoint>& out);
+// Parses "A,B" (two finite numbers).
+bool parse_pair(const std::string& text, double& a, double& b);
+// Parses "LEVEL/X/Y".
+bool parse_key(const std::string& text, NodeKey& out);
+
+// Writes heights.exr (float metres, NaN at holes), heights.png (16-bit stored R16 values),
+// normals.png, albedo.png (alpha = hole mask), cones.png, splat.pgm (raw ids), splat.png
+// (palette colours) and node.json into `dir` (created). Images are north up.
+Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::string& dir, std::vector<std::string>& written);
+
+// Full verification with a progress callback (may be empty).
+Status verify(const ArchiveReader& reader, const ProgressFn& progress);
+
+}  // namespace terrain::inspect

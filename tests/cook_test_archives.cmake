@@ -1,0 +1,34 @@
+cmake_policy(SET CMP0007 NEW)
+# ctest fixture: cooks real DEMs into <build>/test-archives/ once per test run, for the streamer,
+# viewer and cross-component tests (they skip with a message when an archive is absent).
+# -D COOK=<terrain-cook> -D OUT=<dir> -D DATA=<shared data dir>
+if(NOT "$ENV{TERRAIN_DATA_DIR}" STREQUAL "")
+  set(DATA "$ENV{TERRAIN_DATA_DIR}")
+endif()
+file(MAKE_DIRECTORY ${OUT})
+set(jobs
+  "jacksboro|/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz|--crs,EPSG:4326"
+  "kilauea|${DATA}/kilauea_utm5n.tif|"
+  "tahoe|${DATA}/tahoe_lidar_bareearth.tif|"
+  "slovenia|${DATA}/slovenia_TM1_564_146.tif|")
+foreach(job IN LISTS jobs)
+  string(REPLACE "|" ";" parts "${job}")
+  list(GET parts 0 name)
+  list(GET parts 1 src)
+  list(LENGTH parts n)
+  set(flags "")
+  if(n GREATER 2)
+    list(GET parts 2 flags)
+    string(REPLACE "," ";" flags "${flags}")
+  endif()
+  if(NOT EXISTS ${src})
+    message(STATUS "test archive ${name}: input ${src} not found, skipped")
+    continue()
+  endif()
+  execute_process(COMMAND ${COOK} ${src} -o ${OUT}/${name}.terrain ${flags} --quiet
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "cooking ${name} from ${src} failed (${rc}): ${out} ${err}")
+  endif()
+  message(STATUS "test archive ${name}: ${OUT}/${name}.terrain")
+endforeach()

@@ -1,0 +1,7 @@
+# Runs CMD with ARGS ('|'-separated) and fails unless the exit code is EXPECT.
+string(REPLACE "|" ";" _args "${ARGS}")
+execute_process(COMMAND ${CMD} ${_args} RESULT_VARIABLE _rc OUTPUT_QUIET ERROR_VARIABLE _err)
+if(NOT _rc EQUAL EXPECT)
+  message(FATAL_ERROR "exit code ${_rc}, expected ${EXPECT}; stderr: ${_err}")
+endif()
+message(STATUS "exit code ${_rc} as expected; stderr: ${_err}")

@@ -1,0 +1,126 @@
+// terrain-inspect's library: geographic conversion against GeographicLib's UTM, argument parsing,
+// point files, and the export files read back with OpenImageIO (separate executable: OIIO).
+#include <GeographicLib/UTMUPS.hpp>
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "archive_fixture.h"
+#include "inspect.h"
+#include "test_data.h"
+
+namespace terrain {
+namespace {
+
+TEST(Inspect, TransverseMercatorMatchesUtmZone5) {
+  FrameCrs c = test::make_world().crs;  // UTM 5N as explicit parameters
+  for (auto [lon, lat] : {std::pair{-155.28, 19.41}, {-153.0, 0.5}, {-156.9, 22.1}}) {
+    double x = 0, y = 0;
+    ASSERT_TRUE(inspect::lonlat_to_frame(c, lon, lat, x, y).ok());
+    int zone = 0;
+    bool north = false;
+    double ux = 0, uy = 0;
+    GeographicLib::UTMUPS::Forward(lat, lon, zone, north, ux, uy, 5);
+    EXPECT_NEAR(x, ux, 1e-3) << lon << "," << lat;
+    EXPECT_NEAR(y, uy, 1e-3) << lon << "," << lat;
+  }
+  // A non-zero latitude of origin shifts northings by the meridian arc to it.
+  c.lat0_deg = 10;
+  double x = 0, y = 0;
+  ASSERT_TRUE(inspect::lonlat_to_frame(c, -153, 10, x, y).ok());
+  EXPECT_NEAR(x, 500000, 1e-6);
+  EXPECT_NEAR(y, 0, 1e-6);
+}
+
+TEST(Inspect, LonLatIsRefusedForALocalFrame) {
+  double x = 0, y = 0;
+  const Status s = inspect::lonlat_to_frame(FrameCrs{}, 1, 2, x, y);
+  EXPECT_EQ(s.code, Error::invalid_argument);
+  EXPECT_NE(s.message.find("local"), std::string::npos);
+}
+
+TEST(Inspect, ParsesPairsKeysAndPointFiles) {
+  double a = 0, b = 0;
+  EXPECT_TRUE(inspect::parse_pair("12.5,-3", a, b));
+  EXPECT_EQ(a, 12.5);
+  EXPECT_EQ(b, -3);
+  EXPECT_FALSE(inspect::parse_pair("1", a, b));
+  EXPECT_FALSE(inspect::parse_pair("1,2,3", a, b));
+  EXPECT_FALSE(inspect::parse_pair("x,2", a, b));
+  NodeKey k;
+  EXPECT_TRUE(inspect::parse_key("2/10/7", k));
+  EXPECT_EQ(k, (NodeKey{2, 10, 7}));
+  EXPECT_FALSE(inspect::parse_key("6/0/0", k));
+  EXPECT_FALSE(inspect::parse_key("1/2", k));
+  const auto dir = test::scratch_dir("inspect-points");
+  {
+    std::ofstream f(dir / "p.txt");
+    f << "# x y\n1 2\n\n3.5, 4  # comment\n";
+  }
+  std::vector<inspect::SamplePoint> pts;
+  ASSERT_TRUE(inspect::read_point_file((dir / "p.txt").string(), false, pts).ok());
+  ASSERT_EQ(pts.size(), 2u);
+  EXPECT_EQ(pts[1].x, 3.5);
+  {
+    std::ofstream f(dir / "bad.txt");
+    f << "1 2\noops\n";
+  }
+  pts.clear();
+  const Status s = inspect::read_point_file((dir / "bad.txt").string(), false, pts);
+  EXPECT_EQ(s.code, Error::invalid_argument);
+  EXPECT_NE(s.message.find(":2:"), std::string::npos) << s.message;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Inspect, ExportWritesEveryLayerNorthUp) {
+  const auto dir = test::scratch_dir("inspect-export");
+  const auto path = (dir / "a.terrain").string();
+  ASSERT_TRUE(test::write_seed_archive(path, true).ok());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path).ok());
+  std::vector<std::string> written;
+  ASSERT_TRUE(inspect::export_node(reader, {0, 4, 3}, (dir / "out").string(), written).ok());
+  EXPECT_EQ(written.size(), 8u);
+  for (const auto& f : written) EXPECT_TRUE(std::filesystem::exists(f)) << f;
+  NodeData d;
+  ASSERT_TRUE(reader.decode_node(size_t(reader.find({0, 4, 3})), d).ok());
+  auto in = OIIO::ImageInput::open((dir / "out/heights.png").string());
+  ASSERT_TRUE(in);
+  ASSERT_EQ(in->spec().width, kHeightSamples);
+  std::vector<uint16_t> png(static_cast<size_t>(kHeightCount));
+  ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::UINT16, png.data()));
+  // Image row 0 is north = grid row 128.
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i)
+      ASSERT_EQ(png[size_t((kHeightSamples - 1 - j) * kHeightSamples + i)], d.heights[size_t(j * kHeightSamples + i)]);
+  auto exr = OIIO::ImageInput::open((dir / "out/heights.exr").string());
+  ASSERT_TRUE(exr);
+  std::vector<float> m(static_cast<size_t>(kHeightCount));
+  ASSERT_TRUE(exr->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, m.data()));
+  // Vertex (0, 0) of node 0/4/3 (x 256, y 192) is the plane (2x + 4y)/32 = 40 m, at image row 128.
+  EXPECT_FLOAT_EQ(m[size_t(128 * kHeightSamples)], 40.0f);
+  // The hole centre (300, 200) = vertex (88, 16) is NaN.
+  EXPECT_TRUE(std::isnan(m[size_t((128 - 16) * kHeightSamples + 88)]));
+  std::vector<std::string> none;
+  EXPECT_EQ(inspect::export_node(reader, {0, 9, 9}, (dir / "x").string(), none).code, Error::node_not_found);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Inspect, SummaryJsonCarriesTheFacts) {
+  const auto dir = test::scratch_dir("inspect-json");
+  const auto path = (dir / "a.terrain").string();
+  ASSERT_TRUE(test::write_seed_archive(path, true).ok());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path).ok());
+  std::string text;
+  ASSERT_TRUE(inspect::summary_json(reader, path, text).ok());
+  EXPECT_NE(text.find("\"epsg\": 32605"), std::string::npos);
+  EXPECT_NE(text.find("\"nodes\": 6"), std::string::npos);
+  EXPECT_NE(text.find("\"tool\": \"test\""), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace terrain

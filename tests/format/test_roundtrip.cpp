@@ -1,0 +1,346 @@
+// Round trip of every section and metadata field, sparse lookups, determinism, atomic writes.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "archive_fixture.h"
+#include "terrain/archive_layout.h"
+#include "terrain/bc_decode.h"
+#include "terrain/height_codec.h"
+#include "test_data.h"
+
+namespace terrain {
+namespace {
+
+using test::make_world;
+
+std::vector<uint8_t> read_file(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+void expect_world_equal(const WorldInfo& a, const WorldInfo& b) {
+  EXPECT_EQ(a.crs.kind, b.crs.kind);
+  EXPECT_EQ(a.crs.epsg, b.crs.epsg);
+  EXPECT_EQ(a.crs.semi_major_m, b.crs.semi_major_m);
+  EXPECT_EQ(a.crs.inverse_flattening, b.crs.inverse_flattening);
+  EXPECT_EQ(a.crs.lat0_deg, b.crs.lat0_deg);
+  EXPECT_EQ(a.crs.lon0_deg, b.crs.lon0_deg);
+  EXPECT_EQ(a.crs.scale_k0, b.crs.scale_k0);
+  EXPECT_EQ(a.crs.false_easting_m, b.crs.false_easting_m);
+  EXPECT_EQ(a.crs.false_northing_m, b.crs.false_northing_m);
+  EXPECT_EQ(a.crs.name, b.crs.name);
+  EXPECT_EQ(a.origin_x_m, b.origin_x_m);
+  EXPECT_EQ(a.origin_y_m, b.origin_y_m);
+  EXPECT_EQ(a.roots_x, b.roots_x);
+  EXPECT_EQ(a.roots_y, b.roots_y);
+  EXPECT_EQ(a.extent_min_x_m, b.extent_min_x_m);
+  EXPECT_EQ(a.extent_min_y_m, b.extent_min_y_m);
+  EXPECT_EQ(a.extent_max_x_m, b.extent_max_x_m);
+  EXPECT_EQ(a.extent_max_y_m, b.extent_max_y_m);
+  EXPECT_EQ(a.step_log2, b.step_log2);
+  ASSERT_EQ(a.palette.size(), b.palette.size());
+  for (size_t i = 0; i < a.palette.size(); ++i) {
+    EXPECT_EQ(a.palette[i].name, b.palette[i].name);
+    EXPECT_EQ(a.palette[i].albedo_srgb, b.palette[i].albedo_srgb);
+    EXPECT_EQ(a.palette[i].flags, b.palette[i].flags);
+    EXPECT_EQ(a.palette[i].roughness, b.palette[i].roughness);
+    EXPECT_EQ(a.palette[i].detail_scale_m, b.palette[i].detail_scale_m);
+    EXPECT_EQ(a.palette[i].detail_strength, b.palette[i].detail_strength);
+    EXPECT_EQ(a.palette[i].height_blend, b.palette[i].height_blend);
+  }
+  EXPECT_EQ(a.cook_info_json, b.cook_info_json);
+}
+
+class ArchiveRoundTrip : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    path_ = (dir_ / "world.terrain").string();
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path dir_;
+  std::string path_;
+};
+
+TEST_F(ArchiveRoundTrip, EverySectionAndRecordFieldSurvives) {
+  const WorldInfo w = make_world();
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  ArchiveReader reader;
+  const Status s = reader.open(path_);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(reader.format_version(), 1u);
+  EXPECT_EQ(reader.file_size(), std::filesystem::file_size(path_));
+  expect_world_equal(w, reader.world());
+  ASSERT_EQ(reader.nodes().size(), keys.size());
+  NodeData got;
+  for (const NodeKey& k : keys) {
+    const int64_t index = reader.find(k);
+    ASSERT_GE(index, 0) << k.level << "/" << k.x << "/" << k.y;
+    const test::BuiltNode want = test::make_synthetic_node(w, k, 1);
+    const NodeRecord& r = reader.nodes()[size_t(index)];
+    EXPECT_EQ(r.key, k);
+    EXPECT_EQ(r.child_mask, test::child_mask_of(keys, k));
+    EXPECT_EQ(r.flags, want.record.flags);
+    EXPECT_EQ(r.height_offset, want.record.height_offset);
+    EXPECT_EQ(r.min_height, want.record.min_height);
+    EXPECT_EQ(r.max_height, want.record.max_height);
+    EXPECT_EQ(r.geometric_error_m, want.record.geometric_error_m);
+    ASSERT_TRUE(reader.decode_node(size_t(index), got).ok());
+    EXPECT_EQ(got.heights, want.data->heights);
+    EXPECT_EQ(got.normals_bc3, want.data->normals_bc3);
+    EXPECT_EQ(got.albedo_bc1, want.data->albedo_bc1);
+    EXPECT_EQ(got.splat, want.data->splat);
+    EXPECT_EQ(got.cones_bc3, want.data->cones_bc3);
+  }
+  const Status v = reader.verify();
+  EXPECT_TRUE(v.ok()) << v.to_string();
+}
+
+TEST_F(ArchiveRoundTrip, DecodeOnlyRequestedSections) {
+  const WorldInfo w = make_world();
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path_).ok());
+  auto got = std::make_unique<NodeData>();
+  got->normals_bc3.fill(0xAB);
+  got->cones_bc3.fill(0xCD);
+  ASSERT_TRUE(reader.decode_node(0, *got, kSectionHeights | kSectionSplat).ok());
+  const auto want = test::make_synthetic_node(w, reader.nodes()[0].key, 1);
+  EXPECT_EQ(got->heights, want.data->heights);
+  EXPECT_EQ(got->splat, want.data->splat);
+  EXPECT_TRUE(std::all_of(got->normals_bc3.begin(), got->normals_bc3.end(), [](uint8_t b) { return b == 0xAB; }));
+  EXPECT_TRUE(std::all_of(got->cones_bc3.begin(), got->cones_bc3.end(), [](uint8_t b) { return b == 0xCD; }));
+}
+
+TEST_F(ArchiveRoundTrip, LookupsAcrossASparseTreeTellPresentFromAbsent) {
+  const WorldInfo w = make_world(2, 1);
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path_).ok());
+  std::array<uint32_t, kLevelCount> expected{};
+  for (const NodeKey& k : keys) ++expected[k.level];
+  EXPECT_EQ(reader.nodes_per_level(), expected);
+  // Every key of every level's full grid (level 0: 64 x 32 nodes) is either found at its own
+  // entry or reported absent, matching the key list.
+  int present = 0, absent = 0;
+  for (uint32_t level = 0; level < uint32_t(kLevelCount); ++level) {
+    const uint32_t nx = w.roots_x << (kRootLevel - int(level)), ny = w.roots_y << (kRootLevel - int(level));
+    for (uint32_t y = 0; y < ny; ++y)
+      for (uint32_t x = 0; x < nx; ++x) {
+        const NodeKey k{level, x, y};
+        const bool want = std::find(keys.begin(), keys.end(), k) != keys.end();
+        const int64_t i = reader.find(k);
+        ASSERT_EQ(i >= 0, want) << level << "/" << x << "/" << y;
+        if (i >= 0) {
+          EXPECT_EQ(reader.nodes()[size_t(i)].key, k);
+          ++present;
+        } else {
+          ++absent;
+        }
+      }
+  }
+  EXPECT_EQ(present, int(keys.size()));
+  EXPECT_GT(absent, 2000);
+  // Keys beyond the grid or level range are absent, not errors.
+  EXPECT_EQ(reader.find({0, 64, 0}), -1);
+  EXPECT_EQ(reader.find({6, 0, 0}), -1);
+  EXPECT_EQ(reader.find({0, 0xFFFFFFFFu, 0xFFFFFFFFu}), -1);
+  NodeData d;
+  EXPECT_EQ(reader.decode_node(reader.nodes().size(), d).code, Error::node_not_found);
+}
+
+TEST_F(ArchiveRoundTrip, SameInputsGiveIdenticalBytesAtAnyThreadCount) {
+  const WorldInfo w = make_world();
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  const auto first = read_file(path_);
+  ASSERT_TRUE(test::write_synthetic_archive(path_ + "2", w, keys).ok());
+  EXPECT_EQ(read_file(path_ + "2"), first);
+  // Payloads encoded on 4 threads (thread-local zstd contexts) equal the serial ones.
+  std::vector<std::vector<uint8_t>> serial(keys.size()), parallel(keys.size());
+  for (size_t i = 0; i < keys.size(); ++i)
+    ASSERT_TRUE(encode_node_payload(*test::make_synthetic_node(w, keys[i], 1).data, {}, serial[i]).ok());
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (size_t i = size_t(t); i < keys.size(); i += 4)
+        (void)encode_node_payload(*test::make_synthetic_node(w, keys[i], 1).data, {}, parallel[i]);
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(serial, parallel);
+  // The directory is sorted whatever the add order; payload order follows the calls.
+  ArchiveWriter writer;
+  ASSERT_TRUE(writer.open(path_ + "3").ok());
+  for (size_t i = keys.size(); i-- > 0;) {
+    test::BuiltNode n = test::make_synthetic_node(w, keys[i], 1);
+    n.record.child_mask = test::child_mask_of(keys, keys[i]);
+    ASSERT_TRUE(writer.add_node(n.record, serial[i]).ok());
+  }
+  ASSERT_TRUE(writer.finish(w).ok());
+  ArchiveReader a, b;
+  ASSERT_TRUE(a.open(path_).ok());
+  ASSERT_TRUE(b.open(path_ + "3").ok());
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  for (size_t i = 0; i < a.nodes().size(); ++i) {
+    EXPECT_EQ(a.nodes()[i].key, b.nodes()[i].key);
+    EXPECT_TRUE(std::ranges::equal(a.payload(i), b.payload(i)));
+  }
+}
+
+TEST_F(ArchiveRoundTrip, FailedOrAbortedWriteLeavesTheEarlierArchiveIntact) {
+  const WorldInfo w = make_world();
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  const auto before = read_file(path_);
+  auto temp_files = [&] {
+    int n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir_)) n += e.path().filename().string().find(".tmp-") != std::string::npos;
+    return n;
+  };
+  std::vector<uint8_t> payload;
+  ASSERT_TRUE(encode_node_payload(*test::make_synthetic_node(w, keys[0], 1).data, {}, payload).ok());
+  {  // explicit abort
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    EXPECT_EQ(temp_files(), 1);
+    ASSERT_TRUE(writer.add_node(test::make_synthetic_node(w, keys[0], 1).record, payload).ok());
+    writer.abort();
+    EXPECT_EQ(temp_files(), 0);
+  }
+  {  // destroyed without finish (a crash in the cooker's loop)
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    ASSERT_TRUE(writer.add_node(test::make_synthetic_node(w, keys[0], 1).record, payload).ok());
+  }
+  EXPECT_EQ(temp_files(), 0);
+  {  // finish() refuses an inconsistent tree (a level-0 node without its parents)
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    ASSERT_TRUE(writer.add_node(test::make_synthetic_node(w, {0, 1, 1}, 1).record, payload).ok());
+    const Status s = writer.finish(w);
+    EXPECT_EQ(s.code, Error::directory_invalid) << s.to_string();
+    EXPECT_NE(s.message.find("parent"), std::string::npos) << s.message;
+    EXPECT_EQ(temp_files(), 0);
+  }
+  {  // finish() refuses invalid metadata
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    WorldInfo bad = w;
+    bad.cook_info_json = "{not json";
+    EXPECT_EQ(writer.finish(bad).code, Error::metadata_invalid);
+    EXPECT_EQ(temp_files(), 0);
+  }
+  EXPECT_EQ(read_file(path_), before);
+  ArchiveReader reader;
+  EXPECT_TRUE(reader.open(path_).ok());
+}
+
+TEST_F(ArchiveRoundTrip, ChildMasksMustMatchTheDirectoryExactly) {
+  const WorldInfo w = make_world(1, 1);
+  const auto keys = test::close_tree({{0, 4, 3}});
+  for (int variant = 0; variant < 3; ++variant) {
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    std::vector<uint8_t> payload;
+    for (const NodeKey& k : keys) {
+      test::BuiltNode n = test::make_seed_node(w, k);
+      n.record.child_mask = test::child_mask_of(keys, k);
+      if (k == NodeKey{2, 1, 0}) {
+        if (variant == 0) n.record.child_mask = 0;                  // child 1/2/1 exists, bit clear
+        if (variant == 1) n.record.child_mask |= 1;                 // bit set, child 1/2/0 absent
+        if (variant == 2) n.record.child_mask = uint8_t(0x4 | 0x10);  // reserved bit 4
+      }
+      ASSERT_TRUE(encode_node_payload(*n.data, {}, payload).ok());
+      ASSERT_TRUE(writer.add_node(n.record, payload).ok() || variant == 2);
+    }
+    const Status s = writer.finish(w);
+    if (variant == 2) {  // rejected at add_node already; finish then sees the missing node
+      EXPECT_FALSE(s.ok());
+      continue;
+    }
+    EXPECT_EQ(s.code, Error::directory_invalid) << variant << ": " << s.to_string();
+    EXPECT_NE(s.message.find("node 2/1/0: child_mask bit"), std::string::npos) << s.message;
+  }
+}
+
+TEST_F(ArchiveRoundTrip, WriterRejectsCallerMistakesWithoutLosingTheArchive) {
+  const WorldInfo w = make_world();
+  std::vector<uint8_t> payload;
+  test::BuiltNode root = test::make_synthetic_node(w, {5, 0, 0}, 1);
+  ASSERT_TRUE(encode_node_payload(*root.data, {}, payload).ok());
+  ArchiveWriter writer;
+  EXPECT_EQ(writer.add_node(root.record, payload).code, Error::invalid_argument);  // not open
+  ASSERT_TRUE(writer.open(path_).ok());
+  ASSERT_TRUE(writer.add_node(root.record, payload).ok());
+  EXPECT_EQ(writer.add_node(root.record, payload).code, Error::invalid_argument);  // duplicate
+  NodeRecord bad = root.record;
+  bad.key = {6, 0, 0};
+  EXPECT_EQ(writer.add_node(bad, payload).code, Error::invalid_argument);  // level
+  bad = root.record;
+  bad.key = {5, 1, 0};
+  bad.min_height = bad.max_height + 1;
+  EXPECT_EQ(writer.add_node(bad, payload).code, Error::invalid_argument);  // min > max
+  bad = root.record;
+  bad.key = {5, 1, 0};
+  std::vector<uint8_t> garbage(payload.size(), 0x7F);
+  EXPECT_EQ(writer.add_node(bad, garbage).code, Error::invalid_argument);  // not a payload
+  EXPECT_EQ(encode_node_payload(*root.data, {99, true}, payload).code, Error::invalid_argument);
+  ASSERT_TRUE(writer.finish(w).ok());  // the good node still makes a valid archive
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path_).ok());
+  EXPECT_EQ(reader.nodes().size(), 1u);
+  EXPECT_TRUE(reader.verify().ok());
+}
+
+TEST_F(ArchiveRoundTrip, OpenFromMemoryMatchesOpenFromFile) {
+  const WorldInfo w = make_world();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, test::sparse_keys()).ok());
+  ArchiveReader a, b;
+  ASSERT_TRUE(a.open(path_).ok());
+  ASSERT_TRUE(b.open_memory(read_file(path_)).ok());
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  for (size_t i = 0; i < a.nodes().size(); ++i) EXPECT_TRUE(std::ranges::equal(a.payload(i), b.payload(i)));
+  ArchiveReader closed;
+  EXPECT_FALSE(closed.is_open());
+  EXPECT_EQ(closed.find({5, 0, 0}), -1);
+  EXPECT_TRUE(closed.nodes().empty());
+  EXPECT_EQ(closed.open("/nonexistent/x.terrain").code, Error::io_open);
+  EXPECT_EQ(closed.open(dir_.string()).code, Error::io_open);  // a directory
+}
+
+TEST_F(ArchiveRoundTrip, ConcurrentDecodesFromManyThreadsAgree) {
+  const WorldInfo w = make_world();
+  const auto keys = test::sparse_keys();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path_).ok());
+  std::vector<std::unique_ptr<NodeData>> want;
+  for (size_t i = 0; i < reader.nodes().size(); ++i) {
+    want.push_back(std::make_unique<NodeData>());
+    ASSERT_TRUE(reader.decode_node(i, *want.back()).ok());
+  }
+  std::atomic<int> mismatches{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      auto d = std::make_unique<NodeData>();
+      for (int round = 0; round < 3; ++round)
+        for (size_t i = size_t(t); i < reader.nodes().size(); i += 2) {
+          if (!reader.decode_node(i, *d).ok() || d->heights != want[i]->heights || d->albedo_bc1 != want[i]->albedo_bc1)
+            ++mismatches;
+          if (reader.find(reader.nodes()[i].key) != int64_t(i)) ++mismatches;
+        }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(mismatches.load(), 0);
+}
+
+}  // namespace
+}  // namespace terrain
