@@ -34,6 +34,18 @@ target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
 
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)
 pkg_check_modules(squish REQUIRED IMPORTED_TARGET libsquish)
+# Debian 12's libsquish.pc has an empty prefix, so the target carries "-I/include", which CMake
+# rejects at generate time: keep only include dirs that really hold squish.h.
+get_target_property(_squish_inc PkgConfig::squish INTERFACE_INCLUDE_DIRECTORIES)
+if(_squish_inc)
+  set(_squish_inc_ok "")
+  foreach(_d IN LISTS _squish_inc)
+    if(EXISTS "${_d}/squish.h")
+      list(APPEND _squish_inc_ok "${_d}")
+    endif()
+  endforeach()
+  set_target_properties(PkgConfig::squish PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_squish_inc_ok}")
+endif()
 find_path(STB_INCLUDE_DIR stb/stb_dxt.h REQUIRED)
 
 if(TERRAIN_BUILD_TESTS)

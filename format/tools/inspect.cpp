@@ -219,6 +219,8 @@ Status write_image(const std::string& path, int w, int h, int channels, OIIO::Ty
   auto o = OIIO::ImageOutput::create(path);
   if (!o) return Status::failure(Error::io_write, path + ": no image writer for this extension");
   OIIO::ImageSpec spec(w, h, channels, type);
+  // The bytes are straight (unassociated) colour: without this, OIIO divides RGB by alpha.
+  spec.attribute("oiio:UnassociatedAlpha", 1);
   if (!o->open(path, spec)) return Status::failure(Error::io_write, path + ": " + o->geterror());
   const auto* base = static_cast<const uint8_t*>(south_up_rows);
   const OIIO::stride_t row_stride = OIIO::stride_t(size_t(w) * pixel_bytes);
