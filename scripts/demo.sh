@@ -13,19 +13,15 @@ export VK_DRIVER_FILES=${VK_DRIVER_FILES:-/usr/share/vulkan/icd.d/lvp_icd.x86_64
 data=${TERRAIN_DATA_DIR:-$root/../shared/data}
 
 step() { printf '\n== %s\n' "$*"; }
-have() { [ -x "$bin/$1" ]; }
 
 inputs=("jacksboro|/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz|--crs EPSG:4326")
 if [ -d "$data" ]; then
-  inputs+=("kilauea|$data/kilauea_utm5n.tif|" "tahoe|$data/tahoe_lidar_bareearth.tif|")
+  inputs+=("kilauea|$data/kilauea_utm5n.tif|" "slovenia|$data/slovenia_TM1_564_146.tif|"
+           "tahoe|$data/tahoe_lidar_bareearth.tif|")
 else
   echo "demo: $data not found; cooking only the Debian-packaged DEM"
 fi
 
-if ! have terrain-cook; then
-  echo "demo: terrain-cook is not built yet in this version; stopping after the build."
-  exit 0
-fi
 for entry in "${inputs[@]}"; do
   IFS='|' read -r name src flags <<<"$entry"
   step "cook $name: $src"
@@ -36,13 +32,10 @@ for entry in "${inputs[@]}"; do
   "$bin/terrain-inspect" --verify "$out/$name.terrain"
 done
 
-if ! have terrain-view; then
-  echo "demo: terrain-view is not built yet in this version; archives are in $out"
-  exit 0
+step "render (headless, Mesa lavapipe unless a GPU is present)"
+"$bin/terrain-view" "$out/jacksboro.terrain" --headless --size 1280x720 --out "$out/jacksboro.png" --quiet
+echo "$out/jacksboro.png"
+if [ -d "$data" ]; then
+  "$root/viewer/demo.sh" "$root/build/release" "$out" "$out"
 fi
-step "render"
-for entry in "${inputs[@]}"; do
-  IFS='|' read -r name _ _ <<<"$entry"
-  "$bin/terrain-view" "$out/$name.terrain" --headless --size 1280x720 --out "$out/$name.png"
-  echo "screenshot: $out/$name.png"
-done
+step "done: archives, reports (*.report.json) and pictures (*.png) are in $out"

@@ -24,7 +24,8 @@ enum class BcQuality : uint8_t { fast, balanced, best };
 struct SurfaceOptions {
   std::string materials_path;   // JSON rules file; empty = built-in default rules and palette
   BcQuality bc_quality = BcQuality::balanced;
-  // Later: orthophoto albedo and hole mask rasters (resampled to the frame by the pyramid side).
+  // Orthophoto albedo and hole-mask rasters are resampled to the frame by the pyramid side and
+  // arrive per node in SurfaceInput::albedo_rgb and SurfaceInput::holes.
 };
 
 // Material rules and palette, loaded once per cook (owned by the surface side).
@@ -34,10 +35,15 @@ const std::vector<Material>& palette_of(const MaterialRules& rules);
 
 struct SurfaceInput {
   NodeKey key;
-  double x0_m = 0, y0_m = 0;    // frame coords of vertex (0, 0) (south-west corner)
+  // Frame coords of vertex (0, 0) (south-west corner). The splat noise is evaluated at
+  // x0 + i*s, so neighbours must get values whose sums agree (true when the frame origin is a
+  // multiple of the spacing, e.g. integer metres).
+  double x0_m = 0, y0_m = 0;
   double spacing_m = 0;         // vertex_spacing_m(key.level)
-  const float* heights_m = nullptr;  // kWindowCount, metres; NaN where outside the data
-  const uint8_t* holes = nullptr;    // kWindowCount, 1 = hole vertex (also outside the data)
+  // kWindowCount, metres, row-major south to north: element (i + 4, j + 4) is vertex (i, j).
+  // NaN where there is no data (a hole vertex may also carry its height: both work).
+  const float* heights_m = nullptr;
+  const uint8_t* holes = nullptr;    // kWindowCount, 1 = hole vertex (also outside the data); may be null
   // Optional RGB orthophoto colour per window vertex (kWindowCount * 3, sRGB), or null.
   const uint8_t* albedo_rgb = nullptr;
   const MaterialRules* rules = nullptr;
@@ -45,11 +51,17 @@ struct SurfaceInput {
 };
 
 struct SurfaceStats {  // summed over nodes by the caller
+  // CPU time of the calling thread per stage (compression included; the error statistics below are
+  // measured outside these times).
   double seconds_normals = 0, seconds_albedo = 0, seconds_splat = 0, seconds_cones = 0;
   double normal_err_max_deg = 0, normal_err_sum_deg = 0;  // decoded BC3 vs float normals
   uint64_t normal_samples = 0;
   double albedo_sq_err_sum = 0;  // decoded BC1 vs uncompressed, over opaque texels (for PSNR)
-  uint64_t albedo_samples = 0;
+  uint64_t albedo_samples = 0;   // colour channels summed (3 per opaque texel)
+  double cone_exact_deg_sum = 0;    // half-angles of the exact cones, over patches with triangles
+  double cone_encoded_deg_sum = 0;  // decoded half-angles incl. margins (what the viewer culls with)
+  uint64_t cone_patches = 0;        // patches with triangles
+  uint64_t cone_patches_never_cull = 0;  // decoded angle 255 (>= 90 degrees)
 };
 
 // Fills out.normals_bc3, out.albedo_bc1, out.splat and out.cones_bc3 (heights untouched).

@@ -1,0 +1,118 @@
+// terrain-cook as a library: real DEMs (GeoTIFF, SRTM HGT, PNG16/EXR/raw heightmaps, .npz) to an
+// archive's sparse, crack-free height pyramid (plus the surface layers of cooker/src/surface).
+// The tool `terrain-cook` is a thin shell over cook(). Light header: no third-party includes.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "terrain/format.h"
+#include "terrain/progress.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+// What happens to nodata samples (GDAL_NODATA, HGT -32768 voids, NaN in float input).
+enum class NodataPolicy : uint8_t {
+  automatic,  // voids enclosed by data and no larger than fill_max_samples are filled; the rest are holes
+  hole,       // every nodata sample is a hole
+  fill,       // every nodata sample is filled (holes only outside the inputs' footprint)
+};
+
+enum class SurfaceQuality : uint8_t { fast, balanced, best };
+
+struct CookOptions {
+  std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (same CRS and pixel grid)
+  std::string output;               // archive path (written atomically)
+
+  double tolerance_m = 0.5;         // a node is refined while its geometric error exceeds this
+  int finest_level = -1;            // -1: from the source resolution; else 0..5
+  int threads = 0;                  // 0: all cores
+
+  // Georeferencing for inputs that lack it, or overrides (see crs.h for the accepted forms).
+  std::string crs;                  // "EPSG:4326", "EPSG:32633", "EPSG:3794", "tm:lon0=..,..", "local"
+  std::string frame;                // overrides the automatic frame choice (same forms, TM or local)
+  std::optional<std::array<double, 2>> origin;   // images/raw: frame coords of the SOUTH-WEST sample
+  std::optional<std::array<double, 2>> spacing;  // images/raw: sample spacing x, y (CRS units)
+  double height_scale = 1.0;        // metres = value * scale + offset (after nodata detection)
+  double height_offset = 0.0;
+  std::optional<double> nodata_value;  // overrides the file's nodata value
+
+  // Raw heightmaps (.r16/.raw: uint16 little-endian by default, .r32/.f32: float32).
+  std::array<int, 2> raw_size{0, 0};  // width, height (required for raw input)
+  std::string raw_type;               // "u16", "i16", "f32" (empty: from the extension)
+  bool raw_big_endian = false;
+
+  NodataPolicy nodata = NodataPolicy::automatic;
+  int64_t fill_max_samples = 4096;  // automatic policy: largest enclosed void (in samples) to fill
+
+  // Surface layers (cooker/src/surface).
+  std::string materials_path;
+  SurfaceQuality surface_quality = SurfaceQuality::balanced;
+  bool heights_only = false;        // skip the surface layers (benchmarks; sections stay zero)
+
+  int zstd_level = 9;
+};
+
+struct LevelStats {
+  uint32_t nodes = 0;
+  uint8_t step_log2 = 0;             // quantization step of the level: 2^step_log2 units of 2^-10 m
+  uint64_t vertices = 0;             // non-hole vertices of the level's nodes (129x129 per node)
+  uint64_t error_samples = 0;        // source samples measured against the level's nodes
+  double error_max_m = 0;            // max |node surface - source| over those samples
+  double error_rms_m = 0;
+  uint64_t uncovered_samples = 0;    // valid source samples under a dropped (hole) triangle
+};
+
+struct CookReport {
+  // Inputs
+  std::vector<std::string> input_descriptions;
+  uint64_t source_samples = 0;       // samples read (mosaic)
+  uint64_t source_valid_samples = 0;
+  uint64_t voids_filled_samples = 0, voids_filled_regions = 0;
+  uint64_t hole_samples = 0, hole_regions = 0;
+  double source_spacing_m = 0;       // finest source sample spacing, frame metres
+  // Frame and grid
+  FrameCrs frame;
+  std::string frame_reason;          // why this frame was chosen
+  double origin_x_m = 0, origin_y_m = 0;
+  uint32_t roots_x = 0, roots_y = 0;
+  double extent_min_x_m = 0, extent_min_y_m = 0, extent_max_x_m = 0, extent_max_y_m = 0;  // data footprint
+  int finest_level = kRootLevel;     // finest level allowed
+  double tolerance_m = 0;
+  std::array<LevelStats, kLevelCount> levels{};
+  // Height error where the renderer shows full detail (each source sample against the finest
+  // node covering it).
+  double leaf_error_max_m = 0, leaf_error_rms_m = 0;
+  uint64_t leaf_error_samples = 0;
+  // Output
+  uint64_t nodes = 0;
+  uint64_t archive_bytes = 0;
+  std::array<uint64_t, 5> section_stored_bytes{};  // heights, normals, albedo, splat, cones
+  std::array<uint64_t, 5> section_raw_bytes{};
+  bool surface_layers = false;       // false when heights_only or the surface library is absent
+  // Time (wall seconds per stage; CPU seconds for the per-node work summed over threads)
+  double seconds_read = 0, seconds_prepare = 0, seconds_pyramid = 0, seconds_finish = 0, seconds_total = 0;
+  double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
+  int threads = 0;
+  uint64_t output_vertices = 0;      // vertices computed for nodes (129x129 each)
+  double source_samples_per_second = 0;       // source samples / total seconds
+  double height_samples_per_cpu_second = 0;   // output vertices / cpu_heights
+  uint64_t peak_rss_bytes = 0;
+  // Surface layers (when present)
+  double normal_err_max_deg = 0, normal_err_mean_deg = 0, albedo_psnr_db = 0;
+};
+
+// Progress: fraction 0..1 and a short stage name; return false to cancel (cook returns `cancelled`).
+using ProgressFn = terrain::ProgressFn;
+
+// Cooks options.inputs into options.output. On failure the previous file at output is untouched.
+Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report);
+
+// The report as JSON (the --report file) and as the closing summary lines.
+std::string report_json(const CookReport& report);
+std::string report_summary(const CookReport& report);
+
+}  // namespace terrain::cook

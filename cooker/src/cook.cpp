@@ -1,0 +1,257 @@
+// cook(): read -> mosaic -> voids -> frame and grid -> steps -> pyramid -> finish, timed per stage.
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "crs.h"
+#include "frame.h"
+#include "inputs.h"
+#include "mosaic.h"
+#include "node_cook.h"
+#include "parallel.h"
+#include "pyramid.h"
+#include "range_index.h"
+#include "terrain/archive_reader.h"
+#include "terrain/cook.h"
+#include "void_fill.h"
+
+namespace terrain::cook {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+constexpr double kRootSizeM = node_size_m(kRootLevel);
+
+const char* policy_name(NodataPolicy p) {
+  switch (p) {
+    case NodataPolicy::automatic: return "auto";
+    case NodataPolicy::hole: return "hole";
+    case NodataPolicy::fill: return "fill";
+  }
+  return "?";
+}
+
+// Finest level whose vertex spacing is at least half the source sample spacing.
+int finest_level_for(double source_spacing_m) {
+  for (int level = 0; level < kRootLevel; ++level)
+    if (vertex_spacing_m(level) >= 0.5 * source_spacing_m) return level;
+  return kRootLevel;
+}
+
+std::string cook_info(const CookOptions& o, const CookReport& r, const std::vector<std::string>& descriptions) {
+  nlohmann::ordered_json j;
+  j["tool"] = "terrain-cook";
+  j["version"] = "0.1.0";
+  nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < o.inputs.size(); ++i)
+    inputs.push_back({{"path", o.inputs[i]}, {"description", i < descriptions.size() ? descriptions[i] : ""}});
+  j["inputs"] = inputs;
+  j["options"] = {{"tolerance_m", o.tolerance_m},
+                  {"finest_level", o.finest_level},
+                  {"crs", o.crs},
+                  {"frame", o.frame},
+                  {"height_scale", o.height_scale},
+                  {"height_offset", o.height_offset},
+                  {"nodata", policy_name(o.nodata)},
+                  {"fill_max_samples", o.fill_max_samples},
+                  {"materials", o.materials_path},
+                  {"heights_only", o.heights_only}};
+  if (o.origin) j["options"]["origin"] = *o.origin;
+  if (o.spacing) j["options"]["spacing"] = *o.spacing;
+  if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
+  j["frame_reason"] = r.frame_reason;
+  j["reconstruction"] = "Catmull-Rom bicubic in source sample space; bilinear over valid taps next to nodata";
+  j["finest_level"] = r.finest_level;
+  j["voids_filled_samples"] = r.voids_filled_samples;
+  j["hole_samples"] = r.hole_samples;
+  return j.dump();
+}
+
+uint64_t peak_rss_bytes() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return uint64_t(u.ru_maxrss) * 1024;
+}
+
+}  // namespace
+
+Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report) {
+  report = CookReport{};
+  const auto t_start = Clock::now();
+  if (options.output.empty()) return Status::failure(Error::invalid_argument, "no output archive given");
+  if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
+    return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
+  if (options.finest_level < -1 || options.finest_level > kRootLevel)
+    return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
+  const int threads = resolve_threads(options.threads);
+  report.threads = threads;
+  report.tolerance_m = options.tolerance_m;
+  auto stage = [&](double f, const char* name) { return !progress || progress(f, name); };
+  if (!stage(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
+
+  // ---- read ----
+  std::vector<Raster> rasters;
+  if (Status st = load_inputs(options, rasters); !st.ok()) return st;
+  std::vector<std::string> descriptions;
+  for (const Raster& r : rasters) {
+    descriptions.push_back(r.description);
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}", r.path, r.description, describe_crs(r.crs)));
+  }
+  Raster source;
+  if (Status st = mosaic(rasters, source); !st.ok()) return st;
+  report.source_samples = source.values.size();
+  report.seconds_read = seconds_since(t_start);
+
+  // ---- prepare: voids, frame, grid, steps ----
+  const auto t_prep = Clock::now();
+  int vc0 = 0, vr0 = 0, vc1 = 0, vr1 = 0;
+  uint64_t valid = 0;
+  if (!valid_bounds(source, vc0, vr0, vc1, vr1, valid))
+    return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", source.path));
+  report.source_valid_samples = valid;
+  std::vector<uint8_t> filled;
+  VoidStats voids;
+  fill_voids(source, options.nodata, options.fill_max_samples, filled, voids);
+  report.voids_filled_samples = voids.filled_samples;
+  report.voids_filled_regions = voids.filled_regions;
+  report.hole_samples = voids.hole_samples;
+  report.hole_regions = voids.hole_regions;
+  if (options.nodata == NodataPolicy::fill) valid_bounds(source, vc0, vr0, vc1, vr1, valid);
+
+  FrameCrs frame;
+  if (Status st = choose_frame(source, options.frame, frame, report.frame_reason); !st.ok()) return st;
+  report.frame = frame;
+  SourceMapping mapping;
+  if (Status st = mapping.init(source, frame, threads); !st.ok()) return st;
+  double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
+  // The footprint: pixel areas, or for point samples the samples' hull.
+  mapping.frame_bounds(vc0, vr0, vc1, vr1, source.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
+  CookContext ctx(source);
+  ctx.filled = &filled;
+  ctx.mapping = &mapping;
+  ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
+  ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
+  const double roots_x = std::ceil((fx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((fy1 - ctx.origin_y) / kRootSizeM);
+  if (roots_x * roots_y > 1e7)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
+                                       (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
+  report.roots_x = uint32_t(std::max(1.0, roots_x));
+  report.roots_y = uint32_t(std::max(1.0, roots_y));
+  report.origin_x_m = ctx.origin_x;
+  report.origin_y_m = ctx.origin_y;
+  report.extent_min_x_m = fx0;
+  report.extent_min_y_m = fy0;
+  report.extent_max_x_m = fx1;
+  report.extent_max_y_m = fy1;
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
+  mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin,
+                           ctx.origin_x + report.roots_x * kRootSizeM + margin,
+                           ctx.origin_y + report.roots_y * kRootSizeM + margin, threads);
+  double sx = 0, sy = 0;
+  mapping.spacing_m(sx, sy);
+  report.source_spacing_m = std::min(sx, sy);
+  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(report.source_spacing_m);
+  report.finest_level = ctx.finest_level;
+  ctx.tolerance_m = options.tolerance_m;
+  ctx.source_spacing_m = report.source_spacing_m;
+  ctx.heights_only = options.heights_only;
+  ctx.payload.zstd_level = options.zstd_level;
+
+  RangeIndex index;
+  index.build(source);
+
+  // Surface layers: material rules and palette.
+  std::shared_ptr<const MaterialRules> rules;
+#if TERRAIN_COOKER_HAS_SURFACE
+  {
+    SurfaceOptions so;
+    so.materials_path = options.materials_path;
+    so.bc_quality = BcQuality(uint8_t(options.surface_quality));
+    ctx.bc_quality = so.bc_quality;
+    if (Status st = load_material_rules(so, rules); !st.ok()) return st;
+    ctx.rules = rules.get();
+    report.surface_layers = !options.heights_only;
+  }
+#else
+  if (!options.materials_path.empty())
+    return Status::failure(Error::invalid_argument, "--materials: this build has no surface-layer library");
+#endif
+  report.seconds_prepare = seconds_since(t_prep);
+
+  // ---- pyramid ----
+  const auto t_pyr = Clock::now();
+  ArchiveWriter writer;
+  if (Status st = writer.open(options.output); !st.ok()) return st;
+  PyramidStats pyr;
+  const ProgressFn sub = progress ? scaled_progress(progress, 0.05, 0.98) : ProgressFn{};
+  if (Status st = build_pyramid(ctx, index, report.roots_x, report.roots_y, threads, writer, sub, pyr); !st.ok()) {
+    writer.abort();
+    return st;
+  }
+  report.seconds_pyramid = seconds_since(t_pyr);
+  if (pyr.nodes == 0) {
+    writer.abort();
+    return Status::failure(Error::no_data, "no node holds terrain (is the data smaller than a vertex?)");
+  }
+
+  // ---- finish ----
+  const auto t_fin = Clock::now();
+  WorldInfo world;
+  world.crs = frame;
+  world.origin_x_m = ctx.origin_x;
+  world.origin_y_m = ctx.origin_y;
+  world.roots_x = report.roots_x;
+  world.roots_y = report.roots_y;
+  world.extent_min_x_m = fx0;
+  world.extent_min_y_m = fy0;
+  world.extent_max_x_m = fx1;
+  world.extent_max_y_m = fy1;
+  world.step_log2 = ctx.step_log2;
+#if TERRAIN_COOKER_HAS_SURFACE
+  if (rules) world.palette = palette_of(*rules);
+#endif
+  world.cook_info_json = cook_info(options, report, descriptions);
+  if (Status st = writer.finish(world); !st.ok()) return st;
+  report.archive_bytes = writer.bytes_written();
+  {
+    ArchiveReader reader;
+    SectionBytes sb;
+    if (reader.open(options.output).ok() && reader.section_bytes(sb).ok())
+      for (int s = 0; s < 5; ++s) {
+        report.section_stored_bytes[size_t(s)] = sb.stored[s];
+        report.section_raw_bytes[size_t(s)] = sb.raw[s];
+      }
+  }
+  report.seconds_finish = seconds_since(t_fin);
+
+  report.levels = pyr.levels;
+  report.nodes = pyr.nodes;
+  report.leaf_error_max_m = pyr.leaf.max_m;
+  report.leaf_error_samples = pyr.leaf.samples;
+  report.leaf_error_rms_m = pyr.leaf.samples ? std::sqrt(pyr.leaf.sum_sq / double(pyr.leaf.samples)) : 0.0;
+  report.cpu_heights = pyr.cpu_heights;
+  report.cpu_error = pyr.cpu_error;
+  report.cpu_surface = pyr.cpu_surface;
+  report.cpu_encode = pyr.cpu_encode;
+  report.output_vertices = pyr.output_vertices;
+  report.seconds_total = seconds_since(t_start);
+  report.source_samples_per_second = double(report.source_samples) / report.seconds_total;
+  report.height_samples_per_cpu_second = pyr.cpu_heights > 0 ? double(pyr.output_vertices) / pyr.cpu_heights : 0;
+  report.peak_rss_bytes = peak_rss_bytes();
+  if (pyr.surface.normal_samples) {
+    report.normal_err_max_deg = pyr.surface.normal_err_max_deg;
+    report.normal_err_mean_deg = pyr.surface.normal_err_sum_deg / double(pyr.surface.normal_samples);
+  }
+  if (pyr.surface.albedo_samples && pyr.surface.albedo_sq_err_sum > 0)
+    report.albedo_psnr_db =
+        10.0 * std::log10(255.0 * 255.0 / (pyr.surface.albedo_sq_err_sum / double(pyr.surface.albedo_samples)));
+  if (progress) progress(1.0, "done");
+  return Status::success();
+}
+
+}  // namespace terrain::cook

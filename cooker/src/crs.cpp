@@ -1,0 +1,367 @@
+#include "crs.h"
+
+#include <geotiff/geo_normalize.h>
+#include <geotiff/geo_simpletags.h>
+#include <geotiff/geo_tiffp.h>
+#include <geotiff/geotiff.h>
+#include <geotiff/geovalues.h>
+#include <proj.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <fmt/format.h>
+#include <memory>
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kWgs84A = 6378137.0, kWgs84Rf = 298.257223563;
+constexpr double kGrs80A = 6378137.0, kGrs80Rf = 298.257222101;
+constexpr int kUserDefined = 32767;  // GeoTIFF "user-defined / unknown" code
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+// PROJ prints lookup misses ("crs not found") to stderr by default; errors reach the user through
+// our own messages instead.
+struct ProjContext {
+  PJ_CONTEXT* ctx = nullptr;
+  ProjContext() {
+    ctx = proj_context_create();
+    if (ctx) proj_log_func(ctx, nullptr, [](void*, int, const char*) {});
+  }
+  ~ProjContext() {
+    if (ctx) proj_context_destroy(ctx);
+  }
+  ProjContext(const ProjContext&) = delete;
+  ProjContext& operator=(const ProjContext&) = delete;
+};
+
+double inverse_flattening(double a, double b) { return a == b ? 0.0 : a / (a - b); }
+
+std::string take_name(char* name) {
+  std::string s = name ? name : "";
+  if (name) GTIFFreeMemory(name);
+  return s;
+}
+
+// Fills `out` from a normalized definition (file keys or an EPSG code expanded by libgeotiff).
+SourceCrs crs_from_defn(const GTIFDefn& d, const std::string& pcs_name) {
+  SourceCrs crs;
+  if (!d.DefnSet) return crs;  // kind none
+  crs.tm.semi_major_m = d.SemiMajor;
+  crs.tm.inverse_flattening = inverse_flattening(d.SemiMajor, d.SemiMinor);
+  if (d.PM != kUserDefined && d.PMLongToGreenwich != 0.0) {
+    crs.kind = CrsKind::unsupported;
+    crs.projection = fmt::format("prime meridian {} deg from Greenwich", d.PMLongToGreenwich);
+    crs.name = pcs_name;
+    return crs;
+  }
+  if (d.Model == ModelTypeGeographic) {
+    crs.kind = CrsKind::geographic;
+    crs.epsg = d.GCS != kUserDefined ? d.GCS : 0;
+    crs.name = crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "geographic (lon/lat)";
+    if (crs.epsg == 4326) crs.name = "WGS 84 (EPSG:4326)";
+    if (d.SemiMajor <= 0) {
+      crs.kind = CrsKind::unsupported;
+      crs.projection = "geographic CRS without a known ellipsoid";
+    }
+    return crs;
+  }
+  if (d.Model == ModelTypeGeocentric) {
+    crs.kind = CrsKind::unsupported;
+    crs.projection = "geocentric";
+    crs.name = pcs_name;
+    return crs;
+  }
+  if (d.Model != ModelTypeProjected) return SourceCrs{};  // keys without a model type: no CRS
+  crs.epsg = d.PCS != kUserDefined ? d.PCS : 0;
+  crs.name = !pcs_name.empty() ? pcs_name : (crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "");
+  if (d.CTProjection != CT_TransverseMercator || d.SemiMajor <= 0) {
+    crs.kind = CrsKind::unsupported;
+    const char* method = GTIFValueName(ProjCoordTransGeoKey, d.CTProjection);
+    crs.projection = d.CTProjection == kUserDefined ? "unknown projection"
+                                                    : (method ? method : fmt::format("projection {}", d.CTProjection));
+    return crs;
+  }
+  crs.kind = CrsKind::transverse_mercator;
+  crs.tm.kind = ProjectionKind::transverse_mercator;
+  crs.tm.epsg = crs.epsg;
+  crs.tm.scale_k0 = 1.0;
+  for (int i = 0; i < d.nParms; ++i) {
+    switch (d.ProjParmId[i]) {
+      case ProjNatOriginLatGeoKey: crs.tm.lat0_deg = d.ProjParm[i]; break;
+      case ProjNatOriginLongGeoKey: crs.tm.lon0_deg = d.ProjParm[i]; break;
+      case ProjScaleAtNatOriginGeoKey: crs.tm.scale_k0 = d.ProjParm[i]; break;
+      case ProjFalseEastingGeoKey: crs.tm.false_easting_m = d.ProjParm[i]; break;
+      case ProjFalseNorthingGeoKey: crs.tm.false_northing_m = d.ProjParm[i]; break;
+      default: break;
+    }
+  }
+  if (crs.name.empty()) {
+    const std::string utm = utm_zone_name(crs.tm);
+    crs.name = utm.empty() ? "Transverse Mercator (explicit parameters)" : utm + " (explicit parameters)";
+  }
+  crs.tm.name = crs.name;
+  return crs;
+}
+
+// Expands an EPSG code through libgeotiff's normalization (which asks PROJ's database).
+Status crs_from_epsg(int code, SourceCrs& out) {
+  if (code <= 0 || code >= kUserDefined)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("EPSG:{} is out of the range GeoTIFF keys can hold (1..32766)", code));
+  ProjContext proj;
+  char* name = nullptr;
+  short proj_op = 0, uom = 0, gcs = 0;
+  const bool projected = GTIFGetPCSInfoEx(proj.ctx, code, &name, &proj_op, &uom, &gcs) != 0;
+  std::string pcs_name = take_name(name);
+  bool geographic = false;
+  if (!projected) {
+    short datum = 0, pm = 0, angle = 0;
+    geographic = GTIFGetGCSInfoEx(proj.ctx, code, &name, &datum, &pm, &angle) != 0;
+    pcs_name = take_name(name);
+  }
+  if (!projected && !geographic)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("EPSG:{} is not a projected or geographic CRS in PROJ's database", code));
+
+  TIFFMethod methods;
+  GTIFSetSimpleTagsMethods(&methods);
+  std::unique_ptr<ST_TIFF, void (*)(ST_TIFF*)> st(ST_Create(), ST_Destroy);
+  std::unique_ptr<GTIF, void (*)(GTIF*)> gtif(GTIFNewWithMethods(st.get(), &methods), GTIFFree);
+  if (!gtif) return Status::failure(Error::internal, "libgeotiff: cannot create an in-memory key set");
+  GTIFAttachPROJContext(gtif.get(), proj.ctx);
+  if (projected) {
+    GTIFKeySet(gtif.get(), GTModelTypeGeoKey, TYPE_SHORT, 1, ModelTypeProjected);
+    GTIFKeySet(gtif.get(), ProjectedCSTypeGeoKey, TYPE_SHORT, 1, code);
+  } else {
+    GTIFKeySet(gtif.get(), GTModelTypeGeoKey, TYPE_SHORT, 1, ModelTypeGeographic);
+    GTIFKeySet(gtif.get(), GeographicTypeGeoKey, TYPE_SHORT, 1, code);
+  }
+  GTIFDefn defn;
+  if (!GTIFGetDefn(gtif.get(), &defn))
+    return Status::failure(Error::invalid_argument, fmt::format("EPSG:{}: libgeotiff cannot expand this code", code));
+  out = crs_from_defn(defn, pcs_name);
+  if (geographic && out.kind == CrsKind::geographic) out.name = pcs_name + fmt::format(" (EPSG:{})", code);
+  out.epsg = code;
+  out.tm.epsg = out.kind == CrsKind::transverse_mercator ? code : 0;
+  return Status::success();
+}
+
+bool parse_double(std::string_view text, double& v) {
+  const char* b = text.data();
+  const char* e = text.data() + text.size();
+  auto [p, ec] = std::from_chars(b, e, v);
+  return ec == std::errc() && p == e && std::isfinite(v);
+}
+
+Status parse_tm(const std::string& spec, SourceCrs& out) {
+  const std::string body = spec.substr(3);
+  SourceCrs crs;
+  crs.kind = CrsKind::transverse_mercator;
+  crs.tm.kind = ProjectionKind::transverse_mercator;
+  crs.tm.semi_major_m = kWgs84A;
+  crs.tm.inverse_flattening = kWgs84Rf;
+  crs.tm.scale_k0 = 1.0;
+  bool have_lon0 = false;
+  size_t pos = 0;
+  while (pos <= body.size()) {
+    size_t end = body.find(',', pos);
+    if (end == std::string::npos) end = body.size();
+    const std::string item = body.substr(pos, end - pos);
+    pos = end + 1;
+    if (item.empty()) continue;
+    const size_t eq = item.find('=');
+    if (eq == std::string::npos)
+      return Status::failure(Error::invalid_argument, fmt::format("--crs {}: '{}' is not key=value", spec, item));
+    const std::string key = lower(item.substr(0, eq));
+    const std::string value = item.substr(eq + 1);
+    if (key == "ellps") {
+      const std::string v = lower(value);
+      if (v == "wgs84") {
+        crs.tm.semi_major_m = kWgs84A;
+        crs.tm.inverse_flattening = kWgs84Rf;
+      } else if (v == "grs80") {
+        crs.tm.semi_major_m = kGrs80A;
+        crs.tm.inverse_flattening = kGrs80Rf;
+      } else {
+        return Status::failure(Error::invalid_argument,
+                               fmt::format("--crs {}: ellps={} unknown (WGS84, GRS80, or give a= and rf=)", spec, value));
+      }
+      continue;
+    }
+    double v = 0;
+    if (!parse_double(value, v))
+      return Status::failure(Error::invalid_argument, fmt::format("--crs {}: {}={} is not a number", spec, key, value));
+    if (key == "lon0") {
+      crs.tm.lon0_deg = v;
+      have_lon0 = true;
+    } else if (key == "lat0") {
+      crs.tm.lat0_deg = v;
+    } else if (key == "k0") {
+      crs.tm.scale_k0 = v;
+    } else if (key == "x0") {
+      crs.tm.false_easting_m = v;
+    } else if (key == "y0") {
+      crs.tm.false_northing_m = v;
+    } else if (key == "a") {
+      crs.tm.semi_major_m = v;
+    } else if (key == "rf") {
+      crs.tm.inverse_flattening = v;
+    } else {
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("--crs {}: unknown key '{}' (lon0, lat0, k0, x0, y0, ellps, a, rf)", spec, key));
+    }
+  }
+  if (!have_lon0) return Status::failure(Error::invalid_argument, fmt::format("--crs {}: lon0= is required", spec));
+  if (std::fabs(crs.tm.lon0_deg) > 180 || std::fabs(crs.tm.lat0_deg) >= 90 || !(crs.tm.scale_k0 > 0) ||
+      !(crs.tm.semi_major_m > 0) || crs.tm.inverse_flattening < 0 || (crs.tm.inverse_flattening > 0 && crs.tm.inverse_flattening < 2))
+    return Status::failure(Error::invalid_argument, fmt::format("--crs {}: parameter out of range", spec));
+  if (crs.tm.inverse_flattening == 0)
+    return Status::failure(Error::invalid_argument, fmt::format("--crs {}: a sphere (rf=0) is not supported", spec));
+  const std::string utm = utm_zone_name(crs.tm);
+  crs.name = utm.empty() ? fmt::format("Transverse Mercator ({})", body) : utm + fmt::format(" ({})", body);
+  crs.tm.name = crs.name;
+  out = crs;
+  return Status::success();
+}
+
+}  // namespace
+
+Status parse_crs_spec(const std::string& spec_in, SourceCrs& out) {
+  const std::string spec = lower(spec_in);
+  if (spec == "local") {
+    out = SourceCrs{};
+    out.kind = CrsKind::local;
+    out.name = "local metric frame (no geodetic meaning)";
+    out.tm.kind = ProjectionKind::local;
+    out.tm.name = out.name;
+    return Status::success();
+  }
+  if (spec.rfind("tm:", 0) == 0) return parse_tm(spec_in, out);
+  if (spec.rfind("epsg:", 0) == 0) {
+    int code = 0;
+    const char* b = spec.data() + 5;
+    const char* e = spec.data() + spec.size();
+    auto [p, ec] = std::from_chars(b, e, code);
+    if (ec != std::errc() || p != e)
+      return Status::failure(Error::invalid_argument, fmt::format("'{}': expected EPSG:<number>", spec_in));
+    return crs_from_epsg(code, out);
+  }
+  return Status::failure(Error::invalid_argument,
+                         fmt::format("'{}' is not a CRS this tool reads: use EPSG:<code> (e.g. EPSG:4326, EPSG:32633, "
+                                     "EPSG:3794), tm:lon0=..,lat0=..,k0=..,x0=..,y0=..,ellps=WGS84|GRS80, or local",
+                                     spec_in));
+}
+
+SourceCrs wgs84_geographic() {
+  SourceCrs crs;
+  crs.kind = CrsKind::geographic;
+  crs.epsg = 4326;
+  crs.name = "WGS 84 (EPSG:4326)";
+  crs.tm.semi_major_m = kWgs84A;
+  crs.tm.inverse_flattening = kWgs84Rf;
+  return crs;
+}
+
+SourceCrs crs_from_geotiff(gtiff* gtif, double center_x, double center_y) {
+  ProjContext proj;
+  GTIFAttachPROJContext(gtif, proj.ctx);
+  GTIFDefn defn;
+  if (!GTIFGetDefn(gtif, &defn)) {
+    GTIFAttachPROJContext(gtif, nullptr);
+    return SourceCrs{};
+  }
+  std::string pcs_name;
+  if (defn.Model == ModelTypeProjected && defn.PCS != kUserDefined) {
+    char* name = nullptr;
+    short op = 0, uom = 0, gcs = 0;
+    if (GTIFGetPCSInfoEx(proj.ctx, defn.PCS, &name, &op, &uom, &gcs)) pcs_name = take_name(name);
+  }
+  SourceCrs crs = crs_from_defn(defn, pcs_name);
+  const double unit = defn.Model == ModelTypeGeographic ? defn.UOMAngleInDegrees : defn.UOMLengthInMeters;
+  if (unit > 0) crs.model_unit = unit;
+  if (crs.kind == CrsKind::unsupported && defn.Model == ModelTypeProjected) {
+    double x = center_x, y = center_y;
+    if (GTIFProj4ToLatLong(&defn, 1, &x, &y)) {
+      crs.center_lon = x;
+      crs.center_lat = y;
+    }
+  }
+  GTIFAttachPROJContext(gtif, nullptr);
+  return crs;
+}
+
+std::string utm_zone_name(const FrameCrs& tm) {
+  if (tm.kind != ProjectionKind::transverse_mercator) return "";
+  if (tm.lat0_deg != 0 || tm.scale_k0 != 0.9996 || tm.false_easting_m != 500000) return "";
+  if (tm.false_northing_m != 0 && tm.false_northing_m != 10000000) return "";
+  const double zone = (tm.lon0_deg + 183.0) / 6.0;
+  if (zone != std::floor(zone) || zone < 1 || zone > 60) return "";
+  return fmt::format("UTM zone {}{}", int(zone), tm.false_northing_m == 0 ? 'N' : 'S');
+}
+
+std::string describe_frame(const FrameCrs& f) {
+  if (f.kind == ProjectionKind::local) return "local metric frame";
+  return fmt::format("{}{}: Transverse Mercator lon0={:.9g} lat0={:.9g} k0={:.9g} x0={:.9g} y0={:.9g} a={:.3f} rf={:.9f}",
+                     f.name.empty() ? std::string("TM") : f.name, f.epsg ? fmt::format(" (EPSG:{})", f.epsg) : "",
+                     f.lon0_deg, f.lat0_deg, f.scale_k0, f.false_easting_m, f.false_northing_m, f.semi_major_m,
+                     f.inverse_flattening);
+}
+
+std::string describe_crs(const SourceCrs& c) {
+  switch (c.kind) {
+    case CrsKind::none: return "no CRS";
+    case CrsKind::local: return "local metric coordinates";
+    case CrsKind::geographic:
+      return fmt::format("{}: geographic lon/lat, a={:.3f} rf={:.9f}", c.name, c.tm.semi_major_m,
+                         c.tm.inverse_flattening);
+    case CrsKind::transverse_mercator: return describe_frame(c.tm);
+    case CrsKind::unsupported:
+      return fmt::format("{}{} ({})", c.name.empty() ? std::string("unnamed CRS") : c.name,
+                         c.epsg && c.name.find("EPSG") == std::string::npos ? fmt::format(" (EPSG:{})", c.epsg) : "",
+                         c.projection);
+  }
+  return "?";
+}
+
+bool same_ellipsoid(const FrameCrs& a, const FrameCrs& b) {
+  return std::fabs(a.semi_major_m - b.semi_major_m) < 1e-6 &&
+         std::fabs(a.inverse_flattening - b.inverse_flattening) < 1e-6;
+}
+
+bool same_crs(const SourceCrs& a, const SourceCrs& b) {
+  if (a.kind != b.kind) return false;
+  switch (a.kind) {
+    case CrsKind::none:
+    case CrsKind::local: return true;
+    case CrsKind::geographic: return same_ellipsoid(a.tm, b.tm);
+    case CrsKind::transverse_mercator:
+      return same_ellipsoid(a.tm, b.tm) && a.tm.lon0_deg == b.tm.lon0_deg && a.tm.lat0_deg == b.tm.lat0_deg &&
+             a.tm.scale_k0 == b.tm.scale_k0 && a.tm.false_easting_m == b.tm.false_easting_m &&
+             a.tm.false_northing_m == b.tm.false_northing_m;
+    case CrsKind::unsupported: return false;
+  }
+  return false;
+}
+
+std::string conversion_hint(const SourceCrs& crs, const std::string& path) {
+  std::string target = "EPSG:326<zone>";
+  if (std::isfinite(crs.center_lon) && std::isfinite(crs.center_lat)) {
+    const int zone = std::clamp(int(std::floor((crs.center_lon + 180.0) / 6.0)) + 1, 1, 60);
+    target = fmt::format("EPSG:{}{:02d}", crs.center_lat >= 0 ? 326 : 327, zone);
+  }
+  std::string out = path;
+  const size_t dot = out.find_last_of('.');
+  out = (dot == std::string::npos ? out : out.substr(0, dot)) + "_utm.tif";
+  return fmt::format("reproject it to UTM (or any Transverse Mercator) first, e.g. gdalwarp -t_srs {} -r cubic {} {}",
+                     target, path, out);
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,259 @@
+#include "frame.h"
+
+#include <GeographicLib/TransverseMercatorExact.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+
+#include "crs.h"
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kFrameAnchorStepM = 512.0;  // frame -> sample anchors
+constexpr int kSampleAnchorStep = 16;         // sample -> frame anchors, in samples
+
+// Data centre longitude/latitude of a geographic raster (the middle of its valid samples).
+void data_centre(const Raster& r, double& lon, double& lat) {
+  int c0 = 0, r0 = 0, c1 = r.width - 1, r1 = r.height - 1;
+  uint64_t valid = 0;
+  if (!valid_bounds(r, c0, r0, c1, r1, valid)) {
+    c0 = r0 = 0;
+    c1 = r.width - 1;
+    r1 = r.height - 1;
+  }
+  AffineMap::from(r.geo).to_model(0.5 * (c0 + c1), 0.5 * (r0 + r1), lon, lat);
+}
+
+}  // namespace
+
+Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason) {
+  const SourceCrs& src = source.crs;
+  if (!frame_spec.empty()) {
+    SourceCrs f;
+    if (Status st = parse_crs_spec(frame_spec, f); !st.ok()) return st;
+    if (f.kind == CrsKind::local) {
+      if (src.kind != CrsKind::local)
+        return Status::failure(Error::invalid_argument,
+                               fmt::format("--frame local: the input is in {}, a geodetic CRS; a local frame only takes "
+                                           "local input", describe_crs(src)));
+    } else if (f.kind == CrsKind::transverse_mercator) {
+      if (src.kind == CrsKind::local)
+        return Status::failure(Error::invalid_argument,
+                               "--frame: the input has local coordinates (no geodetic meaning) and cannot be projected; "
+                               "give its CRS with --crs");
+      if (!same_ellipsoid(f.tm, src.tm))
+        return Status::failure(Error::invalid_argument,
+                               fmt::format("--frame {} is on another ellipsoid than the input ({}); datum shifts are not "
+                                           "done here: reproject with gdalwarp -t_srs instead", frame_spec, describe_crs(src)));
+    } else {
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("--frame {}: {} is not a Transverse Mercator or local frame", frame_spec,
+                                         describe_crs(f)));
+    }
+    out = f.tm;
+    out.epsg = f.kind == CrsKind::transverse_mercator ? f.epsg : 0;
+    out.name = f.name;
+    reason = "given by --frame";
+    return Status::success();
+  }
+  switch (src.kind) {
+    case CrsKind::local:
+      out = FrameCrs{};
+      out.kind = ProjectionKind::local;
+      out.name = src.name.empty() ? "local" : src.name;
+      reason = "the input has local coordinates";
+      return Status::success();
+    case CrsKind::transverse_mercator:
+      out = src.tm;
+      out.epsg = src.epsg;
+      out.name = src.name;
+      reason = "the input's own Transverse Mercator CRS is kept";
+      return Status::success();
+    case CrsKind::geographic: {
+      double lon = 0, lat = 0;
+      data_centre(source, lon, lat);
+      out = FrameCrs{};
+      out.kind = ProjectionKind::transverse_mercator;
+      out.semi_major_m = src.tm.semi_major_m;
+      out.inverse_flattening = src.tm.inverse_flattening;
+      out.lon0_deg = std::round(lon * 3600.0) / 3600.0;
+      out.lat0_deg = 0;
+      out.scale_k0 = 1.0;
+      out.name = fmt::format("Transverse Mercator centred on the data (lon0 {:.6f}, {})", out.lon0_deg, src.name);
+      reason = fmt::format("geographic input projected to a Transverse Mercator whose central meridian is the data's "
+                           "centre longitude ({:.6f}, centre latitude {:.6f})", out.lon0_deg, lat);
+      return Status::success();
+    }
+    default:
+      return Status::failure(Error::unsupported_input, fmt::format("no frame for an input in {}", describe_crs(src)));
+  }
+}
+
+struct TmProjection::Impl {
+  GeographicLib::TransverseMercatorExact tm;
+  double lon0, fe, fn, y_lat0;
+  explicit Impl(const FrameCrs& c)
+      : tm(c.semi_major_m, 1.0 / c.inverse_flattening, c.scale_k0),
+        lon0(c.lon0_deg),
+        fe(c.false_easting_m),
+        fn(c.false_northing_m),
+        y_lat0(0) {
+    double x = 0;
+    tm.Forward(lon0, c.lat0_deg, lon0, x, y_lat0);
+  }
+};
+
+TmProjection::TmProjection(const FrameCrs& crs) : impl_(std::make_unique<Impl>(crs)) {}
+TmProjection::~TmProjection() = default;
+TmProjection::TmProjection(TmProjection&&) noexcept = default;
+TmProjection& TmProjection::operator=(TmProjection&&) noexcept = default;
+
+void TmProjection::forward(double lat, double lon, double& x, double& y) const {
+  impl_->tm.Forward(impl_->lon0, lat, lon, x, y);
+  x += impl_->fe;
+  y += impl_->fn - impl_->y_lat0;
+}
+
+void TmProjection::reverse(double x, double y, double& lat, double& lon) const {
+  impl_->tm.Reverse(impl_->lon0, x - impl_->fe, y - impl_->fn + impl_->y_lat0, lat, lon);
+}
+
+Status SourceMapping::init(const Raster& source, const FrameCrs& frame, int threads) {
+  affine_map_ = AffineMap::from(source.geo);
+  width_ = source.width;
+  height_ = source.height;
+  const SourceCrs& src = source.crs;
+  if (frame.kind == ProjectionKind::local || src.kind == CrsKind::local) {
+    chain_ = Chain::affine;
+  } else if (src.kind == CrsKind::transverse_mercator) {
+    SourceCrs frame_as_source;
+    frame_as_source.kind = CrsKind::transverse_mercator;
+    frame_as_source.tm = frame;
+    chain_ = same_crs(src, frame_as_source) ? Chain::affine : Chain::other_tm;
+  } else if (src.kind == CrsKind::geographic) {
+    chain_ = Chain::geographic;
+  } else {
+    return Status::failure(Error::unsupported_input, fmt::format("cannot map {} to the frame", describe_crs(src)));
+  }
+  affine_ = chain_ == Chain::affine;
+  if (affine_) return Status::success();
+  frame_tm_ = std::make_shared<TmProjection>(frame);
+  if (chain_ == Chain::other_tm) source_tm_ = std::make_shared<TmProjection>(src.tm);
+  const int margin = 4;
+  const int nx = (width_ + 2 * margin) / kSampleAnchorStep + 5;
+  const int ny = (height_ + 2 * margin) / kSampleAnchorStep + 5;
+  to_frame_.build(-margin - kSampleAnchorStep, -margin - kSampleAnchorStep, kSampleAnchorStep, nx, ny,
+                  [this](double c, double r, double& x, double& y) { exact_sample_to_frame(c, r, x, y); }, threads);
+  return Status::success();
+}
+
+void SourceMapping::cover_frame_area(double x0, double y0, double x1, double y1, int threads) {
+  if (affine_) return;
+  const double step = kFrameAnchorStepM;
+  const double ax = std::floor(x0 / step) * step - 2 * step, ay = std::floor(y0 / step) * step - 2 * step;
+  const int nx = int(std::ceil((x1 - ax) / step)) + 3, ny = int(std::ceil((y1 - ay) / step)) + 3;
+  to_sample_.build(ax, ay, step, nx, ny,
+                   [this](double x, double y, double& c, double& r) { exact_frame_to_sample(x, y, c, r); }, threads);
+}
+
+void SourceMapping::exact_sample_to_frame(double col, double row, double& x, double& y) const {
+  double mx = 0, my = 0;
+  affine_map_.to_model(col, row, mx, my);
+  switch (chain_) {
+    case Chain::affine: x = mx; y = my; return;
+    case Chain::geographic: frame_tm_->forward(my, mx, x, y); return;
+    case Chain::other_tm: {
+      double lat = 0, lon = 0;
+      source_tm_->reverse(mx, my, lat, lon);
+      frame_tm_->forward(lat, lon, x, y);
+      return;
+    }
+  }
+}
+
+void SourceMapping::exact_frame_to_sample(double x, double y, double& col, double& row) const {
+  double mx = x, my = y;
+  switch (chain_) {
+    case Chain::affine: break;
+    case Chain::geographic: frame_tm_->reverse(x, y, my, mx); break;
+    case Chain::other_tm: {
+      double lat = 0, lon = 0;
+      frame_tm_->reverse(x, y, lat, lon);
+      source_tm_->forward(lat, lon, mx, my);
+      break;
+    }
+  }
+  affine_map_.to_sample(mx, my, col, row);
+}
+
+void SourceMapping::frame_to_sample(double x, double y, double& col, double& row) const {
+  if (affine_) {
+    affine_map_.to_sample(x, y, col, row);
+    return;
+  }
+  to_sample_.eval(x, y, col, row);
+}
+
+void SourceMapping::sample_to_frame(double col, double row, double& x, double& y) const {
+  if (affine_) {
+    affine_map_.to_model(col, row, x, y);
+    return;
+  }
+  to_frame_.eval(col, row, x, y);
+}
+
+void SourceMapping::map_frame_row(double y, const double* x, int n, double* col, double* row) const {
+  if (affine_) {
+    for (int k = 0; k < n; ++k) affine_map_.to_sample(x[k], y, col[k], row[k]);
+    return;
+  }
+  to_sample_.eval_row(y, x, n, col, row);
+}
+
+void SourceMapping::map_sample_row(int row, int c0, int n, double* x, double* y) const {
+  if (affine_) {
+    for (int k = 0; k < n; ++k) affine_map_.to_model(double(c0 + k), double(row), x[k], y[k]);
+    return;
+  }
+  thread_local std::vector<double> cols;
+  cols.resize(size_t(std::max(n, 0)));
+  for (int k = 0; k < n; ++k) cols[size_t(k)] = double(c0 + k);
+  to_frame_.eval_row(double(row), cols.data(), n, x, y);
+}
+
+void SourceMapping::frame_bounds(int c0, int r0, int c1, int r1, double m, double& x0, double& y0, double& x1,
+                                 double& y1) const {
+  x0 = y0 = INFINITY;
+  x1 = y1 = -INFINITY;
+  const int n = 64;
+  auto add = [&](double c, double r) {
+    double x = 0, y = 0;
+    exact_sample_to_frame(c, r, x, y);
+    x0 = std::min(x0, x);
+    y0 = std::min(y0, y);
+    x1 = std::max(x1, x);
+    y1 = std::max(y1, y);
+  };
+  const double ca = c0 - m, cb = c1 + m, ra = r0 - m, rb = r1 + m;
+  for (int i = 0; i <= n; ++i) {
+    const double t = double(i) / n;
+    add(ca + t * (cb - ca), ra);
+    add(ca + t * (cb - ca), rb);
+    add(ca, ra + t * (rb - ra));
+    add(cb, ra + t * (rb - ra));
+  }
+}
+
+void SourceMapping::spacing_m(double& sx, double& sy) const {
+  const double c = 0.5 * (width_ - 1), r = 0.5 * (height_ - 1);
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0, x2 = 0, y2 = 0;
+  exact_sample_to_frame(c, r, x0, y0);
+  exact_sample_to_frame(c + 1, r, x1, y1);
+  exact_sample_to_frame(c, r + 1, x2, y2);
+  sx = std::hypot(x1 - x0, y1 - y0);
+  sy = std::hypot(x2 - x0, y2 - y0);
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,74 @@
+// The archive's frame (a metric Transverse Mercator or local plane) and the mapping between frame
+// metres and source sample coordinates.
+//
+// Frame choice: geographic input -> Transverse Mercator on the input's ellipsoid, central meridian
+// at the data's centre longitude (rounded to a whole arc-second), lat0 0, k0 1, no false
+// easting/northing. UTM and any other TM input keep their CRS as the frame (so separately cooked
+// neighbouring areas share one). Local input keeps a local frame. --frame overrides (TM or local).
+#pragma once
+#include <memory>
+#include <string>
+
+#include "anchor_grid.h"
+#include "raster.h"
+#include "terrain/format.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason);
+
+// Transverse Mercator of a FrameCrs (GeographicLib TransverseMercatorExact), with lat0, false
+// easting and false northing applied: y = FN + k0 (M(lat) - M(lat0)) on the central meridian.
+class TmProjection {
+ public:
+  explicit TmProjection(const FrameCrs& crs);
+  ~TmProjection();
+  TmProjection(TmProjection&&) noexcept;
+  TmProjection& operator=(TmProjection&&) noexcept;
+  void forward(double lat, double lon, double& x, double& y) const;
+  void reverse(double x, double y, double& lat, double& lon) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+class SourceMapping {
+ public:
+  // Prepares the exact transforms and the sample -> frame anchors.
+  Status init(const Raster& source, const FrameCrs& frame, int threads);
+  // Builds the frame -> sample anchors over a frame rectangle (the node grid plus margins).
+  void cover_frame_area(double x0, double y0, double x1, double y1, int threads);
+
+  void frame_to_sample(double x, double y, double& col, double& row) const;
+  void sample_to_frame(double col, double row, double& x, double& y) const;
+  // The canonical batch forms. Every node vertex goes through map_frame_row, so a vertex shared by
+  // several nodes maps to the same bits in each (the single-point forms may differ in the last bit).
+  void map_frame_row(double y, const double* x, int n, double* col, double* row) const;
+  // Frame positions of source samples (c, row) for c = c0 .. c0 + n - 1.
+  void map_sample_row(int row, int c0, int n, double* x, double* y) const;
+  // The exact chain (GeographicLib per call): for footprints, spacing and tests.
+  void exact_frame_to_sample(double x, double y, double& col, double& row) const;
+  void exact_sample_to_frame(double col, double row, double& x, double& y) const;
+
+  // True when frame and source coordinates differ by an affine map only (no anchors involved).
+  bool affine() const { return affine_; }
+  // Affine without rotation: a vertex's sample column depends on its frame x only and its sample
+  // row on y only (exactly: the cross terms are zero), so rows and columns of vertices share them.
+  bool axis_aligned() const { return affine_ && affine_map_.inv[2] == 0.0 && affine_map_.inv[4] == 0.0; }
+  // Frame bounding box of the sample rectangle [c0 - m, c1 + m] x [r0 - m, r1 + m].
+  void frame_bounds(int c0, int r0, int c1, int r1, double m, double& x0, double& y0, double& x1, double& y1) const;
+  // Source sample spacing in frame metres at the raster centre (x, y).
+  void spacing_m(double& sx, double& sy) const;
+
+ private:
+  AffineMap affine_map_{};
+  bool affine_ = true;
+  int width_ = 0, height_ = 0;
+  enum class Chain { affine, geographic, other_tm } chain_ = Chain::affine;
+  std::shared_ptr<const TmProjection> frame_tm_, source_tm_;
+  AnchorGrid to_frame_, to_sample_;
+};
+
+}  // namespace terrain::cook

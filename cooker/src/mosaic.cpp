@@ -1,0 +1,75 @@
+#include "mosaic.h"
+
+#include <cmath>
+#include <fmt/format.h>
+
+#include "crs.h"
+
+namespace terrain::cook {
+
+Status mosaic(std::vector<Raster>& inputs, Raster& out) {
+  if (inputs.empty()) return Status::failure(Error::invalid_argument, "no inputs to mosaic");
+  if (inputs.size() == 1) {
+    out = std::move(inputs[0]);
+    inputs.clear();
+    return Status::success();
+  }
+  const Raster& ref = inputs[0];
+  const AffineMap ref_map = AffineMap::from(ref.geo);
+  struct Placement { int64_t col, row; };
+  std::vector<Placement> at(inputs.size());
+  int64_t c0 = 0, r0 = 0, c1 = ref.width, r1 = ref.height;
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const Raster& r = inputs[i];
+    if (!same_crs(r.crs, ref.crs))
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{} and {} are in different CRSs ({} vs {}); mosaicked inputs must share one "
+                                         "(reproject with gdalwarp first)", ref.path, r.path, describe_crs(ref.crs),
+                                         describe_crs(r.crs)));
+    for (int k : {1, 2, 4, 5})
+      if (std::fabs(r.geo.c[k] - ref.geo.c[k]) > 1e-9 * (std::fabs(ref.geo.c[1]) + std::fabs(ref.geo.c[5])))
+        return Status::failure(Error::unsupported_input,
+                               fmt::format("{} and {} have different sample spacings; mosaicked inputs must share one "
+                                           "pixel grid (resample with gdalwarp -tr first)", ref.path, r.path));
+    double col = 0, row = 0;
+    ref_map.to_sample(r.geo.c[0], r.geo.c[3], col, row);
+    const double rc = std::round(col), rr = std::round(row);
+    if (std::fabs(col - rc) > 1e-3 || std::fabs(row - rr) > 1e-3)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{} is offset by a fraction of a sample ({:.4f}, {:.4f}) from {}; mosaicked "
+                                         "inputs must share one pixel grid", r.path, col - rc, row - rr, ref.path));
+    at[i] = {int64_t(rc), int64_t(rr)};
+    c0 = std::min(c0, at[i].col);
+    r0 = std::min(r0, at[i].row);
+    c1 = std::max(c1, at[i].col + r.width);
+    r1 = std::max(r1, at[i].row + r.height);
+  }
+  const int64_t w = c1 - c0, h = r1 - r0;
+  if (w * h > (int64_t(1) << 32))
+    return Status::failure(Error::unsupported_input, fmt::format("the mosaic would be {}x{} samples: too large", w, h));
+  Raster m;
+  m.path = ref.path;
+  m.width = int(w);
+  m.height = int(h);
+  m.crs = ref.crs;
+  m.values.assign(size_t(w * h), NAN);
+  m.geo = ref.geo;
+  ref_map.to_model(double(c0), double(r0), m.geo.c[0], m.geo.c[3]);
+  std::string desc = fmt::format("mosaic {}x{} of {} inputs:", w, h, inputs.size());
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const Raster& r = inputs[i];
+    for (int row = 0; row < r.height; ++row) {
+      float* dst = &m.values[size_t(at[i].row - r0 + row) * size_t(w) + size_t(at[i].col - c0)];
+      const float* src = &r.values[size_t(row) * size_t(r.width)];
+      for (int col = 0; col < r.width; ++col)
+        if (std::isnan(dst[col])) dst[col] = src[col];  // first listed input wins
+    }
+    desc += fmt::format(" [{}: {}]", r.path, r.description);
+  }
+  m.description = desc;
+  inputs.clear();
+  out = std::move(m);
+  return Status::success();
+}
+
+}  // namespace terrain::cook

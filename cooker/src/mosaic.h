@@ -1,0 +1,17 @@
+// Several inputs on one pixel grid become one raster.
+#pragma once
+#include <vector>
+
+#include "raster.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+// Merges `inputs` (same CRS, same sample spacing, origins a whole number of samples apart: adjacent
+// HGT tiles, a tiled GeoTIFF export) into one raster covering their union. Overlap rule: where
+// several inputs have data for a sample, the one listed FIRST wins; later inputs only fill samples
+// the earlier ones leave as nodata (HGT tiles share their edge rows, which then agree anyway).
+// A single input is moved through unchanged.
+Status mosaic(std::vector<Raster>& inputs, Raster& out);
+
+}  // namespace terrain::cook

@@ -1,0 +1,288 @@
+#include "node_cook.h"
+
+#include <chrono>
+#include <cmath>
+#include <fmt/format.h>
+
+#include "quantize.h"
+
+namespace terrain::cook {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+// Level-0 lattice index of vertex i (may be negative in the window margin) of a node column.
+int64_t lattice_index(uint32_t node, int i, uint32_t level) {
+  return (int64_t(node) * kQuadsPerSide + i) * (int64_t(1) << level);
+}
+
+// Without surface layers the albedo still carries the hole mask (format/SPEC.md: vertex (i, j) is a
+// hole when albedo texel (i + kApron, j + kApron) has alpha 0), in flat grey BC1 blocks: both
+// endpoints equal selects the 3-colour mode, where index 3 is transparent.
+void encode_hole_albedo(const NodeWindow& w, std::array<uint8_t, kAlbedoBytes>& out) {
+  constexpr uint16_t kGrey565 = 0x8410;
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint32_t indices = 0;
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+          const int i = bx * 4 + c - kApron + kWindowMargin, j = by * 4 + r - kApron + kWindowMargin;
+          if (w.hole[size_t(j) * kWindowSize + size_t(i)]) indices |= 3u << (2 * (4 * r + c));
+        }
+      uint8_t* b = &out[size_t(by * kTexelBlocks + bx) * 8];
+      b[0] = b[2] = uint8_t(kGrey565 & 0xFF);
+      b[1] = b[3] = uint8_t(kGrey565 >> 8);
+      for (int k = 0; k < 4; ++k) b[4 + k] = uint8_t(indices >> (8 * k));
+    }
+}
+
+}  // namespace
+
+Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w) {
+  std::array<double, kWindowSize> xs, cols, rows;
+  std::array<int64_t, kWindowSize> gxs;
+  std::array<double, kLevelCount> scale;
+  for (int l = 0; l < kLevelCount; ++l) scale[size_t(l)] = std::ldexp(1024.0, -int(ctx.step_log2[size_t(l)]));
+  for (int i = 0; i < kWindowSize; ++i) {
+    gxs[size_t(i)] = lattice_index(key.x, i - kWindowMargin, key.level);
+    xs[size_t(i)] = ctx.lattice_x(gxs[size_t(i)]);
+  }
+  // Axis-aligned sources: every row of vertices shares the columns' Catmull-Rom weights (the
+  // mapping gives the same column for any row, so the bits are those of the per-vertex path).
+  const bool shared_columns = ctx.mapping->axis_aligned();
+  std::array<Surface::Axis, kWindowSize> column_axes;
+  if (shared_columns) {
+    ctx.mapping->map_frame_row(ctx.lattice_y(lattice_index(key.y, 0, key.level)), xs.data(), kWindowSize, cols.data(),
+                               rows.data());
+    for (int i = 0; i < kWindowSize; ++i) column_axes[size_t(i)] = ctx.surface.column(cols[size_t(i)]);
+  }
+  // Vertex rows closer than source rows: cache each source row's horizontal sums (per column).
+  std::array<Surface::Axis, kWindowSize> row_axes;
+  int cache_r0 = 0, cache_rows = 0;
+  thread_local std::vector<double> cache;
+  thread_local std::vector<uint8_t> cached;
+  if (shared_columns) {
+    for (int j = 0; j < kWindowSize; ++j) {
+      double c = 0, r = 0;
+      const double y = ctx.lattice_y(lattice_index(key.y, j - kWindowMargin, key.level));
+      ctx.mapping->map_frame_row(y, xs.data(), 1, &c, &r);
+      row_axes[size_t(j)] = ctx.surface.row(r);
+    }
+    const Surface::Axis& south = row_axes[0];
+    const Surface::Axis& north = row_axes[kWindowSize - 1];
+    if (south.in && north.in && std::abs(south.i - north.i) < kWindowSize) {
+      cache_r0 = std::min(south.i, north.i) - 1;
+      cache_rows = std::abs(south.i - north.i) + 4;
+      cache.resize(size_t(cache_rows) * kWindowSize);
+      cached.assign(size_t(cache_rows), 0);
+    }
+  }
+  for (int j = 0; j < kWindowSize; ++j) {
+    const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
+    const double y = ctx.lattice_y(gy);
+    if (!shared_columns) ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
+    const Surface::Axis& row_axis = row_axes[size_t(j)];
+    const double* source_rows[4] = {};
+    const bool use_cache = cache_rows > 0 && ctx.surface.y_interior(row_axis);
+    if (use_cache)
+      for (int t = 0; t < 4; ++t) {
+        const int slot = row_axis.i - 1 + t - cache_r0;
+        if (!cached[size_t(slot)]) {
+          double* line = &cache[size_t(slot) * kWindowSize];
+          for (int i = 0; i < kWindowSize; ++i)
+            if (ctx.surface.x_interior(column_axes[size_t(i)]))
+              line[i] = ctx.surface.horizontal(column_axes[size_t(i)], row_axis.i - 1 + t);
+          cached[size_t(slot)] = 1;
+        }
+        source_rows[t] = &cache[size_t(slot) * kWindowSize];
+      }
+    for (int i = 0; i < kWindowSize; ++i) {
+      const size_t k = size_t(j) * kWindowSize + size_t(i);
+      double h = 0;
+      bool ok = false;
+      if (!shared_columns) {
+        ok = ctx.surface.sample(cols[size_t(i)], rows[size_t(i)], h);
+      } else if (use_cache && ctx.surface.x_interior(column_axes[size_t(i)])) {
+        const double* at[4] = {source_rows[0] + i, source_rows[1] + i, source_rows[2] + i, source_rows[3] + i};
+        ok = ctx.surface.sample_rows(column_axes[size_t(i)], row_axis, at, h);
+      } else {
+        ok = ctx.surface.sample(column_axes[size_t(i)], row_axis, h);
+      }
+      if (!ok) {
+        w.hole[k] = 1;
+        w.units[k] = 0;
+        continue;
+      }
+      const size_t vl = size_t(vertex_level(gxs[size_t(i)], gy));
+      const int64_t u = quantize_units(h, scale[vl], ctx.step_log2[vl]);
+      if (u > kMaxHeightUnits || u < -kMaxHeightUnits)
+        return Status::failure(Error::invalid_argument,
+                               fmt::format("height {:.3f} m at frame ({:.3f}, {:.3f}) is outside the archive's +-16384 m "
+                                           "(a nodata value not declared? see --nodata-value, --height-scale)",
+                                           h, xs[size_t(i)], y));
+      w.hole[k] = 0;
+      w.units[k] = int32_t(u);
+    }
+  }
+  return Status::success();
+}
+
+void node_sample_bounds(const CookContext& ctx, const NodeKey& key, double& cmin, double& rmin, double& cmax,
+                        double& rmax) {
+  const double size = node_size_m(int(key.level));
+  const double x0 = ctx.lattice_x(lattice_index(key.x, 0, key.level));
+  const double y0 = ctx.lattice_y(lattice_index(key.y, 0, key.level));
+  cmin = rmin = INFINITY;
+  cmax = rmax = -INFINITY;
+  for (int a = 0; a <= 2; ++a)
+    for (int b = 0; b <= 2; ++b) {
+      double c = 0, r = 0;
+      ctx.mapping->frame_to_sample(x0 + 0.5 * a * size, y0 + 0.5 * b * size, c, r);
+      cmin = std::min(cmin, c);
+      cmax = std::max(cmax, c);
+      rmin = std::min(rmin, r);
+      rmax = std::max(rmax, r);
+    }
+}
+
+bool node_has_terrain(const CookContext& ctx, const NodeKey& key) {
+  std::array<double, kHeightSamples> xs, cols, rows;
+  for (int i = 0; i < kHeightSamples; ++i) xs[size_t(i)] = ctx.lattice_x(lattice_index(key.x, i, key.level));
+  for (int j = 0; j < kHeightSamples; ++j) {
+    const double y = ctx.lattice_y(lattice_index(key.y, j, key.level));
+    ctx.mapping->map_frame_row(y, xs.data(), kHeightSamples, cols.data(), rows.data());
+    for (int i = 0; i < kHeightSamples; ++i)
+      if (ctx.surface.covered(cols[size_t(i)], rows[size_t(i)])) return true;
+  }
+  return false;
+}
+
+void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow& w, NodeError& out) {
+  out = NodeError{};
+  const Raster& src = *ctx.source;
+  const std::vector<uint8_t>& filled = *ctx.filled;
+  const double s = vertex_spacing_m(int(key.level));
+  const double x0 = ctx.lattice_x(lattice_index(key.x, 0, key.level));
+  const double y0 = ctx.lattice_y(lattice_index(key.y, 0, key.level));
+  // Samples of the node square, plus one sample around.
+  double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
+  node_sample_bounds(ctx, key, cmin, rmin, cmax, rmax);
+  const int c0 = std::max(0, int(std::floor(cmin)) - 1), c1 = std::min(src.width - 1, int(std::ceil(cmax)) + 1);
+  const int r0 = std::max(0, int(std::floor(rmin)) - 1), r1 = std::min(src.height - 1, int(std::ceil(rmax)) + 1);
+  auto vertex = [&](int i, int j, double& h) {
+    const size_t k = size_t(j + kWindowMargin) * kWindowSize + size_t(i + kWindowMargin);
+    h = double(w.units[k]) * kHeightUnitM;
+    return w.hole[k] == 0;
+  };
+  const double inv_s = 1.0 / s;
+  if (c1 < c0) return;
+  thread_local std::vector<double> fxs, fys;
+  fxs.resize(size_t(c1 - c0 + 1));
+  fys.resize(size_t(c1 - c0 + 1));
+  for (int row = r0; row <= r1; ++row) {
+    ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
+    for (int col = c0; col <= c1; ++col) {
+      const size_t idx = size_t(row) * size_t(src.width) + size_t(col);
+      const float z = src.values[idx];
+      if (std::isnan(z) || filled[idx]) continue;
+      const double u = (fxs[size_t(col - c0)] - x0) * inv_s, v = (fys[size_t(col - c0)] - y0) * inv_s;
+      if (!(u >= 0 && v >= 0 && u <= kQuadsPerSide && v <= kQuadsPerSide)) continue;
+      const int i = std::min(int(u), kQuadsPerSide - 1), j = std::min(int(v), kQuadsPerSide - 1);
+      const double fu = u - i, fv = v - j;
+      const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | (v >= 0.5 * kQuadsPerSide ? 2 : 0);
+      ErrorStats& qs = out.quadrant[size_t(q)];
+      // Quads split along the south-west to north-east diagonal (format/SPEC.md "Surface").
+      double h00 = 0, h11 = 0, hc = 0;
+      const bool ok00 = vertex(i, j, h00), ok11 = vertex(i + 1, j + 1, h11);
+      const bool okc = fu >= fv ? vertex(i + 1, j, hc) : vertex(i, j + 1, hc);
+      if (!(ok00 && ok11 && okc)) {
+        ++qs.uncovered;
+        continue;
+      }
+      const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
+      const double e = std::fabs(h - double(z));
+      qs.max_m = std::max(qs.max_m, e);
+      qs.sum_sq += e * e;
+      ++qs.samples;
+    }
+  }
+  for (const ErrorStats& q : out.quadrant) out.total.add(q);
+}
+
+void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
+  out = NodeResult{};
+  out.record.key = key;
+  const auto t0 = Clock::now();
+  auto window = std::make_unique<NodeWindow>();
+  out.status = compute_window(ctx, key, *window);
+  if (!out.status.ok()) return;
+  auto data = std::make_unique<NodeData>();
+  const int step = ctx.step_log2[key.level];
+  const size_t inner = size_t(kWindowMargin) * kWindowSize + kWindowMargin;
+  out.status = pack_heights(&window->units[inner], &window->hole[inner], kWindowSize, step, out.record, data->heights);
+  if (!out.status.ok()) {
+    out.status.message = fmt::format("node {}/{}/{}: {}", key.level, key.x, key.y, out.status.message);
+    return;
+  }
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i)
+      out.vertices += window->hole[inner + size_t(j) * kWindowSize + size_t(i)] == 0;
+  const auto t1 = Clock::now();
+
+  measure_error(ctx, key, *window, out.error);
+  // Stored as float: round up so the recorded error never understates the measured one.
+  float err = float(out.error.total.max_m);
+  if (double(err) < out.error.total.max_m) err = std::nextafter(err, INFINITY);
+  out.record.geometric_error_m = err;
+  // Refine where the error exceeds the tolerance, or where hole triangles drop valid source
+  // samples along a data edge and the node's vertices are coarser than the source (a gap of less
+  // than one source sample is not worth a finer level).
+  const bool refine = int(key.level) > ctx.finest_level &&
+                      (out.error.total.max_m > ctx.tolerance_m ||
+                       (out.error.total.uncovered > 0 && vertex_spacing_m(int(key.level)) > ctx.source_spacing_m));
+  if (refine) {
+    for (int c = 0; c < 4; ++c) {
+      // Parent vertices inside the quadrant are child vertices too: any with terrain decides it.
+      const int i0 = (c & 1) * (kQuadsPerSide / 2), j0 = (c >> 1) * (kQuadsPerSide / 2);
+      bool any = false;
+      for (int j = j0; j <= j0 + kQuadsPerSide / 2 && !any; ++j)
+        for (int i = i0; i <= i0 + kQuadsPerSide / 2 && !any; ++i)
+          any = window->hole[inner + size_t(j) * kWindowSize + size_t(i)] == 0;
+      if (!any) any = node_has_terrain(ctx, child_of(key, c));
+      if (any) out.record.child_mask = uint8_t(out.record.child_mask | (1u << c));
+    }
+  }
+  const auto t2 = Clock::now();
+
+  bool surface_done = false;
+#if TERRAIN_COOKER_HAS_SURFACE
+  if (!ctx.heights_only) {
+    surface_done = true;
+    std::vector<float> heights_m(kWindowCount);
+    for (size_t k = 0; k < size_t(kWindowCount); ++k)
+      heights_m[k] = window->hole[k] ? NAN : units_to_metres_f32(window->units[k]);
+    SurfaceInput in;
+    in.key = key;
+    in.x0_m = ctx.lattice_x(lattice_index(key.x, 0, key.level));
+    in.y0_m = ctx.lattice_y(lattice_index(key.y, 0, key.level));
+    in.spacing_m = vertex_spacing_m(int(key.level));
+    in.heights_m = heights_m.data();
+    in.holes = window->hole.data();
+    in.rules = ctx.rules;
+    in.bc_quality = ctx.bc_quality;
+    out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
+    if (!out.status.ok()) return;
+  }
+#endif
+  if (!surface_done) encode_hole_albedo(*window, data->albedo_bc1);
+  const auto t3 = Clock::now();
+  out.status = encode_node_payload(*data, ctx.payload, out.payload);
+  const auto t4 = Clock::now();
+  out.cpu_heights = seconds_between(t0, t1);
+  out.cpu_error = seconds_between(t1, t2);
+  out.cpu_surface = seconds_between(t2, t3);
+  out.cpu_encode = seconds_between(t3, t4);
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,84 @@
+// The work of one node: canonical heights of its window, R16 packing, geometric error against the
+// source, which children to cook, surface layers and the encoded payload. Pure function of the
+// node key and the shared read-only context, so any thread order gives the same bytes.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "frame.h"
+#include "raster.h"
+#include "reconstruct.h"
+#include "surface/surface_layers.h"
+#include "terrain/archive_writer.h"
+#include "terrain/format.h"
+
+namespace terrain::cook {
+
+struct CookContext {
+  const Raster* source = nullptr;
+  const std::vector<uint8_t>* filled = nullptr;  // 1 = sample was a filled void (not source data)
+  const SourceMapping* mapping = nullptr;
+  Surface surface;
+  double origin_x = 0, origin_y = 0;
+  std::array<uint8_t, kLevelCount> step_log2{};
+  int finest_level = 0;
+  double tolerance_m = 0;
+  double source_spacing_m = 0;  // finest source sample spacing in frame metres
+  bool heights_only = false;
+  const MaterialRules* rules = nullptr;
+  BcQuality bc_quality = BcQuality::balanced;
+  PayloadOptions payload;
+
+  explicit CookContext(const Raster& r) : source(&r), surface(r) {}
+  // Frame position of level-0 lattice index (gx, gy): exact in double.
+  double lattice_x(int64_t gx) const { return origin_x + double(gx) * 0.5; }
+  double lattice_y(int64_t gy) const { return origin_y + double(gy) * 0.5; }
+};
+
+// Canonical heights of a node's 137x137 window (its 129x129 vertices plus 4 neighbour vertices on
+// each side), row-major from the south-west; window (i + 4, j + 4) is vertex (i, j).
+struct NodeWindow {
+  std::array<int32_t, kWindowCount> units;
+  std::array<uint8_t, kWindowCount> hole;
+};
+// Fails (invalid_argument) when a height is outside the archive's +-16384 m.
+Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w);
+// The node square in source sample coordinates: the bounding box of its corners and edge
+// midpoints (a projected square bends by far less than a sample over one node).
+void node_sample_bounds(const CookContext& ctx, const NodeKey& key, double& cmin, double& rmin, double& cmax,
+                        double& rmax);
+// Whether any of the node's 129x129 vertices has terrain (cheap: coverage test only).
+bool node_has_terrain(const CookContext& ctx, const NodeKey& key);
+
+// Error of the node's rendered surface against the source samples it covers.
+struct ErrorStats {
+  double max_m = 0, sum_sq = 0;
+  uint64_t samples = 0, uncovered = 0;
+  void add(const ErrorStats& o) {
+    max_m = std::max(max_m, o.max_m);
+    sum_sq += o.sum_sq;
+    samples += o.samples;
+    uncovered += o.uncovered;
+  }
+};
+struct NodeError {
+  ErrorStats total;
+  std::array<ErrorStats, 4> quadrant;  // by child index (bit 0 east, bit 1 north)
+};
+void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow& w, NodeError& out);
+
+struct NodeResult {
+  Status status;
+  NodeRecord record;
+  std::vector<uint8_t> payload;
+  NodeError error;
+  uint64_t vertices = 0;  // non-hole vertices
+  double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
+  SurfaceStats surface;
+};
+// Cooks one node completely (record.child_mask says which children to cook next).
+void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out);
+
+}  // namespace terrain::cook

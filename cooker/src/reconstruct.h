@@ -1,0 +1,134 @@
+// The one continuous surface every level samples.
+//
+// Inside the data: Catmull-Rom bicubic (Keys a = -0.5, the kernel of gdalwarp -r cubic) over the
+// 4x4 source samples around the point, in source sample space; it passes through every source
+// sample and reproduces planes exactly. Taps beyond the raster's edge continue its two outermost
+// samples linearly. Where any tap is nodata, it falls back to bilinear over the valid taps of the
+// surrounding 2x2 cell (weights renormalised). A point is a hole when its NEAREST source sample is nodata or outside the raster,
+// so the covered area is the union of the valid samples' pixels (half a sample beyond the outer
+// samples, also for point-sampled rasters: the data's own edge samples stay fully drawn; the
+// archive's footprint and grid origin still follow their hull, frame.h).
+#pragma once
+#include <cmath>
+#include <cstdint>
+
+#include "anchor_grid.h"
+#include "raster.h"
+
+namespace terrain::cook {
+
+// std::floor for finite |x| < 2^52 without a libm call (x86-64 without SSE4.1 has no inline floor).
+inline double fast_floor(double x) {
+  const double t = double(int64_t(x));
+  return t > x ? t - 1.0 : t;
+}
+
+class Surface {
+ public:
+  explicit Surface(const Raster& r) : z_(r.values.data()), w_(r.width), h_(r.height) {}
+
+  // One axis of a sample position: the cell, the fraction and its Catmull-Rom weights.
+  struct Axis {
+    int i = 0;
+    double t = 0, w[4] = {0, 0, 0, 0};
+    bool in = false;  // a coordinate sample() can evaluate (finite, near the raster)
+  };
+  static Axis axis(double coord, int size) {
+    Axis a;
+    a.in = coord > -2.0 && coord < size + 1.0;  // NaN-safe
+    if (!a.in) return a;
+    const double f = fast_floor(coord);
+    a.i = int(f);
+    a.t = coord - f;
+    catmull_rom_weights(a.t, a.w);
+    return a;
+  }
+  Axis column(double col) const { return axis(col, w_); }
+  Axis row(double r) const { return axis(r, h_); }
+
+  // Height (metres) at sample coordinates (col, row) (sample centres at integers); false = hole.
+  bool sample(double col, double row, double& h) const { return sample(column(col), this->row(row), h); }
+  // The same from precomputed axes (a row or column of vertices shares one): identical bits.
+  // Inline for the common case (all 16 taps inside the raster and valid).
+  bool sample(const Axis& x, const Axis& y, double& h) const {
+    if (!x.in || !y.in) return false;
+    if (x.i >= 1 && y.i >= 1 && x.i + 2 < w_ && y.i + 2 < h_) {
+      const float* p = z_ + size_t(y.i - 1) * size_t(w_) + size_t(x.i - 1);
+      const size_t nearest = size_t(x.t > 0.5 ? 2 : 1) + size_t(y.t > 0.5 ? 2 : 1) * size_t(w_);
+      if (!std::isnan(p[nearest])) {
+        double sum = 0;
+        for (int j = 0; j < 4; ++j, p += w_)
+          sum += y.w[j] * (x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3]);
+        if (!std::isnan(sum)) {  // a NaN tap (nodata) poisons the sum: the general path decides
+          h = sum;
+          return true;
+        }
+      }
+    }
+    return sample_general(x, y, h);
+  }
+  // Rows of vertices denser than the source's rows share source rows: the horizontal Catmull-Rom
+  // sum of source row r at column axis x (x inside the raster with its 4 taps), cached by the
+  // caller and combined by sample_rows() with the same operations as sample(): identical bits.
+  bool x_interior(const Axis& x) const { return x.in && x.i >= 1 && x.i + 2 < w_; }
+  bool y_interior(const Axis& y) const { return y.in && y.i >= 1 && y.i + 2 < h_; }
+  double horizontal(const Axis& x, int r) const {
+    const float* p = z_ + size_t(r) * size_t(w_) + size_t(x.i - 1);
+    return x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3];
+  }
+  // `rows[j]` = horizontal(x, y.i - 1 + j); requires x_interior(x) and y_interior(y).
+  bool sample_rows(const Axis& x, const Axis& y, const double* const rows[4], double& h) const {
+    const size_t nearest = size_t(y.i - 1 + (y.t > 0.5 ? 2 : 1)) * size_t(w_) + size_t(x.i - 1 + (x.t > 0.5 ? 2 : 1));
+    if (!std::isnan(z_[nearest])) {
+      double sum = 0;
+      for (int j = 0; j < 4; ++j) sum += y.w[j] * *rows[j];
+      if (!std::isnan(sum)) {
+        h = sum;
+        return true;
+      }
+    }
+    return sample_general(x, y, h);
+  }
+  // Whether (col, row) is covered (nearest sample valid): the hole test of sample() alone.
+  bool covered(double col, double row) const {
+    if (!(col > -2.0 && row > -2.0 && col < w_ + 1.0 && row < h_ + 1.0)) return false;
+    const double fc = fast_floor(col), fr = fast_floor(row);
+    return nearest_valid(int(fc), int(fr), col - fc, row - fr);
+  }
+
+ private:
+  // Edges of the raster, nodata taps and ties: the hole test, then Catmull-Rom with taps beyond
+  // the raster continued linearly, else bilinear over the valid taps.
+  bool sample_general(const Axis& x, const Axis& y, double& h) const;
+
+  // Sample (c, r), with samples up to two beyond the raster extrapolated linearly from the two
+  // outermost ones (NaN when those are nodata). Needs a raster of at least 2x2 samples.
+  double extended(int c, int r) const {
+    if (r < 0) return row_extended(c, 0) + r * (row_extended(c, 1) - row_extended(c, 0));
+    if (r >= h_) return row_extended(c, h_ - 1) + (r - h_ + 1) * (row_extended(c, h_ - 1) - row_extended(c, h_ - 2));
+    return row_extended(c, r);
+  }
+  double row_extended(int c, int r) const {
+    const float* row = z_ + size_t(r) * size_t(w_);
+    if (c < 0) return row[0] + c * (double(row[1]) - row[0]);
+    if (c >= w_) return row[w_ - 1] + (c - w_ + 1) * (double(row[w_ - 1]) - row[w_ - 2]);
+    return row[c];
+  }
+  bool valid(int c, int r) const {
+    return c >= 0 && r >= 0 && c < w_ && r < h_ && !std::isnan(z_[size_t(r) * size_t(w_) + size_t(c)]);
+  }
+  // The nearest sample of (ic + tx, ir + ty) is valid; exactly halfway between two samples either
+  // may carry the point, so pixel edges belong to the covered side in every direction.
+  bool nearest_valid(int ic, int ir, double tx, double ty) const {
+    const int c = ic + (tx > 0.5 ? 1 : 0), r = ir + (ty > 0.5 ? 1 : 0);
+    if (valid(c, r)) return true;
+    if (tx != 0.5 && ty != 0.5) return false;
+    const int c2 = tx == 0.5 ? ic + 1 : c, r2 = ty == 0.5 ? ir + 1 : r;
+    return valid(c2, r) || valid(c, r2) || valid(c2, r2);
+  }
+
+  const float* z_;
+  int w_, h_;
+};
+
+}  // namespace terrain::cook

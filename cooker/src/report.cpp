@@ -1,0 +1,111 @@
+// The cook report: JSON for --report / --json, and the closing summary lines.
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "crs.h"
+#include "terrain/cook.h"
+
+namespace terrain::cook {
+namespace {
+
+constexpr const char* kSectionNames[5] = {"heights", "normals", "albedo", "splat", "cones"};
+
+}  // namespace
+
+std::string report_json(const CookReport& r) {
+  nlohmann::ordered_json j;
+  j["inputs"] = r.input_descriptions;
+  j["source"] = {{"samples", r.source_samples},
+                 {"valid_samples", r.source_valid_samples},
+                 {"spacing_m", r.source_spacing_m},
+                 {"voids_filled_samples", r.voids_filled_samples},
+                 {"voids_filled_regions", r.voids_filled_regions},
+                 {"hole_samples", r.hole_samples},
+                 {"hole_regions", r.hole_regions}};
+  j["frame"] = {{"description", describe_frame(r.frame)},
+                {"reason", r.frame_reason},
+                {"epsg", r.frame.epsg},
+                {"origin_m", {r.origin_x_m, r.origin_y_m}},
+                {"extent_m", {r.extent_min_x_m, r.extent_min_y_m, r.extent_max_x_m, r.extent_max_y_m}},
+                {"lon0_deg", r.frame.lon0_deg},
+                {"lat0_deg", r.frame.lat0_deg},
+                {"k0", r.frame.scale_k0},
+                {"false_easting_m", r.frame.false_easting_m},
+                {"false_northing_m", r.frame.false_northing_m},
+                {"semi_major_m", r.frame.semi_major_m},
+                {"inverse_flattening", r.frame.inverse_flattening},
+                {"local", r.frame.kind == ProjectionKind::local},
+                {"roots", {r.roots_x, r.roots_y}}};
+  j["tolerance_m"] = r.tolerance_m;
+  j["finest_level"] = r.finest_level;
+  nlohmann::ordered_json levels = nlohmann::ordered_json::array();
+  for (int l = 0; l < kLevelCount; ++l) {
+    const LevelStats& s = r.levels[size_t(l)];
+    levels.push_back({{"level", l},
+                      {"vertex_spacing_m", vertex_spacing_m(l)},
+                      {"nodes", s.nodes},
+                      {"step_log2", s.step_log2},
+                      {"step_m", std::ldexp(1.0, s.step_log2) * kHeightUnitM},
+                      {"vertices", s.vertices},
+                      {"error_samples", s.error_samples},
+                      {"error_max_m", s.error_max_m},
+                      {"error_rms_m", s.error_rms_m},
+                      {"uncovered_samples", s.uncovered_samples}});
+  }
+  j["levels"] = levels;
+  j["full_detail_error"] = {{"samples", r.leaf_error_samples}, {"max_m", r.leaf_error_max_m}, {"rms_m", r.leaf_error_rms_m}};
+  nlohmann::ordered_json sections;
+  for (int s = 0; s < 5; ++s)
+    sections[kSectionNames[s]] = {{"stored_bytes", r.section_stored_bytes[size_t(s)]},
+                                  {"raw_bytes", r.section_raw_bytes[size_t(s)]}};
+  j["output"] = {{"nodes", r.nodes}, {"archive_bytes", r.archive_bytes}, {"sections", sections},
+                 {"surface_layers", r.surface_layers}};
+  j["time_s"] = {{"read", r.seconds_read},       {"prepare", r.seconds_prepare}, {"pyramid", r.seconds_pyramid},
+                 {"finish", r.seconds_finish},   {"total", r.seconds_total},     {"cpu_heights", r.cpu_heights},
+                 {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode}};
+  j["speed"] = {{"threads", r.threads},
+                {"source_samples_per_s", r.source_samples_per_second},
+                {"output_vertices", r.output_vertices},
+                {"height_samples_per_cpu_s", r.height_samples_per_cpu_second}};
+  j["peak_rss_bytes"] = r.peak_rss_bytes;
+  if (r.surface_layers)
+    j["surface"] = {{"normal_err_max_deg", r.normal_err_max_deg},
+                    {"normal_err_mean_deg", r.normal_err_mean_deg},
+                    {"albedo_psnr_db", r.albedo_psnr_db}};
+  return j.dump(2);
+}
+
+std::string report_summary(const CookReport& r) {
+  std::string s;
+  s += fmt::format("frame: {}\n", describe_frame(r.frame));
+  s += fmt::format("grid: origin ({:.1f}, {:.1f}) m, {}x{} roots of 2048 m; finest level {} ({} m); tolerance {} m\n",
+                   r.origin_x_m, r.origin_y_m, r.roots_x, r.roots_y, r.finest_level, vertex_spacing_m(r.finest_level),
+                   r.tolerance_m);
+  if (r.voids_filled_samples || r.hole_samples)
+    s += fmt::format("nodata: {} samples in {} voids filled, {} samples in {} regions left as holes\n",
+                     r.voids_filled_samples, r.voids_filled_regions, r.hole_samples, r.hole_regions);
+  s += "level  spacing  nodes   step(mm)  err max(m)  err rms(m)  samples\n";
+  for (int l = kLevelCount - 1; l >= 0; --l) {
+    const LevelStats& v = r.levels[size_t(l)];
+    if (!v.nodes) continue;
+    s += fmt::format("{:>5}  {:>6.1f}  {:>6}  {:>8.3f}  {:>10.3f}  {:>10.3f}  {}\n", l, vertex_spacing_m(l), v.nodes,
+                     std::ldexp(1.0, v.step_log2) * kHeightUnitM * 1000.0, v.error_max_m, v.error_rms_m, v.error_samples);
+  }
+  s += fmt::format("full detail: error max {:.3f} m, rms {:.3f} m over {} source samples\n", r.leaf_error_max_m,
+                   r.leaf_error_rms_m, r.leaf_error_samples);
+  s += "bytes:";
+  for (int k = 0; k < 5; ++k) s += fmt::format(" {} {}", kSectionNames[k], r.section_stored_bytes[size_t(k)]);
+  s += "\n";
+  s += fmt::format("time: read {:.2f} s, prepare {:.2f} s, pyramid {:.2f} s, finish {:.2f} s (cpu: heights {:.2f}, "
+                   "error {:.2f}, surface {:.2f}, encode {:.2f}) on {} threads\n",
+                   r.seconds_read, r.seconds_prepare, r.seconds_pyramid, r.seconds_finish, r.cpu_heights, r.cpu_error,
+                   r.cpu_surface, r.cpu_encode, r.threads);
+  s += fmt::format("{} nodes, {} source samples -> {} bytes ({:.2f} bytes/sample), {:.2f} s, {:.2f} M source samples/s, "
+                   "{:.1f} M height samples per cpu-second, peak memory {} MB\n",
+                   r.nodes, r.source_samples, r.archive_bytes,
+                   r.source_samples ? double(r.archive_bytes) / double(r.source_samples) : 0.0, r.seconds_total,
+                   r.source_samples_per_second / 1e6, r.height_samples_per_cpu_second / 1e6, r.peak_rss_bytes >> 20);
+  return s;
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,68 @@
+// BC1 / BC3 / BC4 block encoding for the surface layers, and the reference block decoder the
+// cooker uses to check what it wrote (punch-through holes, cone margins, error statistics).
+//
+// Encoders: libsquish (range fit, cluster fit, iterative cluster fit; the only library encoder
+// with BC1 punch-through), stb_dxt (fast, 4-colour only) and our own (see bc_own.cpp). Every BC1
+// block is verified after encoding: a texel decodes transparent exactly when it is a hole.
+#pragma once
+#include <cstdint>
+
+namespace terrain::cook {
+
+// ---- Decoding: same arithmetic as terrain/bc_decode.h (interpolants (2a+b+1)/3, (a+b+1)/2) ----
+// Output: 16 texels x RGBA8, row-major inside the block (texel i = row i/4, column i%4).
+void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]);
+// BC4-style alpha block (the first 8 bytes of BC3): 16 values.
+void decode_bc4_block(const uint8_t block[8], uint8_t values[16]);
+void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]);
+// Bit i set when texel i of the BC1 block decodes with alpha 0.
+uint16_t bc1_transparent_mask(const uint8_t block[8]);
+
+// ---- BC1 --------------------------------------------------------------------------------
+enum class Bc1Method : uint8_t {
+  stb,               // stb_dxt, one refinement step
+  stb_hq,            // stb_dxt STB_DXT_HIGHQUAL (two refinement steps)
+  squish_range,      // libsquish range fit (uniform RGB metric)
+  squish_cluster,    // libsquish cluster fit (uniform RGB metric)
+  squish_iterative,  // libsquish iterative cluster fit (uniform RGB metric)
+  own_fast,          // our encoder (bc_own.cpp), one endpoint refit; our 3-colour fit for hole blocks
+  own,               // our encoder, two endpoint refits
+  own_best,          // per block the better of `own` and libsquish cluster fit
+};
+const char* bc1_method_name(Bc1Method m);
+
+// Encodes 16 RGBA8 texels; a texel with alpha < 128 is a hole. The result always satisfies:
+// every hole texel decodes transparent, every other texel decodes opaque (stb and our encoder
+// are used for hole-free blocks only; blocks with holes go to libsquish, and a block that fails
+// the check is re-encoded by a small exact 3-colour fallback).
+void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]);
+
+// ---- BC3 (world-space normals: RGB colour block + alpha block) -------------------------
+enum class Bc3Method : uint8_t {
+  stb,             // stb_dxt (alpha: min/max, colour: PCA + 1 refinement, uniform RGB)
+  stb_hq,          // stb_dxt high quality
+  squish_cluster,  // libsquish kDxt5 cluster fit, colour metric weighted toward G
+  own,             // our alpha encoder + our G fit, one refinement (bc_own.cpp)
+  own_hq,          // the same with two refinements and a wider endpoint search
+};
+const char* bc3_method_name(Bc3Method m);
+void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16]);
+
+// ---- Own encoders (bc_own.cpp) ----------------------------------------------------------
+// Opaque 4-colour BC1 (alpha ignored); never uses index 3 of a 3-colour block. `iterations`:
+// endpoint refits (1 = fast default, 2 = better).
+void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
+// 3-colour punch-through block: texel i transparent iff bit i of `holes` (not all 16 set).
+void own_encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8]);
+// BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
+void own_encode_bc4(const uint8_t values[16], uint8_t out[8]);
+// BC4 block whose decoded values are >= the targets (and as small as possible): conservative
+// storage of cone angles. Returns false only if impossible (never: 255 always works).
+void own_encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]);
+// Colour block when R and B are constant and exactly representable (normal maps): exhaustive-ish
+// 1D fit of G. Returns false (nothing written) when the block does not qualify.
+bool own_encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
+// Colour block for normals: minimises w_r*dR^2 + w_g*dG^2 + w_b*dB^2 (G carries the normal).
+void own_encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
+
+}  // namespace terrain::cook

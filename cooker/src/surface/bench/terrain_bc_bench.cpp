@@ -1,0 +1,321 @@
+// terrain-bc-bench: block-compression encoders on the payloads of real nodes.
+//
+// For each shared DEM it cuts real nodes, builds their surface payloads exactly as the cooker
+// does (splat-baked albedo with holes, a colour-relief albedo like `gdaldem color-relief`, and the
+// packed world-space normals), then encodes them with every encoder and prints, in one table:
+// microseconds per block (median of repeated runs, one thread), albedo PSNR over non-hole texels,
+// punch-through mismatches (must be 0), and normal angular error (mean / max degrees). A second
+// table gives the whole per-node surface cook time per quality setting.
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "bc_blocks.h"
+#include "dem_nodes.h"
+#include "materials.h"
+#include "normals.h"
+#include "splat.h"
+#include "surface_encoders.h"
+#include "surface_layers.h"
+
+using namespace terrain;
+using namespace terrain::cook;
+namespace {
+
+// CPU time of this thread: the machine is shared, so wall time would charge us for other work.
+double thread_seconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+struct Dataset {
+  const char* file;
+  uint32_t level;
+  int max_nodes;
+};
+// Levels chosen so the vertex spacing is close to (or finer than) the data spacing.
+constexpr Dataset kDatasets[] = {
+    {"kilauea_utm5n.tif", 4, 12},          // 30 m data, 8 m vertices: caldera, cliffs, sea (holes)
+    {"N22W160.hgt.zip", 5, 12},            // 90 m data, 16 m vertices: Na Pali cliffs, voids (holes)
+    {"srtm_oetztal.tif", 5, 12},           // alpine relief
+    {"tahoe_lidar_highesthit.tif", 0, 12}, // 0.5 m lidar with trees: spiky normals
+};
+
+int step_for_level(uint32_t level) {
+  static const int kSteps[kLevelCount] = {2, 3, 4, 5, 6, 6};
+  return kSteps[level];
+}
+
+struct NodePayload {
+  std::vector<uint8_t> albedo_splat, albedo_relief;  // 132x132 RGBA
+  NormalTexels normals;
+  std::array<uint8_t, kTexelCount * 4> normal_rgba{}, normal_rgba_const{};
+  int hole_texels = 0;
+};
+
+// Hypsometric tint with hillshade-free colours, like `gdaldem color-relief` with a typical ramp.
+void relief_colour(double h, uint8_t rgb[3]) {
+  static const double stops[][4] = {{0, 40, 110, 60},     {100, 90, 150, 70},   {400, 170, 180, 100},
+                                    {800, 190, 160, 110}, {1200, 150, 120, 90}, {2000, 130, 110, 100},
+                                    {3000, 240, 240, 245}, {5000, 255, 255, 255}};
+  const int n = int(sizeof stops / sizeof stops[0]);
+  if (h <= stops[0][0]) h = stops[0][0];
+  for (int i = 0; i + 1 < n; ++i)
+    if (h <= stops[i + 1][0] || i + 2 == n) {
+      const double t = std::clamp((h - stops[i][0]) / (stops[i + 1][0] - stops[i][0]), 0.0, 1.0);
+      for (int c = 0; c < 3; ++c) rgb[c] = uint8_t(std::lround(stops[i][c + 1] + t * (stops[i + 1][c + 1] - stops[i][c + 1])));
+      return;
+    }
+}
+
+void build_payload(const bench::DemNode& node, const MaterialRules& rules, NodePayload& p) {
+  const SurfaceInput in = node.input(&rules, BcQuality::balanced);
+  SplatLattice lattice;
+  compute_splat_lattice(in, rules, lattice);
+  p.albedo_splat.assign(size_t(kTexelCount) * 4, 0);
+  bake_albedo(in, rules, lattice, p.albedo_splat.data());
+  p.albedo_relief = p.albedo_splat;
+  p.hole_texels = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      double sum = 0;
+      int n = 0;
+      for (int b = 0; b <= 1; ++b)
+        for (int a = 0; a <= 1; ++a) {
+          const float v = node.window[size_t((u - kApron + kWindowMargin + b) * kWindowSize + t - kApron + kWindowMargin + a)];
+          if (!std::isnan(v)) { sum += v; ++n; }
+        }
+      const size_t k = size_t(u * kTexels + t);
+      relief_colour(n ? sum / n : 0.0, &p.albedo_relief[k * 4]);
+      p.hole_texels += p.albedo_splat[k * 4 + 3] == 0;
+    }
+  compute_normal_texels(in, p.normals);
+  pack_normal_texels(p.normals, p.normal_rgba, true);
+  pack_normal_texels(p.normals, p.normal_rgba_const, false);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+struct Row {
+  std::string dataset, payload, encoder;
+  double us_per_block = 0;
+  double psnr = 0, mean_deg = 0, max_deg = 0;
+  uint64_t mismatches = 0;
+};
+
+void print_usage(FILE* to) {
+  std::fprintf(to,
+      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--json] [--quiet] [--help]\n"
+      "  Encodes real-node payloads (albedo with holes, normals) with libsquish, stb_dxt and our\n"
+      "  encoder; prints us/block (median of N runs), albedo PSNR, punch-through mismatches and\n"
+      "  normal angular error, then the per-node surface cook time per quality setting.\n"
+      "  --data DIR  folder of the shared DEMs (default: $TERRAIN_DATA_DIR or %s)\n"
+      "  --reps N    timing repetitions (default 5)\n"
+      "  --only NAME only the shared DEMs whose file name contains NAME\n",
+      TERRAIN_BENCH_DATA_DIR);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string data_dir = TERRAIN_BENCH_DATA_DIR;
+  if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
+  int reps = 5;
+  bool json = false, quiet = false;
+  std::string only;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") { print_usage(stdout); return 0; }
+    if (a == "--json") json = true;
+    else if (a == "--quiet") quiet = true;
+    else if (a == "--data" && i + 1 < argc) data_dir = argv[++i];
+    else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--only" && i + 1 < argc) only = argv[++i];
+    else { std::fprintf(stderr, "terrain-bc-bench: unknown argument '%s'\n", a.c_str()); print_usage(stderr); return 2; }
+  }
+  const bool progress = !quiet && isatty(2);
+  const MaterialRules rules = default_material_rules();
+  std::vector<Row> rows;
+  struct CookRow {
+    std::string dataset, quality;
+    double ms_median, ms_max;
+    int nodes;
+    double ms_splat, ms_cones, ms_normals, ms_albedo;  // mean per node
+  };
+  std::vector<CookRow> cook_rows;
+
+  const Bc1Method bc1_methods[] = {Bc1Method::stb,          Bc1Method::stb_hq,   Bc1Method::squish_range,
+                                   Bc1Method::squish_cluster, Bc1Method::squish_iterative, Bc1Method::own_fast,
+                                   Bc1Method::own,          Bc1Method::own_best};
+  const Bc3Method bc3_methods[] = {Bc3Method::stb, Bc3Method::stb_hq, Bc3Method::squish_cluster, Bc3Method::own,
+                                   Bc3Method::own_hq};
+
+  for (const Dataset& ds : kDatasets) {
+    if (!only.empty() && std::string(ds.file).find(only) == std::string::npos) continue;
+    const std::string path = (std::filesystem::path(data_dir) / ds.file).string();
+    bench::DemRaster dem;
+    if (Status s = bench::load_dem(path, dem); !s.ok()) {
+      std::fprintf(stderr, "terrain-bc-bench: skipping %s: %s\n", ds.file, s.to_string().c_str());
+      continue;
+    }
+    // Nodes with data, spread evenly over the raster (deterministic choice).
+    std::vector<bench::DemNode> nodes;
+    const uint32_t nx = bench::nodes_across(dem, ds.level, false), ny = bench::nodes_across(dem, ds.level, true);
+    std::vector<std::pair<uint32_t, uint32_t>> cand;
+    for (uint32_t y = 0; y < ny; ++y)
+      for (uint32_t x = 0; x < nx; ++x) cand.push_back({x, y});
+    const size_t stride = std::max<size_t>(1, cand.size() / size_t(ds.max_nodes * 2));
+    for (size_t c = 0; c < cand.size() && int(nodes.size()) < ds.max_nodes; c += stride) {
+      bench::DemNode n;
+      bench::make_dem_node(dem, ds.level, cand[c].first, cand[c].second, step_for_level(ds.level), n);
+      if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
+    }
+    if (progress) std::fprintf(stderr, "%s: %zu nodes at level %u\n", ds.file, nodes.size(), ds.level);
+    std::vector<NodePayload> payloads(nodes.size());
+    int holes = 0;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      build_payload(nodes[i], rules, payloads[i]);
+      holes += payloads[i].hole_texels;
+    }
+    const double blocks = double(nodes.size()) * kTexelBlocks * kTexelBlocks;
+    std::vector<uint8_t> out(size_t(kAlbedoBytes) * 2);
+
+    for (int which = 0; which < 2; ++which)
+      for (Bc1Method m : bc1_methods) {
+        Row row{dem.name, which ? "albedo-relief" : "albedo-splat", bc1_method_name(m)};
+        std::vector<double> times;
+        AlbedoCheck total;
+        for (int r = 0; r < reps; ++r) {
+          AlbedoCheck acc;
+          double secs = 0;
+          for (const NodePayload& p : payloads) {
+            const uint8_t* img = which ? p.albedo_relief.data() : p.albedo_splat.data();
+            const double t0 = thread_seconds();
+            encode_bc1_image(img, m, out.data());
+            secs += thread_seconds() - t0;
+            const AlbedoCheck c = check_albedo(img, out.data());
+            acc.sq_err += c.sq_err;
+            acc.samples += c.samples;
+            acc.alpha_mismatches += c.alpha_mismatches;
+          }
+          times.push_back(secs / blocks * 1e6);
+          total = acc;
+        }
+        row.us_per_block = median(times);
+        row.psnr = psnr_db(total.sq_err, total.samples);
+        row.mismatches = total.alpha_mismatches;
+        rows.push_back(row);
+        if (progress) std::fprintf(stderr, "  %s %s done\n", row.payload.c_str(), row.encoder.c_str());
+      }
+    for (int variant = 0; variant < 2; ++variant)
+      for (Bc3Method m : bc3_methods) {
+        if (variant == 1 && m != Bc3Method::own && m != Bc3Method::stb) continue;
+        Row row{dem.name, variant ? "normals(R=const)" : "normals(R=AO)", bc3_method_name(m)};
+        std::vector<double> times;
+        AngleStats err;
+        for (int r = 0; r < reps; ++r) {
+          double secs = 0;
+          AngleStats acc;
+          for (const NodePayload& p : payloads) {
+            const uint8_t* img = variant ? p.normal_rgba_const.data() : p.normal_rgba.data();
+            const double t0 = thread_seconds();
+            encode_bc3_image(img, m, out.data());
+            secs += thread_seconds() - t0;
+            const AngleStats e = normal_error(p.normals, out.data());
+            acc.sum_deg += e.sum_deg;
+            acc.count += e.count;
+            acc.max_deg = std::max(acc.max_deg, e.max_deg);
+          }
+          times.push_back(secs / blocks * 1e6);
+          err = acc;
+        }
+        row.us_per_block = median(times);
+        row.mean_deg = err.count ? err.sum_deg / double(err.count) : 0;
+        row.max_deg = err.max_deg;
+        rows.push_back(row);
+      }
+    // Whole surface cook per node (normals, albedo, splat, cones + compression), one thread.
+    for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
+      std::vector<double> per_node;
+      NodeData outnode;
+      SurfaceStats st;
+      for (const bench::DemNode& n : nodes) {
+        std::vector<double> t;
+        for (int r = 0; r < reps; ++r) {
+          const double t0 = thread_seconds();
+          const Status s = cook_surface_layers(n.input(&rules, q), n.node, n.height_offset, n.step_log2, outnode, &st);
+          t.push_back((thread_seconds() - t0) * 1e3);
+          if (!s.ok()) {
+            std::fprintf(stderr, "terrain-bc-bench: %s\n", s.to_string().c_str());
+            return 1;
+          }
+        }
+        per_node.push_back(median(t));
+      }
+      const char* qn = q == BcQuality::fast ? "fast" : q == BcQuality::balanced ? "balanced" : "best";
+      const double runs = double(nodes.size()) * reps / 1e3;
+      cook_rows.push_back({dem.name, qn, median(per_node), *std::max_element(per_node.begin(), per_node.end()),
+                           int(nodes.size()), st.seconds_splat / runs, st.seconds_cones / runs,
+                           st.seconds_normals / runs, st.seconds_albedo / runs});
+    }
+    if (progress) std::fprintf(stderr, "  %d hole texels over %zu nodes\n", holes, nodes.size());
+  }
+
+  if (json) {
+    std::printf("{\"encoders\": [");
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const Row& r = rows[i];
+      std::printf("%s\n  {\"dataset\": \"%s\", \"payload\": \"%s\", \"encoder\": \"%s\", \"us_per_block\": %.4f, "
+                  "\"psnr_db\": %.3f, \"alpha_mismatches\": %llu, \"normal_mean_deg\": %.4f, \"normal_max_deg\": %.4f}",
+                  i ? "," : "", r.dataset.c_str(), r.payload.c_str(), r.encoder.c_str(), r.us_per_block, r.psnr,
+                  (unsigned long long)r.mismatches, r.mean_deg, r.max_deg);
+    }
+    std::printf("\n], \"cook\": [");
+    for (size_t i = 0; i < cook_rows.size(); ++i)
+      std::printf("%s\n  {\"dataset\": \"%s\", \"quality\": \"%s\", \"ms_per_node_median\": %.3f, \"ms_per_node_max\": %.3f, "
+                  "\"nodes\": %d, \"ms_splat\": %.3f, \"ms_cones\": %.3f, \"ms_normals\": %.3f, \"ms_albedo\": %.3f}",
+                  i ? "," : "", cook_rows[i].dataset.c_str(), cook_rows[i].quality.c_str(), cook_rows[i].ms_median,
+                  cook_rows[i].ms_max, cook_rows[i].nodes, cook_rows[i].ms_splat, cook_rows[i].ms_cones,
+                  cook_rows[i].ms_normals, cook_rows[i].ms_albedo);
+    std::printf("\n]}\n");
+    return 0;
+  }
+  std::printf("%-28s %-17s %-15s %9s %9s %6s %9s %9s\n", "dataset", "payload", "encoder", "us/block", "PSNR dB",
+              "alpha!", "mean deg", "max deg");
+  for (const Row& r : rows) {
+    if (r.payload.rfind("albedo", 0) == 0)
+      std::printf("%-28s %-17s %-15s %9.3f %9.2f %6llu %9s %9s\n", r.dataset.c_str(), r.payload.c_str(), r.encoder.c_str(),
+                  r.us_per_block, r.psnr, (unsigned long long)r.mismatches, "-", "-");
+    else
+      std::printf("%-28s %-17s %-15s %9.3f %9s %6s %9.3f %9.3f\n", r.dataset.c_str(), r.payload.c_str(), r.encoder.c_str(),
+                  r.us_per_block, "-", "-", r.mean_deg, r.max_deg);
+  }
+  std::printf("\n%-28s %-9s %5s %13s %11s | %7s %7s %7s %7s  (mean ms per node and stage)\n", "dataset", "quality",
+              "nodes", "ms/node(med)", "ms/node max", "splat", "cones", "normals", "albedo");
+  for (const CookRow& c : cook_rows)
+    std::printf("%-28s %-9s %5d %13.3f %11.3f | %7.3f %7.3f %7.3f %7.3f\n", c.dataset.c_str(), c.quality.c_str(), c.nodes,
+                c.ms_median, c.ms_max, c.ms_splat, c.ms_cones, c.ms_normals, c.ms_albedo);
+  std::printf("\n# albedo rows: every block checked for exact punch-through (alpha! = mismatching texels); stb_dxt has no\n"
+              "# 3-colour mode, so its rows encode blocks with holes with libsquish cluster fit; PSNR over non-hole texels.\n"
+              "# normals: angle between decoded and float normals; R=AO (block AO, the cooker's layout) vs R constant.\n");
+  std::printf("# one thread, thread CPU time, %s build, reps %d; us/block = median over reps of (encode time of all nodes / blocks)\n",
+#ifdef NDEBUG
+              "release",
+#else
+              "debug",
+#endif
+              reps);
+  return 0;
+}

@@ -1,0 +1,627 @@
+// Patch cones: triangle normals (with stitching variants), smallest enclosing cone, and the
+// conservative BC3 encoding with its margins checked after decoding.
+#include "cones.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+
+#include "bc_blocks.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#include "cone_cull.h"
+#include "fast_math.h"
+#include "surface_layers.h"
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// GPU BC1 colour interpolants may differ from the reference by this many 8-bit steps; BC3 alpha
+// interpolants by one step (covered by adding one step to every alpha target).
+constexpr double kColourTolerance8 = 2.0;
+constexpr int kAlphaTolerance8 = 1;
+
+struct V3 {
+  double x, y, z;
+};
+inline V3 sub(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline V3 add(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline V3 mul(V3 a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+inline double dot(V3 a, V3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline std::array<double, 3> arr(V3 v) { return {v.x, v.y, v.z}; }
+inline V3 cross(V3 a, V3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+
+// Closest point to the origin on triangle abc (Ericson, RTCD 5.1.5) with barycentric weights.
+V3 closest_on_triangle(V3 a, V3 b, V3 c, double w[3]) {
+  const V3 ab = sub(b, a), ac = sub(c, a), ap = mul(a, -1);
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) { w[0] = 1; w[1] = w[2] = 0; return a; }
+  const V3 bp = mul(b, -1);
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) { w[1] = 1; w[0] = w[2] = 0; return b; }
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    w[0] = 1 - v; w[1] = v; w[2] = 0;
+    return add(a, mul(ab, v));
+  }
+  const V3 cp = mul(c, -1);
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) { w[2] = 1; w[0] = w[1] = 0; return c; }
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double t = d2 / (d2 - d6);
+    w[0] = 1 - t; w[2] = t; w[1] = 0;
+    return add(a, mul(ac, t));
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    w[1] = 1 - t; w[2] = t; w[0] = 0;
+    return add(b, mul(sub(c, b), t));
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, t = vc * denom;
+  w[0] = 1 - v - t; w[1] = v; w[2] = t;
+  return add(a, add(mul(ab, v), mul(ac, t)));
+}
+
+// Closest point to the origin on the simplex `s` (1..4 points); keeps only the supporting points.
+V3 reduce_simplex(V3* s, int& n) {
+  if (n == 1) return s[0];
+  if (n == 2) {
+    const V3 ab = sub(s[1], s[0]);
+    const double len2 = dot(ab, ab);
+    const double t = len2 > 0 ? std::clamp(-dot(s[0], ab) / len2, 0.0, 1.0) : 0.0;
+    if (t <= 0) { n = 1; return s[0]; }
+    if (t >= 1) { s[0] = s[1]; n = 1; return s[0]; }
+    return add(s[0], mul(ab, t));
+  }
+  int best_face[3] = {0, 1, 2};
+  double best_w[3] = {1, 0, 0};
+  V3 best_p = s[0];
+  double best_d = 1e300;
+  const int faces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  const int nf = n == 3 ? 1 : 4;
+  for (int f = 0; f < nf; ++f) {
+    double w[3];
+    const V3 p = closest_on_triangle(s[faces[f][0]], s[faces[f][1]], s[faces[f][2]], w);
+    const double d = dot(p, p);
+    if (d < best_d) {
+      best_d = d;
+      best_p = p;
+      std::memcpy(best_face, faces[f], sizeof best_face);
+      std::memcpy(best_w, w, sizeof best_w);
+    }
+  }
+  V3 kept[3];
+  int m = 0;
+  for (int k = 0; k < 3; ++k)
+    if (best_w[k] > 0) kept[m++] = s[best_face[k]];
+  if (m == 0) kept[m++] = s[best_face[0]];
+  for (int k = 0; k < m; ++k) s[k] = kept[k];
+  n = m;
+  return best_p;
+}
+
+V3 load(NormalSpan v, int i) { return {v.x[i], v.y[i], v.z[i]}; }
+
+double angle_between(V3 a, V3 b) {
+  // atan2 form: accurate for tiny angles, where acos of a dot product is not.
+  return std::atan2(std::sqrt(dot(cross(a, b), cross(a, b))), dot(a, b));
+}
+
+V3 axis_from_v8(double r8, double g8) {
+  const double x = cone::cone_axis_x(r8), y = cone::cone_axis_y(g8);
+  const double rr = x * x + y * y;
+  const double z = rr < 1.0 ? std::sqrt(1.0 - rr) : 0.0;
+  const double len = std::sqrt(x * x + y * y + z * z);
+  return {x / len, y / len, z / len};
+}
+
+// Largest angle between the axis decoded from (r8, g8) and the axes a GPU decoder could produce
+// when each channel deviates by up to `tol` steps (checked at the 8 neighbours of the square).
+double decoder_perturbation(double r8, double g8, double tol) {
+  if (tol <= 0) return 0;
+  const V3 a = axis_from_v8(r8, g8);
+  double worst = 0;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx)
+      if (dx || dy) {
+        const V3 b = axis_from_v8(r8 + dx * tol, g8 + dy * tol);
+        worst = std::max(worst, fast_angle(arr(a).data(), arr(b).data()));
+      }
+  // The extreme of a smooth function over the square lies near its corners; 10% + 1e-4 rad cover
+  // that and fast_angle's 2e-5 rad error.
+  return worst * 1.1 + 1e-4;
+}
+
+uint8_t axis_x_to_v8(double c) {
+  return uint8_t(std::clamp(std::lround(cone::kConeRCentre + cone::kConeRScale * c), 0L, 255L));
+}
+uint8_t axis_y_to_v8(double c) {
+  return uint8_t(std::clamp(std::lround(cone::kConeGCentre + cone::kConeGScale * c), 0L, 255L));
+}
+
+uint8_t angle_target(double need_rad) {
+  if (!(need_rad < kPi / 2)) return 255;
+  const double steps = std::ceil(need_rad / (kPi / 2) * 255.0 - 1e-9) + kAlphaTolerance8;
+  return uint8_t(std::min(255.0, std::max(0.0, steps)));
+}
+
+// Triangles of LOD stitching: on a patch edge whose neighbour is coarser by d (1..4), edge vertex
+// k (0 < k < 16) moves to (k >> d) << d; quads touching two edges (corners) combine both edges'
+// levels. Listed once per patch-local position: every distinct non-degenerate triangle that differs
+// from the unstitched one, with its original vertices (for the hole test).
+struct StitchedTriangle {
+  uint8_t snapped[3][2];
+  uint8_t orig[3][2];
+};
+
+std::vector<StitchedTriangle> build_stitch_table() {
+  std::vector<StitchedTriangle> table;
+  for (int v = 0; v < kQuadsPerPatch; ++v)
+    for (int u = 0; u < kQuadsPerPatch; ++u) {
+      const bool onS = v == 0, onN = v == kQuadsPerPatch - 1, onW = u == 0, onE = u == kQuadsPerPatch - 1;
+      if (!(onS || onN || onW || onE)) continue;
+      const size_t first = table.size();
+      const int maxS = onS ? kMaxStitchLevels : 0, maxN = onN ? kMaxStitchLevels : 0;
+      const int maxW = onW ? kMaxStitchLevels : 0, maxE = onE ? kMaxStitchLevels : 0;
+      for (int dS = 0; dS <= maxS; ++dS)
+        for (int dN = 0; dN <= maxN; ++dN)
+          for (int dW = 0; dW <= maxW; ++dW)
+            for (int dE = 0; dE <= maxE; ++dE) {
+              auto snap = [&](int a, int b, int out[2]) {
+                out[0] = a;
+                out[1] = b;
+                if (b == 0 && a > 0 && a < kQuadsPerPatch) out[0] = (a >> dS) << dS;
+                if (b == kQuadsPerPatch && a > 0 && a < kQuadsPerPatch) out[0] = (a >> dN) << dN;
+                if (a == 0 && b > 0 && b < kQuadsPerPatch) out[1] = (b >> dW) << dW;
+                if (a == kQuadsPerPatch && b > 0 && b < kQuadsPerPatch) out[1] = (b >> dE) << dE;
+              };
+              const int corner[4][2] = {{u, v}, {u + 1, v}, {u + 1, v + 1}, {u, v + 1}};
+              int sc[4][2];
+              for (int c = 0; c < 4; ++c) snap(corner[c][0], corner[c][1], sc[c]);
+              static const int kTris[2][3] = {{0, 1, 2}, {0, 2, 3}};
+              for (const auto& tri : kTris) {
+                bool moved = false, degenerate = false;
+                StitchedTriangle st;
+                for (int t = 0; t < 3; ++t) {
+                  const int c = tri[t];
+                  moved = moved || sc[c][0] != corner[c][0] || sc[c][1] != corner[c][1];
+                  for (int o = 0; o < t; ++o)
+                    degenerate = degenerate || (sc[tri[o]][0] == sc[c][0] && sc[tri[o]][1] == sc[c][1]);
+                  st.snapped[t][0] = uint8_t(sc[c][0]);
+                  st.snapped[t][1] = uint8_t(sc[c][1]);
+                  st.orig[t][0] = uint8_t(corner[c][0]);
+                  st.orig[t][1] = uint8_t(corner[c][1]);
+                }
+                if (!moved || degenerate) continue;
+                bool dup = false;
+                for (size_t e = first; e < table.size() && !dup; ++e)
+                  dup = std::memcmp(&table[e], &st, sizeof st) == 0;
+                if (!dup) table.push_back(st);
+              }
+            }
+    }
+  return table;
+}
+
+const std::vector<StitchedTriangle>& stitch_table() {
+  static const std::vector<StitchedTriangle> table = build_stitch_table();
+  return table;
+}
+
+}  // namespace
+
+void collect_patch_normals(const NodeData& node, int32_t height_offset, int step_log2, double spacing_m,
+                           const uint8_t* window_holes, PatchNormals& out) {
+  // Vertex positions once (metres, as the shader dequantizes them) and hole flags.
+  static thread_local std::vector<double> z;
+  static thread_local std::vector<uint8_t> hole;
+  z.resize(size_t(kHeightCount));
+  hole.assign(size_t(kHeightCount), 0);
+  bool any_hole = false;
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i) {
+      const size_t k = size_t(j * kHeightSamples + i);
+      z[k] = units_to_metres(vertex_units(height_offset, node.heights[k], step_log2));
+      if (window_holes) hole[k] = window_holes[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] != 0;
+      any_hole = any_hole || hole[k];
+    }
+  auto at = [&](int i, int j) { return size_t(j * kHeightSamples + i); };
+  const double s = spacing_m;
+  // Upper bound: 2 per quad, plus stitched variants (< 2 per edge quad and level, corners 50).
+  const size_t cap = size_t(kPatchCount) * (2 * 256 + 4 * 16 * 2 * kMaxStitchLevels + 4 * 50);
+  if (out.x.size() < cap) {
+    out.x.resize(cap);
+    out.y.resize(cap);
+    out.z.resize(cap);
+  }
+  float* dx = out.x.data();
+  float* dy = out.y.data();
+  float* dz = out.z.data();
+  size_t count = 0;
+  // General triangle (for stitched variants): grid coordinates, counter-clockwise from above.
+  auto push_tri = [&](int i0, int j0, int i1, int j1, int i2, int j2) {
+    // Edge vectors in grid steps (exact) and height differences (double, then float): the normal
+    // only needs float precision (the margins are 1e-4 rad and up).
+    const float ax = float(i1 - i0), ay = float(j1 - j0), az = float((z[at(i1, j1)] - z[at(i0, j0)]) / s);
+    const float bx = float(i2 - i0), by = float(j2 - j0), bz = float((z[at(i2, j2)] - z[at(i0, j0)]) / s);
+    const float nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+    if (!(nz > 0)) return;
+    const float inv = 1.0f / std::sqrt(nx * nx + ny * ny + nz * nz);
+    dx[count] = nx * inv;
+    dy[count] = ny * inv;
+    dz[count] = nz * inv;
+    ++count;
+  };
+  // Normals of the unstitched triangles of every quad, in float, as branch-free row loops:
+  // quad (i,j) -> (i,j),(i+1,j),(i+1,j+1) with normal ~ (h00-h10, h10-h11, s) and
+  //               (i,j),(i+1,j+1),(i,j+1) with normal ~ (h01-h11, h00-h01, s).
+  static thread_local std::vector<float> nbuf;
+  nbuf.resize(size_t(kQuadsPerSide) * kQuadsPerSide * 6);
+  float* n1[3] = {nbuf.data(), nbuf.data() + kQuadsPerSide * kQuadsPerSide, nbuf.data() + 2 * kQuadsPerSide * kQuadsPerSide};
+  float* n2[3] = {n1[0] + 3 * kQuadsPerSide * kQuadsPerSide, n1[1] + 3 * kQuadsPerSide * kQuadsPerSide,
+                  n1[2] + 3 * kQuadsPerSide * kQuadsPerSide};
+  const float sf = float(s), s2 = sf * sf;
+  for (int j = 0; j < kQuadsPerSide; ++j) {
+    // Row heights as float differences first (exact enough: the margins are 1e-4 rad and up).
+    float dxr0[kQuadsPerSide], dxr1[kQuadsPerSide], dyl[kQuadsPerSide + 1];
+    const double* r0 = &z[at(0, j)];
+    const double* r1 = &z[at(0, j + 1)];
+    for (int i = 0; i < kQuadsPerSide; ++i) {
+      dxr0[i] = float(r0[i] - r0[i + 1]);
+      dxr1[i] = float(r1[i] - r1[i + 1]);
+    }
+    for (int i = 0; i <= kQuadsPerSide; ++i) dyl[i] = float(r0[i] - r1[i]);
+    float* __restrict ax = n1[0] + j * kQuadsPerSide;
+    float* __restrict ay = n1[1] + j * kQuadsPerSide;
+    float* __restrict az = n1[2] + j * kQuadsPerSide;
+    float* __restrict bx = n2[0] + j * kQuadsPerSide;
+    float* __restrict by = n2[1] + j * kQuadsPerSide;
+    float* __restrict bz = n2[2] + j * kQuadsPerSide;
+    for (int i = 0; i < kQuadsPerSide; ++i) {
+      const float x1 = dxr0[i], y1 = dyl[i + 1];
+      const float x2 = dxr1[i], y2 = dyl[i];
+      const float i1 = 1.0f / std::sqrt(x1 * x1 + y1 * y1 + s2), i2 = 1.0f / std::sqrt(x2 * x2 + y2 * y2 + s2);
+      ax[i] = x1 * i1; ay[i] = y1 * i1; az[i] = sf * i1;
+      bx[i] = x2 * i2; by[i] = y2 * i2; bz[i] = sf * i2;
+    }
+  }
+  for (int q = 0; q < kPatchesPerSide; ++q)
+    for (int p = 0; p < kPatchesPerSide; ++p) {
+      const int k = q * kPatchesPerSide + p;
+      out.begin[size_t(k)] = uint32_t(count);
+      const int gi0 = p * kQuadsPerPatch, gj0 = q * kQuadsPerPatch;
+      // Unstitched triangles (normals precomputed above for the whole node).
+      if (!any_hole) {
+        for (int v = 0; v < kQuadsPerPatch; ++v) {
+          const size_t quad = size_t((gj0 + v) * kQuadsPerSide + gi0);
+          for (int c = 0; c < 3; ++c) {
+            float* d = c == 0 ? dx : c == 1 ? dy : dz;
+            std::memcpy(d + count, n1[c] + quad, kQuadsPerPatch * sizeof(float));
+            std::memcpy(d + count + kQuadsPerPatch, n2[c] + quad, kQuadsPerPatch * sizeof(float));
+          }
+          count += 2 * kQuadsPerPatch;
+        }
+      } else
+      for (int v = 0; v < kQuadsPerPatch; ++v)
+        for (int u = 0; u < kQuadsPerPatch; ++u) {
+          const int i = gi0 + u, j = gj0 + v;
+          const size_t quad = size_t(j * kQuadsPerSide + i);
+          const bool h_common = hole[at(i, j)] || hole[at(i + 1, j + 1)];
+          if (!(h_common || hole[at(i + 1, j)])) {
+            dx[count] = n1[0][quad]; dy[count] = n1[1][quad]; dz[count] = n1[2][quad];
+            ++count;
+          }
+          if (!(h_common || hole[at(i, j + 1)])) {
+            dx[count] = n2[0][quad]; dy[count] = n2[1][quad]; dz[count] = n2[2][quad];
+            ++count;
+          }
+        }
+      // Stitched variants (same for every patch, so enumerated once in stitch_table()).
+      for (const StitchedTriangle& st : stitch_table()) {
+        bool hole_snapped = false, hole_orig = false;
+        for (int t = 0; t < 3; ++t) {
+          hole_snapped = hole_snapped || hole[at(gi0 + st.snapped[t][0], gj0 + st.snapped[t][1])];
+          hole_orig = hole_orig || hole[at(gi0 + st.orig[t][0], gj0 + st.orig[t][1])];
+        }
+        // Dropped only if a hole kills it under either reading of the hole mask (at the collapsed
+        // or at the original grid position).
+        if (hole_snapped && hole_orig) continue;
+        push_tri(gi0 + st.snapped[0][0], gj0 + st.snapped[0][1], gi0 + st.snapped[1][0], gj0 + st.snapped[1][1],
+                 gi0 + st.snapped[2][0], gj0 + st.snapped[2][1]);
+      }
+    }
+  out.begin[kPatchCount] = uint32_t(count);
+}
+
+namespace {
+
+// Smallest float dot(axis, v_i) (SSE2: 4 normals per step).
+float min_dot_f(NormalSpan v, float ax, float ay, float az) {
+  int i = 0;
+  float m = 4.0f;
+#if defined(__SSE2__)
+  __m128 mv = _mm_set1_ps(4.0f);
+  const __m128 vx = _mm_set1_ps(ax), vy = _mm_set1_ps(ay), vz = _mm_set1_ps(az);
+  for (; i + 4 <= v.n; i += 4) {
+    const __m128 d = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, _mm_loadu_ps(v.x + i)), _mm_mul_ps(vy, _mm_loadu_ps(v.y + i))),
+                                _mm_mul_ps(vz, _mm_loadu_ps(v.z + i)));
+    mv = _mm_min_ps(mv, d);
+  }
+  alignas(16) float lanes[4];
+  _mm_store_ps(lanes, mv);
+  m = std::min(std::min(lanes[0], lanes[1]), std::min(lanes[2], lanes[3]));
+#endif
+  for (; i < v.n; ++i) m = std::min(m, ax * v.x[i] + ay * v.y[i] + az * v.z[i]);
+  return m;
+}
+
+// Index of the smallest dot(axis, v_i): float scan, then the exact double comparison among the
+// normals within float rounding (1e-6) of the float minimum.
+int argmin_dot(NormalSpan v, double ax, double ay, double az) {
+  const float fx = float(ax), fy = float(ay), fz = float(az);
+  const float limit = min_dot_f(v, fx, fy, fz) + 1e-5f;
+  int arg = 0;
+  double best = 1e300;
+  auto consider = [&](int i) {
+    const double d = ax * double(v.x[i]) + ay * double(v.y[i]) + az * double(v.z[i]);
+    if (d < best) { best = d; arg = i; }
+  };
+  int i = 0;
+#if defined(__SSE2__)
+  const __m128 vx = _mm_set1_ps(fx), vy = _mm_set1_ps(fy), vz = _mm_set1_ps(fz), lim = _mm_set1_ps(limit);
+  for (; i + 4 <= v.n; i += 4) {
+    const __m128 d = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, _mm_loadu_ps(v.x + i)), _mm_mul_ps(vy, _mm_loadu_ps(v.y + i))),
+                                _mm_mul_ps(vz, _mm_loadu_ps(v.z + i)));
+    int mask = _mm_movemask_ps(_mm_cmple_ps(d, lim));
+    while (mask) {
+      const int lane = __builtin_ctz(unsigned(mask));
+      consider(i + lane);
+      mask &= mask - 1;
+    }
+  }
+#endif
+  for (; i < v.n; ++i)
+    if (fx * v.x[i] + fy * v.y[i] + fz * v.z[i] <= limit) consider(i);
+  return arg;
+}
+
+}  // namespace
+
+double max_angle_to(const double axis[3], NormalSpan v) {
+  if (v.n <= 0) return 0;
+  // The smallest dot product in double (near-ties differ in angle by < 1e-8 rad, far below the
+  // callers' margins), then that normal's angle accurately.
+  const int arg = argmin_dot(v, axis[0], axis[1], axis[2]);
+  return angle_between({axis[0], axis[1], axis[2]}, load(v, arg));
+}
+
+Cone smallest_enclosing_cone(NormalSpan v) {
+  Cone cone;
+  if (v.n <= 0) return cone;
+  V3 simplex[4] = {load(v, 0)};
+  int m = 1;
+  V3 p = simplex[0];
+  for (int iter = 0; iter < 64; ++iter) {
+    // Support point in float (only the search direction's quality depends on it; the cone angle
+    // is measured in double afterwards).
+    const int arg = argmin_dot(v, p.x, p.y, p.z);
+    const double best = dot(load(v, arg), p);
+    const double pp = dot(p, p);
+    if (pp - best <= 1e-12 * pp) break;  // no point lies beyond the current closest point
+    const V3 w = load(v, arg);
+    bool dup = false;
+    for (int k = 0; k < m; ++k) dup = dup || (simplex[k].x == w.x && simplex[k].y == w.y && simplex[k].z == w.z);
+    if (dup) break;
+    simplex[m++] = w;
+    const V3 np = reduce_simplex(simplex, m);
+    if (dot(np, np) >= pp) break;  // numerical stall
+    p = np;
+  }
+  const double len = std::sqrt(dot(p, p));
+  if (len > 0) cone.axis[0] = p.x / len, cone.axis[1] = p.y / len, cone.axis[2] = p.z / len;
+  cone.half_angle_rad = max_angle_to(cone.axis, v);
+  return cone;
+}
+
+namespace {
+
+// Fast "largest angle to an axis near the exact axis": a normal n can only be the farthest from an
+// axis b with angle(b, axis) <= kReach if angle(n, axis) >= theta - 2 kReach (triangle inequality),
+// so each patch keeps just those normals; farther axes fall back to the full list.
+constexpr double kReach = 6.0 * kPi / 180.0;
+
+struct FarNormals {
+  std::vector<float> x, y, z;
+  std::array<uint32_t, kPatchCount + 1> begin{};
+  NormalSpan patch(int k) const {
+    const size_t b = begin[size_t(k)];
+    return {x.data() + b, y.data() + b, z.data() + b, int(begin[size_t(k) + 1] - b)};
+  }
+};
+
+void build_far_normals(const PatchNormals& normals, const Cone cones[kPatchCount], FarNormals& out) {
+  const size_t total = normals.begin[kPatchCount];
+  out.x.resize(total);
+  out.y.resize(total);
+  out.z.resize(total);
+  size_t m = 0;
+  for (int k = 0; k < kPatchCount; ++k) {
+    out.begin[size_t(k)] = uint32_t(m);
+    // Float test with a 1e-5 allowance (float dot error < 1e-6): keeping a few extra is harmless.
+    const float limit = float(std::cos(std::max(0.0, cones[k].half_angle_rad - 2 * kReach))) + 1e-5f;
+    const float ax = float(cones[k].axis[0]), ay = float(cones[k].axis[1]), az = float(cones[k].axis[2]);
+    const NormalSpan v = normals.patch(k);
+    for (int i = 0; i < v.n; ++i) {
+      const bool keep = ax * v.x[i] + ay * v.y[i] + az * v.z[i] <= limit;
+      out.x[m] = v.x[i];
+      out.y[m] = v.y[i];
+      out.z[m] = v.z[i];
+      m += keep;
+    }
+  }
+  out.begin[kPatchCount] = uint32_t(m);
+}
+
+double max_angle_near(const PatchNormals& normals, const FarNormals& far, const Cone& cone, int k, V3 axis) {
+  const V3 exact = {cone.axis[0], cone.axis[1], cone.axis[2]};
+  if (fast_angle(arr(axis).data(), arr(exact).data()) <= kReach - 1e-4) {
+    return max_angle_to(arr(axis).data(), far.patch(k));
+  }
+  return max_angle_to(arr(axis).data(), normals.patch(k));
+}
+
+}  // namespace
+
+bool encode_patch_cones(const PatchNormals& normals, const Cone cones[kPatchCount], uint8_t out[kConesBytes],
+                        ConeStats* stats) {
+  double sum_exact = 0, sum_encoded = 0;
+  int counted = 0, never = 0;
+  bool ok = true;
+  static thread_local FarNormals far;
+  build_far_normals(normals, cones, far);
+  for (int by = 0; by < 2; ++by)
+    for (int bx = 0; bx < 2; ++bx) {
+      int patch[16];
+      for (int t = 0; t < 16; ++t) patch[t] = (by * 4 + t / 4) * kPatchesPerSide + bx * 4 + t % 4;
+      uint8_t* block = out + (by * 2 + bx) * 16;
+
+      // Candidate A: free 4-colour fit of the axes (interpolants: GPU tolerance applies).
+      uint8_t rgba[64];
+      for (int t = 0; t < 16; ++t) {
+        const Cone& c = cones[patch[t]];
+        rgba[4 * t + 0] = axis_x_to_v8(c.axis[0]);
+        rgba[4 * t + 1] = axis_y_to_v8(c.axis[1]);
+        rgba[4 * t + 2] = 0;
+        rgba[4 * t + 3] = 255;
+      }
+      uint8_t colour_a[8];
+      const float weights[3] = {1.0f, 1.0f, 0.0f};
+      own_encode_bc1_weighted(rgba, weights, colour_a);
+
+      // Candidate B: two exact endpoint colours, indices 0/1 only (bit-exact on every GPU).
+      // Endpoint pair chosen with the cheap bound theta_p + angle(axis_c, axis_p).
+      uint16_t cand[16];
+      V3 cand_axis[16];
+      int nc = 0;
+      for (int t = 0; t < 16; ++t) {
+        const int r5 = (rgba[4 * t] * 31 + 127) / 255, g6 = (rgba[4 * t + 1] * 63 + 127) / 255;
+        const uint16_t c = uint16_t((r5 << 11) | (g6 << 5));
+        bool seen = false;
+        for (int k = 0; k < nc; ++k) seen = seen || cand[k] == c;
+        if (seen) continue;
+        cand[nc] = c;
+        cand_axis[nc] = axis_from_v8((r5 << 3) | (r5 >> 2), (g6 << 2) | (g6 >> 4));
+        ++nc;
+      }
+      double bound[16][16];
+      for (int k = 0; k < nc; ++k)
+        for (int t = 0; t < 16; ++t) {
+          const Cone& c = cones[patch[t]];
+          bound[k][t] = normals.count(patch[t]) == 0
+                            ? 0.0
+                            : c.half_angle_rad + fast_angle(arr(cand_axis[k]).data(), c.axis);  // ranking only
+        }
+      double best_cost = 1e300;
+      int best0 = 0, best1 = 0;
+      for (int k0 = 0; k0 < nc; ++k0)
+        for (int k1 = k0; k1 < nc; ++k1) {
+          double cost = 0;
+          for (int t = 0; t < 16; ++t) cost += std::min(bound[k0][t], bound[k1][t]);
+          if (cost < best_cost) { best_cost = cost; best0 = k0; best1 = k1; }
+        }
+      uint8_t colour_b[8];
+      {
+        const uint16_t c0 = cand[best0], c1 = cand[best1];
+        uint32_t idx = 0;
+        // Each patch takes the endpoint with the smaller bound (the exact need is measured below,
+        // so this choice only affects tightness).
+        for (int t = 0; t < 16; ++t)
+          if (bound[best1][t] < bound[best0][t]) idx |= 1u << (2 * t);
+        colour_b[0] = uint8_t(c0); colour_b[1] = uint8_t(c0 >> 8);
+        colour_b[2] = uint8_t(c1); colour_b[3] = uint8_t(c1 >> 8);
+        for (int i = 0; i < 4; ++i) colour_b[4 + i] = uint8_t(idx >> (8 * i));
+      }
+
+      // For each candidate: decode the axes, compute the needed angles with margins, encode the
+      // alpha conservatively; keep the candidate with the smaller total decoded angle.
+      uint8_t best_block[16] = {};
+      long best_sum = -1;
+      for (int cand_i = 0; cand_i < 2; ++cand_i) {
+        uint8_t trial[16];
+        std::memcpy(trial + 8, cand_i == 0 ? colour_a : colour_b, 8);
+        std::memset(trial, 0, 8);
+        uint8_t dec[64];
+        decode_bc3_block(trial, dec);
+        // Candidate B only uses endpoint indices; candidate A may use interpolants.
+        const double tol = cand_i == 0 ? kColourTolerance8 : 0.0;
+        uint8_t targets[16];
+        for (int t = 0; t < 16; ++t) {
+          const int n = normals.count(patch[t]);
+          const V3 a = axis_from_v8(dec[4 * t], dec[4 * t + 1]);
+          // The +1 alpha step of angle_target also absorbs float rounding in the viewer's test.
+          const double need = n == 0 ? 0.0
+                                     : max_angle_near(normals, far, cones[patch[t]], patch[t], a) +
+                                           decoder_perturbation(dec[4 * t], dec[4 * t + 1], tol);
+          targets[t] = angle_target(need);
+        }
+        own_encode_bc4_upper(targets, trial);
+        uint8_t alpha[16];
+        decode_bc4_block(trial, alpha);
+        long sum = 0;
+        for (int t = 0; t < 16; ++t) {
+          if (alpha[t] < targets[t]) ok = false;  // the conservative encoder broke its promise
+          sum += alpha[t];
+        }
+        if (best_sum < 0 || sum < best_sum) {
+          best_sum = sum;
+          std::memcpy(best_block, trial, 16);
+        }
+      }
+      std::memcpy(block, best_block, 16);
+
+      uint8_t dec[64];
+      decode_bc3_block(block, dec);
+      for (int t = 0; t < 16; ++t) {
+        if (normals.count(patch[t]) == 0) continue;
+        ++counted;
+        sum_exact += cones[patch[t]].half_angle_rad;
+        sum_encoded += dec[4 * t + 3] / 255.0 * (kPi / 2);
+        never += dec[4 * t + 3] == 255;
+      }
+    }
+  if (decoded_cone_slack(normals, out) < 0) ok = false;
+  if (stats) {
+    stats->mean_exact_deg = counted ? sum_exact / counted * 180 / kPi : 0;
+    stats->mean_encoded_deg = counted ? sum_encoded / counted * 180 / kPi : 0;
+    stats->patches = counted;
+    stats->patches_never_cull = never;
+  }
+  return ok;
+}
+
+double decoded_cone_slack(const PatchNormals& normals, const uint8_t cones_bc3[kConesBytes]) {
+  double slack = 1e300;
+  for (int b = 0; b < 4; ++b) {
+    uint8_t dec[64];
+    decode_bc3_block(cones_bc3 + 16 * b, dec);
+    for (int t = 0; t < 16; ++t) {
+      const int patch = ((b / 2) * 4 + t / 4) * kPatchesPerSide + (b % 2) * 4 + t % 4;
+      const cone::DecodedCone c = cone::decode_cone_texel(dec[4 * t], dec[4 * t + 1], dec[4 * t + 3]);
+      if (c.never_cull) continue;
+      const int n = normals.count(patch);
+      if (n == 0) continue;
+      slack = std::min(slack, c.half_angle_rad - max_angle_to(c.axis, normals.patch(patch)));
+    }
+  }
+  return slack;
+}
+
+}  // namespace terrain::cook

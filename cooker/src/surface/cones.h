@@ -1,0 +1,69 @@
+// Patch cones: per node 8x8 patches of 16x16 quads; per patch the smallest cone enclosing the
+// normals of every triangle the renderer can draw there, encoded conservatively in BC3 8x8.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "terrain/format.h"
+
+namespace terrain::cook {
+
+inline constexpr int kPatchCount = kPatchesPerSide * kPatchesPerSide;
+inline constexpr int kMaxStitchLevels = 4;  // edge collapse d = 1..4 (16-quad patch edge)
+
+// A run of unit normals, structure-of-arrays (so the dot-product scans vectorise).
+struct NormalSpan {
+  const float* x = nullptr;
+  const float* y = nullptr;
+  const float* z = nullptr;
+  int n = 0;
+};
+
+// Unit normals of every triangle the renderer can draw, grouped by patch (patch p + 8 q).
+struct PatchNormals {
+  std::vector<float> x, y, z;                     // capacity; begin[64] normals are valid
+  std::array<uint32_t, kPatchCount + 1> begin{};  // normals of patch k: [begin[k], begin[k+1])
+  int count(int k) const { return int(begin[size_t(k) + 1] - begin[size_t(k)]); }
+  NormalSpan patch(int k) const {
+    const size_t b = begin[size_t(k)];
+    return {x.data() + b, y.data() + b, z.data() + b, count(k)};
+  }
+};
+
+// Triangulation (format/SPEC.md section 16): quad (i, j) -> (i,j),(i+1,j),(i+1,j+1) and (i,j),(i+1,j+1),(i,j+1)
+// (split along the SW->NE diagonal, counter-clockwise seen from above). A triangle is dropped when
+// a vertex is a hole. Edge vertices are also taken collapsed as in LOD stitching: on a patch edge
+// whose neighbour is coarser by d, edge vertex k moves to (k >> d) << d (d = 1..4), and every
+// resulting non-degenerate triangle is included.
+// heights: the node's R16 grid; holes: kWindowCount window flags (may be null).
+void collect_patch_normals(const NodeData& node, int32_t height_offset, int step_log2, double spacing_m,
+                           const uint8_t* window_holes, PatchNormals& out);
+
+struct Cone {
+  double axis[3] = {0, 0, 1};
+  double half_angle_rad = 0;  // 0 for an empty or perfectly flat patch
+};
+// Smallest cone containing unit vectors v[0..n) (all with z > 0): axis = direction of the point of
+// their convex hull nearest the origin (GJK), half-angle = largest angle to any of them.
+Cone smallest_enclosing_cone(NormalSpan normals);
+// Largest angle between `axis` and the normals (0 if none).
+double max_angle_to(const double axis[3], NormalSpan normals);
+
+struct ConeStats {
+  double mean_exact_deg = 0, mean_encoded_deg = 0;  // over patches with triangles
+  int patches = 0;                                  // patches with triangles
+  int patches_never_cull = 0;
+};
+
+// Encodes 64 cones into kConesBytes of BC3 (layout in cone_cull.h). For every patch the decoded
+// cone is checked against every normal with the margins of format/SPEC.md section 16.5; returns false if a
+// check fails (a bug, never expected).
+bool encode_patch_cones(const PatchNormals& normals, const Cone cones[kPatchCount], uint8_t out[kConesBytes],
+                        ConeStats* stats);
+
+// Smallest slack (radians) over all patches and normals: decoded half-angle minus the angle of
+// the normal from the decoded axis. >= 0 means every normal is inside its decoded cone.
+double decoded_cone_slack(const PatchNormals& normals, const uint8_t cones_bc3[kConesBytes]);
+
+}  // namespace terrain::cook

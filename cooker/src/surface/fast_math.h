@@ -1,0 +1,30 @@
+// Small deterministic approximations for hot loops (pure IEEE arithmetic: same bits on every
+// thread). Error bounds are stated; callers that need exact angles use <cmath>.
+#pragma once
+#include <cmath>
+
+namespace terrain::cook {
+
+// atan(x) for x >= 0, |error| < 1.1e-5 rad (minimax polynomial on [0, 1], reflected above 1).
+inline double fast_atan(double x) {
+  const bool inv = x > 1.0;
+  const double t = inv ? 1.0 / x : x, t2 = t * t;
+  const double p =
+      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+  return inv ? 1.5707963267948966 - p : p;
+}
+
+// atan2(y, x) for y >= 0 (an angle in [0, pi]), same error bound.
+inline double fast_atan2_pos(double y, double x) {
+  if (x == 0) return y == 0 ? 0.0 : 1.5707963267948966;
+  const double a = fast_atan(y / std::fabs(x));
+  return x > 0 ? a : 3.141592653589793 - a;
+}
+
+// Angle between unit vectors a and b (radians), error < 2e-5 rad, accurate for tiny angles.
+inline double fast_angle(const double a[3], const double b[3]) {
+  const double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2], cz = a[0] * b[1] - a[1] * b[0];
+  return fast_atan2_pos(std::sqrt(cx * cx + cy * cy + cz * cz), a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+}
+
+}  // namespace terrain::cook

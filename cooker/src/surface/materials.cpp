@@ -1,0 +1,287 @@
+// Material palette, rules file parsing and the per-sample rule evaluation.
+#include "materials.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "noise.h"
+
+namespace terrain::cook {
+namespace {
+
+using json = nlohmann::json;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The built-in rules file. Kept as JSON so the default goes through the same parser as user files
+// and users can start from it (default_rules_json()).
+constexpr const char* kDefaultRulesJson = R"JSON({
+  "format": "terrain-material-rules",
+  "version": 1,
+  "materials": [
+    {"name": "grass",         "albedo_srgb": [ 92, 110,  58], "roughness": 0.90, "detail_scale_m": 2.0, "detail_strength": 0.25, "height_blend": 0.30},
+    {"name": "forest_floor",  "albedo_srgb": [ 60,  72,  42], "roughness": 0.95, "detail_scale_m": 3.0, "detail_strength": 0.30, "height_blend": 0.40},
+    {"name": "alpine_meadow", "albedo_srgb": [120, 124,  82], "roughness": 0.90, "detail_scale_m": 2.0, "detail_strength": 0.25, "height_blend": 0.30},
+    {"name": "bare_soil",     "albedo_srgb": [126, 104,  80], "roughness": 0.85, "detail_scale_m": 2.0, "detail_strength": 0.20, "height_blend": 0.40},
+    {"name": "rock",          "albedo_srgb": [112, 106,  98], "roughness": 0.75, "detail_scale_m": 6.0, "detail_strength": 0.35, "height_blend": 0.80},
+    {"name": "cliff",         "albedo_srgb": [ 84,  80,  76], "roughness": 0.70, "detail_scale_m": 12.0, "detail_strength": 0.40, "height_blend": 0.90},
+    {"name": "scree",         "albedo_srgb": [142, 136, 126], "roughness": 0.80, "detail_scale_m": 3.0, "detail_strength": 0.30, "height_blend": 0.60},
+    {"name": "snow",          "albedo_srgb": [232, 236, 240], "roughness": 0.35, "detail_scale_m": 8.0, "detail_strength": 0.10, "height_blend": 0.20},
+    {"name": "sand",          "albedo_srgb": [196, 182, 140], "roughness": 0.85, "detail_scale_m": 1.5, "detail_strength": 0.15, "height_blend": 0.20},
+    {"name": "mud",           "albedo_srgb": [ 88,  72,  56], "roughness": 0.40, "detail_scale_m": 1.5, "detail_strength": 0.20, "height_blend": 0.10},
+    {"name": "water",         "albedo_srgb": [ 46,  64,  74], "roughness": 0.05, "detail_scale_m": 8.0, "detail_strength": 0.05, "height_blend": 0.00}
+  ],
+  "default_material": "grass",
+  "rules": [
+    {"material": "water",  "height_m": {"max": 0.3, "fade": 0.4}, "slope_deg": {"max": 3, "fade": 2}},
+    {"material": "cliff",  "slope_deg": {"min": 52, "fade": 6}, "noise": {"amplitude": 0.2, "scale_m": 16, "octaves": 2, "seed": 1}},
+    {"material": "snow",   "height_m": {"min": 2900, "fade": 250}, "slope_deg": {"max": 42, "fade": 8},
+                           "noise": {"amplitude": 0.35, "scale_m": 80, "octaves": 3, "seed": 2}},
+    {"material": "rock",   "slope_deg": {"min": 38, "fade": 8}, "noise": {"amplitude": 0.3, "scale_m": 24, "octaves": 3, "seed": 3}},
+    {"material": "scree",  "slope_deg": {"min": 26, "max": 42, "fade": 6}, "curvature": {"min": 0.0, "fade": 0.004},
+                           "noise": {"amplitude": 0.25, "scale_m": 20, "octaves": 2, "seed": 4}},
+    {"material": "sand",   "height_m": {"max": 3, "fade": 2}, "slope_deg": {"max": 10, "fade": 4}},
+    {"material": "alpine_meadow", "height_m": {"min": 2000, "fade": 200}, "noise": {"amplitude": 0.3, "scale_m": 60, "octaves": 3, "seed": 5}},
+    {"material": "mud",    "curvature": {"min": 0.02, "fade": 0.02}, "slope_deg": {"max": 5, "fade": 3},
+                           "noise": {"amplitude": 0.3, "scale_m": 12, "octaves": 2, "seed": 6}},
+    {"material": "bare_soil", "aspect_deg": {"min": 135, "max": 225, "fade": 40}, "slope_deg": {"min": 15, "max": 36, "fade": 6},
+                           "noise": {"amplitude": 0.3, "scale_m": 30, "octaves": 3, "seed": 7}},
+    {"material": "forest_floor", "height_m": {"min": 20, "max": 1800, "fade": 100}, "slope_deg": {"min": 4, "max": 34, "fade": 6},
+                           "noise": {"amplitude": 0.45, "scale_m": 90, "octaves": 3, "seed": 8}}
+  ]
+})JSON";
+
+Status bad(const std::string& origin, const std::string& what) {
+  return Status::failure(Error::invalid_argument, "material rules " + origin + ": " + what);
+}
+
+Status check_keys(const json& obj, std::initializer_list<const char*> allowed, const std::string& origin,
+                  const std::string& where) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool ok = false;
+    for (const char* a : allowed) ok = ok || it.key() == a;
+    if (!ok) {
+      std::string list;
+      for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+      return bad(origin, where + ": unknown key \"" + it.key() + "\" (valid: " + list + ")");
+    }
+  }
+  return Status::success();
+}
+
+Status read_number(const json& obj, const char* key, double lo, double hi, double& out, const std::string& origin,
+                   const std::string& where) {
+  if (!obj.contains(key)) return Status::success();
+  const json& v = obj[key];
+  if (!v.is_number()) return bad(origin, where + ": \"" + key + "\" must be a number");
+  const double d = v.get<double>();
+  if (!std::isfinite(d) || d < lo || d > hi) {
+    std::ostringstream msg;
+    msg << where << ": \"" << key << "\" = " << d << " is outside [" << lo << ", " << hi << "]";
+    return bad(origin, msg.str());
+  }
+  out = d;
+  return Status::success();
+}
+
+Status read_range(const json& rule, const char* key, double lo_limit, double hi_limit, MaskRange& out,
+                  const std::string& origin, const std::string& where) {
+  if (!rule.contains(key)) return Status::success();
+  const json& r = rule[key];
+  const std::string w = where + "." + key;
+  if (!r.is_object()) return bad(origin, w + " must be an object like {\"min\": a, \"max\": b, \"fade\": f}");
+  if (Status s = check_keys(r, {"min", "max", "fade"}, origin, w); !s.ok()) return s;
+  if (!r.contains("min") && !r.contains("max")) return bad(origin, w + " needs \"min\" or \"max\"");
+  out.active = true;
+  out.lo = -kInf;
+  out.hi = kInf;
+  out.fade = 0;
+  if (Status s = read_number(r, "min", lo_limit, hi_limit, out.lo, origin, w); !s.ok()) return s;
+  if (Status s = read_number(r, "max", lo_limit, hi_limit, out.hi, origin, w); !s.ok()) return s;
+  if (Status s = read_number(r, "fade", 0, 1e6, out.fade, origin, w); !s.ok()) return s;
+  out.inv_fade = out.fade > 0 ? 1.0 / out.fade : 0.0;
+  return Status::success();
+}
+
+}  // namespace
+
+double mask_value(const MaskRange& m, double v) {
+  if (!m.active) return 1.0;
+  if (m.fade <= 0) return (v >= m.lo && v <= m.hi) ? 1.0 : 0.0;
+  const double a = (v - m.lo) * m.inv_fade + 0.5;
+  const double b = (m.hi - v) * m.inv_fade + 0.5;
+  return std::clamp(std::min(a, b), 0.0, 1.0);
+}
+
+double aspect_mask_value(const MaskRange& m, double aspect_deg) {
+  if (!m.active) return 1.0;
+  // Distance outside the (possibly wrapping) arc [lo, hi], in degrees along the circle.
+  const double lo = std::fmod(std::fmod(m.lo, 360.0) + 360.0, 360.0);
+  const double width = std::fmod(std::fmod(m.hi - m.lo, 360.0) + 360.0, 360.0);
+  const double into = std::fmod(std::fmod(aspect_deg - lo, 360.0) + 360.0, 360.0);  // 0..360 from lo
+  double outside = 0;  // 0 inside the arc, else the angular distance to the nearer end
+  if (into > width) outside = std::min(into - width, 360.0 - into);
+  if (m.fade <= 0) return outside > 0 ? 0.0 : 1.0;
+  const double inside_depth = outside > 0 ? -outside : std::min(into, width - into);
+  return std::clamp(inside_depth * m.inv_fade + 0.5, 0.0, 1.0);
+}
+
+uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s) {
+  for (const MaterialRule& r : rules.rules) {
+    double mask = mask_value(r.height_m, s.height_m);
+    if (mask > 0) mask *= mask_value(r.slope_deg, s.slope_deg);
+    if (mask > 0) mask *= mask_value(r.curvature, s.curvature);
+    if (mask > 0 && s.slope_deg >= 1.0) mask *= aspect_mask_value(r.aspect_deg, s.aspect_deg);
+    const double amp = r.noise.amplitude;
+    // The noise only matters inside the transition band, so it is evaluated lazily there.
+    if (mask - amp >= 0.5) return r.material;
+    if (mask + amp < 0.5) continue;
+    const double n = fbm_noise(s.x_m, s.y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed);
+    if (mask + amp * n >= 0.5) return r.material;
+  }
+  return rules.default_material;
+}
+
+Status parse_material_rules(const std::string& json_text, const std::string& origin, MaterialRules& out) {
+  json doc;
+  try {
+    doc = json::parse(json_text);
+  } catch (const json::parse_error& e) {
+    return bad(origin, std::string("not valid JSON: ") + e.what());
+  }
+  if (!doc.is_object()) return bad(origin, "the document must be a JSON object");
+  if (Status s = check_keys(doc, {"format", "version", "materials", "default_material", "rules"}, origin, "top level");
+      !s.ok())
+    return s;
+  if (!doc.contains("format") || doc["format"] != "terrain-material-rules")
+    return bad(origin, "\"format\" must be \"terrain-material-rules\"");
+  if (!doc.contains("version") || !doc["version"].is_number_integer() || doc["version"].get<int>() != 1)
+    return bad(origin, "\"version\" must be 1 (the only version this cooker reads)");
+  if (!doc.contains("materials") || !doc["materials"].is_array() || doc["materials"].empty() ||
+      doc["materials"].size() > 256)
+    return bad(origin, "\"materials\" must be an array of 1..256 materials");
+
+  MaterialRules rules;
+  rules.source = origin;
+  std::set<std::string> names;
+  for (size_t i = 0; i < doc["materials"].size(); ++i) {
+    const json& m = doc["materials"][i];
+    const std::string w = "materials[" + std::to_string(i) + "]";
+    if (!m.is_object()) return bad(origin, w + " must be an object");
+    if (Status s = check_keys(m, {"name", "albedo_srgb", "roughness", "detail_scale_m", "detail_strength", "height_blend"},
+                              origin, w);
+        !s.ok())
+      return s;
+    Material mat;
+    if (!m.contains("name") || !m["name"].is_string()) return bad(origin, w + ": \"name\" (string) is required");
+    mat.name = m["name"].get<std::string>();
+    if (mat.name.empty() || mat.name.size() > 31) return bad(origin, w + ": name must be 1..31 bytes");
+    if (!names.insert(mat.name).second) return bad(origin, w + ": duplicate material name \"" + mat.name + "\"");
+    if (!m.contains("albedo_srgb") || !m["albedo_srgb"].is_array() || m["albedo_srgb"].size() != 3)
+      return bad(origin, w + ": \"albedo_srgb\" must be [r, g, b] with 0..255 integers");
+    for (int c = 0; c < 3; ++c) {
+      const json& v = m["albedo_srgb"][size_t(c)];
+      if (!v.is_number_integer() || v.get<int>() < 0 || v.get<int>() > 255)
+        return bad(origin, w + ": \"albedo_srgb\" must be [r, g, b] with 0..255 integers");
+      mat.albedo_srgb[size_t(c)] = uint8_t(v.get<int>());
+    }
+    double d = mat.roughness;
+    if (Status s = read_number(m, "roughness", 0, 1, d, origin, w); !s.ok()) return s;
+    mat.roughness = float(d);
+    d = mat.detail_scale_m;
+    if (Status s = read_number(m, "detail_scale_m", 1e-3, 1e4, d, origin, w); !s.ok()) return s;
+    mat.detail_scale_m = float(d);
+    d = mat.detail_strength;
+    if (Status s = read_number(m, "detail_strength", 0, 1, d, origin, w); !s.ok()) return s;
+    mat.detail_strength = float(d);
+    d = mat.height_blend;
+    if (Status s = read_number(m, "height_blend", 0, 1, d, origin, w); !s.ok()) return s;
+    mat.height_blend = float(d);
+    rules.palette.push_back(mat);
+  }
+  auto index_of = [&](const json& v, uint8_t& idx) {
+    if (!v.is_string()) return false;
+    for (size_t i = 0; i < rules.palette.size(); ++i)
+      if (rules.palette[i].name == v.get<std::string>()) {
+        idx = uint8_t(i);
+        return true;
+      }
+    return false;
+  };
+  if (!doc.contains("default_material") || !index_of(doc["default_material"], rules.default_material))
+    return bad(origin, "\"default_material\" must name one of the materials");
+  if (doc.contains("rules")) {
+    if (!doc["rules"].is_array()) return bad(origin, "\"rules\" must be an array");
+    for (size_t i = 0; i < doc["rules"].size(); ++i) {
+      const json& r = doc["rules"][i];
+      const std::string w = "rules[" + std::to_string(i) + "]";
+      if (!r.is_object()) return bad(origin, w + " must be an object");
+      if (Status s = check_keys(r, {"material", "height_m", "slope_deg", "curvature", "aspect_deg", "noise"}, origin, w);
+          !s.ok())
+        return s;
+      MaterialRule rule;
+      if (!r.contains("material") || !index_of(r["material"], rule.material))
+        return bad(origin, w + ": \"material\" must name one of the materials");
+      if (Status s = read_range(r, "height_m", -20000, 20000, rule.height_m, origin, w); !s.ok()) return s;
+      if (Status s = read_range(r, "slope_deg", 0, 90, rule.slope_deg, origin, w); !s.ok()) return s;
+      if (Status s = read_range(r, "curvature", -1e3, 1e3, rule.curvature, origin, w); !s.ok()) return s;
+      if (Status s = read_range(r, "aspect_deg", 0, 360, rule.aspect_deg, origin, w); !s.ok()) return s;
+      if (rule.aspect_deg.active && (!std::isfinite(rule.aspect_deg.lo) || !std::isfinite(rule.aspect_deg.hi)))
+        return bad(origin, w + ".aspect_deg needs both \"min\" and \"max\" (the arc may wrap: min > max)");
+      if (r.contains("noise")) {
+        const json& n = r["noise"];
+        if (!n.is_object()) return bad(origin, w + ".noise must be an object");
+        if (Status s = check_keys(n, {"amplitude", "scale_m", "octaves", "seed"}, origin, w + ".noise"); !s.ok())
+          return s;
+        if (Status s = read_number(n, "amplitude", 0, 10, rule.noise.amplitude, origin, w + ".noise"); !s.ok())
+          return s;
+        if (Status s = read_number(n, "scale_m", 1e-3, 1e6, rule.noise.scale_m, origin, w + ".noise"); !s.ok())
+          return s;
+        double oct = rule.noise.octaves, seed = 0;
+        if (Status s = read_number(n, "octaves", 1, 8, oct, origin, w + ".noise"); !s.ok()) return s;
+        if (Status s = read_number(n, "seed", 0, 4294967295.0, seed, origin, w + ".noise"); !s.ok()) return s;
+        if (oct != std::floor(oct) || seed != std::floor(seed))
+          return bad(origin, w + ".noise: \"octaves\" and \"seed\" must be integers");
+        rule.noise.octaves = int(oct);
+        rule.noise.seed = uint32_t(seed);
+      }
+      rules.rules.push_back(rule);
+    }
+  }
+  out = std::move(rules);
+  return Status::success();
+}
+
+MaterialRules default_material_rules() {
+  MaterialRules rules;
+  const Status s = parse_material_rules(kDefaultRulesJson, "built-in", rules);
+  (void)s;  // the built-in document is covered by a test; it cannot fail at run time
+  return rules;
+}
+
+std::string default_rules_json() { return kDefaultRulesJson; }
+
+Status load_material_rules(const SurfaceOptions& options, std::shared_ptr<const MaterialRules>& out) {
+  auto rules = std::make_shared<MaterialRules>();
+  if (options.materials_path.empty()) {
+    *rules = default_material_rules();
+  } else {
+    std::ifstream in(options.materials_path, std::ios::binary);
+    if (!in) return Status::failure(Error::io_open, "cannot open material rules file " + options.materials_path);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (in.bad()) return Status::failure(Error::io_read, "cannot read material rules file " + options.materials_path);
+    if (Status s = parse_material_rules(text.str(), options.materials_path, *rules); !s.ok()) return s;
+  }
+  out = std::move(rules);
+  return Status::success();
+}
+
+const std::vector<Material>& palette_of(const MaterialRules& rules) { return rules.palette; }
+
+}  // namespace terrain::cook

@@ -1,0 +1,67 @@
+// Material palette and procedural splat rules (Frostbite-style masks from height, slope,
+// curvature, aspect and world-space noise). The JSON format is documented in format/SPEC.md section 16.4.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "surface_layers.h"
+#include "terrain/format.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+// A soft range mask: 1 inside [lo, hi], 0 outside [lo - fade/2, hi + fade/2], linear in between
+// (0.5 exactly at lo and hi). fade = 0 gives a hard step. For aspect the range may wrap (lo > hi).
+struct MaskRange {
+  bool active = false;
+  double lo = 0, hi = 0, fade = 0;
+  double inv_fade = 0;  // 1 / fade (0 when fade is 0), set by the parser
+};
+
+struct NoiseTerm {
+  double amplitude = 0;   // added to the mask before the 0.5 threshold; 0 = no noise
+  double scale_m = 32;    // wavelength of the first octave, metres
+  int octaves = 3;
+  uint32_t seed = 0;
+};
+
+struct MaterialRule {
+  uint8_t material = 0;   // palette index
+  MaskRange height_m;     // metres above the datum
+  MaskRange slope_deg;    // 0 = flat, 90 = vertical
+  MaskRange curvature;    // Laplacian of height, 1/m: > 0 concave (hollows), < 0 convex (ridges)
+  MaskRange aspect_deg;   // compass direction the slope faces: 0 north, 90 east; ignored below 1 degree of slope
+  NoiseTerm noise;
+};
+
+// Terrain attributes at one splat sample (see splat.cpp for how they are measured).
+struct SurfaceSample {
+  double x_m = 0, y_m = 0;   // frame coordinates
+  double height_m = 0;
+  double slope_deg = 0;
+  double curvature = 0;
+  double aspect_deg = 0;
+};
+
+struct MaterialRules {
+  std::vector<Material> palette;      // at most 256
+  std::vector<MaterialRule> rules;    // priority order: the first rule whose score >= 0.5 wins
+  uint8_t default_material = 0;       // when no rule matches, and for samples without data
+  std::string source;                 // file path, or "built-in"
+};
+
+// The built-in palette and rules (also written out by `default_rules_json()`).
+MaterialRules default_material_rules();
+// The built-in rules as a JSON document in the documented file format (a starting point for users).
+std::string default_rules_json();
+// Parses a rules document; `origin` names it in error messages.
+Status parse_material_rules(const std::string& json_text, const std::string& origin, MaterialRules& out);
+
+// Value of one mask at v (0..1).
+double mask_value(const MaskRange& m, double v);
+double aspect_mask_value(const MaskRange& m, double aspect_deg);
+// Palette index chosen for one sample. Deterministic; pure function of the sample and the rules.
+uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s);
+
+}  // namespace terrain::cook

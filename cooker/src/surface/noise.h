@@ -1,0 +1,55 @@
+// Deterministic world-space value noise (fBm) for splat transitions and albedo variation.
+// A pure function of (x, y, seed): every node, level and thread sees the same field, so material
+// boundaries perturbed by it stay seamless across node edges.
+#pragma once
+#include <cmath>
+#include <cstdint>
+
+namespace terrain::cook {
+
+// 32-bit integer hash of a lattice point (lowbias32-style finaliser): no tables, no state.
+inline uint32_t lattice_hash(int64_t ix, int64_t iy, uint32_t seed) {
+  const uint64_t k = (uint64_t(ix) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(iy) * 0xC2B2AE3D27D4EB4Full) ^ seed;
+  uint32_t h = uint32_t(k ^ (k >> 29));
+  h ^= h >> 16; h *= 0x7feb352du;
+  h ^= h >> 15;
+  return h;
+}
+
+// Value in [-1, 1] at a lattice point.
+inline double lattice_value(int64_t ix, int64_t iy, uint32_t seed) {
+  return double(lattice_hash(ix, iy, seed)) * (2.0 / 4294967295.0) - 1.0;
+}
+
+// Smoothly interpolated value noise, period-free, in [-1, 1]; u, v in lattice units.
+// floor() without a libm call on baseline x86-64 (exact for |x| < 2^62).
+inline double fast_floor(double x) {
+  const double t = double(int64_t(x));
+  return t > x ? t - 1.0 : t;
+}
+
+inline double value_noise(double u, double v, uint32_t seed) {
+  const double fu = fast_floor(u), fv = fast_floor(v);
+  const int64_t iu = int64_t(fu), iv = int64_t(fv);
+  const double tu = u - fu, tv = v - fv;
+  const double su = tu * tu * (3 - 2 * tu), sv = tv * tv * (3 - 2 * tv);  // smoothstep: C1 across cells
+  const double a = lattice_value(iu, iv, seed), b = lattice_value(iu + 1, iv, seed);
+  const double c = lattice_value(iu, iv + 1, seed), d = lattice_value(iu + 1, iv + 1, seed);
+  const double ab = a + (b - a) * su, cd = c + (d - c) * su;
+  return ab + (cd - ab) * sv;
+}
+
+// Fractal sum of `octaves` value-noise layers (lacunarity 2, gain 0.5), normalised to [-1, 1].
+// x, y in metres (frame coordinates); scale_m is the wavelength of the first octave.
+inline double fbm_noise(double x_m, double y_m, double scale_m, int octaves, uint32_t seed) {
+  double sum = 0, amp = 1, norm = 0, f = 1.0 / scale_m;
+  for (int o = 0; o < octaves; ++o) {
+    sum += amp * value_noise(x_m * f, y_m * f, seed + uint32_t(o) * 0x9E37u);
+    norm += amp;
+    amp *= 0.5;
+    f *= 2.0;
+  }
+  return norm > 0 ? sum / norm : 0.0;
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,144 @@
+// Normal texels from the window heights. Everything is a function of the window (canonical heights
+// shared with the neighbours), so apron texels equal the neighbours' interior texels bit for bit
+// before compression.
+#include "normals.h"
+
+#include "fast_math.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kRadToDeg = 57.29577951308232;
+
+// Window element of node vertex (i, j) (i, j from -4 to 132).
+inline float wh(const float* h, int i, int j) {
+  return h[size_t((j + kWindowMargin) * kWindowSize + (i + kWindowMargin))];
+}
+
+// Mean of the two differences across a cell edge pair, using only pairs with data; false if none.
+inline bool mean_diff(float a0, float a1, float b0, float b1, double& out) {
+  int n = 0;
+  double s = 0;
+  if (!std::isnan(a0) && !std::isnan(a1)) { s += double(a1) - a0; ++n; }
+  if (!std::isnan(b0) && !std::isnan(b1)) { s += double(b1) - b0; ++n; }
+  if (!n) return false;
+  out = s / n;
+  return true;
+}
+
+}  // namespace
+
+void compute_normal_texels(const SurfaceInput& in, NormalTexels& out) {
+  const float* h = in.heights_m;
+  const double s = in.spacing_m;
+  const float half_inv_s = float(0.5 / s);
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      const int i = t - kApron, j = u - kApron;  // south-west corner vertex of the cell
+      const float h00 = wh(h, i, j), h10 = wh(h, i + 1, j), h01 = wh(h, i, j + 1), h11 = wh(h, i + 1, j + 1);
+      float gx, gy;
+      if (!std::isnan(h00 + h10 + h01 + h11)) {
+        gx = ((h10 - h00) + (h11 - h01)) * half_inv_s;
+        gy = ((h01 - h00) + (h11 - h10)) * half_inv_s;
+      } else {
+        // At the edge of the data (NaN corners) use the cell edges that have data; else flat.
+        double dx = 0, dy = 0;
+        if (!mean_diff(h00, h10, h01, h11, dx)) dx = 0;
+        if (!mean_diff(h00, h01, h10, h11, dy)) dy = 0;
+        gx = float(dx / s);
+        gy = float(dy / s);
+      }
+      const float inv = 1.0f / std::sqrt(gx * gx + gy * gy + 1.0f);
+      const size_t k = size_t(u * kTexels + t);
+      out.n[k * 3 + 0] = -gx * inv;
+      out.n[k * 3 + 1] = -gy * inv;
+      out.n[k * 3 + 2] = inv;
+    }
+  // Block ambient occlusion (see normals.h).
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      const int i0 = bx * 4 - kApron, j0 = by * 4 - kApron;  // south-west vertex of the block
+      double inner = 0, ring = 0;
+      int ni = 0, nr = 0;
+      for (int b = -2; b <= 6; ++b)
+        for (int a = -2; a <= 6; ++a) {
+          const bool border = a == -2 || a == 6 || b == -2 || b == 6;
+          const bool centre = a >= 0 && a <= 4 && b >= 0 && b <= 4;
+          if (!border && !centre) continue;
+          const float v = wh(h, i0 + a, j0 + b);
+          if (std::isnan(v)) continue;
+          if (border) { ring += v; ++nr; } else { inner += v; ++ni; }
+        }
+      float ao = 1.0f;
+      if (ni && nr) {
+        const double depth = std::max(0.0, ring / nr - inner / ni);
+        const double r = depth / (4.0 * s);
+        ao = float(1.0 / (1.0 + r * r));
+      }
+      out.ao[size_t(by * kTexelBlocks + bx)] = ao;
+    }
+}
+
+void pack_normal_texels(const NormalTexels& in, std::array<uint8_t, kTexelCount * 4>& rgba, bool ao_in_red) {
+  auto to8 = [](float c) { return uint8_t(std::clamp(int(128.5f + 127.0f * c), 1, 255)); };  // round half up
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      const size_t k = size_t(u * kTexels + t);
+      const int q5 = int(std::clamp(in.ao[size_t((u / 4) * kTexelBlocks + t / 4)], 0.0f, 1.0f) * 31.0f + 0.5f);
+      rgba[k * 4 + 0] = ao_in_red ? uint8_t((q5 << 3) | (q5 >> 2)) : 255;
+      rgba[k * 4 + 1] = to8(in.n[k * 3 + 1]);
+      rgba[k * 4 + 2] = 0;
+      rgba[k * 4 + 3] = to8(in.n[k * 3 + 0]);
+    }
+}
+
+void unpack_normal(const uint8_t rgba[4], float n[3]) {
+  float x = (float(rgba[3]) - 128.0f) / 127.0f, y = (float(rgba[1]) - 128.0f) / 127.0f;
+  const float rr = x * x + y * y;
+  float z = 0;
+  if (rr < 1.0f) {
+    z = std::sqrt(1.0f - rr);
+  } else {
+    const float inv = 1.0f / std::sqrt(rr);
+    x *= inv;
+    y *= inv;
+  }
+  n[0] = x;
+  n[1] = y;
+  n[2] = z;
+}
+
+void encode_bc3_image(const uint8_t* rgba, Bc3Method method, uint8_t* out_blocks) {
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint8_t block[64];
+      for (int r = 0; r < 4; ++r)
+        std::copy_n(rgba + (size_t((by * 4 + r) * kTexels + bx * 4)) * 4, 16, block + r * 16);
+      encode_bc3_block(block, method, out_blocks + size_t(by * kTexelBlocks + bx) * 16);
+    }
+}
+
+AngleStats normal_error(const NormalTexels& ref, const uint8_t* bc3_blocks) {
+  AngleStats st;
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint8_t dec[64];
+      decode_bc3_block(bc3_blocks + size_t(by * kTexelBlocks + bx) * 16, dec);
+      for (int i = 0; i < 16; ++i) {
+        const size_t k = size_t((by * 4 + i / 4) * kTexels + bx * 4 + i % 4);
+        float n[3];
+        unpack_normal(dec + 4 * i, n);
+        const double a[3] = {ref.n[k * 3], ref.n[k * 3 + 1], ref.n[k * 3 + 2]}, b[3] = {n[0], n[1], n[2]};
+        const double deg = fast_angle(a, b) * kRadToDeg;  // statistics: 1e-3 degree is plenty
+        st.sum_deg += deg;
+        st.max_deg = std::max(st.max_deg, deg);
+        ++st.count;
+      }
+    }
+  return st;
+}
+
+}  // namespace terrain::cook

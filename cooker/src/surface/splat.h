@@ -1,0 +1,32 @@
+// Splat material ids and the baked far-distance albedo.
+#pragma once
+#include <array>
+#include <cstdint>
+
+#include "materials.h"
+#include "surface_layers.h"
+
+namespace terrain::cook {
+
+// Splat lattice extended by one sample on each side: element (k, l) is node vertex
+// (2k - 2, 2l - 2), k, l = 0..66; the node's 65x65 splat map is k, l = 1..65. The extra ring
+// (taken from the window, i.e. the neighbours' data) lets the albedo apron blend real materials.
+inline constexpr int kSplatLattice = kSplatSamples + 2;  // 67
+
+struct SplatLattice {
+  std::array<uint8_t, kSplatLattice * kSplatLattice> ids{};
+};
+
+// Attributes of node vertex (i, j) measured from the window (format/SPEC.md section 16.4).
+// Returns false when the vertex has no data.
+bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out);
+
+void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out);
+void copy_node_splat(const SplatLattice& lattice, std::array<uint8_t, kSplatCount>& splat);
+
+// 132x132 RGBA8 (sRGB colour, alpha 0 = hole at the texel's south-west vertex): the bilinear blend
+// (in linear light) of the palette colours of the 4 surrounding splat samples, each with a gentle
+// world-space variation (amplitude = material detail_strength), or the orthophoto colour.
+void bake_albedo(const SurfaceInput& in, const MaterialRules& rules, const SplatLattice& lattice, uint8_t* rgba);
+
+}  // namespace terrain::cook

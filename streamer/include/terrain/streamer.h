@@ -1,0 +1,292 @@
+// Streaming runtime: keeps the right nodes of a terrain archive resident while cameras move.
+//
+// The FC5 scheme (../shared/notes/fc5-talk.md sections 2-4): roots always resident, about 500 nodes
+// chosen by screen-space error, loaded by background threads, handed to the caller one bounded
+// batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (per-level
+// uint16 index grids + node descriptor table) maintained incrementally with dirty regions.
+//
+// Use:
+//   terrain::Streamer streamer;
+//   if (auto s = streamer.open("world.terrain", config); !s.ok()) { report(s.to_string()); }
+//   each frame:
+//     const terrain::FrameUpdate& u = streamer.update(views);
+//     for (auto& d : u.delivered) upload(*d.data, d.slot);          // into atlas layer d.slot
+//     for (auto slot : u.dirty_slots) upload(streamer.slots()[slot], slot);
+//     for (int L = 0; L < kLevelCount; ++L) upload(streamer.index_grid(L), u.dirty_index[L]);
+//
+// Units: positions in frame metres (the archive's projected frame: x east, y north, z up, the
+// same vertical datum as the heights), always double on the CPU. Heights in the slot table are
+// integer height units (1 unit = 2^-10 m, see format.h). Errors in metres (geometric) and
+// pixels (projected).
+//
+// Threading: one Streamer is driven from one thread at a time (the "caller's thread"); none of
+// its methods may run concurrently with another. Internally it owns worker threads that do all
+// file reading (page faults on the memory map included) and decompression; update() only
+// computes the wanted set, moves finished work into place and edits the index state, so its
+// cost is independent of payload sizes. The destructor cancels outstanding work and joins.
+//
+// Invariants, true after open() and after every update() returns:
+//  - every root (level kRootLevel node of the archive) is resident (from the first update() on);
+//  - a node is resident only if its parent is resident (so the resident set always covers
+//    everything the roots cover: there is never an area without a resident node);
+//  - resident nodes <= config.budget_nodes;
+//  - a slot evicted in update() number F receives a new node no earlier than update() number
+//    F + config.fence_frames (so GPU frames still in flight never see its contents change);
+//  - a node whose payload fails to load is reported once (FrameUpdate::failed), marked failed
+//    and never requested again; its parent keeps covering its area.
+//
+// The wanted set (recomputed by every update(), deterministic for the same views and state):
+//  - projected error of node N from view V, in pixels:
+//      e(N, V) = geometric_error_m(N) * ppr(V) / max(distance(V, box(N)), 0.001 m)
+//    where box(N) is the node's footprint times [min_height, max_height] and the result is
+//    multiplied by outside_frustum_error_scale when V has a frustum and box(N) lies outside it;
+//    e(N) = max over views. priority(N) = e(N), but never above priority(parent(N)) (so
+//    ancestors always rank at least as high as their descendants).
+//  - start with every root; repeatedly split the wanted node of highest priority (ties: coarser
+//    level, then key order) that has e(N) > error_target_px * prefetch_ratio and at least one
+//    child that exists and has not failed: its existing, non-failed children join the set. Stop
+//    at the first split whose children would exceed budget_nodes.
+//  - the required set: the same rule with error_target_px itself (no prefetch_ratio) and
+//    budget_nodes * (1 - prefetch_reserve) nodes. It is a subset of the wanted set (its splits
+//    all rank above error_target_px, every prefetch-only split ranks at or below it).
+//  - requests (wanted, not resident) are served in split order, i.e. by priority.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "terrain/archive_reader.h"
+#include "terrain/format.h"
+#include "terrain/status.h"
+
+namespace terrain {
+
+// ---- Configuration ----------------------------------------------------------------------------
+
+struct StreamerConfig {
+  // Most nodes resident at once, roots included. open() fails (invalid_argument) when the
+  // archive has more roots than this. At most kMaxSlots.
+  uint32_t budget_nodes = 512;
+  // GPU atlas slots (layers) the caller allocates; slot ids are 0 .. slot_count-1.
+  // 0 = automatic: budget_nodes + fence_frames * max_deliveries_per_frame (capped at kMaxSlots),
+  // so evicted slots waiting out their fence never hold back deliveries. Set it to
+  // budget_nodes for the smallest atlas: still correct, but after a large jump new nodes wait
+  // for fenced slots. Must be >= budget_nodes.
+  uint32_t slot_count = 0;
+  // Background threads that read and decode payloads. 0 = std::thread::hardware_concurrency().
+  uint32_t worker_threads = 0;
+  // Screen-space error target in pixels: a node's children are required when its geometric
+  // error, projected from the nearest view, exceeds this.
+  double error_target_px = 2.0;
+  // Prefetch: children are *wanted* (requested and kept) when the projected error exceeds
+  // error_target_px * prefetch_ratio, so loads start before the target needs them. In (0, 1];
+  // 1 = load exactly what the target requires.
+  double prefetch_ratio = 0.75;
+  // Fraction of the budget kept for prefetching: the required set (what the error target needs)
+  // is limited to budget_nodes * (1 - prefetch_reserve) nodes, the wanted set to budget_nodes, so
+  // a moving camera finds the nodes it newly requires already loaded. In [0, 1).
+  double prefetch_reserve = 0.125;
+  // Pixels per radian of a view that gives none (1920 px across 90 degrees ~ 960/tan(45deg)).
+  double default_pixels_per_radian = 960.0;
+  // Projected error of a node entirely outside a view's frustum is multiplied by this (0..1),
+  // so nodes behind the camera keep some detail for a quick turn. Views without a frustum
+  // treat every node as inside.
+  double outside_frustum_error_scale = 0.25;
+  // Frames an evicted slot stays untouched (GPU frames in flight). >= 1.
+  uint32_t fence_frames = 3;
+  // Most nodes delivered by one update() (bounds the caller's per-frame upload). The first
+  // update() delivers all roots even if there are more. >= 1.
+  uint32_t max_deliveries_per_frame = 128;
+  // Decode buffers beyond the budget: resident nodes + loads in flight (taken by a worker, or
+  // decoded and waiting for delivery) never exceed budget_nodes + max_in_flight, so memory stays
+  // within (budget_nodes + max_in_flight) * sizeof(NodeData). Since the wanted set never exceeds
+  // the budget, workers can decode a whole new wanted set ahead of the per-frame delivery cap.
+  // 0 = automatic: max(2 * worker_threads, budget_nodes / 32). Requests beyond the room wait in
+  // the priority queue, which is rebuilt each update(): requests that are no longer wanted are
+  // dropped there without any work done, and a worker holds at most one decode in progress, so a
+  // teleport never waits behind the old position's requests.
+  uint32_t max_in_flight = 0;
+  // Payload sections decoded for the caller (terrain::Section bits); others stay untouched.
+  unsigned sections = kSectionAll;
+};
+
+// ---- Views ------------------------------------------------------------------------------------
+
+// A frustum plane relative to the view position p: a point q is inside when
+// nx*(q.x-p.x) + ny*(q.y-p.y) + nz*(q.z-p.z) + d >= 0. The normal need not be unit length.
+struct FrustumPlane {
+  double nx = 0, ny = 0, nz = 0, d = 0;
+};
+
+struct View {
+  double x = 0, y = 0, z = 0;       // eye position, frame metres (double: never float world positions)
+  double pixels_per_radian = 0;     // projection scale: (viewport height px / 2) / tan(vfov / 2);
+                                    // 0 = config.default_pixels_per_radian
+  bool has_frustum = false;
+  std::array<FrustumPlane, 6> frustum{};  // used when has_frustum (any order; all must pass)
+};
+
+// (viewport_px / 2) / tan(fov_rad / 2): the pixels_per_radian of a perspective projection.
+double pixels_per_radian(double viewport_px, double fov_rad);
+
+// ---- GPU-side state ---------------------------------------------------------------------------
+
+inline constexpr uint16_t kIndexNotResident = 0xFFFF;  // the node exists but is not resident
+inline constexpr uint16_t kIndexNoNode = 0xFFFE;       // no node here, or its payload failed to load
+inline constexpr uint32_t kMaxSlots = 0xFFFE;          // slot ids are 0 .. 0xFFFD
+
+// One entry of the node descriptor table (the FC5 "node description buffer"), indexed by slot.
+// 32 bytes, std430/scalar compatible: in GLSL declare it as
+//   struct SlotDescriptor { int min_height; int max_height; int height_offset; float geometric_error_m;
+//                           uint x; uint y; uint packed; uint reserved; };
+// with level = packed & 0xFF, step_log2 = (packed >> 8) & 0xFF, flags = (packed >> 16) & 0xFF,
+// child_mask = packed >> 24 (little endian).
+// Heights: vertex units = height_offset + (r16 << step_log2); metres = units * 2^-10.
+// A slot's descriptor is written when a node is delivered into it and left untouched when the
+// node is evicted (the index grids stop pointing at it at once; the fence protects the rest).
+struct SlotDescriptor {
+  int32_t min_height = 0;       // height units, over the node's non-hole vertices
+  int32_t max_height = 0;
+  int32_t height_offset = 0;    // quantization offset, height units
+  float geometric_error_m = 0;  // from the archive (metres)
+  uint32_t x = 0, y = 0;        // node coordinates at its level
+  uint8_t level = 0;            // 0 = finest
+  uint8_t step_log2 = 0;        // quantization step exponent of the level (height units)
+  uint8_t flags = 0;            // kNodeFlag* of the archive record
+  uint8_t child_mask = 0;       // children that exist in the archive (bit c = child_of(key, c))
+  uint32_t reserved = 0;
+};
+static_assert(sizeof(SlotDescriptor) == 32);
+
+// Half-open rectangle of index-grid cells [x0, x1) x [y0, y1); empty when x0 >= x1.
+struct DirtyRect {
+  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x0 >= x1 || y0 >= y1; }
+};
+
+struct GridSize {
+  uint32_t width = 0, height = 0;  // cells; level L: roots_x << (kRootLevel - L), roots_y << ...
+};
+
+// ---- Per-frame results ------------------------------------------------------------------------
+
+struct NodeDelivery {
+  NodeKey key;
+  uint16_t slot = 0;                  // atlas slot to upload into (free of GPU use: fence passed)
+  const NodeRecord* record = nullptr; // archive directory entry; valid while the Streamer is open
+  // Decoded sections (config.sections) owned by the streamer. Valid from this delivery until
+  // the update() whose FrameUpdate lists this node's eviction begins; read-only.
+  const NodeData* data = nullptr;
+};
+
+struct NodeEviction {
+  NodeKey key;
+  uint16_t slot = 0;  // fenced: reused no earlier than update() number frame + fence_frames
+};
+
+struct NodeFailure {
+  NodeKey key;
+  Status status;  // e.g. payload_checksum naming the node and offset
+};
+
+// Everything one update() changed. Owned by the streamer; valid until the next update(), close
+// or destruction. The caller must apply every FrameUpdate (dirty regions are per update, not
+// accumulated): upload delivered data and dirty descriptors, then the dirty index rectangles.
+// The first update() marks every index grid dirty in full (the initial upload) and delivers the
+// roots; before it nothing is resident.
+struct FrameUpdate {
+  uint64_t frame = 0;                            // 1 for the first update()
+  std::span<const NodeDelivery> delivered;       // parents before children
+  std::span<const NodeEviction> evicted;         // children before parents
+  std::span<const NodeFailure> failed;           // each failed node appears exactly once
+  std::array<DirtyRect, kLevelCount> dirty_index{};  // per level, cells changed this update
+  std::span<const uint16_t> dirty_slots;         // slots whose descriptor changed (ascending)
+};
+
+struct StreamerStats {
+  uint64_t frame = 0;                // updates so far
+  uint32_t resident = 0;             // nodes resident (<= budget)
+  uint32_t wanted = 0;               // nodes in the wanted set (at target * prefetch_ratio)
+  uint32_t wanted_missing = 0;       // wanted but not resident after this update
+  uint32_t required = 0;             // nodes the error target itself requires (subset of wanted)
+  uint32_t required_missing = 0;     // required but not resident: > 0 is a "gap" frame: somewhere
+                                     // a coarser resident ancestor is drawn with an error above
+                                     // the target (coverage itself never breaks: roots resident)
+  uint32_t pending = 0;              // wanted, not resident, not failed: queued or in flight
+  uint32_t in_flight = 0;            // taken by a worker (decoding or decoded awaiting delivery)
+  uint32_t failed = 0;               // nodes marked failed so far
+  uint32_t fenced_slots = 0;         // evicted slots waiting out their fence
+  uint32_t free_slots = 0;           // slots ready for delivery
+  uint64_t loads_started = 0;        // payload decodes begun by workers
+  uint64_t loads_delivered = 0;
+  uint64_t loads_discarded = 0;      // decoded, but no longer wanted when they finished
+  uint64_t requests_dropped = 0;     // queued requests dropped (no longer wanted) before any work
+  uint64_t bytes_read = 0;           // stored (compressed) payload bytes decoded by workers
+  uint64_t bytes_decoded = 0;        // raw bytes produced (requested sections)
+  double decode_seconds = 0;         // sum over workers of time spent in decode
+  uint64_t buffer_bytes = 0;         // decode buffers allocated: <= (budget + max_in_flight) nodes
+};
+
+enum class NodeState : uint8_t {
+  absent,     // no such node in the archive
+  idle,       // exists, not wanted, not resident
+  pending,    // wanted, queued or in flight
+  resident,
+  failed,
+};
+
+// ---- The streamer -----------------------------------------------------------------------------
+
+class Streamer {
+ public:
+  Streamer();
+  ~Streamer();
+  Streamer(const Streamer&) = delete;
+  Streamer& operator=(const Streamer&) = delete;
+
+  // Opens the archive (memory-mapped; validated by ArchiveReader::open), checks the config,
+  // starts the workers and has them load every root; returns when the roots are decoded (the
+  // caller's thread waits, it does not decode). Errors: the archive's own (io_open, truncated,
+  // bad checksums, ...); invalid_argument for a budget below the root count or a bad config;
+  // a root whose payload is corrupt fails open() (there is no parent to cover it).
+  // Reopening closes first.
+  Status open(const std::string& archive_path, const StreamerConfig& config = {});
+  void close();
+  bool is_open() const;
+
+  // One frame: recomputes the wanted set from `views` (at least one), evicts resident nodes
+  // that are no longer wanted, re-prioritises the request queue (dropping requests that are no
+  // longer wanted), and delivers up to max_deliveries_per_frame finished nodes into free slots.
+  // An empty `views` keeps the previous wanted set. On a closed streamer: an empty FrameUpdate.
+  const FrameUpdate& update(std::span<const View> views);
+
+  // ---- State (reflects the last update(); empty values when not open) ----
+  const ArchiveReader& archive() const;
+  const WorldInfo& world() const;
+  const StreamerConfig& config() const;  // with automatic values resolved
+  uint32_t slot_count() const;
+  GridSize index_grid_size(int level) const;
+  // Row-major, row 0 = south (node y = 0), width index_grid_size(level).width.
+  std::span<const uint16_t> index_grid(int level) const;
+  std::span<const SlotDescriptor> slots() const;  // slot_count() entries
+  StreamerStats stats() const;
+
+  NodeState node_state(const NodeKey& key) const;
+  // Slot of a resident node, or -1.
+  int32_t slot_of(const NodeKey& key) const;
+  // Decoded data of a resident node (same lifetime as NodeDelivery::data), or nullptr.
+  const NodeData* resident_data(const NodeKey& key) const;
+  // Keys in directory order (level ascending, then y, then x).
+  std::vector<NodeKey> resident_nodes() const;
+  std::vector<NodeKey> wanted_nodes() const;
+  std::vector<NodeKey> required_nodes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace terrain

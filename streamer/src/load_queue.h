@@ -1,0 +1,79 @@
+// Background loading: worker threads take requests in priority order, read and decode payloads
+// into pooled buffers and hand back results. The owner thread replaces the whole request list
+// each frame, so requests that are no longer wanted are dropped before any work is done.
+#pragma once
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <thread>
+#include <vector>
+
+#include "terrain/archive_reader.h"
+#include "terrain/status.h"
+
+namespace terrain::detail {
+
+class LoadQueue {
+ public:
+  struct Result {
+    uint32_t node = 0;
+    NodeData* data = nullptr;  // owned by the pool; give back with free_buffer()
+    Status status;
+    uint64_t bytes_read = 0;
+    double seconds = 0;
+  };
+  struct Counters {
+    uint64_t loads_started = 0;
+    uint64_t bytes_read = 0;
+    double decode_seconds = 0;
+    uint64_t buffers_allocated = 0;
+    uint32_t in_flight = 0;
+  };
+
+  // Starts `threads` workers decoding `sections` of nodes of `reader` (which must outlive this).
+  // At most `capacity` requests are taken and not yet released at any time (see set_capacity).
+  LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity);
+  ~LoadQueue();  // stops the workers after their current decode and joins them
+  LoadQueue(const LoadQueue&) = delete;
+  LoadQueue& operator=(const LoadQueue&) = delete;
+
+  // Replaces the request list (highest priority first). Requests of the previous list not yet
+  // taken and absent from the new one are appended to `dropped`. Nodes already taken by a worker
+  // are skipped (their result is on its way).
+  void publish(const std::vector<uint32_t>& requests, std::vector<uint32_t>& dropped);
+  // Moves finished results into `out` (appended). With `wait`, blocks until there is one.
+  void collect(std::vector<Result>& out, bool wait);
+  // The owner consumed `count` results (delivered, discarded or failed): frees in-flight room.
+  void release(uint32_t count);
+  // Changes the in-flight limit (the owner keeps resident + in flight within its memory bound).
+  void set_capacity(uint32_t capacity);
+  // Returns buffers from Results (or resident nodes) to the pool; nulls are ignored.
+  void free_buffers(std::span<NodeData* const> data);
+  Counters counters() const;
+
+ private:
+  void worker_main();
+
+  const ArchiveReader& reader_;
+  const unsigned sections_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable work_ready_;    // workers wait here
+  std::condition_variable result_ready_;  // collect(wait) waits here
+  bool stop_ = false;
+  std::vector<uint32_t> queue_;           // current request list
+  size_t queue_pos_ = 0;                  // next request to take
+  std::vector<uint32_t> publish_mark_;    // per node: generation of the list holding it
+  std::vector<uint8_t> taken_;            // per node: a worker took it, result not collected
+  uint32_t generation_ = 0;
+  uint32_t capacity_ = 0;
+  std::vector<Result> results_;
+  std::vector<std::unique_ptr<NodeData>> buffers_;  // every buffer ever allocated
+  std::vector<NodeData*> free_buffers_;
+  Counters counters_;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace terrain::detail

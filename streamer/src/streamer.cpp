@@ -1,0 +1,536 @@
+#include "terrain/streamer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <queue>
+#include <thread>
+
+#include "load_queue.h"
+#include "wanted_set.h"
+
+namespace terrain {
+
+double pixels_per_radian(double viewport_px, double fov_rad) { return 0.5 * viewport_px / std::tan(0.5 * fov_rad); }
+
+namespace {
+
+// Life of a node on the owner's thread.
+enum class Phase : uint8_t {
+  idle,       // not resident, no request outstanding
+  requested,  // in the published request list or taken by a worker
+  decoded,    // decoded, waiting for delivery (holds a buffer, counts as in flight)
+  resident,
+  failed,
+};
+
+uint64_t raw_section_bytes(unsigned sections) {
+  uint64_t bytes = 0;
+  if (sections & kSectionHeights) bytes += sizeof(NodeData::heights);
+  if (sections & kSectionNormals) bytes += sizeof(NodeData::normals_bc3);
+  if (sections & kSectionAlbedo) bytes += sizeof(NodeData::albedo_bc1);
+  if (sections & kSectionSplat) bytes += sizeof(NodeData::splat);
+  if (sections & kSectionCones) bytes += sizeof(NodeData::cones_bc3);
+  return bytes;
+}
+
+std::string key_string(const NodeKey& k) {
+  return std::to_string(k.level) + "/" + std::to_string(k.x) + "/" + std::to_string(k.y);
+}
+
+void grow(DirtyRect& r, uint32_t x, uint32_t y) {
+  if (r.empty()) {
+    r = {x, y, x + 1, y + 1};
+    return;
+  }
+  r.x0 = std::min(r.x0, x);
+  r.y0 = std::min(r.y0, y);
+  r.x1 = std::max(r.x1, x + 1);
+  r.y1 = std::max(r.y1, y + 1);
+}
+
+}  // namespace
+
+namespace detail {
+WantedParams make_wanted_params(const StreamerConfig& c, uint32_t roots) {
+  WantedParams p;
+  p.budget_nodes = c.budget_nodes;
+  p.error_target_px = c.error_target_px;
+  p.prefetch_ratio = c.prefetch_ratio;
+  p.required_budget = std::max(roots, uint32_t(std::floor(double(c.budget_nodes) * (1.0 - c.prefetch_reserve))));
+  p.default_pixels_per_radian = c.default_pixels_per_radian;
+  p.outside_frustum_error_scale = c.outside_frustum_error_scale;
+  return p;
+}
+}  // namespace detail
+
+struct Streamer::Impl {
+  static constexpr uint64_t kNever = ~uint64_t(0);  // frame stamp of "not in any wanted set yet"
+  ArchiveReader reader;
+  StreamerConfig config;
+  detail::WantedParams wanted_params;
+  detail::NodeTree tree;
+  std::span<const NodeRecord> records;
+  std::unique_ptr<detail::LoadQueue> loader;
+
+  // Per node (directory index), owner's thread only.
+  std::vector<Phase> phase;
+  std::vector<uint16_t> slot_of;
+  std::vector<NodeData*> data;
+  std::vector<uint64_t> wanted_frame;    // == frame: in the current wanted set
+  std::vector<uint64_t> required_frame;  // == frame: in the current required set
+  std::vector<uint32_t> order;           // position in the current wanted set (priority rank)
+  std::vector<uint8_t> failed;
+
+  // GPU-side state.
+  std::array<GridSize, kLevelCount> grid_size{};
+  std::array<std::vector<uint16_t>, kLevelCount> grids;
+  std::vector<SlotDescriptor> slot_table;
+  std::vector<int32_t> slot_owner;  // node index or -1
+  std::priority_queue<uint16_t, std::vector<uint16_t>, std::greater<>> free_slots;  // lowest first
+  struct Fenced {
+    uint16_t slot;
+    uint64_t free_at_frame;
+  };
+  std::vector<Fenced> fenced;  // in eviction order, so free_at_frame ascending
+
+  // Work lists.
+  std::vector<detail::WantedNode> wanted;
+  std::vector<uint32_t> resident;  // directory indices
+  std::vector<uint32_t> decoded;   // nodes in Phase::decoded
+  uint32_t root_count = 0;
+
+  // Per-frame output.
+  uint64_t frame = 0;
+  std::vector<NodeDelivery> deliveries;
+  std::vector<NodeEviction> evictions;
+  std::vector<NodeFailure> failures;
+  std::vector<uint16_t> dirty_slots;
+  FrameUpdate update;
+  std::vector<View> last_views;
+  bool have_views = false;
+  // Results consumed this update; their in-flight room is given back only after the new request
+  // list is published, so workers never take a stale request in between.
+  uint32_t to_release = 0;
+  std::vector<NodeData*> to_free;  // buffers to give back, in one lock at the end of update()
+
+  // Counters.
+  StreamerStats stats;
+  uint64_t loads_delivered = 0, loads_discarded = 0, requests_dropped = 0, bytes_decoded = 0;
+  uint64_t failed_count = 0;
+
+  ~Impl() {
+    loader.reset();  // joins workers before buffers and the reader go away
+  }
+
+  void set_cell(const NodeKey& k, uint16_t value) {
+    const GridSize& g = grid_size[k.level];
+    grids[k.level][size_t(k.y) * g.width + k.x] = value;
+    grow(update.dirty_index[k.level], k.x, k.y);
+  }
+
+  Status validate_config(uint32_t roots) {
+    StreamerConfig& c = config;
+    auto bad = [](const std::string& what) { return Status::failure(Error::invalid_argument, "streamer config: " + what); };
+    if (c.budget_nodes < 1 || c.budget_nodes > kMaxSlots)
+      return bad("budget_nodes " + std::to_string(c.budget_nodes) + " is outside 1.." + std::to_string(kMaxSlots));
+    if (c.budget_nodes < roots)
+      return bad("budget_nodes " + std::to_string(c.budget_nodes) + " is smaller than the archive's " +
+                 std::to_string(roots) + " roots (level " + std::to_string(kRootLevel) +
+                 " nodes), which are always resident; raise budget_nodes to at least " + std::to_string(roots));
+    if (c.fence_frames < 1) return bad("fence_frames must be at least 1");
+    if (c.max_deliveries_per_frame < 1) return bad("max_deliveries_per_frame must be at least 1");
+    if (!(c.error_target_px > 0) || !std::isfinite(c.error_target_px))
+      return bad("error_target_px must be a positive number of pixels");
+    if (!(c.prefetch_ratio > 0 && c.prefetch_ratio <= 1)) return bad("prefetch_ratio must be in (0, 1]");
+    if (!(c.prefetch_reserve >= 0 && c.prefetch_reserve < 1)) return bad("prefetch_reserve must be in [0, 1)");
+    if (!(c.default_pixels_per_radian > 0) || !std::isfinite(c.default_pixels_per_radian))
+      return bad("default_pixels_per_radian must be positive");
+    if (!(c.outside_frustum_error_scale >= 0 && c.outside_frustum_error_scale <= 1))
+      return bad("outside_frustum_error_scale must be in [0, 1]");
+    if (c.sections == 0 || (c.sections & ~unsigned(kSectionAll)) != 0)
+      return bad("sections must be a non-empty set of terrain::Section bits");
+    if (c.worker_threads == 0) c.worker_threads = std::max(1u, std::thread::hardware_concurrency());
+    if (c.worker_threads > 256) return bad("worker_threads above 256");
+    if (c.slot_count == 0) {
+      const uint64_t automatic = uint64_t(c.budget_nodes) + uint64_t(c.fence_frames) * c.max_deliveries_per_frame;
+      c.slot_count = uint32_t(std::min<uint64_t>(automatic, kMaxSlots));
+    }
+    if (c.slot_count < c.budget_nodes || c.slot_count > kMaxSlots)
+      return bad("slot_count " + std::to_string(c.slot_count) + " must be in budget_nodes.." + std::to_string(kMaxSlots));
+    if (c.max_in_flight == 0) c.max_in_flight = std::max(2 * c.worker_threads, c.budget_nodes / 32);
+    return Status::success();
+  }
+
+  Status open(const std::string& path, const StreamerConfig& cfg) {
+    config = cfg;
+    if (Status s = reader.open(path); !s.ok()) return s;
+    records = reader.nodes();
+    const WorldInfo& world = reader.world();
+    if (world.roots_x == 0 || world.roots_y == 0 || uint64_t(world.roots_x) << kRootLevel > 0xFFFFu ||
+        uint64_t(world.roots_y) << kRootLevel > 0xFFFFu)
+      return Status::failure(Error::unsupported_input, "streamer: " + path + ": root grid " +
+                                                           std::to_string(world.roots_x) + "x" +
+                                                           std::to_string(world.roots_y) + " is outside what the index grids hold");
+    tree = detail::build_node_tree(reader);
+    root_count = uint32_t(tree.roots.size());
+    if (root_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
+    if (Status s = validate_config(root_count); !s.ok()) return s;
+    wanted_params = detail::make_wanted_params(config, root_count);
+
+    const size_t n = records.size();
+    phase.assign(n, Phase::idle);
+    slot_of.assign(n, 0);
+    data.assign(n, nullptr);
+    wanted_frame.assign(n, kNever);
+    required_frame.assign(n, kNever);
+    order.assign(n, 0);
+    failed.assign(n, 0);
+
+    for (int level = 0; level < kLevelCount; ++level) {
+      const int shift = kRootLevel - level;
+      grid_size[size_t(level)] = {world.roots_x << shift, world.roots_y << shift};
+      grids[size_t(level)].assign(size_t(grid_size[size_t(level)].width) * grid_size[size_t(level)].height, kIndexNoNode);
+    }
+    for (const NodeRecord& r : records) {
+      const GridSize& g = grid_size[r.key.level];
+      if (r.key.x >= g.width || r.key.y >= g.height)
+        return Status::failure(Error::directory_invalid, "streamer: node " + key_string(r.key) +
+                                                             " lies outside the " + std::to_string(world.roots_x) + "x" +
+                                                             std::to_string(world.roots_y) + " root grid");
+      grids[r.key.level][size_t(r.key.y) * g.width + r.key.x] = kIndexNotResident;
+    }
+    slot_table.assign(config.slot_count, SlotDescriptor{});
+    slot_owner.assign(config.slot_count, -1);
+    for (uint32_t s = 0; s < config.slot_count; ++s) free_slots.push(uint16_t(s));
+
+    // Roots: loaded by the workers while this thread waits (it never decodes).
+    loader = std::make_unique<detail::LoadQueue>(reader, config.sections, config.worker_threads,
+                                                 config.budget_nodes + config.max_in_flight);
+    std::vector<uint32_t> dropped;
+    loader->publish(tree.roots, dropped);
+    for (uint32_t r : tree.roots) phase[r] = Phase::requested;
+    std::vector<detail::LoadQueue::Result> results;
+    uint32_t done = 0;
+    std::optional<Status> first_error;
+    while (done < root_count) {
+      results.clear();
+      loader->collect(results, /*wait=*/true);
+      for (auto& r : results) {
+        ++done;
+        if (!r.status.ok()) {
+          loader->free_buffers({&r.data, 1});
+          loader->release(1);
+          if (!first_error)
+            first_error = Status::failure(r.status.code, "streamer: root node " + key_string(records[r.node].key) +
+                                                             " cannot be loaded (roots are always resident): " +
+                                                             r.status.to_string());
+          continue;
+        }
+        phase[r.node] = Phase::decoded;
+        data[r.node] = r.data;
+        decoded.push_back(r.node);
+        bytes_decoded += raw_section_bytes(config.sections);
+      }
+    }
+    if (first_error) return *first_error;
+    return Status::success();
+  }
+
+  void release_fenced() {
+    size_t i = 0;
+    while (i < fenced.size() && fenced[i].free_at_frame <= frame) free_slots.push(fenced[i++].slot);
+    fenced.erase(fenced.begin(), fenced.begin() + ptrdiff_t(i));
+  }
+
+  void collect_results() {
+    std::vector<detail::LoadQueue::Result> results;
+    loader->collect(results, /*wait=*/false);
+    for (auto& r : results) {
+      if (!r.status.ok()) {
+        to_free.push_back(r.data);
+        ++to_release;
+        phase[r.node] = Phase::failed;
+        failed[r.node] = 1;
+        ++failed_count;
+        set_cell(records[r.node].key, kIndexNoNode);
+        failures.push_back({records[r.node].key, std::move(r.status)});
+        continue;
+      }
+      phase[r.node] = Phase::decoded;
+      data[r.node] = r.data;
+      decoded.push_back(r.node);
+      bytes_decoded += raw_section_bytes(config.sections);
+    }
+  }
+
+  void compute_wanted(std::span<const View> views) {
+    if (!views.empty()) {
+      last_views.assign(views.begin(), views.end());
+      have_views = true;
+    }
+    detail::compute_wanted_set(tree, failed, have_views ? std::span<const View>(last_views) : std::span<const View>(),
+                               wanted_params, wanted);
+    for (uint32_t i = 0; i < wanted.size(); ++i) {
+      const uint32_t node = wanted[i].index;
+      wanted_frame[node] = frame;
+      if (wanted[i].required) required_frame[node] = frame;
+      order[node] = i;
+    }
+  }
+
+  bool is_wanted(uint32_t node) const { return wanted_frame[node] == frame; }
+
+  void evict_unwanted() {
+    // Directory order is level ascending, so children go before their parents.
+    std::sort(resident.begin(), resident.end());
+    std::vector<uint32_t> keep;
+    keep.reserve(resident.size());
+    for (uint32_t node : resident) {
+      if (is_wanted(node)) {
+        keep.push_back(node);
+        continue;
+      }
+      const uint16_t slot = slot_of[node];
+      set_cell(records[node].key, kIndexNotResident);
+      slot_owner[slot] = -1;
+      fenced.push_back({slot, frame + config.fence_frames});
+      to_free.push_back(data[node]);
+      data[node] = nullptr;
+      phase[node] = Phase::idle;
+      evictions.push_back({records[node].key, slot});
+    }
+    resident.swap(keep);
+  }
+
+  void deliver() {
+    // Discard what is no longer wanted, then deliver in priority order (parents first).
+    std::vector<uint32_t> waiting;
+    waiting.reserve(decoded.size());
+    for (uint32_t node : decoded) {
+      if (is_wanted(node)) {
+        waiting.push_back(node);
+        continue;
+      }
+      to_free.push_back(data[node]);
+      data[node] = nullptr;
+      phase[node] = Phase::idle;
+      ++loads_discarded;
+      ++to_release;
+    }
+    std::sort(waiting.begin(), waiting.end(), [&](uint32_t a, uint32_t b) { return order[a] < order[b]; });
+    const uint32_t cap = frame == 1 ? std::max(config.max_deliveries_per_frame, root_count)
+                                    : config.max_deliveries_per_frame;
+    decoded.clear();
+    for (uint32_t node : waiting) {
+      const int32_t parent = tree.nodes[node].parent;
+      const bool parent_ok = parent < 0 || phase[size_t(parent)] == Phase::resident;
+      if (deliveries.size() >= cap || !parent_ok || free_slots.empty() || resident.size() >= config.budget_nodes) {
+        decoded.push_back(node);
+        continue;
+      }
+      const uint16_t slot = free_slots.top();
+      free_slots.pop();
+      const NodeRecord& r = records[node];
+      SlotDescriptor& d = slot_table[slot];
+      d.min_height = r.min_height;
+      d.max_height = r.max_height;
+      d.height_offset = r.height_offset;
+      d.geometric_error_m = r.geometric_error_m;
+      d.x = r.key.x;
+      d.y = r.key.y;
+      d.level = uint8_t(r.key.level);
+      d.step_log2 = reader.world().step_log2[r.key.level];
+      d.flags = r.flags;
+      d.child_mask = r.child_mask;
+      d.reserved = 0;
+      slot_owner[slot] = int32_t(node);
+      slot_of[node] = slot;
+      phase[node] = Phase::resident;
+      resident.push_back(node);
+      set_cell(r.key, slot);
+      dirty_slots.push_back(slot);
+      deliveries.push_back({r.key, slot, &records[node], data[node]});
+      ++loads_delivered;
+      ++to_release;
+    }
+    std::sort(dirty_slots.begin(), dirty_slots.end());
+  }
+
+  void request() {
+    std::vector<uint32_t> requests;
+    for (const detail::WantedNode& w : wanted) {
+      const Phase p = phase[w.index];
+      if (p == Phase::idle || p == Phase::requested) requests.push_back(w.index);
+    }
+    std::vector<uint32_t> dropped;
+    loader->publish(requests, dropped);
+    for (uint32_t node : requests)
+      if (phase[node] == Phase::idle) phase[node] = Phase::requested;
+    for (uint32_t node : dropped) phase[node] = Phase::idle;
+    requests_dropped += dropped.size();
+  }
+
+  void fill_stats() {
+    StreamerStats s;
+    s.frame = frame;
+    s.resident = uint32_t(resident.size());
+    s.wanted = uint32_t(wanted.size());
+    for (const detail::WantedNode& w : wanted) {
+      const bool missing = phase[w.index] != Phase::resident;
+      s.wanted_missing += missing;
+      if (w.required) {
+        ++s.required;
+        s.required_missing += missing;
+      }
+    }
+    s.pending = s.wanted_missing;
+    s.failed = uint32_t(failed_count);
+    s.fenced_slots = uint32_t(fenced.size());
+    s.free_slots = uint32_t(free_slots.size());
+    const detail::LoadQueue::Counters c = loader->counters();
+    s.in_flight = c.in_flight;
+    s.loads_started = c.loads_started;
+    s.loads_delivered = loads_delivered;
+    s.loads_discarded = loads_discarded;
+    s.requests_dropped = requests_dropped;
+    s.bytes_read = c.bytes_read;
+    s.bytes_decoded = bytes_decoded;
+    s.decode_seconds = c.decode_seconds;
+    s.buffer_bytes = c.buffers_allocated * sizeof(NodeData);
+    stats = s;
+  }
+
+  const FrameUpdate& run_update(std::span<const View> views) {
+    ++frame;
+    deliveries.clear();
+    evictions.clear();
+    failures.clear();
+    dirty_slots.clear();
+    update = FrameUpdate{};
+    update.frame = frame;
+    if (frame == 1)  // the caller's first upload: every grid in full
+      for (int level = 0; level < kLevelCount; ++level)
+        update.dirty_index[size_t(level)] = {0, 0, grid_size[size_t(level)].width, grid_size[size_t(level)].height};
+
+    release_fenced();
+    collect_results();
+    compute_wanted(views);
+    request();  // before anything frees in-flight room: see to_release
+    evict_unwanted();
+    deliver();
+    // Decode buffers: resident + in flight <= budget + max_in_flight. Wanted nodes never exceed the
+    // budget, so within that bound workers may decode far ahead of the per-frame delivery cap.
+    // Buffers go back to the pool before the room opens, so no worker allocates in between.
+    loader->free_buffers(to_free);
+    to_free.clear();
+    loader->set_capacity(config.budget_nodes + config.max_in_flight - uint32_t(resident.size()));
+    loader->release(to_release);
+    to_release = 0;
+    fill_stats();
+
+    update.delivered = deliveries;
+    update.evicted = evictions;
+    update.failed = failures;
+    update.dirty_slots = dirty_slots;
+    return update;
+  }
+};
+
+Streamer::Streamer() = default;
+Streamer::~Streamer() = default;
+
+Status Streamer::open(const std::string& archive_path, const StreamerConfig& config) {
+  close();
+  auto impl = std::make_unique<Impl>();
+  if (Status s = impl->open(archive_path, config); !s.ok()) return s;
+  impl_ = std::move(impl);
+  return Status::success();
+}
+
+void Streamer::close() { impl_.reset(); }
+bool Streamer::is_open() const { return impl_ != nullptr; }
+
+// A closed streamer answers with empty state instead of crashing.
+namespace {
+const FrameUpdate kNoUpdate{};
+const ArchiveReader kNoArchive{};
+const WorldInfo kNoWorld{};
+const StreamerConfig kNoConfig{};
+}  // namespace
+
+const FrameUpdate& Streamer::update(std::span<const View> views) { return impl_ ? impl_->run_update(views) : kNoUpdate; }
+
+const ArchiveReader& Streamer::archive() const { return impl_ ? impl_->reader : kNoArchive; }
+const WorldInfo& Streamer::world() const { return impl_ ? impl_->reader.world() : kNoWorld; }
+const StreamerConfig& Streamer::config() const { return impl_ ? impl_->config : kNoConfig; }
+uint32_t Streamer::slot_count() const { return impl_ ? impl_->config.slot_count : 0; }
+
+GridSize Streamer::index_grid_size(int level) const {
+  if (!impl_ || level < 0 || level >= kLevelCount) return {};
+  return impl_->grid_size[size_t(level)];
+}
+
+std::span<const uint16_t> Streamer::index_grid(int level) const {
+  if (!impl_ || level < 0 || level >= kLevelCount) return {};
+  return impl_->grids[size_t(level)];
+}
+
+std::span<const SlotDescriptor> Streamer::slots() const {
+  if (!impl_) return {};
+  return impl_->slot_table;
+}
+StreamerStats Streamer::stats() const { return impl_ ? impl_->stats : StreamerStats{}; }
+
+NodeState Streamer::node_state(const NodeKey& key) const {
+  if (!impl_) return NodeState::absent;
+  const int64_t index = impl_->reader.find(key);
+  if (index < 0) return NodeState::absent;
+  switch (impl_->phase[size_t(index)]) {
+    case Phase::resident: return NodeState::resident;
+    case Phase::failed: return NodeState::failed;
+    case Phase::requested:
+    case Phase::decoded: return impl_->is_wanted(uint32_t(index)) ? NodeState::pending : NodeState::idle;
+    case Phase::idle: break;
+  }
+  return impl_->is_wanted(uint32_t(index)) ? NodeState::pending : NodeState::idle;
+}
+
+int32_t Streamer::slot_of(const NodeKey& key) const {
+  if (!impl_) return -1;
+  const int64_t index = impl_->reader.find(key);
+  if (index < 0 || impl_->phase[size_t(index)] != Phase::resident) return -1;
+  return impl_->slot_of[size_t(index)];
+}
+
+const NodeData* Streamer::resident_data(const NodeKey& key) const {
+  if (!impl_) return nullptr;
+  const int64_t index = impl_->reader.find(key);
+  if (index < 0 || impl_->phase[size_t(index)] != Phase::resident) return nullptr;
+  return impl_->data[size_t(index)];
+}
+
+namespace {
+std::vector<NodeKey> keys_where(std::span<const NodeRecord> records, const std::function<bool(uint32_t)>& pred) {
+  std::vector<NodeKey> keys;
+  for (uint32_t i = 0; i < records.size(); ++i)
+    if (pred(i)) keys.push_back(records[i].key);
+  return keys;
+}
+}  // namespace
+
+std::vector<NodeKey> Streamer::resident_nodes() const {
+  if (!impl_) return {};
+  return keys_where(impl_->records, [&](uint32_t i) { return impl_->phase[i] == Phase::resident; });
+}
+std::vector<NodeKey> Streamer::wanted_nodes() const {
+  if (!impl_) return {};
+  return keys_where(impl_->records, [&](uint32_t i) { return impl_->is_wanted(i); });
+}
+std::vector<NodeKey> Streamer::required_nodes() const {
+  if (!impl_) return {};
+  return keys_where(impl_->records, [&](uint32_t i) { return impl_->required_frame[i] == impl_->frame; });
+}
+
+}  // namespace terrain

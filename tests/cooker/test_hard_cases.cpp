@@ -1,0 +1,609 @@
+// Hard cases from issue 3, each cooked from a synthetic GeoTIFF through the library and read back
+// as a renderer sees it. Every test states the bound it checks.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "cooker_test_util.h"
+#include "test_data.h"
+
+using namespace terrain;
+using namespace terrain::test;
+
+namespace {
+
+constexpr double kMm = 1e-3;
+
+struct Cooked {
+  cook::CookReport report;
+  CookedArchive archive;
+  std::string path;
+};
+
+// Writes `dem`, cooks it with `options` (inputs/output filled in), opens the result and checks
+// that it verifies and has no seam mismatch.
+void cook_dem(const std::string& name, const SyntheticDem& dem, cook::CookOptions options, Cooked& out,
+              bool tiled = true) {
+  const auto dir = scratch_dir("cooker-" + name);
+  const std::string tif = (dir / (name + ".tif")).string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, dem, tiled, error)) << error;
+  out.path = (dir / (name + ".terrain")).string();
+  options.inputs = {tif};
+  options.output = out.path;
+  options.heights_only = true;
+  if (options.threads == 0) options.threads = 2;
+  const Status st = cook::cook(options, {}, out.report);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  ASSERT_TRUE(out.archive.open(out.path).ok());
+  const Status v = out.archive.reader.verify();
+  ASSERT_TRUE(v.ok()) << v.to_string();
+  uint64_t compared = 0;
+  std::string problem;
+  EXPECT_EQ(count_seam_mismatches(out.archive.reader, compared, problem), 0u) << problem;
+}
+
+SyntheticDem utm_dem(int w, int h, double spacing, double east, double north) {
+  SyntheticDem d;
+  d.width = w;
+  d.height = h;
+  d.values.assign(size_t(w) * size_t(h), 0.0);
+  d.dx = d.dy = spacing;
+  d.x0 = east;
+  d.y0 = north;
+  d.epsg_projected = 32632;
+  return d;
+}
+
+// Max over the valid source samples of |cooked - source| - bound(node); the worst excess (<= 0
+// means every sample is within its bound). Samples without a cooked height count in `missing`,
+// or in `missing_edge` on the raster's outer ring or beside nodata (where a hole vertex, or the
+// sampler's choice of quad for a point exactly on the covered area's boundary, may drop them).
+struct SourceCheck {
+  double worst_error = 0, worst_excess = -INFINITY;
+  uint64_t checked = 0, missing = 0, missing_edge = 0;
+};
+bool edge_sample(const SyntheticDem& d, int col, int row) {
+  if (col == 0 || row == 0 || col == d.width - 1 || row == d.height - 1) return true;
+  for (int dr = -1; dr <= 1; ++dr)
+    for (int dc = -1; dc <= 1; ++dc)
+      if (std::isnan(d.values[size_t(row + dr) * size_t(d.width) + size_t(col + dc)])) return true;
+  return false;
+}
+SourceCheck check_samples(const SyntheticDem& dem, Cooked& c, double tolerance, bool geographic = false) {
+  SourceCheck r;
+  const double half = c.archive.max_half_step();
+  for (int row = 0; row < dem.height; ++row)
+    for (int col = 0; col < dem.width; ++col) {
+      const double z = dem.values[size_t(row) * size_t(dem.width) + size_t(col)];
+      if (std::isnan(z)) continue;
+      double x = dem.mx(col), y = dem.my(row);
+      if (geographic) lonlat_to_frame(c.archive.reader.world().crs, dem.mx(col), dem.my(row), x, y);
+      const NodeRecord* node = nullptr;
+      const auto h = c.archive.height(x, y, &node);
+      if (!h) {
+        ++(edge_sample(dem, col, row) ? r.missing_edge : r.missing);
+        continue;
+      }
+      ++r.checked;
+      const double e = std::fabs(*h - z);
+      r.worst_error = std::max(r.worst_error, e);
+      // The issue's bound (tolerance + half a step + 1 mm), or the node's own measured error
+      // where the finest allowed level could not reach the tolerance.
+      const double bound = std::max(tolerance, double(node->geometric_error_m)) + half + kMm;
+      r.worst_excess = std::max(r.worst_excess, e - bound);
+    }
+  return r;
+}
+
+// Whether a node's box reaches within `margin` of the data footprint's boundary (nodes refined
+// only to cover the data up to its edge, where a coarse triangle would drop edge samples).
+bool near_footprint_edge(const WorldInfo& w, const NodeKey& k, double margin) {
+  const double size = node_size_m(int(k.level));
+  const double x0 = w.origin_x_m + k.x * size, y0 = w.origin_y_m + k.y * size;
+  return !(x0 > w.extent_min_x_m + margin && x0 + size < w.extent_max_x_m - margin && y0 > w.extent_min_y_m + margin &&
+           y0 + size < w.extent_max_y_m - margin);
+}
+
+}  // namespace
+
+// Bound: every source sample within half a root step + 1 mm; finer levels only along the data's
+// edges (coverage), none inside.
+TEST(HardCase, ConstantHeight) {
+  SyntheticDem d = utm_dem(200, 200, 1.0, 500000.5, 5000099.5);
+  std::fill(d.values.begin(), d.values.end(), 1234.567);
+  Cooked c;
+  cook_dem("constant", d, {}, c);
+  for (const NodeRecord& n : c.archive.reader.nodes()) {
+    if (n.key.level < kRootLevel) {
+      EXPECT_TRUE(near_footprint_edge(c.archive.reader.world(), parent_of(n.key), 16.0));
+    }
+    EXPECT_EQ(n.min_height, n.max_height);
+    EXPECT_LE(n.geometric_error_m, c.archive.half_step(5) + kMm);
+  }
+  const SourceCheck s = check_samples(d, c, 0.0);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_error, c.archive.half_step(5) + kMm);
+}
+
+// A 1000 m cliff between two samples. Samples sit on the 1 m lattice, so refinement down to
+// level 1 reproduces them. Bounds: tolerance + half step + 1 mm at every sample; no height beyond
+// Catmull-Rom's 1/16 overshoot of a step (-62.5 .. 1062.5 m); fine levels only along the cliff.
+TEST(HardCase, VerticalStepOf1000m) {
+  SyntheticDem d = utm_dem(600, 120, 1.0, 501000.0, 5002000.0);
+  d.point = true;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = col < 300 ? 0.0 : 1000.0;
+  cook::CookOptions o;
+  o.tolerance_m = 0.5;
+  Cooked c;
+  cook_dem("step", d, o, c);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  const double cliff_x = d.mx(300) - 0.5;
+  for (const NodeRecord& n : c.archive.reader.nodes()) {
+    EXPECT_GE(units_to_metres(n.min_height), -62.5 - kMm);
+    EXPECT_LE(units_to_metres(n.max_height), 1062.5 + kMm);
+    if (n.key.level <= 2) {  // fine nodes only under parents that hold the cliff or a data edge
+      const NodeKey p = parent_of(n.key);
+      const double size = node_size_m(int(p.level));
+      const double x0 = c.archive.reader.world().origin_x_m + p.x * size;
+      const bool cliff = x0 - 16.0 <= cliff_x && x0 + size + 16.0 >= cliff_x;
+      EXPECT_TRUE(cliff || near_footprint_edge(c.archive.reader.world(), p, 16.0)) << n.key.level << "/" << n.key.x;
+    }
+  }
+  EXPECT_GT(c.report.levels[1].nodes, 0u);
+}
+
+// Isolated one-sample spikes of +50 m on flat ground. Bounds: tolerance + half step + 1 mm at
+// every sample, and each spike's own sample exactly (half a step + 1 mm).
+TEST(HardCase, OneSampleSpikes) {
+  SyntheticDem d = utm_dem(200, 200, 1.0, 502000.0, 5004000.0);
+  d.point = true;
+  std::fill(d.values.begin(), d.values.end(), 100.0);
+  std::vector<std::pair<int, int>> spikes = {{20, 30}, {55, 170}, {100, 100}, {101, 140}, {150, 20}, {180, 180}};
+  for (auto [c, r] : spikes) d.at(c, r) = 150.0;
+  cook::CookOptions o;
+  Cooked c;
+  cook_dem("spikes", d, o, c);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  for (auto [col, row] : spikes) {
+    const auto h = c.archive.height(d.mx(col), d.my(row));
+    ASSERT_TRUE(h);
+    EXPECT_NEAR(*h, 150.0, c.archive.max_half_step() + kMm);
+  }
+}
+
+// -430 m to 8848 m inside one 2048 m root. Bounds: root step 2^8 units (0.25 m, the smallest that
+// fits 16 bits); node extremes within half a step of the data's, widened by the linear continuation
+// over the half-sample apron (half the outermost sample difference, 0.18 m here); every sample
+// within tolerance + half step + 1 mm.
+TEST(HardCase, NineKilometresOfReliefInOneRoot) {
+  // Footprint exactly one root: 501760 .. 503808 E, 5005312 .. 5007360 N (multiples of 2048 m).
+  SyntheticDem d = utm_dem(256, 256, 8.0, 501760.0 + 4.0, 5007360.0 - 4.0);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) {
+      const double t = double(col) / (d.width - 1);
+      d.at(col, row) = -430.0 + 9278.0 * (0.5 - 0.5 * std::cos(M_PI * t));
+    }
+  Cooked c;
+  cook::CookOptions o;
+  cook_dem("relief9km", d, o, c);
+  EXPECT_EQ(c.report.roots_x * c.report.roots_y, 1u);
+  EXPECT_EQ(c.archive.reader.world().step_log2[5], 8);
+  const NodeRecord& root = c.archive.reader.nodes()[size_t(c.archive.reader.find({5, 0, 0}))];
+  const double apron = 0.5 * (d.at(1, 0) - d.at(0, 0)), hs = c.archive.half_step(5) + kMm;
+  EXPECT_LE(units_to_metres(root.min_height), -430.0 + hs);
+  EXPECT_GE(units_to_metres(root.min_height), -430.0 - apron - hs);
+  EXPECT_GE(units_to_metres(root.max_height), 8848.0 - hs);
+  EXPECT_LE(units_to_metres(root.max_height), 8848.0 + apron + hs);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+}
+
+// 1 mm of relief over 100 m. Bounds: step 1/1024 m at every level; every sample within half a unit
+// (0.49 mm) + 1 um; the cooked relief keeps the millimetre (>= 0.5 mm between the ends).
+TEST(HardCase, OneMillimetreOfRelief) {
+  SyntheticDem d = utm_dem(100, 100, 1.0, 504000.0, 5006000.0);
+  d.point = true;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = 500.0 + 0.001 * col / 99.0;
+  Cooked c;
+  cook_dem("relief1mm", d, {}, c);
+  for (uint8_t s : c.archive.reader.world().step_log2) EXPECT_EQ(s, 0);
+  const SourceCheck s = check_samples(d, c, 0.0);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_error, 0.5 * kHeightUnitM + 1e-6 + 3e-5 /* float32 source */);
+  const auto west = c.archive.height(d.mx(1), d.my(50)), east = c.archive.height(d.mx(98), d.my(50));
+  ASSERT_TRUE(west && east);
+  EXPECT_GE(*east - *west, 0.0005);  // 0.97 mm apart in the source
+}
+
+// A depression below sea level (-430 .. -390 m). Bounds: every node's heights negative, every
+// sample within tolerance + half step + 1 mm.
+TEST(HardCase, NegativeHeights) {
+  SyntheticDem d = utm_dem(150, 150, 2.0, 505001.0, 5008000.0 - 1.0);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      d.at(col, row) = -430.0 + 40.0 * (std::pow((col - 75) / 75.0, 2) + std::pow((row - 75) / 75.0, 2)) / 2.0;
+  cook::CookOptions o;
+  Cooked c;
+  cook_dem("negative", d, o, c);
+  for (const NodeRecord& n : c.archive.reader.nodes()) {
+    EXPECT_LT(n.max_height, 0);
+    EXPECT_GE(units_to_metres(n.min_height), -430.0 - c.archive.max_half_step() - kMm);
+  }
+  const SourceCheck s = check_samples(d, c, o.tolerance_m);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0);
+  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+}
+
+// Bound: a clear no_data error naming the file, and no archive written.
+TEST(HardCase, AllNodataIsAClearError) {
+  SyntheticDem d = utm_dem(50, 50, 1.0, 506000.0, 5010000.0);
+  d.int16 = true;
+  d.nodata = -32768;
+  std::fill(d.values.begin(), d.values.end(), NAN);
+  const auto dir = scratch_dir("cooker-allnodata");
+  const std::string tif = (dir / "void.tif").string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
+  cook::CookOptions o;
+  o.inputs = {tif};
+  o.output = (dir / "void.terrain").string();
+  cook::CookReport report;
+  const Status st = cook::cook(o, {}, report);
+  EXPECT_EQ(st.code, Error::no_data);
+  EXPECT_NE(st.message.find("void.tif"), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("nodata"), std::string::npos) << st.message;
+  EXPECT_FALSE(std::filesystem::exists(o.output));
+}
+
+// Nodata bands along the west and north borders (holes) and one 2x2 enclosed void (filled).
+// Bounds: no cooked height inside the band (beyond half a sample from the data), the hole flag on
+// every node touching it, every valid sample within tolerance + half step + 1 mm except the ring
+// right next to the band (a hole vertex drops its triangles).
+TEST(HardCase, NodataAlongBorders) {
+  SyntheticDem d = utm_dem(200, 200, 1.0, 507000.5, 5012199.5);
+  d.nodata = -9999;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      d.at(col, row) = (col < 20 || row < 20) ? NAN : 300.0 + 0.2 * col + 0.1 * row;
+  for (int row = 100; row < 102; ++row)
+    for (int col = 100; col < 102; ++col) d.at(col, row) = NAN;
+  Cooked c;
+  cook::CookOptions o;
+  cook_dem("borders", d, o, c, false);
+  EXPECT_EQ(c.report.hole_samples, uint64_t(200 * 20 + 180 * 20));
+  EXPECT_EQ(c.report.voids_filled_samples, 4u);
+  EXPECT_EQ(c.report.voids_filled_regions, 1u);
+  for (int row = 0; row < 18; ++row)
+    for (int col = 0; col < 200; col += 7) EXPECT_FALSE(c.archive.height(d.mx(col), d.my(row))) << col << "," << row;
+  for (int col = 0; col < 18; ++col)
+    for (int row = 0; row < 200; row += 7) EXPECT_FALSE(c.archive.height(d.mx(col), d.my(row))) << col << "," << row;
+  bool any_holes = false;
+  for (const NodeRecord& n : c.archive.reader.nodes()) any_holes |= (n.flags & kNodeFlagHasHoles) != 0;
+  EXPECT_TRUE(any_holes);
+  // Interior: everything answers, within the bound.
+  SyntheticDem inner = d;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      if (col < 22 || row < 22) inner.at(col, row) = NAN;
+  const SourceCheck s = check_samples(inner, c, o.tolerance_m);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0);
+  // The filled void carries the plane (harmonic fill of planar surroundings).
+  const auto h = c.archive.height(d.mx(100) + 0.5, d.my(100) - 0.5);
+  ASSERT_TRUE(h);
+  EXPECT_NEAR(*h, 300.0 + 0.2 * 100.5 + 0.1 * 100.5, 0.01);
+}
+
+namespace {
+// Smooth geographic test surface (metres) of longitude/latitude.
+double geo_surface(double lon, double lat) {
+  return 300.0 + 40.0 * std::sin(2 * M_PI * lon / 0.02) * std::cos(2 * M_PI * lat / 0.01) + 200.0 * (lat - 70.5);
+}
+}  // namespace
+
+// Geographic input at 70.5 N (samples 3.7 x 11 m). Bounds: the frame's central meridian at the data
+// centre; every sample (projected with GeographicLib independently) within tolerance + half step
+// + 1 mm, so no axis flip, half-sample shift or datum slip.
+TEST(HardCase, GeographicInputAt70North) {
+  SyntheticDem d;
+  d.width = 400;
+  d.height = 300;
+  d.dx = d.dy = 0.0001;
+  d.x0 = 25.0 + 0.00005;
+  d.y0 = 70.53 - 0.00005;
+  d.epsg_geographic = 4326;
+  d.values.resize(size_t(d.width) * size_t(d.height));
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = geo_surface(d.mx(col), d.my(row));
+  Cooked c;
+  cook::CookOptions o;
+  cook_dem("geo70n", d, o, c);
+  const FrameCrs& f = c.archive.reader.world().crs;
+  EXPECT_EQ(f.kind, ProjectionKind::transverse_mercator);
+  EXPECT_NEAR(f.lon0_deg, 25.02, 1.0 / 3600);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+}
+
+// Geographic input across the UTM zone 31/32 boundary (6 E). Bounds: one frame centred on the
+// data (lon0 6.0), every sample on both sides within tolerance + half step + 1 mm, and no seam.
+TEST(HardCase, InputStraddlingAUtmZoneBoundary) {
+  SyntheticDem d;
+  d.width = 500;
+  d.height = 200;
+  d.dx = d.dy = 0.0004;
+  d.x0 = 5.9 + 0.0002;
+  d.y0 = 45.04 - 0.0002;
+  d.epsg_geographic = 4326;
+  d.values.resize(size_t(d.width) * size_t(d.height));
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      d.at(col, row) = 800.0 + 60.0 * std::sin(2 * M_PI * d.mx(col) / 0.05) + 900.0 * (d.my(row) - 45.0);
+  Cooked c;
+  cook::CookOptions o;
+  cook_dem("utmzones", d, o, c);
+  EXPECT_NEAR(c.archive.reader.world().crs.lon0_deg, 6.0, 1e-9);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+}
+
+// A 45-degree plane at northing 5000 km, 0.5 m samples. Catmull-Rom and the triangulation
+// reproduce planes, so at 20 000 random points (not only samples) the cooked height must equal
+// the plane within half a step + 1 mm: any float32 position on the way (0.5 m resolution at 5e6)
+// would break it.
+TEST(HardCase, UtmSizedCoordinatesKeepMillimetres) {
+  SyntheticDem d = utm_dem(240, 240, 0.5, 600000.25, 5000119.75);
+  const double xc = 600060.0, yc = 5000060.0;
+  auto plane = [&](double x, double y) { return 1000.0 + 1.0 * (x - xc) + 0.5 * (y - yc); };
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = plane(d.mx(col), d.my(row));
+  Cooked c;
+  cook_dem("utm5000km", d, {}, c);
+  EXPECT_GT(c.archive.reader.world().origin_y_m, 4.99e6);
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> ux(d.mx(0), d.mx(239)), uy(d.my(239), d.my(0));
+  double worst = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const double x = ux(rng), y = uy(rng);
+    const auto h = c.archive.height(x, y);
+    ASSERT_TRUE(h);
+    worst = std::max(worst, std::fabs(*h - plane(x, y)));
+  }
+  EXPECT_LE(worst, c.archive.max_half_step() + kMm) << "worst " << worst;
+}
+
+// A NaN in Float32 input without any nodata tag. Bounds: treated as a one-sample void (reported,
+// filled from its neighbours within 1 cm of the plane they describe), no NaN anywhere in the
+// archive (it verifies; every height is finite).
+TEST(HardCase, NanInFloat32Input) {
+  SyntheticDem d = utm_dem(100, 100, 1.0, 508000.5, 5014099.5);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = 50.0 + 0.3 * col - 0.2 * row;
+  d.at(50, 50) = NAN;
+  Cooked c;
+  cook_dem("nan", d, {}, c);
+  EXPECT_EQ(c.report.voids_filled_samples, 1u);
+  EXPECT_EQ(c.report.hole_samples, 0u);
+  const auto h = c.archive.height(d.mx(50), d.my(50));
+  ASSERT_TRUE(h);
+  EXPECT_NEAR(*h, 50.0 + 0.3 * 50 - 0.2 * 50, 0.01);
+  for (const NodeRecord& n : c.archive.reader.nodes()) EXPECT_TRUE(std::isfinite(n.geometric_error_m));
+}
+
+// PixelIsArea and PixelIsPoint descriptions of the same samples, striped and tiled: bound = the
+// same cooked height at every sample (identical bytes of the height sections).
+TEST(Inputs, PixelIsAreaAndPixelIsPointPlaceSamplesAlike) {
+  SyntheticDem a = utm_dem(64, 64, 2.0, 509001.0, 5016127.0);
+  for (int row = 0; row < a.height; ++row)
+    for (int col = 0; col < a.width; ++col) a.at(col, row) = 10.0 + std::sin(col * 0.3) * 5.0 + row * 0.1;
+  SyntheticDem p = a;
+  p.point = true;
+  Cooked ca, cp;
+  cook_dem("area", a, {}, ca, true);
+  cook_dem("point", p, {}, cp, false);
+  for (int row = 2; row < 62; row += 3)
+    for (int col = 2; col < 62; col += 3) {
+      const auto ha = ca.archive.height(a.mx(col), a.my(row)), hp = cp.archive.height(a.mx(col), a.my(row));
+      ASSERT_TRUE(ha && hp);
+      EXPECT_EQ(*ha, *hp);
+    }
+}
+
+// Four tiles of one DEM mosaicked give the heights of the DEM cooked whole (bound: identical).
+TEST(Inputs, MosaicOfTilesEqualsTheWhole) {
+  SyntheticDem whole = utm_dem(128, 128, 4.0, 510002.0, 5018110.0);
+  for (int row = 0; row < whole.height; ++row)
+    for (int col = 0; col < whole.width; ++col) whole.at(col, row) = 200.0 + 30.0 * std::sin(col * 0.1) * std::cos(row * 0.07);
+  const auto dir = scratch_dir("cooker-mosaic");
+  std::vector<std::string> tiles;
+  for (int ty = 0; ty < 2; ++ty)
+    for (int tx = 0; tx < 2; ++tx) {
+      SyntheticDem t = whole;
+      t.width = t.height = 64;
+      t.x0 = whole.mx(tx * 64);
+      t.y0 = whole.my(ty * 64);
+      t.values.assign(64 * 64, 0.0);
+      for (int r = 0; r < 64; ++r)
+        for (int col = 0; col < 64; ++col) t.at(col, r) = whole.at(tx * 64 + col, ty * 64 + r);
+      tiles.push_back((dir / ("tile" + std::to_string(ty * 2 + tx) + ".tif")).string());
+      std::string error;
+      ASSERT_TRUE(write_geotiff(tiles.back(), t, tx == 0, error)) << error;
+    }
+  cook::CookOptions o;
+  o.inputs = tiles;
+  o.output = (dir / "mosaic.terrain").string();
+  o.heights_only = true;
+  cook::CookReport report;
+  ASSERT_TRUE(cook::cook(o, {}, report).ok());
+  Cooked ref;
+  cook_dem("mosaic-whole", whole, {}, ref);
+  CookedArchive m;
+  ASSERT_TRUE(m.open(o.output).ok());
+  ASSERT_EQ(m.reader.nodes().size(), ref.archive.reader.nodes().size());
+  for (size_t i = 0; i < m.reader.nodes().size(); ++i) {
+    auto a = std::make_unique<NodeData>(), b = std::make_unique<NodeData>();
+    ASSERT_TRUE(m.reader.decode_node(i, *a, kSectionHeights).ok());
+    ASSERT_TRUE(ref.archive.reader.decode_node(i, *b, kSectionHeights).ok());
+    EXPECT_EQ(a->heights, b->heights);
+    EXPECT_EQ(m.reader.nodes()[i].height_offset, ref.archive.reader.nodes()[i].height_offset);
+  }
+}
+
+// Bound: identical archive bytes with 1 and 2 threads (synthetic, with every section cooked).
+TEST(Determinism, OneAndTwoThreadsGiveIdenticalBytes) {
+  SyntheticDem d = utm_dem(300, 300, 1.0, 511000.5, 5020299.5);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      d.at(col, row) = 100.0 + 20.0 * std::sin(col * 0.05) + 15.0 * std::cos(row * 0.08) + ((col * 31 + row * 17) % 7) * 0.3;
+  const auto dir = scratch_dir("cooker-threads");
+  const std::string tif = (dir / "d.tif").string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, d, true, error)) << error;
+  std::vector<std::vector<char>> bytes;
+  for (int threads : {1, 2}) {
+    cook::CookOptions o;
+    o.inputs = {tif};
+    o.output = (dir / (threads == 1 ? "t1.terrain" : "t2.terrain")).string();
+    o.threads = threads;
+    cook::CookReport report;
+    ASSERT_TRUE(cook::cook(o, {}, report).ok());
+    std::ifstream in(o.output, std::ios::binary);
+    bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  ASSERT_GT(bytes[0].size(), 1000u);
+  EXPECT_TRUE(bytes[0] == bytes[1]);
+}
+
+// A GeoTIFF without geokeys is refused with a message naming --crs; with --crs it cooks.
+TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
+  SyntheticDem d = utm_dem(40, 40, 2.0, 512001.0, 5022079.0);
+  d.epsg_projected = 0;
+  for (double& v : d.values) v = 77.0;
+  const auto dir = scratch_dir("cooker-nocrs");
+  const std::string tif = (dir / "nocrs.tif").string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
+  cook::CookOptions o;
+  o.inputs = {tif};
+  o.output = (dir / "nocrs.terrain").string();
+  o.heights_only = true;
+  cook::CookReport report;
+  const Status refused = cook::cook(o, {}, report);
+  EXPECT_EQ(refused.code, Error::invalid_argument);
+  EXPECT_NE(refused.message.find("--crs"), std::string::npos) << refused.message;
+  o.crs = "EPSG:32632";
+  ASSERT_TRUE(cook::cook(o, {}, report).ok());
+  EXPECT_EQ(report.frame.epsg, 32632);
+  EXPECT_NEAR(report.frame.lon0_deg, 9.0, 1e-12);
+}
+
+// A CRS the cooker cannot use (Web Mercator) is named, with a gdalwarp line to fix it.
+TEST(Inputs, UnsupportedCrsIsNamedWithAGdalwarpLine) {
+  SyntheticDem d = utm_dem(40, 40, 10.0, 1113194.9, 5780000.0);
+  d.epsg_projected = 3857;
+  for (double& v : d.values) v = 5.0;
+  const auto dir = scratch_dir("cooker-3857");
+  const std::string tif = (dir / "webmerc.tif").string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
+  cook::CookOptions o;
+  o.inputs = {tif};
+  o.output = (dir / "webmerc.terrain").string();
+  cook::CookReport report;
+  const Status st = cook::cook(o, {}, report);
+  EXPECT_EQ(st.code, Error::unsupported_input);
+  EXPECT_NE(st.message.find("Pseudo-Mercator"), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("gdalwarp -t_srs EPSG:32632"), std::string::npos) << st.message;  // 10 E, 46 N
+}
+
+// --frame puts geographic input into a given UTM zone. Bound: every sample within tolerance + half
+// step + 1 mm through that zone's projection.
+TEST(Inputs, FrameOverrideProjectsIntoTheGivenFrame) {
+  SyntheticDem d;
+  d.width = 120;
+  d.height = 100;
+  d.dx = d.dy = 0.0002;
+  d.x0 = 9.5 + 0.0001;
+  d.y0 = 46.02 - 0.0001;
+  d.epsg_geographic = 4326;
+  d.values.resize(size_t(d.width) * size_t(d.height));
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = 1500.0 + 30.0 * std::sin(col * 0.05) + 0.4 * row;
+  cook::CookOptions o;
+  o.frame = "EPSG:32632";
+  Cooked c;
+  cook_dem("frame32632", d, o, c);
+  const FrameCrs& f = c.archive.reader.world().crs;
+  EXPECT_EQ(f.epsg, 32632);
+  EXPECT_EQ(f.false_easting_m, 500000.0);
+  EXPECT_EQ(f.scale_k0, 0.9996);
+  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+}
+
+// A raw R16 heightmap (little-endian uint16) with --raw-size, --spacing, --height-scale, --crs
+// local: bound = every sample within half a step + 1 mm (the data is a plane).
+TEST(Inputs, RawR16HeightmapWithExplicitGeoreferencing) {
+  const int w = 65, h = 33;
+  std::vector<uint16_t> raw(size_t(w) * h);
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col) raw[size_t(row) * w + col] = uint16_t(1000 + 10 * col + 3 * (h - 1 - row));
+  const auto dir = scratch_dir("cooker-raw");
+  const std::string path = (dir / "map.r16").string();
+  {
+    std::ofstream f(path, std::ios::binary);
+    for (uint16_t v : raw) {
+      const char b[2] = {char(v & 0xFF), char(v >> 8)};
+      f.write(b, 2);
+    }
+  }
+  cook::CookOptions o;
+  o.inputs = {path};
+  o.output = (dir / "map.terrain").string();
+  o.raw_size = {w, h};
+  o.spacing = std::array<double, 2>{2.0, 2.0};
+  o.origin = std::array<double, 2>{100.0, 200.0};
+  o.height_scale = 0.01;
+  o.crs = "local";
+  o.heights_only = true;
+  cook::CookReport report;
+  const Status st = cook::cook(o, {}, report);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  EXPECT_EQ(report.frame.kind, ProjectionKind::local);
+  CookedArchive a;
+  ASSERT_TRUE(a.open(o.output).ok());
+  EXPECT_EQ(a.reader.world().origin_x_m, 0.0);  // 100 snapped down to a multiple of 2048
+  double worst = 0;
+  for (int row = 1; row < h - 1; ++row)
+    for (int col = 1; col < w - 1; ++col) {
+      const double x = 100.0 + 2.0 * col, y = 200.0 + 2.0 * (h - 1 - row);
+      const auto z = a.height(x, y);
+      ASSERT_TRUE(z) << col << "," << row;
+      worst = std::max(worst, std::fabs(*z - 0.01 * (1000 + 10 * col + 3 * (h - 1 - row))));
+    }
+  EXPECT_LE(worst, a.max_half_step() + kMm);
+  // The wrong size is a clear error naming the expected byte count.
+  o.raw_size = {w + 1, h};
+  const Status bad = cook::cook(o, {}, report);
+  EXPECT_EQ(bad.code, Error::unsupported_input);
+  EXPECT_NE(bad.message.find("--raw-size"), std::string::npos) << bad.message;
+}

@@ -1,0 +1,306 @@
+// Unit tests of the cooker's modules: quantization, reconstruction, projection anchors, voids, CRSs.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "crs.h"
+#include "frame.h"
+#include "quantize.h"
+#include "raster.h"
+#include "reconstruct.h"
+#include "void_fill.h"
+
+using namespace terrain;
+using namespace terrain::cook;
+
+TEST(Quantize, VertexLevelIsTheCoarsestLatticeHoldingTheVertex) {
+  EXPECT_EQ(vertex_level(0, 0), 5);
+  EXPECT_EQ(vertex_level(1, 0), 0);
+  EXPECT_EQ(vertex_level(2, 4), 1);
+  EXPECT_EQ(vertex_level(8, 16), 3);
+  EXPECT_EQ(vertex_level(32, 64), 5);
+  EXPECT_EQ(vertex_level(1 << 20, 0), 5);  // capped at the roots
+  EXPECT_EQ(vertex_level(-4, 8), 2);        // window margins west of the origin
+}
+
+TEST(Quantize, UnitsAreMultiplesOfTheStepAndWithinHalfAStep) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> h(-500.0, 9000.0);
+  for (int s = 0; s <= 10; ++s)
+    for (int k = 0; k < 1000; ++k) {
+      const double v = h(rng);
+      const int64_t u = quantize_units(v, s);
+      EXPECT_EQ(u % (int64_t(1) << s), 0);
+      EXPECT_LE(std::fabs(double(u) * kHeightUnitM - v), 0.5 * std::ldexp(1.0, s) * kHeightUnitM + 1e-12);
+    }
+}
+
+TEST(Quantize, StepsFitSixteenBitsWithTheRootRounding) {
+  // 9278 m in a root (Dead Sea to Everest): 9.5 M units need step 2^8 (0.25 m).
+  const int root = required_step(9278.0, -1);
+  EXPECT_EQ(root, 8);
+  EXPECT_LE((9278.0 * 1024 + 1 + std::ldexp(1.0, root)) / std::ldexp(1.0, root), 65535.0);
+  // 0.5 m of relief fits 16 bits at 1/1024 m, even with the root step's rounding on top.
+  EXPECT_EQ(required_step(0.5, root), 0);
+  // 64 m of relief is 65536 units: one unit too many for step 1.
+  EXPECT_EQ(required_step(64.0, 0), 1);
+  EXPECT_EQ(required_step(63.0, 0), 0);
+  // 1 mm of relief: the finest step.
+  EXPECT_EQ(required_step(0.001, -1), 0);
+  // The bound is never too small: random ranges always fit.
+  std::mt19937 rng(5);
+  for (int k = 0; k < 1000; ++k) {
+    const double range = std::uniform_real_distribution<double>(0, 16000)(rng);
+    const int rs = required_step(range, -1);
+    EXPECT_LE(range * 1024 + 1 + std::ldexp(1.0, rs), 65535.0 * std::ldexp(1.0, rs));
+    if (rs > 0) {
+      EXPECT_GT(range * 1024 + 1 + std::ldexp(1.0, rs - 1), 65535.0 * std::ldexp(1.0, rs - 1));
+    }
+  }
+}
+
+TEST(Quantize, PackStoresInheritedValuesExactly) {
+  // Values rounded at a coarse step (2^6) and a fine one (2^2), packed at step 2^2.
+  std::vector<int32_t> units(kHeightCount);
+  std::vector<uint8_t> hole(kHeightCount, 0);
+  std::mt19937 rng(3);
+  for (size_t k = 0; k < units.size(); ++k)
+    units[k] = int32_t(quantize_units(std::uniform_real_distribution<double>(-20, 40)(rng), k % 7 == 0 ? 6 : 2));
+  hole[100] = 1;
+  units[100] = 123457;  // a hole's value is ignored
+  NodeRecord rec;
+  std::array<uint16_t, kHeightCount> r16{};
+  ASSERT_TRUE(pack_heights(units.data(), hole.data(), kHeightSamples, 2, rec, r16).ok());
+  EXPECT_EQ(rec.flags & kNodeFlagHasHoles, kNodeFlagHasHoles);
+  for (size_t k = 0; k < units.size(); ++k) {
+    if (hole[k]) continue;
+    EXPECT_EQ(vertex_units(rec.height_offset, r16[k], 2), units[k]);
+  }
+  // A value that is not a multiple of the step is refused, not rounded silently.
+  units[5] = units[0] + 1;
+  EXPECT_EQ(pack_heights(units.data(), hole.data(), kHeightSamples, 2, rec, r16).code, Error::internal);
+}
+
+namespace {
+Raster plane_raster(int w, int h, double a, double bx, double by) {
+  Raster r;
+  r.width = w;
+  r.height = h;
+  r.values.resize(size_t(w) * size_t(h));
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col) r.values[size_t(row) * size_t(w) + size_t(col)] = float(a + bx * col + by * row);
+  return r;
+}
+}  // namespace
+
+TEST(Reconstruct, CatmullRomPassesThroughSamplesAndReproducesPlanes) {
+  Raster r = plane_raster(20, 20, 100.0, 0.25, -0.5);
+  Surface s(r);
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(0.0, 19.0);
+  for (int k = 0; k < 2000; ++k) {
+    const double c = u(rng), w = u(rng);
+    double h = 0;
+    ASSERT_TRUE(s.sample(c, w, h));
+    EXPECT_NEAR(h, 100.0 + 0.25 * c - 0.5 * w, 2e-5);  // float samples, exact kernel
+  }
+  // Non-planar data: the surface still interpolates every sample exactly.
+  Raster bumpy = plane_raster(16, 16, 0, 0, 0);
+  for (size_t i = 0; i < bumpy.values.size(); ++i) bumpy.values[i] = float((i * 7919) % 113);
+  Surface sb(bumpy);
+  for (int row = 0; row < 16; ++row)
+    for (int col = 0; col < 16; ++col) {
+      double h = 0;
+      ASSERT_TRUE(sb.sample(col, row, h));
+      EXPECT_EQ(h, double(bumpy.at(col, row)));
+    }
+}
+
+TEST(Reconstruct, NodataFallsBackToBilinearOverValidTapsAndHolesFollowTheNearestSample) {
+  Raster r = plane_raster(10, 10, 50.0, 1.0, 0.0);
+  r.values[size_t(5) * 10 + 5] = NAN;
+  Surface s(r);
+  double h = 0;
+  EXPECT_FALSE(s.sample(5.2, 4.9, h));  // nearest sample is the void
+  ASSERT_TRUE(s.sample(5.6, 5.0, h));   // nearest is (6, 5): bilinear from (6,5) only on this row
+  EXPECT_NEAR(h, 56.0, 1e-6);
+  ASSERT_TRUE(s.sample(3.5, 5.5, h));  // 16 taps include the void: bilinear fallback, still exact on a plane
+  EXPECT_NEAR(h, 53.5, 1e-6);
+  // Coverage reaches half a sample beyond the raster, pixel edges included on every side.
+  EXPECT_TRUE(s.covered(-0.49, 3.0));
+  EXPECT_TRUE(s.covered(-0.5, 3.0));
+  EXPECT_FALSE(s.covered(-0.51, 3.0));
+  EXPECT_TRUE(s.covered(9.5, 3.0));
+  EXPECT_FALSE(s.covered(9.51, 3.0));
+  EXPECT_TRUE(s.covered(4.5, 5.5));    // corner of the void's pixel: three valid neighbours
+  EXPECT_FALSE(s.covered(5.0, 5.49));  // inside the void's pixel
+}
+
+// The shared-axis and cached-row forms of the surface (used for vertex rows and columns) give the
+// very bits of the per-point form: a vertex gets one value whichever node computes it.
+TEST(Reconstruct, SharedAxesAndCachedRowsGiveIdenticalBits) {
+  Raster r = plane_raster(40, 40, 0, 0, 0);
+  for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(std::sin(double(i) * 0.37) * 100.0);
+  r.values[size_t(20) * 40 + 20] = NAN;
+  Surface s(r);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-0.6, 39.6);
+  int compared = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const double c = u(rng), w = u(rng);
+    double a = 0, b = 0, d = 0;
+    const bool ok_a = s.sample(c, w, a);
+    const Surface::Axis x = s.column(c), y = s.row(w);
+    const bool ok_b = s.sample(x, y, b);
+    ASSERT_EQ(ok_a, ok_b);
+    if (ok_a) {
+      EXPECT_EQ(std::memcmp(&a, &b, sizeof a), 0);
+    }
+    if (s.x_interior(x) && s.y_interior(y)) {
+      double rows[4];
+      const double* at[4];
+      for (int t = 0; t < 4; ++t) {
+        rows[t] = s.horizontal(x, y.i - 1 + t);
+        at[t] = &rows[t];
+      }
+      ASSERT_EQ(s.sample_rows(x, y, at, d), ok_a);
+      if (ok_a) {
+        EXPECT_EQ(std::memcmp(&a, &d, sizeof a), 0);
+        ++compared;
+      }
+    }
+  }
+  EXPECT_GT(compared, 15000);
+}
+
+TEST(VoidFill, SmallEnclosedVoidsAreFilledHarmonicallyAndBorderVoidsStayHoles) {
+  Raster r = plane_raster(40, 30, 10.0, 0.5, 0.25);
+  // A 3x3 enclosed void, and a strip along the west border.
+  for (int row = 10; row < 13; ++row)
+    for (int col = 20; col < 23; ++col) r.values[size_t(row) * 40 + size_t(col)] = NAN;
+  for (int row = 0; row < 30; ++row) r.values[size_t(row) * 40] = NAN;
+  std::vector<uint8_t> filled;
+  VoidStats st;
+  fill_voids(r, NodataPolicy::automatic, 4096, filled, st);
+  EXPECT_EQ(st.filled_regions, 1u);
+  EXPECT_EQ(st.filled_samples, 9u);
+  EXPECT_EQ(st.hole_regions, 1u);
+  EXPECT_EQ(st.hole_samples, 30u);
+  // A harmonic fill of planar surroundings is the plane itself (within the solver's tolerance).
+  for (int row = 10; row < 13; ++row)
+    for (int col = 20; col < 23; ++col) {
+      EXPECT_NEAR(r.at(col, row), 10.0 + 0.5 * col + 0.25 * row, 2e-3);
+      EXPECT_EQ(filled[size_t(row) * 40 + size_t(col)], 1);
+    }
+  EXPECT_TRUE(std::isnan(r.at(0, 5)));
+}
+
+TEST(VoidFill, PolicyAndSizeLimitDecide) {
+  Raster base = plane_raster(30, 30, 0.0, 1.0, 0.0);
+  for (int row = 5; row < 15; ++row)
+    for (int col = 5; col < 15; ++col) base.values[size_t(row) * 30 + size_t(col)] = NAN;  // 100 samples
+  std::vector<uint8_t> filled;
+  VoidStats st;
+  Raster a = base;
+  fill_voids(a, NodataPolicy::automatic, 99, filled, st);  // too large to fill
+  EXPECT_EQ(st.hole_samples, 100u);
+  Raster b = base;
+  fill_voids(b, NodataPolicy::hole, 4096, filled, st);
+  EXPECT_EQ(st.hole_samples, 100u);
+  Raster c = base;
+  fill_voids(c, NodataPolicy::fill, 0, filled, st);
+  EXPECT_EQ(st.filled_samples, 100u);
+  for (float v : c.values) EXPECT_FALSE(std::isnan(v));
+}
+
+TEST(Crs, EpsgCodesResolveThroughProj) {
+  SourceCrs c;
+  ASSERT_TRUE(parse_crs_spec("EPSG:4326", c).ok());
+  EXPECT_EQ(c.kind, CrsKind::geographic);
+  EXPECT_NEAR(c.tm.inverse_flattening, 298.257223563, 1e-8);
+  ASSERT_TRUE(parse_crs_spec("epsg:32733", c).ok());
+  EXPECT_EQ(c.kind, CrsKind::transverse_mercator);
+  EXPECT_EQ(c.tm.lon0_deg, 15.0);
+  EXPECT_EQ(c.tm.scale_k0, 0.9996);
+  EXPECT_EQ(c.tm.false_northing_m, 10000000.0);
+  EXPECT_EQ(utm_zone_name(c.tm), "UTM zone 33S");
+  ASSERT_TRUE(parse_crs_spec("EPSG:3794", c).ok());  // Slovene National Grid, TM on GRS80
+  EXPECT_EQ(c.kind, CrsKind::transverse_mercator);
+  EXPECT_NEAR(c.tm.lon0_deg, 15.0, 1e-12);  // PROJ's degree conversion may leave the last bit
+  EXPECT_EQ(c.tm.scale_k0, 0.9999);
+  EXPECT_EQ(c.tm.false_easting_m, 500000.0);
+  EXPECT_EQ(c.tm.false_northing_m, -5000000.0);
+  EXPECT_NEAR(c.tm.inverse_flattening, 298.257222101, 1e-8);
+}
+
+TEST(Crs, OtherProjectionsAndGarbageAreNamed) {
+  SourceCrs c;
+  ASSERT_TRUE(parse_crs_spec("EPSG:3857", c).ok());
+  EXPECT_EQ(c.kind, CrsKind::unsupported);
+  EXPECT_NE(describe_crs(c).find("Pseudo-Mercator"), std::string::npos) << describe_crs(c);
+  EXPECT_NE(conversion_hint(c, "in.tif").find("gdalwarp -t_srs EPSG:326"), std::string::npos);
+  EXPECT_FALSE(parse_crs_spec("EPSG:99999", c).ok());
+  EXPECT_FALSE(parse_crs_spec("EPSG:123456", c).ok());
+  EXPECT_FALSE(parse_crs_spec("mercator", c).ok());
+  EXPECT_FALSE(parse_crs_spec("tm:k0=1", c).ok());  // lon0 missing
+  ASSERT_TRUE(parse_crs_spec("tm:lon0=-153,k0=0.9996,x0=500000,ellps=GRS80", c).ok());
+  EXPECT_EQ(c.tm.lon0_deg, -153.0);
+  EXPECT_NEAR(c.tm.inverse_flattening, 298.257222101, 1e-9);
+  ASSERT_TRUE(parse_crs_spec("local", c).ok());
+  EXPECT_EQ(c.kind, CrsKind::local);
+}
+
+// Geographic source at 70-71 deg N: the interpolated frame -> sample mapping against the exact
+// GeographicLib chain, in metres on the ground.
+TEST(Frame, AnchorInterpolationStaysBelowATenthOfAMillimetre) {
+  Raster r;
+  r.width = 3601;
+  r.height = 3601;
+  r.values.assign(size_t(r.width) * size_t(r.height), 1.0f);
+  r.geo.c[0] = 24.0;
+  r.geo.c[1] = 1.0 / 3600;
+  r.geo.c[3] = 71.0;
+  r.geo.c[5] = -1.0 / 3600;
+  r.geo.valid = true;
+  r.crs = wgs84_geographic();
+  FrameCrs frame;
+  std::string reason;
+  ASSERT_TRUE(choose_frame(r, "", frame, reason).ok());
+  EXPECT_NEAR(frame.lon0_deg, 24.5, 1e-9);
+  SourceMapping m;
+  ASSERT_TRUE(m.init(r, frame, 2).ok());
+  double x0, y0, x1, y1;
+  m.frame_bounds(0, 0, r.width - 1, r.height - 1, 0.5, x0, y0, x1, y1);
+  m.cover_frame_area(x0 - 3000, y0 - 3000, x1 + 3000, y1 + 3000, 2);
+  double sx, sy;
+  m.spacing_m(sx, sy);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> ux(x0, x1), uy(y0, y1);
+  double worst_m = 0, worst_back_m = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const double x = ux(rng), y = uy(rng);
+    double c1, r1, c2, r2;
+    m.frame_to_sample(x, y, c1, r1);
+    m.exact_frame_to_sample(x, y, c2, r2);
+    worst_m = std::max(worst_m, std::hypot((c1 - c2) * sx, (r1 - r2) * sy));
+    // Source samples -> frame (measuring the error against the source), over the raster.
+    const double sc = std::uniform_real_distribution<double>(0, r.width - 1)(rng);
+    const double sr = std::uniform_real_distribution<double>(0, r.height - 1)(rng);
+    double bx, by, ex, ey;
+    m.sample_to_frame(sc, sr, bx, by);
+    m.exact_sample_to_frame(sc, sr, ex, ey);
+    worst_back_m = std::max(worst_back_m, std::hypot(bx - ex, by - ey));
+  }
+  EXPECT_LT(worst_m, 1e-4);
+  EXPECT_LT(worst_back_m, 1e-4);
+  // The batch form gives a point the same bits whatever batch it comes in.
+  const double xs[3] = {x0 + 1000.25, x0 + 5000.5, x0 + 1000.25};
+  double cs[3], rs[3], c_alone, r_alone;
+  m.map_frame_row(y0 + 777.0, xs, 3, cs, rs);
+  m.map_frame_row(y0 + 777.0, &xs[2], 1, &c_alone, &r_alone);
+  EXPECT_EQ(cs[0], c_alone);
+  EXPECT_EQ(rs[0], r_alone);
+  EXPECT_EQ(cs[2], c_alone);
+}

@@ -1,0 +1,147 @@
+// Corrupt payloads: reported once, marked failed, the parent keeps covering, the streamer goes on.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "stream_check.h"
+#include "test_data.h"
+
+namespace terrain::test {
+namespace {
+
+synthetic::Spec spec() { return deep_sparse_spec(); }
+
+// Flips one byte in the middle of each node's payload.
+void corrupt(const std::string& path, const ArchiveReader& reader, const std::vector<NodeKey>& keys) {
+  std::fstream f(path, std::ios::binary | std::ios::in | std::ios::out);
+  for (const NodeKey& k : keys) {
+    const NodeRecord& r = reader.nodes()[size_t(reader.find(k))];
+    const auto at = std::streamoff(r.payload_offset + r.payload_size / 2);
+    char c = 0;
+    f.seekg(at);
+    f.read(&c, 1);
+    c = char(c ^ 0x5A);
+    f.seekp(at);
+    f.write(&c, 1);
+  }
+}
+
+bool is_ancestor(NodeKey a, NodeKey b) {  // a strictly above b
+  while (b.level < a.level) b = parent_of(b);
+  return b == a && !(a == b && false);
+}
+
+TEST(StreamerCorrupt, CorruptPayloadIsReportedOnceAndTheParentCovers) {
+  const std::string pristine = synthetic_archive(spec());
+  const auto dir = scratch_dir("streamer-corrupt");
+  const std::string path = (dir / "corrupt.terrain").string();
+  copy_file(pristine, path);
+
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(pristine).ok());
+  const synthetic::Spec s = spec();
+  const double cx = s.origin_x_m + 3000, cy = s.origin_y_m + 4100;
+  View here = view_at(cx, cy, synthetic::surface_height_m(s, cx, cy) + 15);
+  View away = view_at(s.origin_x_m + 9000, s.origin_y_m + 500, 900);
+
+  // Pick wanted non-root nodes on levels 4..1 near the camera, none above another.
+  StreamerConfig config;
+  config.worker_threads = 2;
+  const auto wanted = reference_wanted(reader, config, {&here, 1}, {});
+  std::vector<NodeKey> victims;
+  for (uint32_t level = 4; level >= 1 && victims.size() < 6; --level) {
+    int on_level = 0;
+    for (const Key& k : wanted) {
+      const NodeKey nk = node_key(k);
+      if (nk.level != level || on_level >= 2) continue;
+      bool related = false;
+      for (const NodeKey& v : victims) related = related || is_ancestor(v, nk);
+      if (related) continue;
+      victims.push_back(nk);
+      ++on_level;
+    }
+  }
+  ASSERT_GE(victims.size(), 4u);
+  corrupt(path, reader, victims);
+
+  Streamer streamer;
+  ASSERT_TRUE(streamer.open(path, config).ok());
+  StreamChecker checker(streamer, true);
+  ASSERT_EQ(settle_and_compare(streamer, checker, {&here, 1}), "");
+  std::set<Key> expected_failed;
+  for (const NodeKey& v : victims) expected_failed.insert(key_of(v));
+  EXPECT_EQ(checker.failed_set(), expected_failed);
+  EXPECT_EQ(streamer.stats().failed, victims.size());
+  for (const NodeKey& v : victims) {
+    EXPECT_EQ(streamer.node_state(v), NodeState::failed) << key_name(key_of(v));
+    EXPECT_EQ(streamer.node_state(parent_of(v)), NodeState::resident) << "parent of " << key_name(key_of(v));
+    const GridSize g = streamer.index_grid_size(int(v.level));
+    EXPECT_EQ(streamer.index_grid(int(v.level))[size_t(v.y) * g.width + v.x], kIndexNoNode);
+  }
+  // Each failure names the node and the problem.
+  // Away and back: never retried, never reported again (the checker fails on a second report).
+  ASSERT_EQ(settle_and_compare(streamer, checker, {&away, 1}), "");
+  ASSERT_EQ(settle_and_compare(streamer, checker, {&here, 1}), "");
+  EXPECT_EQ(checker.failed_set(), expected_failed);
+  for (const auto& [k, n] : checker.failures()) EXPECT_EQ(n, 1) << key_name(k);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StreamerCorrupt, FailureStatusNamesTheNode) {
+  const std::string pristine = synthetic_archive(spec());
+  const auto dir = scratch_dir("streamer-corrupt-status");
+  const std::string path = (dir / "corrupt.terrain").string();
+  copy_file(pristine, path);
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(pristine).ok());
+  // Every level-4 child of the first root.
+  const NodeKey root = reader.nodes()[reader.nodes().size() - 1].key;
+  std::vector<NodeKey> victims;
+  for (int c = 0; c < 4; ++c)
+    if (reader.find(child_of(root, c)) >= 0) victims.push_back(child_of(root, c));
+  ASSERT_FALSE(victims.empty());
+  corrupt(path, reader, victims);
+  Streamer streamer;
+  ASSERT_TRUE(streamer.open(path).ok());
+  StreamChecker checker(streamer, true);
+  const double size = node_size_m(kRootLevel);
+  View v = view_at(reader.world().origin_x_m + (root.x + 0.5) * size, reader.world().origin_y_m + (root.y + 0.5) * size,
+                   units_to_metres(reader.nodes()[size_t(reader.find(root))].max_height) + 50);
+  std::vector<NodeFailure> seen;
+  for (int frame = 0; frame < 5000 && seen.size() < victims.size(); ++frame) {
+    const FrameUpdate& u = streamer.update({&v, 1});
+    ASSERT_EQ(checker.check(u), "");
+    for (const NodeFailure& f : u.failed) seen.push_back(f);
+  }
+  ASSERT_EQ(seen.size(), victims.size());
+  for (const NodeFailure& f : seen) {
+    EXPECT_EQ(f.status.code, Error::payload_checksum) << f.status.to_string();
+    EXPECT_NE(f.status.message.find(key_name(key_of(f.key))), std::string::npos) << f.status.to_string();
+  }
+  // The root covers the whole area alone, and stays resident.
+  EXPECT_EQ(streamer.node_state(root), NodeState::resident);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(StreamerCorrupt, CorruptRootFailsOpenNamingTheRoot) {
+  const std::string pristine = synthetic_archive(spec());
+  const auto dir = scratch_dir("streamer-corrupt-root");
+  const std::string path = (dir / "corrupt.terrain").string();
+  copy_file(pristine, path);
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(pristine).ok());
+  const NodeKey root = reader.nodes()[reader.nodes().size() - 1].key;
+  ASSERT_EQ(root.level, uint32_t(kRootLevel));
+  corrupt(path, reader, {root});
+  Streamer streamer;
+  const Status s = streamer.open(path);
+  EXPECT_EQ(s.code, Error::payload_checksum) << s.to_string();
+  EXPECT_NE(s.message.find("root node " + key_name(key_of(root))), std::string::npos) << s.message;
+  EXPECT_FALSE(streamer.is_open());
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace terrain::test

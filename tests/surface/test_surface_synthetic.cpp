@@ -1,0 +1,255 @@
+// cook_surface_layers on synthetic terrain: flat patches, cliffs, ridges whose normals spread past
+// 90 degrees, holes, the edge of the data, determinism and seams between neighbouring nodes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <thread>
+
+#include "bc_blocks.h"
+#include "cone_cull.h"
+#include "cones.h"
+#include "normals.h"
+#include "surface_test_support.h"
+
+using namespace terrain;
+using namespace terrain::cook;
+using namespace terrain::cook::test;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+const MaterialRules& rules() {
+  static const MaterialRules r = default_material_rules();
+  return r;
+}
+
+double rolling(double x, double y) { return 300 + 20 * std::sin(x / 37.0) * std::cos(y / 23.0) + 0.05 * x; }
+
+// Decoded cone of patch k.
+cone::DecodedCone decoded_cone(const NodeData& d, int k) {
+  const int p = k % 8, q = k / 8;
+  uint8_t dec[64];
+  decode_bc3_block(d.cones_bc3.data() + 16 * ((q / 4) * 2 + p / 4), dec);
+  const int t = (q % 4) * 4 + p % 4;
+  return cone::decode_cone_texel(dec[4 * t], dec[4 * t + 1], dec[4 * t + 3]);
+}
+
+}  // namespace
+
+TEST(SurfaceSynthetic, FlatNodeHasZeroAngleConesThatCullFromBelow) {
+  const auto node = synthetic_node([](double, double) { return 100.0; }, 0, 2, 3);
+  const Cooked c = cook_node(node, rules());
+  ASSERT_TRUE(c.status.ok()) << c.status.to_string();
+  PatchNormals pn;
+  collect_patch_normals(node.node, node.height_offset, node.step_log2, node.spacing_m, node.holes.data(), pn);
+  for (int k = 0; k < kPatchCount; ++k) {
+    const Cone exact = smallest_enclosing_cone(pn.patch(k));
+    EXPECT_EQ(exact.half_angle_rad, 0.0) << "patch " << k;
+    EXPECT_DOUBLE_EQ(exact.axis[2], 1.0);
+    const cone::DecodedCone d = decoded_cone(c.data, k);
+    EXPECT_FALSE(d.never_cull);
+    EXPECT_NEAR(d.axis[2], 1.0, 1e-12);
+    // One alpha step of margin (0.35 degrees) on top of the exact angle 0.
+    EXPECT_LE(d.half_angle_rad, 1.01 * kPi / 2 / 255) << "patch " << k;
+  }
+  // Seen from below every patch is back-facing; from above none is.
+  const double below[3] = {500, 600, 50}, above[3] = {500, 600, 150};
+  for (int k = 0; k < kPatchCount; ++k) {
+    const double bmin[3] = {(k % 8) * 8.0, (k / 8) * 8.0, 100}, bmax[3] = {(k % 8 + 1) * 8.0, (k / 8 + 1) * 8.0, 100};
+    EXPECT_TRUE(cone::cone_patch_backfacing(decoded_cone(c.data, k), below, bmin, bmax));
+    EXPECT_FALSE(cone::cone_patch_backfacing(decoded_cone(c.data, k), above, bmin, bmax));
+  }
+  const ConeCheck check = check_cones(node, c.data, 300, 1);
+  EXPECT_EQ(check.violations, 0u);
+  EXPECT_GT(check.culled, 1000u);
+  // Flat: normals decode exactly up, albedo opaque everywhere.
+  const auto n = decode_normals(c.data);
+  for (size_t k = 0; k < size_t(kTexels) * kTexels; ++k) {
+    double v[3];
+    texel_normal(&n[k * 4], v);
+    ASSERT_EQ(v[2], 1.0);
+  }
+  EXPECT_EQ(c.stats.normal_err_max_deg, 0.0);
+  for (int i = 0; i < kAlbedoBytes / 8; ++i) ASSERT_EQ(bc1_transparent_mask(c.data.albedo_bc1.data() + 8 * i), 0);
+}
+
+TEST(SurfaceSynthetic, NearVerticalCliffNormalsAndCones) {
+  // A 400 m cliff between two vertices (x = 100 and 100.5 m, 89.9 degrees) across a gentle slope,
+  // inside node (1, 1) of level 0 (x 64..128 m).
+  auto f = [](double x, double y) { return 1000 + 0.2 * y + (x > 100.2 ? 400.0 : 0.0) + 0.05 * (x > 100.2 ? x - 100 : 0); };
+  const auto node = synthetic_node(f, 0, 1, 1);
+  const Cooked c = cook_node(node, rules());
+  ASSERT_TRUE(c.status.ok());
+  // The float normal of the cliff cell is ~89.9 degrees from up; the decoded one keeps that tilt.
+  NormalTexels ref;
+  compute_normal_texels(node.input(&rules(), BcQuality::balanced), ref);
+  const auto dec = decode_normals(c.data);
+  double worst_cliff = 0, worst_tilt = 90;
+  int cliff_texels = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      const size_t k = size_t(u * kTexels + t);
+      if (ref.n[k * 3 + 2] > 0.1f) continue;  // only the near-vertical texels
+      ++cliff_texels;
+      double v[3];
+      texel_normal(&dec[k * 4], v);
+      const double dotp = v[0] * ref.n[k * 3] + v[1] * ref.n[k * 3 + 1] + v[2] * ref.n[k * 3 + 2];
+      worst_cliff = std::max(worst_cliff, std::acos(std::min(1.0, dotp)) * 180 / kPi);
+      worst_tilt = std::min(worst_tilt, std::acos(v[2]) * 180 / kPi);
+    }
+  ASSERT_EQ(cliff_texels, kTexels);  // one cell column holds the step
+  std::printf("cliff texels %d: worst decoded error %.2f deg, least tilt %.2f deg\n", cliff_texels, worst_cliff, worst_tilt);
+  EXPECT_LT(worst_cliff, 3.0);
+  EXPECT_GT(worst_tilt, 85.0);
+  // Cones of the cliff patches are wide, still conservative.
+  const ConeCheck check = check_cones(node, c.data, 400, 2);
+  EXPECT_EQ(check.violations, 0u);
+  EXPECT_GT(check.culled, 100u);
+}
+
+TEST(SurfaceSynthetic, RidgeWithNormalsSpreadingPast90Degrees) {
+  // A sharp ridge: faces at +-60 degrees, so normals spread 120 degrees inside one patch.
+  const double k60 = std::tan(60 * kPi / 180);
+  auto f = [&](double x, double y) { return 500 - k60 * std::fabs(x - 36.0) + 0.01 * y; };
+  const auto node = synthetic_node(f, 0, 0, 1);
+  const Cooked c = cook_node(node, rules());
+  ASSERT_TRUE(c.status.ok());
+  PatchNormals pn;
+  collect_patch_normals(node.node, node.height_offset, node.step_log2, node.spacing_m, node.holes.data(), pn);
+  // Ridge at x = 36 m: patch column 4 (32..40 m) holds both faces (normals 120 degrees apart), so
+  // its cone is at least 60 degrees; the LOD-stitched edge triangles (a collapsed edge vertex joined
+  // to row-1 vertices across the ridge) are steeper still and widen it toward 90 degrees.
+  const int k = 1 * 8 + 4;
+  const Cone exact = smallest_enclosing_cone(pn.patch(k));
+  std::printf("ridge patch cone: exact %.2f deg, axis z %.4f, decoded %.2f deg\n", exact.half_angle_rad * 180 / kPi,
+              exact.axis[2], decoded_cone(c.data, k).half_angle_rad * 180 / kPi);
+  EXPECT_GE(exact.half_angle_rad * 180 / kPi, 59.9);
+  EXPECT_LT(exact.half_angle_rad * 180 / kPi, 90.0);
+  const cone::DecodedCone d = decoded_cone(c.data, k);
+  EXPECT_GE(d.half_angle_rad, exact.half_angle_rad);
+  EXPECT_GE(decoded_cone_slack(pn, c.data.cones_bc3.data()), 0.0);
+  const ConeCheck check = check_cones(node, c.data, 400, 3);
+  EXPECT_EQ(check.violations, 0u);
+  EXPECT_GT(check.culled, 0u);
+}
+
+TEST(SurfaceSynthetic, SpikySurfaceConesStayConservative) {
+  // Pseudo-random spikes up to 8 m on 0.5 m spacing (tree-top like), plus stitched edges.
+  auto f = [](double x, double y) {
+    const uint32_t h = uint32_t(x * 2) * 73856093u ^ uint32_t(y * 2) * 19349663u;
+    return 2500 + ((h >> 7) % 1000) * 0.008;
+  };
+  const auto node = synthetic_node(f, 0, 1, 1);
+  const Cooked c = cook_node(node, rules());
+  ASSERT_TRUE(c.status.ok());
+  const ConeCheck check = check_cones(node, c.data, 600, 4);
+  EXPECT_EQ(check.violations, 0u) << "worst cos " << check.worst_cos;
+  std::printf("spiky: %llu of %llu patch tests culled, worst triangle cos %.4f\n",
+              (unsigned long long)check.culled, (unsigned long long)check.patch_tests, check.worst_cos);
+}
+
+TEST(SurfaceSynthetic, HolesSurviveAtVertexGranularity) {
+  // A 1-vertex hole, a 3x2 hole and a hole touching the node's west edge.
+  auto hole = [](double x, double y) {
+    const int i = int(std::lround(x / 0.5)) - 128, j = int(std::lround(y / 0.5)) - 128;  // node (1,1) vertex
+    return (i == 40 && j == 40) || (i >= 70 && i <= 72 && j >= 10 && j <= 11) || (i >= -3 && i <= 1 && j == 90);
+  };
+  const auto node = synthetic_node(rolling, 0, 1, 1, 2, hole);
+  for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
+    const Cooked c = cook_node(node, rules(), q);
+    ASSERT_TRUE(c.status.ok());
+    const auto alb = decode_albedo(c.data);
+    int holes = 0;
+    for (int u = 0; u < kTexels; ++u)
+      for (int t = 0; t < kTexels; ++t) {
+        const bool want = texel_is_hole(node, t, u);
+        holes += want;
+        ASSERT_EQ(alb[size_t(u * kTexels + t) * 4 + 3] == 0, want) << "texel " << t << "," << u;
+      }
+    EXPECT_EQ(holes, 1 + 6 + 4);  // vertices -2..1 of the west hole are texels 0..3
+    const ConeCheck check = check_cones(node, c.data, 100, 5);
+    EXPECT_EQ(check.violations, 0u);
+  }
+}
+
+TEST(SurfaceSynthetic, NodeAtTheEdgeOfTheDataCooksWithHolesAndFiniteNormals) {
+  // Data only for x < 40 m: node (0, 1) at level 0 is cut by the edge of the data; the window's
+  // west margin (x < 0) has no data either.
+  auto f = [](double x, double y) { return x < 40.0 ? rolling(x, y) : NAN; };
+  const auto node = synthetic_node(f, 0, 0, 1);
+  ASSERT_GT(node.hole_vertices, 0);
+  const Cooked c = cook_node(node, rules());
+  ASSERT_TRUE(c.status.ok());
+  const auto alb = decode_albedo(c.data);
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t)
+      ASSERT_EQ(alb[size_t(u * kTexels + t) * 4 + 3] == 0, texel_is_hole(node, t, u));
+  const auto n = decode_normals(c.data);
+  for (size_t k = 0; k < size_t(kTexelCount); ++k) {
+    double v[3];
+    texel_normal(&n[k * 4], v);
+    ASSERT_TRUE(std::isfinite(v[0]) && std::isfinite(v[2]) && v[2] > 0.5) << k;
+  }
+  // Patches entirely in the hole have no triangles and may be culled freely; the others hold.
+  EXPECT_EQ(check_cones(node, c.data, 200, 6).violations, 0u);
+}
+
+TEST(SurfaceSynthetic, NeighboursAgreeOnTheirOverlap) {
+  const auto a = synthetic_node(rolling, 0, 1, 1), b = synthetic_node(rolling, 0, 2, 1);  // b east of a
+  NormalTexels na, nb;
+  compute_normal_texels(a.input(&rules(), BcQuality::balanced), na);
+  compute_normal_texels(b.input(&rules(), BcQuality::balanced), nb);
+  // a's texel t (>= 128) covers the same cell as b's texel t - 128: identical float normals.
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 128; t < kTexels; ++t)
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(na.n[size_t(u * kTexels + t) * 3 + size_t(c)], nb.n[size_t(u * kTexels + t - 128) * 3 + size_t(c)]);
+  const Cooked ca = cook_node(a, rules()), cb = cook_node(b, rules());
+  // Splat: a's east column is b's west column.
+  for (int j = 0; j < kSplatSamples; ++j)
+    ASSERT_EQ(ca.data.splat[size_t(j * kSplatSamples + 64)], cb.data.splat[size_t(j * kSplatSamples)]) << j;
+  // Albedo before compression is identical on the overlap (same lattice, same colours).
+  // After compression: decoded normals agree within the compression error of each node.
+  const auto da = decode_normals(ca.data), db = decode_normals(cb.data);
+  double worst = 0, sum = 0;
+  int count = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 128; t < kTexels; ++t) {
+      double va[3], vb[3];
+      texel_normal(&da[size_t(u * kTexels + t) * 4], va);
+      texel_normal(&db[size_t(u * kTexels + t - 128) * 4], vb);
+      const double deg = std::acos(std::min(1.0, va[0] * vb[0] + va[1] * vb[1] + va[2] * vb[2])) * 180 / kPi;
+      worst = std::max(worst, deg);
+      sum += deg;
+      ++count;
+    }
+  const double bound = ca.stats.normal_err_max_deg + cb.stats.normal_err_max_deg;
+  std::printf("overlap: mean %.3f deg, max %.3f deg (bound: sum of max errors %.3f deg)\n", sum / count, worst, bound);
+  EXPECT_LE(worst, bound + 1e-9);
+}
+
+TEST(SurfaceSynthetic, CookingIsDeterministicAcrossThreads) {
+  const auto node = synthetic_node(rolling, 1, 3, 2);
+  const Cooked ref = cook_node(node, rules());
+  ASSERT_TRUE(ref.status.ok());
+  Cooked other[2];
+  std::thread t0([&] { other[0] = cook_node(node, rules()); });
+  std::thread t1([&] { other[1] = cook_node(node, rules()); });
+  t0.join();
+  t1.join();
+  for (const Cooked& o : other) {
+    EXPECT_EQ(o.data.normals_bc3, ref.data.normals_bc3);
+    EXPECT_EQ(o.data.albedo_bc1, ref.data.albedo_bc1);
+    EXPECT_EQ(o.data.splat, ref.data.splat);
+    EXPECT_EQ(o.data.cones_bc3, ref.data.cones_bc3);
+  }
+}
+
+TEST(SurfaceSynthetic, RejectsMissingInputs) {
+  SurfaceInput in;
+  NodeData d;
+  const Status st = cook_surface_layers(in, d, 0, 0, d, nullptr);
+  EXPECT_EQ(st.code, Error::invalid_argument);
+}

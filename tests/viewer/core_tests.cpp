@@ -1,0 +1,347 @@
+// CPU side of the viewer, no Vulkan device: the reference traversal, LOD map, patch list and
+// stitching (watertight for every LOD difference), residency invariants, camera precision, BC.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+
+#include "bc_decode.h"
+#include "camera.h"
+#include "reference.h"
+#include "residency.h"
+#include "synthetic_world.h"
+
+namespace terrain::view {
+namespace {
+
+// A world of `roots` x `roots` root nodes with every node down to `finest` existing.
+WorldInfo small_world(uint32_t roots) {
+  WorldInfo w;
+  w.roots_x = w.roots_y = roots;
+  w.origin_x_m = 400000;
+  w.origin_y_m = 5000000;
+  w.step_log2.fill(2);
+  return w;
+}
+
+NodeRecord record(uint32_t level, uint32_t x, uint32_t y, float error) {
+  NodeRecord r;
+  r.key = {level, x, y};
+  r.geometric_error_m = error;
+  r.min_height = 0;
+  r.max_height = 100 * 1024;
+  return r;
+}
+
+Camera look_down(const WorldInfo& w, double lx, double ly, double h) {
+  Camera c;
+  c.position[0] = w.origin_x_m + lx;
+  c.position[1] = w.origin_y_m + ly;
+  c.position[2] = h;
+  c.pitch = -M_PI / 2 + 0.01;
+  return c;
+}
+
+FrameUniforms uniforms_for(const Camera& c, const WorldInfo& w, double error_px, uint32_t flags = 0) {
+  FrameUniforms u{};
+  fill_view_uniforms(c, w, 640, 360, u);
+  u.lod[0] = float(error_px);
+  u.world[0] = w.roots_x;
+  u.world[1] = w.roots_y;
+  u.world[2] = w.roots_x << kRootLevel;
+  u.world[3] = w.roots_y << kRootLevel;
+  u.misc[1] = flags;
+  return u;
+}
+
+// Counts how many listed nodes draw each sector.
+std::vector<int> coverage(const TerrainState& st, const NodeList& list) {
+  const uint32_t sx = st.grid_width(0), sy = st.grid_height(0);
+  std::vector<int> cover(size_t(sx) * sy, 0);
+  for (uint32_t e : list.entries) {
+    const SlotDescriptor& d = st.descriptor(e & TV_ENTRY_SLOT_MASK);
+    const uint32_t mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu, size = 1u << d.level;
+    for (uint32_t j = 0; j < size; ++j)
+      for (uint32_t i = 0; i < size; ++i) {
+        const uint32_t q = d.level == 0 ? 0u : uint32_t(i >= size / 2) | uint32_t(j >= size / 2) << 1;
+        if (mask & (1u << q)) ++cover[size_t((d.y << d.level) + j) * sx + (d.x << d.level) + i];
+      }
+  }
+  return cover;
+}
+
+TEST(ViewerReference, SplitsOnlyWhenNoChildIsStillStreaming) {
+  const WorldInfo w = small_world(1);
+  TerrainState st;
+  st.init(w, 8);
+  st.set_slot(0, slot_descriptor_of(record(5, 0, 0, 50.0f), w));
+  st.set_index(5, 0, 0, 0);
+  for (uint32_t c = 0; c < 4; ++c) {
+    const NodeKey k = child_of({5, 0, 0}, int(c));
+    st.set_slot(1 + c, slot_descriptor_of(record(4, k.x, k.y, 10.0f), w));
+    st.set_index(4, k.x, k.y, uint16_t(1 + c));
+  }
+  const FrameUniforms u = uniforms_for(look_down(w, 1024, 1024, 3000), w, 1.0);
+  ASSERT_TRUE(wants_split(st.descriptor(0), u));
+  const std::vector<SlotCpuData> cpu(8);  // coarsening errors 0: irrelevant here
+  NodeList all = reference_traverse(st, u, cpu);
+  EXPECT_EQ(all.level_counts[5], 0u);
+  EXPECT_EQ(all.level_counts[4], 4u);
+
+  st.set_index(4, 1, 0, uint16_t(TV_SLOT_EMPTY));  // one child still loading: no split at all
+  NodeList waiting = reference_traverse(st, u, cpu);
+  ASSERT_EQ(waiting.entries.size(), 1u);
+  EXPECT_EQ(waiting.entries[0], 0u | 0xFu << TV_ENTRY_QUAD_SHIFT);
+
+  st.set_index(4, 1, 0, uint16_t(TV_SLOT_INVALID));  // child 1 does not exist: the root keeps its quarter
+  NodeList partial = reference_traverse(st, u, cpu);
+  EXPECT_EQ(partial.level_counts[4], 3u);
+  EXPECT_EQ(partial.level_counts[5], 1u);
+  EXPECT_TRUE(std::count(partial.entries.begin(), partial.entries.end(), 0u | (1u << 1) << TV_ENTRY_QUAD_SHIFT));
+  for (int c : coverage(st, partial)) EXPECT_EQ(c, 1);
+
+  const FrameUniforms far = uniforms_for(look_down(w, 1024, 1024, 3.0e6), w, 1.0);
+  EXPECT_FALSE(wants_split(st.descriptor(0), far));  // 50 m seen from 3000 km: well under a pixel
+}
+
+TEST(ViewerReference, SplitTestIsTheStreamersScreenSpaceError) {
+  // e = error * ppr / distance(eye, box) > target  (terrain/streamer.h), away from exact ties.
+  const WorldInfo w = small_world(4);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(-2000, 10000), err(0.01, 30), tgt(0.3, 8);
+  int agree = 0, checked = 0;
+  for (int it = 0; it < 20000; ++it) {
+    const int level = 1 + int(rng() % 5);
+    const uint32_t n = w.roots_x << (kRootLevel - level);
+    NodeRecord r = record(uint32_t(level), uint32_t(rng() % n), uint32_t(rng() % n), float(err(rng)));
+    r.min_height = int32_t(rng() % 200000);
+    r.max_height = r.min_height + int32_t(rng() % 400000);
+    const SlotDescriptor d = slot_descriptor_of(r, w);
+    Camera c = look_down(w, pos(rng), pos(rng), pos(rng) * 0.2 + 500);
+    const FrameUniforms u = uniforms_for(c, w, tgt(rng));
+    const double size = node_size_m(level);
+    const double lx = c.position[0] - w.origin_x_m, ly = c.position[1] - w.origin_y_m, z = c.position[2];
+    const double dx = std::max({d.x * size - lx, 0.0, lx - (d.x + 1) * size});
+    const double dy = std::max({d.y * size - ly, 0.0, ly - (d.y + 1) * size});
+    const double dz = std::max({d.min_height / 1024.0 - z, 0.0, z - d.max_height / 1024.0});
+    const double dist = std::max(std::sqrt(dx * dx + dy * dy + dz * dz), 0.001);
+    const double e = double(d.geometric_error_m) * double(u.cam_frac[3]) / dist;
+    if (std::abs(e / double(u.lod[0]) - 1.0) < 1e-4) continue;
+    ++checked;
+    agree += (e > double(u.lod[0])) == wants_split(d, u);
+  }
+  EXPECT_EQ(agree, checked);
+  EXPECT_GT(checked, 19000);
+}
+
+// Builds the stitched triangles of every patch (integer half-metre xy) and checks the mesh is
+// watertight: every directed edge of a non-degenerate triangle has its reverse exactly once,
+// except on the outer border of the covered area; and the triangles' areas add up to that area.
+struct MeshCheck {
+  size_t triangles = 0, open_edges = 0, border_edges = 0;
+  double area = 0, expected_area = 0;
+};
+
+MeshCheck check_watertight(const PatchList& patches, double world_w_hm, double world_h_hm) {
+  // Directed edges as (from, to) vertex keys (x << 32 | y, exact half metres), sorted for lookups.
+  using Edge = std::pair<uint64_t, uint64_t>;
+  std::vector<Edge> edges;
+  MeshCheck m;
+  auto key = [](int64_t x, int64_t y) { return uint64_t(x) << 32 | uint64_t(y); };
+  for (const GpuPatch& p : patches.patches) {
+    auto pos = [&](int i, int j) {
+      int64_t hx, hy;
+      int ti, tj;
+      patch_vertex(p, i, j, hx, hy, ti, tj);
+      return std::make_pair(hx, hy);
+    };
+    for (int j = 0; j < TV_QUADS_PER_PATCH; ++j)
+      for (int i = 0; i < TV_QUADS_PER_PATCH; ++i) {
+        const auto v00 = pos(i, j), v10 = pos(i + 1, j), v11 = pos(i + 1, j + 1), v01 = pos(i, j + 1);
+        for (auto tri : {std::array{v00, v10, v11}, std::array{v00, v11, v01}}) {
+          const double a2 = double(tri[1].first - tri[0].first) * double(tri[2].second - tri[0].second) -
+                            double(tri[2].first - tri[0].first) * double(tri[1].second - tri[0].second);
+          EXPECT_GE(a2, 0.0) << "a stitched triangle flipped";
+          if (a2 == 0) continue;
+          ++m.triangles;
+          m.area += a2 / 2;
+          for (int k = 0; k < 3; ++k) {
+            const auto& u = tri[size_t(k)];
+            const auto& v = tri[size_t((k + 1) % 3)];
+            edges.push_back({key(u.first, u.second), key(v.first, v.second)});
+          }
+        }
+      }
+  }
+  std::sort(edges.begin(), edges.end());
+  const auto W = int64_t(world_w_hm), H = int64_t(world_h_hm);
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const Edge& e = edges[i];
+    EXPECT_FALSE(i > 0 && edges[i - 1] == e) << "an edge is used twice in the same direction (overlap)";
+    if (std::binary_search(edges.begin(), edges.end(), Edge{e.second, e.first})) continue;
+    const int64_t x0 = int64_t(e.first >> 32), y0 = int64_t(e.first & 0xFFFFFFFFu);
+    const int64_t x1 = int64_t(e.second >> 32), y1 = int64_t(e.second & 0xFFFFFFFFu);
+    const bool border = (x0 == x1 && (x0 == 0 || x0 == W)) || (y0 == y1 && (y0 == 0 || y0 == H));
+    if (border) ++m.border_edges; else ++m.open_edges;
+  }
+  m.expected_area = world_w_hm * world_h_hm;
+  return m;
+}
+
+TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
+  // Root (0,0) refined to level 0 around one corner point, root (1,0) never refined: the traversal
+  // produces neighbours differing by 1..5 levels. Culling off: the whole world is meshed.
+  SyntheticOptions o;
+  o.roots_x = 3;
+  o.roots_y = 1;
+  o.cones = false;
+  o.flat_from_x_m = 2048;  // roots 1, 2 are flat: root 1 coarsens to level 7 next to level-0
+                           // nodes, root 2 (no splitting neighbour) to level 8
+  o.keep = [](const NodeKey& k) {
+    if ((k.x >> (kRootLevel - k.level)) != 0) return false;
+    const double size = node_size_m(int(k.level));
+    const double cx = 2040, cy = 1030;
+    const double dx = std::max({k.x * size - cx, 0.0, cx - (k.x + 1) * size});
+    const double dy = std::max({k.y * size - cy, 0.0, cy - (k.y + 1) * size});
+    return dx * dx + dy * dy < 150.0 * 150.0;
+  };
+  SyntheticWorld sw = make_synthetic_world(o);
+  TerrainState st;
+  StaticResidency res;
+  std::vector<MemoryNode> nodes;
+  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  res.init(sw.world, nodes, 512, st);
+  std::vector<NodeUpload> uploads;
+  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
+  std::vector<SlotCpuData> cpu(512);
+  for (auto& up : uploads) cpu[up.slot] = prepare_slot(*up.data, st.descriptor(up.slot));
+  float table[256];
+  cone_sin2_table(0, table);
+  Camera cam;
+  cam.position[0] = sw.world.origin_x_m + 2040;
+  cam.position[1] = sw.world.origin_y_m + 1030;
+  cam.position[2] = 700;
+  std::set<uint32_t> deltas;
+  std::set<uint32_t> levels;
+  for (double target : {0.01, 0.02, 0.03, 0.06, 0.1, 0.2, 0.4, 3.0, 30.0}) {
+    const FrameUniforms u = uniforms_for(cam, sw.world, target, 0);
+    const NodeList list = reference_traverse(st, u, cpu);
+    const auto lod = reference_lod_map(st, list);
+    const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
+    for (const auto& p : patches.patches) {
+      levels.insert(patch_level(p));
+      for (int s : {TV_EDGE_S, TV_EDGE_W, TV_EDGE_N, TV_EDGE_E}) deltas.insert(edge_delta(p, s));
+    }
+    const MeshCheck m = check_watertight(patches, 3 * 4096.0, 4096.0);
+    EXPECT_EQ(m.open_edges, 0u) << "target " << target;
+    EXPECT_GT(m.border_edges, 0u);
+    EXPECT_DOUBLE_EQ(m.area, m.expected_area);
+    for (int c : coverage(st, list)) EXPECT_EQ(c, 1);
+  }
+  EXPECT_EQ(deltas, (std::set<uint32_t>{0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_TRUE(levels.count(0) && levels.count(5) && levels.count(7) && levels.count(8)) << "levels 7, 8: coarsened roots";
+}
+
+TEST(ViewerReference, LodMapMatchesCoverage) {
+  SyntheticOptions o;
+  o.roots_x = 3;
+  o.roots_y = 2;
+  o.cones = false;
+  o.keep = [](const NodeKey& k) { return k.level >= 3 || (k.x % 5 == 0 && k.y % 3 == 0 && k.level >= 1); };
+  SyntheticWorld sw = make_synthetic_world(o);
+  TerrainState st;
+  StaticResidency res;
+  std::vector<MemoryNode> nodes;
+  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  res.init(sw.world, nodes, 2048, st);
+  std::vector<NodeUpload> uploads;
+  std::mt19937 rng(3);
+  // A random streaming frontier: every node resident with probability 0.7 (parents first).
+  ASSERT_TRUE(res.apply([&](const NodeKey& k) { return k.level == kRootLevel || rng() % 10 < 7; }, st, uploads).ok());
+  std::vector<SlotCpuData> cpu(2048);
+  for (auto& up : uploads) cpu[up.slot] = prepare_slot(*up.data, st.descriptor(up.slot));
+  for (int view = 0; view < 20; ++view) {
+    Camera cam;
+    cam.position[0] = sw.world.origin_x_m + double(rng() % 6144);
+    cam.position[1] = sw.world.origin_y_m + double(rng() % 4096);
+    cam.position[2] = 200 + double(rng() % 3000);
+    cam.yaw = double(rng() % 360) * M_PI / 180;
+    const FrameUniforms u = uniforms_for(cam, sw.world, 0.5 + double(rng() % 4));
+    const NodeList list = reference_traverse(st, u, cpu);
+    const auto lod = reference_lod_map(st, list);
+    const auto cover = coverage(st, list);
+    for (size_t i = 0; i < cover.size(); ++i) {
+      ASSERT_EQ(cover[i], 1) << "sector " << i;
+      ASSERT_GE(lod[i], 1u);
+      ASSERT_LE(lod[i], 6u + TV_MAX_COARSEN);
+    }
+  }
+}
+
+TEST(ViewerReference, ResidencyKeepsParentsOfResidentNodes) {
+  SyntheticOptions o;
+  o.roots_x = o.roots_y = 1;
+  o.cones = false;
+  o.keep = [](const NodeKey& k) { return k.level >= 3; };
+  SyntheticWorld sw = make_synthetic_world(o);
+  TerrainState st;
+  StaticResidency res;
+  std::vector<MemoryNode> nodes;
+  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  res.init(sw.world, nodes, 64, st);
+  std::vector<NodeUpload> uploads;
+  // Wants level-3 nodes but not their level-4 parents: they must stay out.
+  ASSERT_TRUE(res.apply([](const NodeKey& k) { return k.level != 4; }, st, uploads).ok());
+  EXPECT_EQ(res.resident_count(), 1u);
+  EXPECT_EQ(st.index(4, 0, 0), uint16_t(TV_SLOT_EMPTY));
+  EXPECT_EQ(st.index(3, 0, 0), uint16_t(TV_SLOT_EMPTY));
+  uploads.clear();
+  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
+  EXPECT_EQ(res.resident_count(), 21u);
+  EXPECT_EQ(uploads.size(), 20u);
+  EXPECT_FALSE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok() && false);
+}
+
+TEST(ViewerCamera, CameraRelativePositionsStayExactAtUtmCoordinates) {
+  // A vertex 0.5 m from a camera at UTM northing 5 000 000 m: camera-relative float coordinates
+  // keep the offset exact to float precision of the offset itself (not of the 5e6 m coordinate).
+  WorldInfo w = small_world(8);
+  Camera c;
+  c.position[0] = w.origin_x_m + 12345.3;
+  c.position[1] = w.origin_y_m + 6789.7;
+  c.position[2] = 100;
+  FrameUniforms u{};
+  fill_view_uniforms(c, w, 640, 360, u);
+  const int64_t hx = int64_t(std::llround(12345.5 * 2)), hy = int64_t(std::llround(6789.5 * 2));
+  const float rx = float(int32_t(hx) - u.cam_hm[0]) * 0.5f - u.cam_frac[0];
+  const float ry = float(int32_t(hy) - u.cam_hm[1]) * 0.5f - u.cam_frac[1];
+  EXPECT_NEAR(rx, 0.2, 1e-6);
+  EXPECT_NEAR(ry, -0.2, 1e-6);
+  // Naive float world coordinates would lose the 0.2 m offset (float spacing at 5e6 m is 0.5 m).
+  const float naive = float(w.origin_y_m + 6789.5) - float(c.position[1]);
+  EXPECT_GT(std::abs(double(naive) + 0.2), 0.1);
+}
+
+TEST(ViewerBc, DecodesPunchThroughAndAlphaBlocks) {
+  // BC1 3-colour mode (c0 <= c1): index 3 is transparent black.
+  const uint8_t bc1[8] = {0x00, 0x00, 0xFF, 0xFF, 0b11100100, 0xFF, 0x00, 0x00};
+  uint8_t out[16][4];
+  decode_bc1_block(bc1, out);
+  EXPECT_EQ(out[0][3], 255);  // index 0: black
+  EXPECT_EQ(out[1][0], 255);  // index 1: white
+  EXPECT_EQ(out[2][0], 127);  // index 2: (0 + 255) / 2
+  EXPECT_EQ(out[3][3], 0);    // index 3: transparent
+  EXPECT_EQ(out[4][3], 0);
+  // BC3 alpha, 8-value mode: a0 = 200, a1 = 60, index 2 = (6*200 + 60) / 7 = 180.
+  uint8_t bc3[16] = {200, 60, 0b10, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0x00, 0x00, 0, 0, 0, 0};
+  decode_bc3_block(bc3, out);
+  EXPECT_EQ(out[0][3], 180);
+  EXPECT_EQ(out[1][3], 200);
+  EXPECT_EQ(out[0][0], 255);
+}
+
+}  // namespace
+}  // namespace terrain::view

@@ -1,0 +1,255 @@
+// terrain-view-bench: frame cost of the FC5 pipeline against the error it leaves.
+//
+// For each view and screen-space error target: GPU time split into traversal, culling (LOD map +
+// patch list) and drawing (timestamp queries, median of --frames after a warm-up), the wall time
+// of the frame, patches drawn and culled by frustum and by cone, triangles; the CPU reference
+// traversal + culling of the same frame; and the error the target really leaves: for every pixel
+// of a full-detail render (every node resident and split, no coarsening), the vertical distance
+// between that surface and the surface the target draws, projected to pixels at the pixel's
+// distance (the quantity the LOD test bounds). Every node is decoded up front (same residency for
+// all rows), so an archive must fit --max-nodes.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "session.h"
+
+namespace terrain::view {
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, size_t(p * double(v.size())))];
+}
+
+// Height (m) of the surface the frame draws at local point (lx, ly) (metres from the world
+// origin): the node drawing the sector (LOD map), its triangle (SW->NE split) at the node's
+// geometric level. Stitching (only the outermost quad strip of a node) is ignored. NaN if none.
+double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, double lx, double ly) {
+  const TerrainState& st = s.state;
+  if (lx < 0 || ly < 0) return NAN;
+  const uint32_t sx = uint32_t(lx / 64.0), sy = uint32_t(ly / 64.0);
+  if (sx >= st.grid_width(0) || sy >= st.grid_height(0)) return NAN;
+  const uint32_t v = lod_map[size_t(sy) * st.grid_width(0) + sx];
+  if (v == 0) return NAN;
+  const uint32_t geo = v - 1, c = coarsening_of(geo);
+  const int level = node_level_of(geo);
+  const double size = node_size_m(level), step = vertex_spacing_m(level) * double(1 << c);
+  const uint32_t nx = uint32_t(lx / size), ny = uint32_t(ly / size);
+  const uint16_t slot = st.index(level, nx, ny);
+  if (slot >= TV_SLOT_INVALID) return NAN;
+  const NodeData* data = s.source->slot_data(slot);
+  if (!data) return NAN;
+  const SlotDescriptor& d = st.descriptor(slot);
+  const double u = (lx - nx * size) / step, w = (ly - ny * size) / step;
+  const int cells = kQuadsPerSide >> c;
+  const int ci = std::clamp(int(u), 0, cells - 1), cj = std::clamp(int(w), 0, cells - 1);
+  const double a = u - ci, b = w - cj;
+  auto h = [&](int i, int j) {
+    const int ti = i << c, tj = j << c;
+    return units_to_metres(vertex_units(d.height_offset, data->heights[size_t(tj) * kHeightSamples + ti], d.step_log2));
+  };
+  const double h00 = h(ci, cj), h10 = h(ci + 1, cj), h01 = h(ci, cj + 1), h11 = h(ci + 1, cj + 1);
+  return a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+}
+
+struct Row {
+  std::string view;
+  double target = 0;
+  FrameRecord last;
+  double traverse = 0, lodmap = 0, patches = 0, draw = 0, total = 0, wall = 0, cpu_ref = 0;
+  double err_mean = 0, err_p99 = 0, err_max = 0;
+  size_t err_pixels = 0;
+};
+
+}  // namespace
+}  // namespace terrain::view
+
+int main(int argc, char** argv) {
+  using namespace terrain::view;
+  CLI::App app{"terrain-view-bench: FC5 pipeline frame cost against the screen-space error it leaves"};
+  std::string archive, size = "1280x720", targets_text = "0.5,1,2,4,8";
+  int frames = 10, warmup = 3;
+  uint32_t max_nodes = 4096;
+  bool json_out = false;
+  app.add_option("archive", archive, "terrain archive")->required()->check(CLI::ExistingFile);
+  app.add_option("--size", size, "image size WxH")->capture_default_str();
+  app.add_option("--targets", targets_text, "error targets in pixels, comma separated")->capture_default_str();
+  app.add_option("--frames", frames, "measured frames per row (median)")->capture_default_str();
+  app.add_option("--warmup", warmup, "frames before measuring")->capture_default_str();
+  app.add_option("--max-nodes", max_nodes, "most nodes to decode up front")->capture_default_str();
+  app.add_flag("--json", json_out, "print the table as JSON on stdout");
+  CLI11_PARSE(app, argc, argv);
+  std::vector<double> targets;
+  {
+    std::stringstream ss(targets_text);
+    std::string item;
+    while (std::getline(ss, item, ',')) targets.push_back(std::stod(item));
+  }
+  ViewerOptions o;
+  o.archive = archive;
+  o.headless = true;
+  o.load_all = true;
+  o.quiet = true;
+  unsigned w = 0, h = 0;
+  char x = 0;
+  std::istringstream sz(size);
+  if (!(sz >> w >> x >> h) || x != 'x') {
+    std::fprintf(stderr, "terrain-view-bench: --size expects WxH\n");
+    return 2;
+  }
+  o.width = w;
+  o.height = h;
+  std::unique_ptr<Session> session;
+  (void)max_nodes;
+  terrain::Status st = open_session(o, {}, false, session);
+  if (!st.ok()) {
+    std::fprintf(stderr, "terrain-view-bench: %s\n", st.message.c_str());
+    return is_no_device(st) ? 77 : 1;
+  }
+  Session& s = *session;
+  s.capture_lists = true;
+
+  // Views: the default overview (whole archive from the south) and a low oblique view.
+  std::vector<std::pair<std::string, Camera>> views;
+  const Camera overview = initial_camera(s);
+  views.push_back({"overview", overview});
+  {
+    const terrain::WorldInfo& wi = s.source->world();
+    int32_t lo = 0, hi = 0;
+    s.source->height_range(lo, hi);
+    const double extent = std::max(wi.extent_max_x_m - wi.extent_min_x_m, wi.extent_max_y_m - wi.extent_min_y_m);
+    Camera low = overview;
+    low.position[0] = 0.5 * (wi.extent_min_x_m + wi.extent_max_x_m);
+    low.position[1] = wi.extent_min_y_m + 0.25 * (wi.extent_max_y_m - wi.extent_min_y_m);
+    low.position[2] = hi / 1024.0 + 0.03 * extent;
+    low.yaw = 0;
+    low.pitch = -12 * M_PI / 180;
+    low.near_m = 1.0;
+    views.push_back({"low", low});
+  }
+
+  std::vector<Row> rows;
+  for (const auto& [view_name, cam] : views) {
+    // Full-detail reference: every node resident (load-all), split wherever it has children.
+    s.options.settings.error_target_px = 0.0;
+    FrameRecord rec;
+    for (int f = 0; f < 2; ++f)
+      if (!(st = render_frame(s, cam, true, rec)).ok()) {
+        std::fprintf(stderr, "terrain-view-bench: %s\n", st.message.c_str());
+        return 1;
+      }
+    std::vector<float> full_depth;
+    read_depth(s.target, full_depth);
+    const FrameRecord full = rec;
+    for (double target : targets) {
+      s.options.settings.error_target_px = target;
+      Row row;
+      row.view = view_name;
+      row.target = target;
+      std::vector<double> tv, lm, pa, dr, to, wa, cpu;
+      for (int f = 0; f < warmup + frames; ++f) {
+        if (!(st = render_frame(s, cam, f == warmup + frames - 1, rec)).ok()) {
+          std::fprintf(stderr, "terrain-view-bench: %s\n", st.message.c_str());
+          return 1;
+        }
+        if (f < warmup) continue;
+        tv.push_back(rec.gpu.gpu_traverse_ms);
+        lm.push_back(rec.gpu.gpu_lodmap_ms);
+        pa.push_back(rec.gpu.gpu_patches_ms);
+        dr.push_back(rec.gpu.gpu_draw_ms);
+        to.push_back(rec.gpu.gpu_total_ms);
+        wa.push_back(rec.wait_ms);
+        // The CPU reference of the same frame: traversal, LOD map, patch list.
+        const auto t0 = std::chrono::steady_clock::now();
+        const FrameUniforms& u = s.renderer.uniforms();
+        const NodeList list = reference_traverse(s.state, u, s.renderer.slot_cpu());
+        const auto lod = reference_lod_map(s.state, list);
+        const PatchList pl = reference_patches(s.state, u, list, lod, s.renderer.slot_cpu(), s.renderer.cone_sin2_table());
+        cpu.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        if (pl.patches.size() != rec.gpu.patches_drawn)
+          std::fprintf(stderr, "terrain-view-bench: CPU reference drew %zu patches, GPU %u\n", pl.patches.size(),
+                       rec.gpu.patches_drawn);
+      }
+      row.last = rec;
+      row.traverse = median(tv);
+      row.lodmap = median(lm);
+      row.patches = median(pa);
+      row.draw = median(dr);
+      row.total = median(to);
+      row.wall = median(wa);
+      row.cpu_ref = median(cpu);
+      // Error left by this target against the full-detail surface, per pixel.
+      NodeList nodes;
+      std::vector<uint32_t> lod;
+      std::vector<GpuPatch> patches;
+      s.renderer.read_lists(nodes, lod, patches);
+      const terrain::WorldInfo& wi = s.source->world();
+      const double ppr = pixels_per_radian(cam.fovy, s.target.height);
+      std::vector<double> errs;
+      for (uint32_t py = 0; py < s.target.height; ++py)
+        for (uint32_t px = 0; px < s.target.width; ++px) {
+          const float d = full_depth[size_t(py) * s.target.width + px];
+          if (!(d > 0)) continue;
+          double rel[3];
+          unproject(cam, s.target.width, s.target.height, px, py, d, rel);
+          const double lx = cam.position[0] + rel[0] - wi.origin_x_m, ly = cam.position[1] + rel[1] - wi.origin_y_m;
+          const double hl = drawn_height(s, lod, lx, ly);
+          if (std::isnan(hl)) continue;
+          const double dist = std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
+          errs.push_back(std::abs(hl - (cam.position[2] + rel[2])) * ppr / dist);
+        }
+      row.err_pixels = errs.size();
+      double sum = 0;
+      for (double e : errs) sum += e;
+      row.err_mean = errs.empty() ? 0 : sum / double(errs.size());
+      row.err_p99 = percentile(errs, 0.99);
+      row.err_max = errs.empty() ? 0 : *std::max_element(errs.begin(), errs.end());
+      rows.push_back(row);
+    }
+    std::fprintf(stderr, "view %s: full detail %u nodes, %.2f M triangles, GPU %.1f ms\n", view_name.c_str(),
+                 full.gpu.nodes, double(full.gpu.triangles) / 1e6, full.gpu.gpu_total_ms);
+  }
+
+  if (json_out) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const Row& r : rows)
+      j.push_back({{"view", r.view}, {"target_px", r.target}, {"nodes", r.last.gpu.nodes},
+                   {"patches_drawn", r.last.gpu.patches_drawn}, {"culled_frustum", r.last.gpu.culled_frustum},
+                   {"culled_cone", r.last.gpu.culled_cone}, {"triangles", r.last.gpu.triangles},
+                   {"gpu_traversal_ms", r.traverse}, {"gpu_lodmap_ms", r.lodmap}, {"gpu_patches_ms", r.patches},
+                   {"gpu_draw_ms", r.draw}, {"gpu_total_ms", r.total}, {"frame_ms", r.wall},
+                   {"cpu_reference_ms", r.cpu_ref}, {"error_mean_px", r.err_mean}, {"error_p99_px", r.err_p99},
+                   {"error_max_px", r.err_max}});
+    std::printf("%s\n", j.dump(2).c_str());
+    return 0;
+  }
+  std::printf("terrain-view-bench %s, %ux%u, device %s, median of %d frames\n", archive.c_str(), w, h,
+              s.ctx.device_name.c_str(), frames);
+  std::printf("%-9s %6s %6s %7s %7s %6s %8s %8s %8s %8s %8s %8s %6s %8s %7s %7s %7s\n", "view", "target", "nodes",
+              "patches", "frustum", "cone", "tris", "trav_ms", "cull_ms", "draw_ms", "gpu_ms", "frame_ms", "tc_%",
+              "cpu_ref", "err_avg", "err_p99", "err_max");
+  for (const Row& r : rows) {
+    const double cull = r.lodmap + r.patches;
+    std::printf("%-9s %6.2f %6u %7u %7u %6u %8llu %8.3f %8.3f %8.2f %8.2f %8.2f %6.2f %8.3f %7.3f %7.3f %7.2f\n",
+                r.view.c_str(), r.target, r.last.gpu.nodes, r.last.gpu.patches_drawn, r.last.gpu.culled_frustum,
+                r.last.gpu.culled_cone, static_cast<unsigned long long>(r.last.gpu.triangles), r.traverse, cull, r.draw,
+                r.total, r.wall, 100.0 * (r.traverse + cull) / std::max(r.total, 1e-9), r.cpu_ref, r.err_mean,
+                r.err_p99, r.err_max);
+  }
+  std::printf("tc_%% = (traversal + culling) / GPU frame; cpu_ref = CPU reference traversal + LOD map + patch list of "
+              "the same frame; err = |drawn - full-detail height| * pixels-per-radian / distance over terrain pixels\n");
+  return 0;
+}

@@ -1,0 +1,116 @@
+// Constants shared by the C++ viewer and its GLSL shaders (included by both; keep it plain #defines).
+// One home per constant: change a value here and both sides follow. Each knob says what it trades.
+#ifndef TERRAIN_VIEW_CONFIG_H
+#define TERRAIN_VIEW_CONFIG_H
+
+// ---- Quadtree geometry (mirrors terrain/format.h; static_asserts in src/gpu_types.h check it) ----
+#define TV_LEVELS 6
+#define TV_ROOT_LEVEL 5
+#define TV_QUADS_PER_NODE 128     // 8 patches x 16 quads
+#define TV_PATCHES_PER_SIDE 8
+#define TV_PATCHES_PER_NODE 64
+#define TV_QUADS_PER_PATCH 16
+#define TV_PATCH_VERTS 17         // vertices per patch side (shared mesh: 17x17 vertices, 16x16 quads)
+// The patch mesh: a triangle list, quads split SW->NE (a strip per row measured no faster on lavapipe).
+#define TV_PATCH_INDICES (TV_QUADS_PER_PATCH * TV_QUADS_PER_PATCH * 6)
+#define TV_HEIGHT_SAMPLES 129
+#define TV_TEXELS 132             // normals/albedo, 2-texel apron
+#define TV_APRON 2
+#define TV_SPLAT_SAMPLES 65
+#define TV_SECTORS_PER_ROOT 32    // sectors (level-0 nodes, 64 m) along a root side
+
+// Positions are integers of half metres (the level-0 vertex spacing) relative to the world origin
+// (south-west corner of root 0,0), so shared vertices convert to bit-identical floats.
+#define TV_HALF_METRE 0.5
+
+// ---- Index texture / slot table (the streamer's values) ----
+#define TV_SLOT_EMPTY 0xFFFFu     // node exists, not resident
+#define TV_SLOT_INVALID 0xFFFEu   // no node in the archive here
+
+// ---- Traversal (one workgroup, lists in shared memory, FC5 section 4.2) ----
+// Group size: more threads finish a wide level in fewer steps; lavapipe caps a group at 1024.
+#define TV_TRAVERSE_GROUP 256
+// Longest node list one level pass may hold (2 lists of uints in 32 KiB shared memory). A bigger
+// resident set still renders: nodes beyond the cap are not split (counted as overflow).
+#define TV_MAX_LIST 2048
+
+// Node-list entry: slot in bits 0..15, quadrant mask (bit c = child c's quarter is drawn by this
+// node, c as terrain::child_of: bit 0 east, bit 1 north) in bits 16..19, coarsening in bits 20..21.
+#define TV_ENTRY_SLOT_MASK 0xFFFFu
+#define TV_ENTRY_QUAD_SHIFT 16
+#define TV_ENTRY_COARSE_SHIFT 20
+
+// Coarsening above the roots: a root that does not split may be drawn with every 2nd, 4th or 8th
+// vertex (geometric levels 6, 7, 8: 4x4, 2x2, 1x1 patches), when the decimation error allows.
+// The decimated vertices are root vertices, so stitching against them stays exact. Without it a
+// whole archive seen from afar costs 32768 triangles per root however small it is on screen.
+// A neighbour stitches onto a coarsened root with d = 8 - its level; collapsing works while
+// 2^d <= 128 (a whole node edge), so level 8 is taken only when no edge-adjacent root splits
+// (its nodes are then level >= 5: d <= 3); levels 6 and 7 give d <= 7 against any level.
+#define TV_MAX_COARSEN 3
+
+// Selection grid (node list -> LOD map): per level and node one uint =
+// stamp << 6 | coarsening << 4 | quadrant mask.
+#define TV_SELECT_STAMP_SHIFT 6
+#define TV_SELECT_COARSE_SHIFT 4
+#define TV_STAMP_MASK 0x03FFFFFFu
+
+// LOD map: one uint per sector, geometric level + 1 of the node drawing it (1..9), 0 = nothing
+// drawn (never stitches).
+#define TV_LODMAP_GROUP 8
+
+// ---- Patch list ----
+// Patch entry (uvec4): x = slot | px << 16 | py << 19 | geometric level << 22 (4 bits, 0..8);
+// y = edge deltas (4 bits each: south, west, north, east); z, w = node x, y at its own level
+// (min(geometric level, 5)). Patch (px, py) of a coarsened root covers its (1 << c)^2 root patches.
+#define TV_PATCH_PX_SHIFT 16
+#define TV_PATCH_PY_SHIFT 19
+#define TV_PATCH_LEVEL_SHIFT 22
+#define TV_EDGE_S 0
+#define TV_EDGE_W 4
+#define TV_EDGE_N 8
+#define TV_EDGE_E 12
+
+// Shading groups (FC5 section 3, step 4): patches whose box is within the near-shading distance
+// go to the near list (splat materials), the others to the far list (baked albedo + normal). Two
+// indexed-indirect instanced draws, each with a pipeline specialised for its group: a CPU
+// rasteriser runs every branch of a shader for every pixel, so far pixels must not carry the
+// splat code. The patch buffer holds the near list from instance 0 and the far list from
+// instance `capacity` (firstInstance of the far command).
+#define TV_PATCH_NEAR_BIT (1u << 16)  // in the patch entry's edge-delta word
+#define TV_DRAW_NEAR 0            // VkDrawIndexedIndirectCommand of the near group (5 uints)
+#define TV_DRAW_FAR 5             // ... of the far group
+#define TV_CNT_CONSIDERED 10      // patches of drawn quadrants
+#define TV_CNT_FRUSTUM 11         // culled by the frustum
+#define TV_CNT_CONE 12            // culled by the patch cone
+#define TV_DRAW_UINTS 16
+
+// Traversal output header (uints) in the node-list buffer, before the entries.
+#define TV_NL_DISPATCH 0          // x, y, z of the indirect patch dispatch (x = node count)
+#define TV_NL_COUNT 3             // nodes in the final list
+#define TV_NL_LEVEL_COUNTS 4      // 6 counts, nodes per level
+#define TV_NL_OVERFLOW 10         // nodes not split because a list was full
+#define TV_NL_HEADER 16
+
+// ---- Frame flags (FrameUniforms.misc.y) ----
+#define TV_FLAG_FRUSTUM_CULL 1u
+#define TV_FLAG_CONE_CULL 2u
+#define TV_FLAG_HOLES 4u          // drop triangles of hole vertices
+#define TV_FLAG_HOLE_NAN 8u       // ... by a NaN clip position (else: defined method, see terrain.vert)
+#define TV_FLAG_SPLAT 16u         // near splat shading
+#define TV_FLAG_NO_STITCH 32u     // tests only: ignore the edge deltas (shows what stitching fixes)
+
+// ---- Debug views (FrameUniforms.misc.z) ----
+#define TV_DEBUG_NONE 0
+#define TV_DEBUG_LOD 1
+#define TV_DEBUG_NODES 2
+#define TV_DEBUG_PATCHES 3
+#define TV_DEBUG_CONES 4
+#define TV_DEBUG_HOLES 5
+#define TV_DEBUG_NORMALS 6
+#define TV_DEBUG_SPLAT 7
+#define TV_DEBUG_WIRE 8
+
+#define TV_MAX_MATERIALS 256
+
+#endif

@@ -1,0 +1,148 @@
+#version 450
+// Breadth-first quadtree traversal in one workgroup with ping-pong lists in shared memory
+// (FC5 section 4.2): a node splits when its screen-space error asks for it and no child is
+// waiting to stream in (children that do not exist leave their quarter to the parent).
+#extension GL_GOOGLE_include_directive : require
+#include "common.glsl"
+
+layout(local_size_x = TV_TRAVERSE_GROUP) in;
+
+layout(std430, set = 0, binding = 4) buffer NodeList { uint node_list[]; };  // header + entries
+layout(std430, set = 0, binding = 5) buffer Selection { uint selection[]; };
+layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
+
+shared uint lists[2][TV_MAX_LIST];
+shared uint counts[2];
+shared uint final_count;
+shared uint level_counts[TV_LEVELS];
+shared uint overflow;
+
+// Same operations, in the same order, as wants_split() in src/reference.cpp.
+bool wants_split(NodeDesc n, float error_m) {
+  uint level = node_level(n);
+  float mnx = rel_x(half_metres(n.x, level, 0u));
+  float mxx = rel_x(half_metres(n.x + 1u, level, 0u));
+  float mny = rel_y(half_metres(n.y, level, 0u));
+  float mxy = rel_y(half_metres(n.y + 1u, level, 0u));
+  float mnz = rel_z(n.min_height);
+  float mxz = rel_z(n.max_height);
+  precise float dx = max(max(mnx, -mxx), 0.0);
+  precise float dy = max(max(mny, -mxy), 0.0);
+  precise float dz = max(max(mnz, -mxz), 0.0);
+  precise float d2 = dx * dx + dy * dy + dz * dz;
+  precise float e = error_m * frame.cam_frac.w;
+  precise float t = frame.lod.x;
+  precise float lhs = e * e;
+  precise float rhs = (t * t) * d2;
+  return lhs > rhs;
+}
+
+// Whether an edge-adjacent root wants to split (its finer nodes may then border this root).
+bool neighbour_root_splits(NodeDesc d) {
+  const ivec2 offsets[4] = ivec2[](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1));
+  for (int k = 0; k < 4; ++k) {
+    ivec2 p = ivec2(d.x, d.y) + offsets[k];
+    if (p.x < 0 || p.y < 0 || p.x >= int(frame.world.x) || p.y >= int(frame.world.y)) continue;
+    uint s = texelFetch(index_tex, p, TV_ROOT_LEVEL).r;
+    if (s < TV_SLOT_INVALID && wants_split(nodes[s], nodes[s].geometric_error)) return true;
+  }
+  return false;
+}
+
+void emit_final(uint slot, uint mask, uint coarse, NodeDesc d) {
+  uint level = node_level(d);
+  uint k = atomicAdd(final_count, 1u);
+  node_list[TV_NL_HEADER + k] = slot | (mask << TV_ENTRY_QUAD_SHIFT) | (coarse << TV_ENTRY_COARSE_SHIFT);
+  atomicAdd(level_counts[level], 1u);
+  selection[level_offset(level) + d.y * level_width(level) + d.x] =
+      ((frame.misc.x & TV_STAMP_MASK) << TV_SELECT_STAMP_SHIFT) | (coarse << TV_SELECT_COARSE_SHIFT) | mask;
+}
+
+void main() {
+  uint t = gl_LocalInvocationIndex;
+  if (t == 0u) {
+    counts[0] = 0u;
+    counts[1] = 0u;
+    final_count = 0u;
+    overflow = 0u;
+    for (int l = 0; l < TV_LEVELS; ++l) level_counts[l] = 0u;
+  }
+  barrier();
+  // Roots: every resident node of the coarsest level.
+  uint roots = frame.world.x * frame.world.y;
+  for (uint r = t; r < roots; r += TV_TRAVERSE_GROUP) {
+    uint s = texelFetch(index_tex, ivec2(r % frame.world.x, r / frame.world.x), TV_ROOT_LEVEL).r;
+    if (s < TV_SLOT_INVALID) {
+      uint k = atomicAdd(counts[0], 1u);
+      if (k < TV_MAX_LIST) lists[0][k] = s;
+    }
+  }
+  barrier();
+  uint cur = 0u;
+  for (int level = TV_ROOT_LEVEL; level >= 0; --level) {
+    uint nxt = cur ^ 1u;
+    uint n = min(counts[cur], uint(TV_MAX_LIST));
+    for (uint i = t; i < n; i += TV_TRAVERSE_GROUP) {
+      uint slot = lists[cur][i];
+      if (slot == 0xFFFFFFFFu) continue;  // a reservation that did not fit
+      NodeDesc d = nodes[slot];
+      uint mask = 15u, coarse = 0u;
+      bool wants = level > 0 && wants_split(d, d.geometric_error);
+      if (wants) {
+        uint child[4];
+        bool any_empty = false, any_resident = false;
+        uint resident = 0u;
+        for (int c = 0; c < 4; ++c) {
+          ivec2 cxy = ivec2(d.x * 2u + uint(c & 1), d.y * 2u + uint(c >> 1));
+          child[c] = texelFetch(index_tex, cxy, level - 1).r;
+          any_empty = any_empty || child[c] == TV_SLOT_EMPTY;
+          bool res = child[c] < TV_SLOT_INVALID;
+          any_resident = any_resident || res;
+          resident += res ? 1u : 0u;
+        }
+        if (!any_empty && any_resident) {
+          uint k = atomicAdd(counts[nxt], resident);
+          if (k + resident <= TV_MAX_LIST) {
+            for (int c = 0; c < 4; ++c)
+              if (child[c] < TV_SLOT_INVALID) {
+                lists[nxt][k++] = child[c];
+                mask &= ~(1u << uint(c));
+              }
+          } else {
+            for (uint q = k; q < min(k + resident, uint(TV_MAX_LIST)); ++q) lists[nxt][q] = 0xFFFFFFFFu;
+            atomicAdd(overflow, 1u);
+          }
+        }
+      } else if (level == TV_ROOT_LEVEL) {
+        // Coarsest drawing whose error the target still accepts (level 8 only beside roots that
+        // do not split, see config.h).
+        for (int c = TV_MAX_COARSEN; c >= 1; --c)
+          if (!wants_split(d, coarse_error[slot][c]) && (c < 3 || !neighbour_root_splits(d))) {
+            coarse = uint(c);
+            break;
+          }
+      }
+      if (mask != 0u) emit_final(slot, mask, coarse, d);
+    }
+    barrier();
+    if (t == 0u) counts[cur] = 0u;
+    barrier();
+    cur = nxt;
+  }
+  memoryBarrierBuffer();
+  barrier();
+  if (t == 0u) {
+    node_list[TV_NL_DISPATCH + 0] = final_count;
+    node_list[TV_NL_DISPATCH + 1] = 1u;
+    node_list[TV_NL_DISPATCH + 2] = 1u;
+    node_list[TV_NL_COUNT] = final_count;
+    for (int l = 0; l < TV_LEVELS; ++l) node_list[TV_NL_LEVEL_COUNTS + l] = level_counts[l];
+    node_list[TV_NL_OVERFLOW] = overflow;
+    // Reset the two draw commands (near list from instance 0, far list from instance capacity)
+    // and the counters for the patch pass.
+    for (int k = 0; k < TV_DRAW_UINTS; ++k) draw[k] = 0u;
+    draw[TV_DRAW_NEAR] = uint(TV_PATCH_INDICES);
+    draw[TV_DRAW_FAR] = uint(TV_PATCH_INDICES);
+    draw[TV_DRAW_FAR + 4] = frame.misc.w;  // firstInstance
+  }
+}

@@ -1,0 +1,75 @@
+// C++ mirrors of the GPU-side layouts (std140 uniforms, std430 buffers) and the bit packings of
+// shaders/config.h. Plain structs; static_asserts pin sizes and the agreement with terrain/format.h.
+#pragma once
+#include <cstdint>
+
+#include "terrain/format.h"
+#include "terrain/streamer.h"
+#include "../shaders/config.h"
+
+namespace terrain::view {
+
+static_assert(TV_LEVELS == kLevelCount && TV_ROOT_LEVEL == kRootLevel);
+static_assert(TV_QUADS_PER_NODE == kQuadsPerSide && TV_HEIGHT_SAMPLES == kHeightSamples);
+static_assert(TV_TEXELS == kTexels && TV_APRON == kApron && TV_SPLAT_SAMPLES == kSplatSamples);
+static_assert(TV_PATCHES_PER_SIDE == kPatchesPerSide && TV_QUADS_PER_PATCH == kQuadsPerPatch);
+static_assert(TV_PATCHES_PER_SIDE * TV_QUADS_PER_PATCH == TV_QUADS_PER_NODE);
+static_assert(TV_SECTORS_PER_ROOT == (1 << TV_ROOT_LEVEL));
+
+// Node descriptor, one per atlas slot: the streamer's slot table entry, uploaded as it is
+// (std430, 32 bytes; NodeDesc in shaders/common.glsl). Heights in units of 2^-10 m.
+using GpuNodeDesc = SlotDescriptor;
+static_assert(sizeof(GpuNodeDesc) == 32);
+
+// Per-patch bounds (std430 ivec2), 64 per slot: min and max height units over the patch's
+// 17x17 vertices (hole vertices included: conservative).
+struct GpuPatchBounds {
+  int32_t min_units = 0, max_units = 0;
+};
+static_assert(sizeof(GpuPatchBounds) == 8);
+
+// One visible patch (uvec4), see config.h "Patch entry".
+struct GpuPatch {
+  uint32_t slot_patch_level = 0;
+  uint32_t edge_deltas = 0;
+  uint32_t node_x = 0, node_y = 0;
+  friend bool operator==(const GpuPatch&, const GpuPatch&) = default;
+};
+static_assert(sizeof(GpuPatch) == 16);
+
+inline uint32_t patch_slot(const GpuPatch& p) { return p.slot_patch_level & 0xFFFFu; }
+inline uint32_t patch_px(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PX_SHIFT) & 7u; }
+inline uint32_t patch_py(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PY_SHIFT) & 7u; }
+inline uint32_t patch_level(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_LEVEL_SHIFT) & 15u; }
+inline uint32_t edge_delta(const GpuPatch& p, int shift) { return (p.edge_deltas >> shift) & 0xFu; }
+inline bool patch_near(const GpuPatch& p) { return (p.edge_deltas & TV_PATCH_NEAR_BIT) != 0; }
+
+// Per-frame uniforms (std140; every member is a vec4-sized row).
+struct FrameUniforms {
+  float view_proj[16] = {};   // column-major, camera-relative world -> clip (reversed Z, infinite far)
+  float planes[6][4] = {};    // frustum planes in camera-relative world space, inside: dot(n,p)+d >= 0
+  int32_t cam_hm[4] = {};     // camera x, y as whole half metres from the world origin (floor)
+  float cam_frac[4] = {};     // x, y remainder in metres [0, 0.5); z camera height m; w pixels per radian
+  float lod[4] = {};          // x error target px, y cone margin (sin), z near-shading start m, w end m
+  uint32_t world[4] = {};     // roots_x, roots_y, sectors_x, sectors_y
+  uint32_t misc[4] = {};      // frame stamp, flags (TV_FLAG_*), debug view (TV_DEBUG_*), patch capacity
+  uint32_t level_offsets[8] = {};  // selection-grid offset of each level (uints)
+  float sun_dir[4] = {};      // towards the sun, w unused
+  float sun_color[4] = {};    // linear rgb, w ambient strength
+  float sky_color[4] = {};    // linear rgb, w unused
+  float fog[4] = {};          // linear rgb, w density per metre
+  float viewport[4] = {};     // width, height, 1/width, 1/height
+  float wrap_origin[4] = {};  // xy: camera position modulo the detail period (m), for noise
+};
+static_assert(sizeof(FrameUniforms) % 16 == 0);
+
+// Material palette entry (std140 vec4 x 2).
+struct GpuMaterial {
+  float albedo_roughness[4] = {};  // linear rgb, roughness
+  float detail[4] = {};            // detail scale m, detail strength, height blend, unused
+};
+static_assert(sizeof(GpuMaterial) == 32);
+
+inline constexpr uint32_t level_grid_width(uint32_t roots, int level) { return roots << (kRootLevel - level); }
+
+}  // namespace terrain::view

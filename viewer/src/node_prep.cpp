@@ -1,0 +1,91 @@
+#include "node_prep.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <vector>
+
+#include "bc_decode.h"
+#include "terrain/bc_decode.h"
+
+namespace terrain::view {
+
+PatchBoundsArray compute_patch_bounds(const NodeData& data, int32_t height_offset, int step_log2) {
+  PatchBoundsArray out;
+  for (int q = 0; q < TV_PATCHES_PER_SIDE; ++q)
+    for (int p = 0; p < TV_PATCHES_PER_SIDE; ++p) {
+      int32_t lo = INT32_MAX, hi = INT32_MIN;
+      for (int j = q * TV_QUADS_PER_PATCH; j <= (q + 1) * TV_QUADS_PER_PATCH; ++j)
+        for (int i = p * TV_QUADS_PER_PATCH; i <= (p + 1) * TV_QUADS_PER_PATCH; ++i) {
+          const int32_t u = vertex_units(height_offset, data.heights[size_t(j) * kHeightSamples + i], step_log2);
+          lo = std::min(lo, u);
+          hi = std::max(hi, u);
+        }
+      out[q * TV_PATCHES_PER_SIDE + p] = {lo, hi};
+    }
+  return out;
+}
+
+ConeTexels decode_cones(const NodeData& data) {
+  uint8_t rgba[8 * 8 * 4];
+  decode_bc3_image(data.cones_bc3.data(), 8, 8, rgba);
+  ConeTexels out;
+  for (int t = 0; t < 64; ++t)
+    for (int k = 0; k < 4; ++k) out[t][k] = rgba[t * 4 + k];
+  return out;
+}
+
+std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offset, int step_log2) {
+  std::array<float, 4> out{};
+  std::vector<uint8_t> holes(kHeightCount);
+  decode_hole_mask(data, holes.data());
+  auto h = [&](int i, int j) {
+    return double(vertex_units(height_offset, data.heights[size_t(j) * kHeightSamples + i], step_log2)) * kHeightUnitM;
+  };
+  for (int c = 1; c <= TV_MAX_COARSEN; ++c) {
+    const int s = 1 << c;
+    double worst = 0;
+    for (int j = 0; j < kHeightSamples; ++j)
+      for (int i = 0; i < kHeightSamples; ++i) {
+        if (holes[size_t(j) * kHeightSamples + i]) continue;
+        const int ci = std::min(i / s, (kQuadsPerSide / s) - 1), cj = std::min(j / s, (kQuadsPerSide / s) - 1);
+        const double a = double(i - ci * s) / s, b = double(j - cj * s) / s;
+        const double h00 = h(ci * s, cj * s), h10 = h(ci * s + s, cj * s);
+        const double h01 = h(ci * s, cj * s + s), h11 = h(ci * s + s, cj * s + s);
+        const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+        worst = std::max(worst, std::abs(coarse - h(i, j)));
+      }
+    out[size_t(c)] = float(worst);
+  }
+  return out;
+}
+
+void cone_sin2_table(double margin_deg, float out[256]) {
+  for (int a = 0; a < 256; ++a) {
+    const double angle = a / 255.0 * 90.0 + margin_deg;
+    if (a == 255 || angle >= 90.0) {
+      out[a] = -1.0f;
+    } else {
+      const double s = std::sin(std::max(angle, 0.0) * M_PI / 180.0);
+      out[a] = float(s * s);
+    }
+  }
+}
+
+Cone decode_cone(const std::array<uint8_t, 4>& t, const float* sin2_table) {
+  // Same operation order as cone_backfacing() in shaders/patches.comp.
+  Cone c;
+  const float x = (float(t[0]) - 132.0f) * (1.0f / 123.0f);
+  const float y = (float(t[1]) - 130.0f) * (1.0f / 125.0f);
+  const float rr = x * x + y * y;
+  const float z = rr < 1.0f ? std::sqrt(1.0f - rr) : 0.0f;
+  c.axis[0] = x;
+  c.axis[1] = y;
+  c.axis[2] = z;
+  c.axis_len2 = x * x + y * y + z * z;
+  c.sin2 = sin2_table[t[3]];
+  c.cullable = c.sin2 >= 0.0f;
+  return c;
+}
+
+}  // namespace terrain::view

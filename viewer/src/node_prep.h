@@ -1,0 +1,39 @@
+// Per-node data the viewer derives on the CPU when a node arrives (cheap: one pass over 129x129):
+// per-patch height bounds for culling and the decoded patch cones for the CPU reference.
+#pragma once
+#include <array>
+#include <cstdint>
+
+#include "gpu_types.h"
+#include "terrain/format.h"
+
+namespace terrain::view {
+
+using PatchBoundsArray = std::array<GpuPatchBounds, TV_PATCHES_PER_NODE>;
+using ConeTexels = std::array<std::array<uint8_t, 4>, TV_PATCHES_PER_NODE>;  // RGBA8, patch (p, q) at q*8+p
+
+// Min/max height units over each patch's 17x17 vertices (hole vertices included).
+PatchBoundsArray compute_patch_bounds(const NodeData& data, int32_t height_offset, int step_log2);
+ConeTexels decode_cones(const NodeData& data);
+// Root coarsening (config.h TV_MAX_COARSEN): for c = 1..TV_MAX_COARSEN, the largest vertical distance (metres)
+// between the node's surface and the surface of every (1 << c)-th vertex (same SW->NE
+// triangulation), over non-hole vertices. Index 0 is 0.
+std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offset, int step_log2);
+
+// Decoded cone of one texel, as the patch pass sees it (layout and test: the surface layers'
+// cooker/src/surface/cone_cull.h). Culling is allowed only when `cullable`.
+struct Cone {
+  float axis[3] = {0, 0, 1};  // not normalised: axis_len2 = |axis|^2
+  float axis_len2 = 1;
+  float sin2 = 0;             // sin^2(half angle + margin)
+  bool cullable = false;
+};
+// R: axis x = (v8 - 132) / 123, G: axis y = (v8 - 130) / 125, z rebuilt positive; A: half angle
+// v8/255 * 90 degrees, 255 = never cull (cooker/src/surface/SPEC-surface.md section 5). `sin2_table` comes from cone_sin2_table for the margin in use.
+Cone decode_cone(const std::array<uint8_t, 4>& texel, const float* sin2_table);
+// sin^2(half angle(a) + margin) per alpha value a, or -1 where the patch must never be culled.
+void cone_sin2_table(double margin_deg, float out[256]);
+// Largest edge LOD delta whose stitched triangles the cooked cones include.
+inline constexpr uint32_t kConeMaxStitchDelta = 4;
+
+}  // namespace terrain::view

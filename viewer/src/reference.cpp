@@ -1,0 +1,277 @@
+// Compiled with -ffp-contract=off (see viewer/CMakeLists.txt): no fused multiply-add, like the
+// shaders' `precise` expressions.
+#include "reference.h"
+
+#include <algorithm>
+
+namespace terrain::view {
+namespace {
+
+struct Box {
+  float mn[3], mx[3];
+};
+
+float rel_x(int64_t half_metres, const FrameUniforms& u) {
+  return float(int32_t(half_metres) - u.cam_hm[0]) * 0.5f - u.cam_frac[0];
+}
+float rel_y(int64_t half_metres, const FrameUniforms& u) {
+  return float(int32_t(half_metres) - u.cam_hm[1]) * 0.5f - u.cam_frac[1];
+}
+float rel_z(int32_t units, const FrameUniforms& u) { return float(units) * (1.0f / 1024.0f) - u.cam_frac[2]; }
+
+// Same expression order as frustum_visible() in shaders/patches.comp.
+bool frustum_visible(const Box& b, const FrameUniforms& u) {
+  for (int p = 0; p < 6; ++p) {
+    const float* n = u.planes[p];
+    const float px = n[0] >= 0.0f ? b.mx[0] : b.mn[0];
+    const float py = n[1] >= 0.0f ? b.mx[1] : b.mn[1];
+    const float pz = n[2] >= 0.0f ? b.mx[2] : b.mn[2];
+    const float s = n[0] * px + n[1] * py + n[2] * pz + n[3];
+    if (s < 0.0f) return false;
+  }
+  return true;
+}
+
+// Every point of the box sees only back faces of the cone (cone_cull.h): for all corners v,
+// dot(axis, v) >= sin(theta) |v| |axis|, squared: dot >= 0 and dot^2 >= sin2 * (|v|^2 |axis|^2).
+bool cone_backfacing(const Box& b, const Cone& c) {
+  if (!c.cullable) return false;
+  for (int k = 0; k < 8; ++k) {
+    const float vx = (k & 1) ? b.mx[0] : b.mn[0];
+    const float vy = (k & 2) ? b.mx[1] : b.mn[1];
+    const float vz = (k & 4) ? b.mx[2] : b.mn[2];
+    const float d = c.axis[0] * vx + c.axis[1] * vy + c.axis[2] * vz;
+    const float vv = vx * vx + vy * vy + vz * vz;
+    if (!(d >= 0.0f) || !(d * d >= c.sin2 * (vv * c.axis_len2))) return false;
+  }
+  return true;
+}
+
+// Bounds of patch (px, py) of a node drawn with coarsening c: its (1 << c)^2 node patches.
+void coarse_patch_bounds(const PatchBoundsArray& b, uint32_t c, uint32_t px, uint32_t py, int32_t& lo, int32_t& hi) {
+  for (uint32_t q = py << c; q < (py + 1) << c; ++q)
+    for (uint32_t p = px << c; p < (px + 1) << c; ++p) {
+      lo = std::min(lo, b[q * 8 + p].min_units);
+      hi = std::max(hi, b[q * 8 + p].max_units);
+    }
+}
+
+}  // namespace
+
+SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc) {
+  SlotCpuData cpu;
+  cpu.bounds = compute_patch_bounds(data, desc.height_offset, desc.step_log2);
+  cpu.cones = decode_cones(data);
+  if (desc.level == kRootLevel) {
+    const auto dec = coarsening_errors(data, desc.height_offset, desc.step_log2);
+    for (int c = 1; c <= TV_MAX_COARSEN; ++c) cpu.coarse_error[size_t(c)] = desc.geometric_error_m + dec[size_t(c)];
+  }
+  return cpu;
+}
+
+bool wants_split(const GpuNodeDesc& n, float error_m, const FrameUniforms& u) {
+  const int level = n.level;
+  const float mnx = rel_x(vertex_half_metres(n.x, level, 0), u);
+  const float mxx = rel_x(vertex_half_metres(n.x + 1, level, 0), u);
+  const float mny = rel_y(vertex_half_metres(n.y, level, 0), u);
+  const float mxy = rel_y(vertex_half_metres(n.y + 1, level, 0), u);
+  const float mnz = rel_z(n.min_height, u);
+  const float mxz = rel_z(n.max_height, u);
+  const float dx = std::max(std::max(mnx, -mxx), 0.0f);
+  const float dy = std::max(std::max(mny, -mxy), 0.0f);
+  const float dz = std::max(std::max(mnz, -mxz), 0.0f);
+  const float d2 = dx * dx + dy * dy + dz * dz;
+  const float e = error_m * u.cam_frac[3];
+  const float t = u.lod[0];
+  return e * e > (t * t) * d2;
+}
+
+NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots) {
+  NodeList out;
+  std::vector<uint32_t> current, next;
+  for (uint32_t y = 0; y < state.grid_height(kRootLevel); ++y)
+    for (uint32_t x = 0; x < state.grid_width(kRootLevel); ++x) {
+      const uint16_t s = state.index(kRootLevel, x, y);
+      if (s < TV_SLOT_INVALID) current.push_back(s);
+    }
+  for (int level = kRootLevel; level >= 0; --level) {
+    next.clear();
+    for (uint32_t slot : current) {
+      const GpuNodeDesc& d = state.descriptor(slot);
+      uint32_t mask = 0xF, coarse = 0;
+      const bool wants = level > 0 && wants_split(d, u);
+      if (wants) {
+        uint16_t child[4];
+        bool any_empty = false, any_resident = false;
+        for (int c = 0; c < 4; ++c) {
+          child[c] = state.index_or_invalid(level - 1, int64_t(d.x) * 2 + (c & 1), int64_t(d.y) * 2 + (c >> 1));
+          any_empty |= child[c] == TV_SLOT_EMPTY;
+          any_resident |= child[c] < TV_SLOT_INVALID;
+        }
+        if (!any_empty && any_resident) {
+          uint32_t resident = 0;
+          for (int c = 0; c < 4; ++c) resident += child[c] < TV_SLOT_INVALID;
+          if (next.size() + resident <= TV_MAX_LIST) {
+            for (int c = 0; c < 4; ++c)
+              if (child[c] < TV_SLOT_INVALID) {
+                next.push_back(child[c]);
+                mask &= ~(1u << c);
+              }
+          } else {
+            ++out.overflow;
+          }
+        }
+      } else if (level == kRootLevel) {
+        // Coarsest drawing whose error the target still accepts (level 8 only beside roots that
+        // do not split, see config.h).
+        auto neighbour_splits = [&] {
+          const int64_t off[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+          for (const auto& o : off) {
+            const uint16_t s = state.index_or_invalid(kRootLevel, int64_t(d.x) + o[0], int64_t(d.y) + o[1]);
+            if (s < TV_SLOT_INVALID && wants_split(state.descriptor(s), u)) return true;
+          }
+          return false;
+        };
+        for (uint32_t c = TV_MAX_COARSEN; c >= 1; --c)
+          if (!wants_split(d, slots[slot].coarse_error[c], u) && (c < 3 || !neighbour_splits())) {
+            coarse = c;
+            break;
+          }
+      }
+      if (mask != 0) {
+        out.entries.push_back(slot | mask << TV_ENTRY_QUAD_SHIFT | coarse << TV_ENTRY_COARSE_SHIFT);
+        ++out.level_counts[size_t(level)];
+      }
+    }
+    current.swap(next);
+  }
+  return out;
+}
+
+std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeList& list) {
+  const uint32_t sx_count = state.grid_width(0), sy_count = state.grid_height(0);
+  std::vector<uint32_t> map(size_t(sx_count) * sy_count, 0);
+  // Paint coarse to fine: a finer node always covers area its (partial) parent does not draw.
+  std::vector<uint32_t> sorted = list.entries;
+  std::sort(sorted.begin(), sorted.end(), [&](uint32_t a, uint32_t b) {
+    return state.descriptor(a & TV_ENTRY_SLOT_MASK).level > state.descriptor(b & TV_ENTRY_SLOT_MASK).level;
+  });
+  for (uint32_t e : sorted) {
+    const GpuNodeDesc& d = state.descriptor(e & TV_ENTRY_SLOT_MASK);
+    const uint32_t mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu, coarse = (e >> TV_ENTRY_COARSE_SHIFT) & 3u;
+    const int level = d.level;
+    const uint32_t size = 1u << level, half = size >> 1;
+    for (uint32_t j = 0; j < size; ++j)
+      for (uint32_t i = 0; i < size; ++i) {
+        const uint32_t quadrant = level == 0 ? 0u : uint32_t(i >= half) | uint32_t(j >= half) << 1;
+        if (level > 0 && !(mask & (1u << quadrant))) continue;
+        map[size_t((d.y << level) + j) * sx_count + (d.x << level) + i] = uint32_t(level) + coarse + 1;
+      }
+  }
+  return map;
+}
+
+PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, const NodeList& list,
+                            const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
+                            const float* sin2_table) {
+  PatchList out;
+  const uint32_t sx_count = u.world[2], sy_count = u.world[3];
+  auto lod_at = [&](int64_t sx, int64_t sy) -> uint32_t {
+    if (sx < 0 || sy < 0 || sx >= sx_count || sy >= sy_count) return 0;
+    return lod_map[size_t(sy) * sx_count + size_t(sx)];
+  };
+  for (uint32_t e : list.entries) {
+    const uint32_t slot = e & TV_ENTRY_SLOT_MASK, mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu;
+    const uint32_t c = (e >> TV_ENTRY_COARSE_SHIFT) & 3u;
+    const GpuNodeDesc& d = state.descriptor(slot);
+    const int level = d.level;
+    const uint32_t geo = uint32_t(level) + c, pps = TV_PATCHES_PER_SIDE >> c;
+    const SlotCpuData& cpu = slots[slot];
+    for (uint32_t py = 0; py < pps; ++py)
+      for (uint32_t px = 0; px < pps; ++px) {
+        const uint32_t quadrant = uint32_t(px >= pps / 2) | uint32_t(py >= pps / 2) << 1;
+        if (c == 0 && !(mask & (1u << quadrant))) continue;
+        ++out.considered;
+        // Per-edge LOD deltas from the sector just outside the patch edge's middle.
+        const int64_t node_sx = int64_t(d.x) << level, node_sy = int64_t(d.y) << level;
+        const int64_t size = int64_t(1) << level;
+        const int64_t mid_x = node_sx + ((int64_t(px) * 2 + 1) << level) / (2 * pps);
+        const int64_t mid_y = node_sy + ((int64_t(py) * 2 + 1) << level) / (2 * pps);
+        auto delta = [&](uint32_t v) -> uint32_t { return v > geo + 1 ? v - 1 - geo : 0u; };
+        const uint32_t ds = py == 0 ? delta(lod_at(mid_x, node_sy - 1)) : 0u;
+        const uint32_t dw = px == 0 ? delta(lod_at(node_sx - 1, mid_y)) : 0u;
+        const uint32_t dn = py == pps - 1 ? delta(lod_at(mid_x, node_sy + size)) : 0u;
+        const uint32_t de = px == pps - 1 ? delta(lod_at(node_sx + size, mid_y)) : 0u;
+        // Bounds; a south/north edge collapsing groups wider than a patch reaches west into earlier
+        // patches of the same row (a west/east edge: south), so the box grows to cover them.
+        const uint32_t dsn = std::max(ds, dn), dwe = std::max(dw, de);
+        const uint32_t px0 = ((px * TV_QUADS_PER_PATCH) >> dsn << dsn) / TV_QUADS_PER_PATCH;
+        const uint32_t py0 = ((py * TV_QUADS_PER_PATCH) >> dwe << dwe) / TV_QUADS_PER_PATCH;
+        int32_t lo = INT32_MAX, hi = INT32_MIN;
+        coarse_patch_bounds(cpu.bounds, c, px, py, lo, hi);
+        for (uint32_t q = px0; q < px; ++q) coarse_patch_bounds(cpu.bounds, c, q, py, lo, hi);
+        for (uint32_t q = py0; q < py; ++q) coarse_patch_bounds(cpu.bounds, c, px, q, lo, hi);
+        Box b;
+        b.mn[0] = rel_x(vertex_half_metres(d.x, level, int(px0 * TV_QUADS_PER_PATCH) << c), u);
+        b.mx[0] = rel_x(vertex_half_metres(d.x, level, int((px + 1) * TV_QUADS_PER_PATCH) << c), u);
+        b.mn[1] = rel_y(vertex_half_metres(d.y, level, int(py0 * TV_QUADS_PER_PATCH) << c), u);
+        b.mx[1] = rel_y(vertex_half_metres(d.y, level, int((py + 1) * TV_QUADS_PER_PATCH) << c), u);
+        b.mn[2] = rel_z(lo, u);
+        b.mx[2] = rel_z(hi, u);
+        if ((u.misc[1] & TV_FLAG_FRUSTUM_CULL) && !frustum_visible(b, u)) {
+          ++out.culled_frustum;
+          continue;
+        }
+        const uint32_t deltas = ds << TV_EDGE_S | dw << TV_EDGE_W | dn << TV_EDGE_N | de << TV_EDGE_E;
+        // The cooked cones cover the node's own triangles, stitched up to kConeMaxStitchDelta, but
+        // not those touching hole vertices: with holes drawn, nodes with holes are not culled.
+        const bool cones_valid = (u.misc[1] & TV_FLAG_HOLES) || !(d.flags & kNodeFlagHasHoles);
+        if ((u.misc[1] & TV_FLAG_CONE_CULL) && c == 0 && std::max(dsn, dwe) <= kConeMaxStitchDelta && cones_valid &&
+            cone_backfacing(b, decode_cone(cpu.cones[py * 8 + px], sin2_table))) {
+          ++out.culled_cone;
+          continue;
+        }
+        // Shading group (same operations as patches.comp).
+        bool near = false;
+        if (u.misc[1] & TV_FLAG_SPLAT) {
+          const float nx = std::max(std::max(b.mn[0], -b.mx[0]), 0.0f);
+          const float ny = std::max(std::max(b.mn[1], -b.mx[1]), 0.0f);
+          const float nz = std::max(std::max(b.mn[2], -b.mx[2]), 0.0f);
+          const float n2 = nx * nx + ny * ny + nz * nz;
+          near = n2 < u.lod[3] * u.lod[3];
+        }
+        GpuPatch p;
+        p.slot_patch_level = slot | px << TV_PATCH_PX_SHIFT | py << TV_PATCH_PY_SHIFT | geo << TV_PATCH_LEVEL_SHIFT;
+        p.edge_deltas = deltas | (near ? TV_PATCH_NEAR_BIT : 0u);
+        p.node_x = d.x;
+        p.node_y = d.y;
+        out.patches.push_back(p);
+      }
+  }
+  return out;
+}
+
+void stitch_vertex(const GpuPatch& p, int i, int j, int& ni, int& nj) {
+  ni = int(patch_px(p)) * TV_QUADS_PER_PATCH + i;
+  nj = int(patch_py(p)) * TV_QUADS_PER_PATCH + j;
+  const int ds = int(edge_delta(p, TV_EDGE_S)), dn = int(edge_delta(p, TV_EDGE_N));
+  const int dw = int(edge_delta(p, TV_EDGE_W)), de = int(edge_delta(p, TV_EDGE_E));
+  // Deltas are non-zero only on node edges, so j == 0 here means the node's south row.
+  if (j == 0 && ds > 0) ni = ni >> ds << ds;
+  if (j == TV_QUADS_PER_PATCH && dn > 0) ni = ni >> dn << dn;
+  if (i == 0 && dw > 0) nj = nj >> dw << dw;
+  if (i == TV_QUADS_PER_PATCH && de > 0) nj = nj >> de << de;
+}
+
+void patch_vertex(const GpuPatch& p, int i, int j, int64_t& hx, int64_t& hy, int& ti, int& tj) {
+  int ni, nj;
+  stitch_vertex(p, i, j, ni, nj);
+  const uint32_t geo = patch_level(p), c = coarsening_of(geo);
+  const int level = node_level_of(geo);
+  ti = ni << c;
+  tj = nj << c;
+  hx = vertex_half_metres(p.node_x, level, ti);
+  hy = vertex_half_metres(p.node_y, level, tj);
+}
+
+}  // namespace terrain::view

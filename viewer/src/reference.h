@@ -1,0 +1,73 @@
+// CPU reference of the GPU pipeline (FC5 sections 4-6): traversal, LOD map, patch list (frustum and
+// cone culling, per-edge LOD deltas) and vertex stitching. Every float decision uses the operations,
+// in the order, that the shaders use (precise, no contraction), so the GPU lists must equal these.
+#pragma once
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "gpu_types.h"
+#include "node_prep.h"
+#include "terrain_state.h"
+
+namespace terrain::view {
+
+struct NodeList {
+  std::vector<uint32_t> entries;  // slot | quadrant mask << 16 | coarsening << 20 (unordered on the GPU)
+  std::array<uint32_t, kLevelCount> level_counts{};
+  uint32_t overflow = 0;
+};
+
+// Per-slot CPU data derived at upload (the GPU gets the same values in buffers).
+struct SlotCpuData {
+  PatchBoundsArray bounds{};
+  ConeTexels cones{};
+  // Total error (metres) of the node drawn with coarsening c = 1..3 (roots only; see config.h):
+  // its geometric error plus the decimation error. Index 0 unused.
+  std::array<float, 4> coarse_error{};
+};
+
+// What the renderer derives from a node payload at upload (bounds, cones, coarsening errors).
+SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc);
+
+// Screen-space error test of one node (the traversal's "LOD criterion"): `error_m` seen from the
+// camera at the distance of the node's box is larger than the target.
+bool wants_split(const GpuNodeDesc& node, float error_m, const FrameUniforms& u);
+inline bool wants_split(const GpuNodeDesc& node, const FrameUniforms& u) {
+  return wants_split(node, node.geometric_error_m, u);
+}
+
+NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots);
+
+// One uint per sector (sectors_x * sectors_y, row-major): geometric level + 1 of the node drawing
+// it, 0 if none.
+std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeList& list);
+
+struct PatchList {
+  std::vector<GpuPatch> patches;
+  uint32_t considered = 0, culled_frustum = 0, culled_cone = 0;
+};
+
+PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, const NodeList& list,
+                            const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
+                            const float* cone_sin2_table);
+
+// Stitching: vertex indices in the patch's node grid (0..128 >> coarsening) that patch vertex
+// (i, j) (0..16) is drawn at after collapsing onto every coarser neighbour (groups of 2^d vertices
+// fall onto the group's first).
+void stitch_vertex(const GpuPatch& patch, int i, int j, int& node_i, int& node_j);
+
+// Vertex position in half metres from the world origin (exact integers).
+inline int64_t vertex_half_metres(uint32_t node_coord, int level, int node_index) {
+  return (int64_t(node_coord) * TV_QUADS_PER_NODE + node_index) << level;
+}
+
+inline uint32_t coarsening_of(uint32_t geometric_level) { return geometric_level > 5 ? geometric_level - 5 : 0; }
+inline int node_level_of(uint32_t geometric_level) { return int(std::min<uint32_t>(geometric_level, 5)); }
+
+// Drawn position of patch vertex (i, j): half metres from the world origin, and the height texel
+// (0..128) of the node it reads.
+void patch_vertex(const GpuPatch& patch, int i, int j, int64_t& hx, int64_t& hy, int& texel_i, int& texel_j);
+
+}  // namespace terrain::view

@@ -1,0 +1,692 @@
+#include "renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <new>
+
+#include "shaders.h"
+#include "terrain/bc_decode.h"
+#include "vk_common.h"
+
+namespace terrain::view {
+namespace {
+
+enum AtlasImage { kHeights = 0, kNormals = 1, kAlbedo = 2, kSplat = 3, kCones = 4, kIndex = 5 };
+
+enum Binding : uint32_t {
+  kBindFrame = 0,
+  kBindNodeDesc = 1,
+  kBindPatchBounds = 2,
+  kBindIndexTex = 3,
+  kBindNodeList = 4,
+  kBindSelection = 5,
+  kBindLodMap = 6,
+  kBindDraw = 7,
+  kBindPatches = 8,
+  kBindHeights = 9,
+  kBindNormals = 10,
+  kBindAlbedo = 11,
+  kBindSplat = 12,
+  kBindCones = 13,
+  kBindPalette = 14,
+  kBindCoarseErrors = 15,
+  kBindCount = 16,
+};
+
+constexpr uint32_t kIndicesPerPatch = TV_PATCH_INDICES;
+constexpr uint32_t kTimestamps = 5;
+
+float srgb_to_linear(uint8_t v) {
+  const double c = v / 255.0;
+  return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+}
+
+struct PaletteBlock {
+  GpuMaterial materials[TV_MAX_MATERIALS];
+  float cone_sin2[256];
+};
+
+}  // namespace
+
+TerrainRenderer::~TerrainRenderer() { destroy(); }
+
+Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const RendererConfig& config) {
+  destroy();
+  ctx_ = &ctx;
+  world_ = world;
+  config_ = config;
+  if (config.slot_count == 0 || config.slot_count > TV_SLOT_INVALID)
+    return Status::failure(Error::invalid_argument, "renderer: slot_count must be 1..65534");
+  if (world.roots_x == 0 || world.roots_y == 0) return Status::failure(Error::invalid_argument, "renderer: empty world");
+  sectors_x_ = level_grid_width(world.roots_x, 0);
+  sectors_y_ = level_grid_width(world.roots_y, 0);
+  selection_uints_ = 0;
+  for (int l = 0; l < kLevelCount; ++l) {
+    level_offsets_[size_t(l)] = selection_uints_;
+    selection_uints_ += level_grid_width(world.roots_x, l) * level_grid_width(world.roots_y, l);
+  }
+  const uint32_t slots = config.slot_count;
+  slot_cpu_.assign(slots, SlotCpuData{});
+
+  // Atlases.
+  const VkImageUsageFlags tex_usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, kHeightSamples, kHeightSamples, slots, 1, tex_usage,
+                      VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kHeights]));
+  TV_TRY(create_image(ctx, config.decode_bc ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC3_UNORM_BLOCK, kTexels, kTexels,
+                      slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kNormals]));
+  // Albedo is sRGB-encoded; the shader linearises it after filtering (cheaper than sRGB sampling).
+  TV_TRY(create_image(ctx, config.decode_bc ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC1_RGBA_UNORM_BLOCK, kTexels, kTexels,
+                      slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kAlbedo]));
+  TV_TRY(create_image(ctx, VK_FORMAT_R8_UINT, kSplatSamples, kSplatSamples, slots, 1, tex_usage,
+                      VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kSplat]));
+  TV_TRY(create_image(ctx, VK_FORMAT_BC3_UNORM_BLOCK, kPatchesPerSide, kPatchesPerSide, slots, 1, tex_usage,
+                      VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kCones]));
+  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, sectors_x_, sectors_y_, 1, kLevelCount, tex_usage,
+                      VK_IMAGE_ASPECT_COLOR_BIT, false, images_[kIndex]));
+  const char* names[6] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "index"};
+  for (int i = 0; i < 6; ++i) set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(images_[size_t(i)].image), names[i]);
+
+  VkSamplerCreateInfo sci{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  sci.magFilter = sci.minFilter = VK_FILTER_LINEAR;
+  sci.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  sci.addressModeU = sci.addressModeV = sci.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  sci.maxLod = 0;
+  VK_TRY(vkCreateSampler(ctx.device, &sci, nullptr, &linear_));
+  sci.magFilter = sci.minFilter = VK_FILTER_NEAREST;
+  sci.maxLod = VK_LOD_CLAMP_NONE;
+  VK_TRY(vkCreateSampler(ctx.device, &sci, nullptr, &nearest_));
+
+  // Buffers.
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                     VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  TV_TRY(create_host_buffer(ctx, sizeof(FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, uniforms_buf_));
+  TV_TRY(create_host_buffer(ctx, sizeof(PaletteBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, palette_buf_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * sizeof(GpuNodeDesc), storage, node_desc_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatchBounds), storage,
+                              patch_bounds_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 16, storage, coarse_errors_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
+                              storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(selection_uints_) * 4, storage, selection_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(sectors_x_) * sectors_y_ * 4, storage, lod_map_));
+  TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
+  // Near list from instance 0, far list from instance `capacity` (config.h, shading groups).
+  TV_TRY(create_device_buffer(ctx, 2 * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch), storage, patches_));
+  TV_TRY(create_device_buffer(ctx, kIndicesPerPatch * 2, VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                              index_buffer_));
+  TV_TRY(create_host_buffer(ctx, (TV_NL_HEADER + TV_DRAW_UINTS) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, stats_readback_));
+  TV_TRY(create_host_buffer(ctx,
+                            VkDeviceSize(TV_NL_HEADER + slots) * 4 + VkDeviceSize(sectors_x_) * sectors_y_ * 4 +
+                                2 * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch),
+                            VK_BUFFER_USAGE_TRANSFER_DST_BIT, lists_readback_));
+  TV_TRY(create_host_buffer(ctx, 8u << 20, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, staging_));
+
+  // Palette (sRGB -> linear) and the cone table are written at set_frame(); the grid indices now.
+  PaletteBlock* pb = new (palette_buf_.mapped) PaletteBlock{};
+  for (size_t m = 0; m < TV_MAX_MATERIALS; ++m) {
+    GpuMaterial& g = pb->materials[m];
+    if (m < world.palette.size()) {
+      const Material& src = world.palette[m];
+      for (int k = 0; k < 3; ++k) g.albedo_roughness[k] = srgb_to_linear(src.albedo_srgb[size_t(k)]);
+      g.albedo_roughness[3] = src.roughness;
+      g.detail[0] = src.detail_scale_m;
+      g.detail[1] = src.detail_strength;
+      g.detail[2] = src.height_blend;
+    } else {  // ids outside the palette show as neutral grey
+      g.albedo_roughness[0] = g.albedo_roughness[1] = g.albedo_roughness[2] = 0.25f;
+      g.detail[0] = 4;
+    }
+  }
+  std::vector<uint16_t> indices;
+  indices.reserve(kIndicesPerPatch);
+  for (uint16_t j = 0; j < TV_QUADS_PER_PATCH; ++j)
+    for (uint16_t i = 0; i < TV_QUADS_PER_PATCH; ++i) {
+      const uint16_t v00 = uint16_t(j * TV_PATCH_VERTS + i), v10 = uint16_t(v00 + 1);
+      const uint16_t v01 = uint16_t(v00 + TV_PATCH_VERTS), v11 = uint16_t(v01 + 1);
+      // Split along the SW->NE diagonal, counter-clockwise seen from above (format/SPEC.md).
+      for (uint16_t v : {v00, v10, v11, v00, v11, v01}) indices.push_back(v);
+    }
+  VkDeviceSize off = 0;
+  TV_TRY(stage_bytes(indices.data(), indices.size() * 2, 16, off));
+  pending_buffers_.push_back({index_buffer_.buffer, {off, 0, indices.size() * 2}});
+
+  TV_TRY(create_pipelines());
+
+  timestamps_ = ctx.properties.limits.timestampComputeAndGraphics && ctx.properties.limits.timestampPeriod > 0;
+  if (timestamps_) {
+    VkQueryPoolCreateInfo qci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    qci.queryCount = kTimestamps;
+    VK_TRY(vkCreateQueryPool(ctx.device, &qci, nullptr, &queries_));
+  }
+  return Status::success();
+}
+
+Status TerrainRenderer::create_pipelines() {
+  const Context& ctx = *ctx_;
+  VkDescriptorSetLayoutBinding b[kBindCount];
+  for (uint32_t i = 0; i < kBindCount; ++i) {
+    b[i] = {};
+    b[i].binding = i;
+    b[i].descriptorCount = 1;
+    b[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+    b[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  }
+  b[kBindFrame].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+  b[kBindPalette].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+  for (uint32_t t : {kBindIndexTex, kBindHeights, kBindNormals, kBindAlbedo, kBindSplat, kBindCones})
+    b[t].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  VkDescriptorSetLayoutCreateInfo lci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  lci.bindingCount = kBindCount;
+  lci.pBindings = b;
+  VK_TRY(vkCreateDescriptorSetLayout(ctx.device, &lci, nullptr, &set_layout_));
+  VkPipelineLayoutCreateInfo plci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  plci.setLayoutCount = 1;
+  plci.pSetLayouts = &set_layout_;
+  VK_TRY(vkCreatePipelineLayout(ctx.device, &plci, nullptr, &pipeline_layout_));
+
+  VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},
+                                   {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 8},
+                                   {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 6}};
+  VkDescriptorPoolCreateInfo dpci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  dpci.maxSets = 1;
+  dpci.poolSizeCount = 3;
+  dpci.pPoolSizes = sizes;
+  VK_TRY(vkCreateDescriptorPool(ctx.device, &dpci, nullptr, &descriptor_pool_));
+  VkDescriptorSetAllocateInfo dsai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  dsai.descriptorPool = descriptor_pool_;
+  dsai.descriptorSetCount = 1;
+  dsai.pSetLayouts = &set_layout_;
+  VK_TRY(vkAllocateDescriptorSets(ctx.device, &dsai, &set_));
+
+  VkDescriptorBufferInfo bi[kBindCount] = {};
+  VkDescriptorImageInfo ii[kBindCount] = {};
+  VkWriteDescriptorSet w[kBindCount];
+  auto buf = [&](uint32_t binding, const Buffer& buffer) { bi[binding] = {buffer.buffer, 0, VK_WHOLE_SIZE}; };
+  buf(kBindFrame, uniforms_buf_);
+  buf(kBindPalette, palette_buf_);
+  buf(kBindNodeDesc, node_desc_);
+  buf(kBindPatchBounds, patch_bounds_);
+  buf(kBindNodeList, node_list_);
+  buf(kBindSelection, selection_);
+  buf(kBindLodMap, lod_map_);
+  buf(kBindDraw, draw_);
+  buf(kBindPatches, patches_);
+  buf(kBindCoarseErrors, coarse_errors_);
+  auto img = [&](uint32_t binding, const Image& image, VkSampler sampler) {
+    ii[binding] = {sampler, image.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  };
+  img(kBindIndexTex, images_[kIndex], nearest_);
+  img(kBindHeights, images_[kHeights], nearest_);
+  img(kBindNormals, images_[kNormals], linear_);
+  img(kBindAlbedo, images_[kAlbedo], linear_);
+  img(kBindSplat, images_[kSplat], nearest_);
+  img(kBindCones, images_[kCones], nearest_);
+  for (uint32_t i = 0; i < kBindCount; ++i) {
+    w[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w[i].dstSet = set_;
+    w[i].dstBinding = i;
+    w[i].descriptorCount = 1;
+    w[i].descriptorType = b[i].descriptorType;
+    if (b[i].descriptorType == VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER)
+      w[i].pImageInfo = &ii[i];
+    else
+      w[i].pBufferInfo = &bi[i];
+  }
+  vkUpdateDescriptorSets(ctx.device, kBindCount, w, 0, nullptr);
+
+  auto compute = [&](ShaderId id, VkPipeline& out) -> Status {
+    VkShaderModule module;
+    TV_TRY(create_shader_module(ctx.device, id, module));
+    VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    ci.stage.module = module;
+    ci.stage.pName = "main";
+    ci.layout = pipeline_layout_;
+    VkResult r = vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &ci, nullptr, &out);
+    vkDestroyShaderModule(ctx.device, module, nullptr);
+    VK_TRY(r);
+    return Status::success();
+  };
+  TV_TRY(compute(ShaderId::traverse, traverse_));
+  TV_TRY(compute(ShaderId::lodmap, lodmap_));
+  TV_TRY(compute(ShaderId::patches, patches_pipe_));
+
+  TV_TRY(create_shader_module(ctx.device, ShaderId::terrain_vert, vs_));
+  TV_TRY(create_shader_module(ctx.device, ShaderId::terrain_frag, fs_));
+  return Status::success();
+}
+
+VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
+  const bool discard = !settings_.hole_nan;
+  const int key = debug * 8 + (discard ? 4 : 0) + (near ? 2 : 0) + (wire ? 1 : 0);
+  if (auto it = graphics_.find(key); it != graphics_.end()) return it->second;
+  const Context& ctx = *ctx_;
+  struct Spec {
+    VkBool32 wire;
+    int32_t debug;
+    VkBool32 near;
+    VkBool32 discard;
+  } spec_data{wire ? VK_TRUE : VK_FALSE, debug, near ? VK_TRUE : VK_FALSE, discard ? VK_TRUE : VK_FALSE};
+  const VkSpecializationMapEntry entries[4] = {{0, offsetof(Spec, wire), sizeof(VkBool32)},
+                                               {1, offsetof(Spec, debug), sizeof(int32_t)},
+                                               {2, offsetof(Spec, near), sizeof(VkBool32)},
+                                               {3, offsetof(Spec, discard), sizeof(VkBool32)}};
+  VkSpecializationInfo spec{4, entries, sizeof(Spec), &spec_data};
+  VkPipelineShaderStageCreateInfo stages[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
+                                               {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
+  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stages[0].module = vs_;
+  stages[0].pName = "main";
+  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+  stages[1].module = fs_;
+  stages[1].pName = "main";
+  stages[1].pSpecializationInfo = &spec;
+  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = wire ? VK_POLYGON_MODE_LINE : VK_POLYGON_MODE_FILL;
+  rs.cullMode = VK_CULL_MODE_BACK_BIT;
+  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  rs.lineWidth = 1.0f;
+  rs.depthBiasEnable = wire ? VK_TRUE : VK_FALSE;
+  rs.depthBiasConstantFactor = wire ? 4.0f : 0.0f;  // reversed Z: positive pulls lines toward the eye
+  rs.depthBiasSlopeFactor = wire ? 1.0f : 0.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+  VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  ds.depthTestEnable = VK_TRUE;
+  ds.depthWriteEnable = wire ? VK_FALSE : VK_TRUE;
+  ds.depthCompareOp = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reversed Z
+  VkPipelineColorBlendAttachmentState att{};
+  att.colorWriteMask = 0xF;
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  cb.attachmentCount = 1;
+  cb.pAttachments = &att;
+  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dy.dynamicStateCount = 2;
+  dy.pDynamicStates = dyn;
+  VkFormat color_format = kColorFormat;
+  VkPipelineRenderingCreateInfo rci{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
+  rci.colorAttachmentCount = 1;
+  rci.pColorAttachmentFormats = &color_format;
+  rci.depthAttachmentFormat = kDepthFormat;
+  VkGraphicsPipelineCreateInfo gci{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gci.pNext = &rci;
+  gci.stageCount = 2;
+  gci.pStages = stages;
+  gci.pVertexInputState = &vi;
+  gci.pInputAssemblyState = &ia;
+  gci.pViewportState = &vp;
+  gci.pRasterizationState = &rs;
+  gci.pMultisampleState = &ms;
+  gci.pDepthStencilState = &ds;
+  gci.pColorBlendState = &cb;
+  gci.pDynamicState = &dy;
+  gci.layout = pipeline_layout_;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  VK_CHECK(vkCreateGraphicsPipelines(ctx.device, VK_NULL_HANDLE, 1, &gci, nullptr, &pipeline));
+  graphics_[key] = pipeline;
+  return pipeline;
+}
+
+void TerrainRenderer::destroy() {
+  if (!ctx_) return;
+  const Context& ctx = *ctx_;
+  vkDeviceWaitIdle(ctx.device);
+  for (VkPipeline p : {traverse_, lodmap_, patches_pipe_})
+    if (p) vkDestroyPipeline(ctx.device, p, nullptr);
+  traverse_ = lodmap_ = patches_pipe_ = VK_NULL_HANDLE;
+  for (auto& [key, p] : graphics_) vkDestroyPipeline(ctx.device, p, nullptr);
+  graphics_.clear();
+  if (vs_) vkDestroyShaderModule(ctx.device, vs_, nullptr);
+  if (fs_) vkDestroyShaderModule(ctx.device, fs_, nullptr);
+  vs_ = fs_ = VK_NULL_HANDLE;
+  if (pipeline_layout_) vkDestroyPipelineLayout(ctx.device, pipeline_layout_, nullptr);
+  if (descriptor_pool_) vkDestroyDescriptorPool(ctx.device, descriptor_pool_, nullptr);
+  if (set_layout_) vkDestroyDescriptorSetLayout(ctx.device, set_layout_, nullptr);
+  pipeline_layout_ = VK_NULL_HANDLE;
+  descriptor_pool_ = VK_NULL_HANDLE;
+  set_layout_ = VK_NULL_HANDLE;
+  if (queries_) vkDestroyQueryPool(ctx.device, queries_, nullptr);
+  queries_ = VK_NULL_HANDLE;
+  if (linear_) vkDestroySampler(ctx.device, linear_, nullptr);
+  if (nearest_) vkDestroySampler(ctx.device, nearest_, nullptr);
+  linear_ = nearest_ = VK_NULL_HANDLE;
+  for (Image& i : images_) destroy_image(ctx, i);
+  for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &node_list_, &selection_, &lod_map_,
+                    &draw_, &patches_, &index_buffer_, &stats_readback_, &lists_readback_, &staging_})
+    destroy_buffer(ctx, *b);
+  images_initialised_ = false;
+  pending_images_.clear();
+  pending_buffers_.clear();
+  staging_used_ = 0;
+  ctx_ = nullptr;
+}
+
+Status TerrainRenderer::stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset) {
+  VkDeviceSize at = (staging_used_ + align - 1) / align * align;
+  if (at + size > staging_.size) {
+    // Grow: the previous frame has finished (one frame in flight), so only this frame's staged
+    // bytes need to move to the new buffer; pending copies refer to offsets, not the buffer.
+    Buffer bigger;
+    TV_TRY(create_host_buffer(*ctx_, std::max<VkDeviceSize>(staging_.size * 2, at + size + (1u << 20)),
+                              VK_BUFFER_USAGE_TRANSFER_SRC_BIT, bigger));
+    std::memcpy(bigger.mapped, staging_.mapped, size_t(staging_used_));
+    destroy_buffer(*ctx_, staging_);
+    staging_ = bigger;
+  }
+  std::memcpy(static_cast<uint8_t*>(staging_.mapped) + at, data, size);
+  staging_used_ = at + size;
+  offset = at;
+  return Status::success();
+}
+
+Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& state) {
+  for (const NodeUpload& n : nodes) {
+    if (n.slot >= config_.slot_count || !n.data)
+      return Status::failure(Error::invalid_argument, "renderer: upload into slot " + std::to_string(n.slot) +
+                                                          " outside the atlas (" + std::to_string(config_.slot_count) + ")");
+    const NodeData& d = *n.data;
+    auto layer_copy = [&](int image, const void* bytes, size_t size, uint32_t w, uint32_t h) -> Status {
+      VkDeviceSize off;
+      TV_TRY(stage_bytes(bytes, size, 16, off));
+      VkBufferImageCopy c{};
+      c.bufferOffset = off;
+      c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, n.slot, 1};
+      c.imageExtent = {w, h, 1};
+      pending_images_.push_back({image, c});
+      return Status::success();
+    };
+    TV_TRY(layer_copy(kHeights, d.heights.data(), sizeof(d.heights), kHeightSamples, kHeightSamples));
+    if (config_.decode_bc) {
+      scratch_.resize(size_t(kTexels) * kTexels * 4);
+      terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, scratch_.data());
+      TV_TRY(layer_copy(kNormals, scratch_.data(), scratch_.size(), kTexels, kTexels));
+      terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, scratch_.data());
+      TV_TRY(layer_copy(kAlbedo, scratch_.data(), scratch_.size(), kTexels, kTexels));
+    } else {
+      TV_TRY(layer_copy(kNormals, d.normals_bc3.data(), sizeof(d.normals_bc3), kTexels, kTexels));
+      TV_TRY(layer_copy(kAlbedo, d.albedo_bc1.data(), sizeof(d.albedo_bc1), kTexels, kTexels));
+    }
+    TV_TRY(layer_copy(kSplat, d.splat.data(), sizeof(d.splat), kSplatSamples, kSplatSamples));
+    TV_TRY(layer_copy(kCones, d.cones_bc3.data(), sizeof(d.cones_bc3), kPatchesPerSide, kPatchesPerSide));
+    // The slot's descriptor (from the state) tells the quantization of these heights.
+    const SlotDescriptor& desc = state.descriptor(n.slot);
+    SlotCpuData& cpu = slot_cpu_[n.slot];
+    cpu = prepare_slot(d, desc);
+    VkDeviceSize off;
+    TV_TRY(stage_bytes(cpu.bounds.data(), sizeof(cpu.bounds), 16, off));
+    pending_buffers_.push_back({patch_bounds_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.bounds), sizeof(cpu.bounds)}});
+    TV_TRY(stage_bytes(cpu.coarse_error.data(), 16, 16, off));
+    pending_buffers_.push_back({coarse_errors_.buffer, {off, VkDeviceSize(n.slot) * 16, 16}});
+  }
+  TerrainState::Dirty dirty = state.take_dirty();
+  // Descriptors: contiguous runs of dirty slots become one copy each.
+  for (size_t i = 0; i < dirty.slots.size();) {
+    size_t j = i + 1;
+    while (j < dirty.slots.size() && dirty.slots[j] == dirty.slots[j - 1] + 1) ++j;
+    const uint32_t first = dirty.slots[i], count = uint32_t(j - i);
+    VkDeviceSize off;
+    TV_TRY(stage_bytes(&state.descriptors()[first], size_t(count) * sizeof(GpuNodeDesc), 16, off));
+    pending_buffers_.push_back(
+        {node_desc_.buffer, {off, VkDeviceSize(first) * sizeof(GpuNodeDesc), VkDeviceSize(count) * sizeof(GpuNodeDesc)}});
+    i = j;
+  }
+  for (int level = 0; level < kLevelCount; ++level) {
+    const Rect& r = dirty.index[size_t(level)];
+    if (r.empty()) continue;
+    const uint32_t w = r.x1 - r.x0, h = r.y1 - r.y0, grid_w = state.grid_width(level);
+    scratch_.resize(size_t(w) * h * 2);
+    for (uint32_t y = 0; y < h; ++y)
+      std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.grid(level)[size_t(r.y0 + y) * grid_w + r.x0], size_t(w) * 2);
+    VkDeviceSize off;
+    TV_TRY(stage_bytes(scratch_.data(), scratch_.size(), 16, off));
+    VkBufferImageCopy c{};
+    c.bufferOffset = off;
+    c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, uint32_t(level), 0, 1};
+    c.imageOffset = {int32_t(r.x0), int32_t(r.y0), 0};
+    c.imageExtent = {w, h, 1};
+    pending_images_.push_back({kIndex, c});
+  }
+  return Status::success();
+}
+
+void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, uint32_t width, uint32_t height) {
+  settings_ = s;
+  FrameUniforms& u = uniforms_;
+  fill_view_uniforms(camera, world_, width, height, u);
+  stamp_ = (stamp_ + 1) & TV_STAMP_MASK;
+  if (stamp_ == 0) stamp_ = 1;  // 0 is the selection grid's cleared value
+  u.lod[0] = float(s.error_target_px);
+  u.lod[1] = float(s.cone_margin_deg);
+  u.lod[2] = float(s.near_start_m);
+  u.lod[3] = float(s.near_end_m);
+  u.world[0] = world_.roots_x;
+  u.world[1] = world_.roots_y;
+  u.world[2] = sectors_x_;
+  u.world[3] = sectors_y_;
+  uint32_t flags = 0;
+  if (s.frustum_cull) flags |= TV_FLAG_FRUSTUM_CULL;
+  if (s.cone_cull) flags |= TV_FLAG_CONE_CULL;
+  if (s.holes) flags |= TV_FLAG_HOLES;
+  if (s.hole_nan) flags |= TV_FLAG_HOLE_NAN;
+  if (s.splat && (s.debug == TV_DEBUG_NONE || s.debug == TV_DEBUG_WIRE)) flags |= TV_FLAG_SPLAT;
+  if (!s.stitch) flags |= TV_FLAG_NO_STITCH;
+  u.misc[0] = stamp_;
+  u.misc[1] = flags;
+  u.misc[2] = uint32_t(s.debug);
+  u.misc[3] = config_.slot_count * TV_PATCHES_PER_NODE;
+  for (size_t l = 0; l < 8; ++l) u.level_offsets[l] = level_offsets_[l];
+  const double az = s.sun_azimuth_deg * M_PI / 180.0, el = s.sun_elevation_deg * M_PI / 180.0;
+  u.sun_dir[0] = float(std::sin(az) * std::cos(el));
+  u.sun_dir[1] = float(std::cos(az) * std::cos(el));
+  u.sun_dir[2] = float(std::sin(el));
+  u.sun_color[0] = 2.9f;
+  u.sun_color[1] = 2.75f;
+  u.sun_color[2] = 2.45f;
+  u.sun_color[3] = 0.42f;  // ambient strength
+  u.sky_color[0] = 0.42f;
+  u.sky_color[1] = 0.55f;
+  u.sky_color[2] = 0.78f;
+  u.fog[0] = 0.52f;
+  u.fog[1] = 0.62f;
+  u.fog[2] = 0.76f;
+  u.fog[3] = float(s.fog_density);
+  ::terrain::view::cone_sin2_table(s.cone_margin_deg, cone_table_);
+}
+
+void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& target, bool capture_lists) {
+  const Context& ctx = *ctx_;
+  std::memcpy(uniforms_buf_.mapped, &uniforms_, sizeof(FrameUniforms));
+  std::memcpy(static_cast<PaletteBlock*>(palette_buf_.mapped)->cone_sin2, cone_table_, sizeof(cone_table_));
+  if (timestamps_) vkCmdResetQueryPool(cmd, queries_, 0, kTimestamps);
+
+  // ---- Uploads ----
+  const VkPipelineStageFlags2 shader_stages = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
+                                              VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT |
+                                              VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT;
+  const VkImageLayout read_layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  if (!images_initialised_) {
+    for (Image& img : images_)
+      image_barrier(cmd, img, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                    VK_PIPELINE_STAGE_2_NONE, 0, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+    vkCmdFillBuffer(cmd, selection_.buffer, 0, VK_WHOLE_SIZE, 0);
+  } else if (!pending_images_.empty()) {
+    for (Image& img : images_)
+      image_barrier(cmd, img, VK_IMAGE_ASPECT_COLOR_BIT, read_layout, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, shader_stages,
+                    VK_ACCESS_2_SHADER_READ_BIT, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  }
+  for (const PendingImageCopy& p : pending_images_)
+    vkCmdCopyBufferToImage(cmd, staging_.buffer, images_[size_t(p.image)].image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
+                           &p.region);
+  for (const PendingBufferCopy& p : pending_buffers_) vkCmdCopyBuffer(cmd, staging_.buffer, p.dst, 1, &p.region);
+  if (!images_initialised_ || !pending_images_.empty()) {
+    for (Image& img : images_)
+      image_barrier(cmd, img, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, read_layout,
+                    VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, shader_stages, VK_ACCESS_2_SHADER_READ_BIT);
+  }
+  images_initialised_ = true;
+  pending_images_.clear();
+  pending_buffers_.clear();
+  staging_used_ = 0;
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_CLEAR_BIT | VK_PIPELINE_STAGE_2_ALL_GRAPHICS_BIT,
+                 VK_ACCESS_2_TRANSFER_WRITE_BIT | VK_ACCESS_2_MEMORY_READ_BIT,
+                 VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT |
+                     VK_PIPELINE_STAGE_2_INDEX_INPUT_BIT | VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT,
+                 VK_ACCESS_2_SHADER_READ_BIT | VK_ACCESS_2_SHADER_WRITE_BIT | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT |
+                     VK_ACCESS_2_INDEX_READ_BIT);
+
+  // ---- Compute: traversal -> LOD map -> patches ----
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout_, 0, 1, &set_, 0, nullptr);
+  if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 0);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, traverse_);
+  vkCmdDispatch(cmd, 1, 1, 1);
+  const VkAccessFlags2 rw = VK_ACCESS_2_SHADER_READ_BIT | VK_ACCESS_2_SHADER_WRITE_BIT;
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT,
+                 VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                 rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+  if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 1);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, lodmap_);
+  vkCmdDispatch(cmd, (sectors_x_ + TV_LODMAP_GROUP - 1) / TV_LODMAP_GROUP, (sectors_y_ + TV_LODMAP_GROUP - 1) / TV_LODMAP_GROUP,
+                1);
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT,
+                 VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, rw);
+  if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 2);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, patches_pipe_);
+  vkCmdDispatchIndirect(cmd, node_list_.buffer, TV_NL_DISPATCH * 4);
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT,
+                 VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT |
+                     VK_PIPELINE_STAGE_2_COPY_BIT,
+                 VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
+  if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 3);
+
+  // ---- Draw ----
+  image_barrier(cmd, target.color, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT,
+                VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT);
+  image_barrier(cmd, target.depth, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT,
+                VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT,
+                VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT | VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT);
+  VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  color.imageView = target.color.view;
+  color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  color.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  // The target holds sRGB-encoded values (UNORM): the clear colour goes in as given.
+  for (int k = 0; k < 3; ++k) color.clearValue.color.float32[k] = std::clamp(settings_.clear[k], 0.0f, 1.0f);
+  color.clearValue.color.float32[3] = 1.0f;
+  VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  depth.imageView = target.depth.view;
+  depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+  depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  depth.clearValue.depthStencil = {0.0f, 0};  // reversed Z: 0 = infinitely far
+  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+  ri.renderArea = {{0, 0}, {target.width, target.height}};
+  ri.layerCount = 1;
+  ri.colorAttachmentCount = 1;
+  ri.pColorAttachments = &color;
+  ri.pDepthAttachment = &depth;
+  vkCmdBeginRendering(cmd, &ri);
+  VkViewport viewport{0, 0, float(target.width), float(target.height), 0.0f, 1.0f};
+  VkRect2D scissor{{0, 0}, {target.width, target.height}};
+  vkCmdSetViewport(cmd, 0, 1, &viewport);
+  vkCmdSetScissor(cmd, 0, 1, &scissor);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_layout_, 0, 1, &set_, 0, nullptr);
+  vkCmdBindIndexBuffer(cmd, index_buffer_.buffer, 0, VK_INDEX_TYPE_UINT16);
+  // Two shading groups, one indexed-indirect instanced draw each (the near one is empty when
+  // splat shading is off or a debug view is shown).
+  const int debug = settings_.debug;
+  const bool shaded = debug == TV_DEBUG_NONE || debug == TV_DEBUG_WIRE;
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, shaded, false));
+  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, 1, 0);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, false));
+  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, 1, 0);
+  if (debug == TV_DEBUG_WIRE) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, true));
+    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, 1, 0);
+    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, 1, 0);
+  }
+  vkCmdEndRendering(cmd);
+  if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 4);
+
+  // ---- Counters (and lists) for the host ----
+  VkBufferCopy c{0, 0, TV_NL_HEADER * 4};
+  vkCmdCopyBuffer(cmd, node_list_.buffer, stats_readback_.buffer, 1, &c);
+  c = {0, TV_NL_HEADER * 4, TV_DRAW_UINTS * 4};
+  vkCmdCopyBuffer(cmd, draw_.buffer, stats_readback_.buffer, 1, &c);
+  lists_captured_ = capture_lists;
+  if (capture_lists) {
+    const VkDeviceSize nl = VkDeviceSize(TV_NL_HEADER + config_.slot_count) * 4;
+    const VkDeviceSize lm = VkDeviceSize(sectors_x_) * sectors_y_ * 4;
+    const VkDeviceSize pl = 2 * VkDeviceSize(config_.slot_count) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
+    c = {0, 0, nl};
+    vkCmdCopyBuffer(cmd, node_list_.buffer, lists_readback_.buffer, 1, &c);
+    c = {0, nl, lm};
+    vkCmdCopyBuffer(cmd, lod_map_.buffer, lists_readback_.buffer, 1, &c);
+    c = {0, nl + lm, pl};
+    vkCmdCopyBuffer(cmd, patches_.buffer, lists_readback_.buffer, 1, &c);
+  }
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
+                 VK_ACCESS_2_HOST_READ_BIT);
+  (void)ctx;
+}
+
+FrameStats TerrainRenderer::read_stats() const {
+  FrameStats s;
+  const uint32_t* nl = static_cast<const uint32_t*>(stats_readback_.mapped);
+  const uint32_t* dr = nl + TV_NL_HEADER;
+  s.nodes = nl[TV_NL_COUNT];
+  for (int l = 0; l < kLevelCount; ++l) s.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
+  s.traversal_overflow = nl[TV_NL_OVERFLOW];
+  s.patches_near = dr[TV_DRAW_NEAR + 1];
+  s.patches_drawn = dr[TV_DRAW_NEAR + 1] + dr[TV_DRAW_FAR + 1];
+  s.patches_considered = dr[TV_CNT_CONSIDERED];
+  s.culled_frustum = dr[TV_CNT_FRUSTUM];
+  s.culled_cone = dr[TV_CNT_CONE];
+  s.triangles = uint64_t(s.patches_drawn) * TV_QUADS_PER_PATCH * TV_QUADS_PER_PATCH * 2;
+  if (timestamps_) {
+    uint64_t t[kTimestamps];
+    if (vkGetQueryPoolResults(ctx_->device, queries_, 0, kTimestamps, sizeof(t), t, sizeof(uint64_t),
+                              VK_QUERY_RESULT_64_BIT) == VK_SUCCESS) {
+      const double ms = double(ctx_->properties.limits.timestampPeriod) * 1e-6;
+      s.gpu_traverse_ms = double(t[1] - t[0]) * ms;
+      s.gpu_lodmap_ms = double(t[2] - t[1]) * ms;
+      s.gpu_patches_ms = double(t[3] - t[2]) * ms;
+      s.gpu_draw_ms = double(t[4] - t[3]) * ms;
+      s.gpu_total_ms = double(t[4] - t[0]) * ms;
+      s.timings_valid = true;
+    }
+  }
+  return s;
+}
+
+void TerrainRenderer::read_lists(NodeList& nodes, std::vector<uint32_t>& lod_map, std::vector<GpuPatch>& patches) const {
+  const uint8_t* base = static_cast<const uint8_t*>(lists_readback_.mapped);
+  const uint32_t* nl = reinterpret_cast<const uint32_t*>(base);
+  nodes = NodeList{};
+  const uint32_t count = std::min(nl[TV_NL_COUNT], config_.slot_count);
+  nodes.entries.assign(nl + TV_NL_HEADER, nl + TV_NL_HEADER + count);
+  for (int l = 0; l < kLevelCount; ++l) nodes.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
+  nodes.overflow = nl[TV_NL_OVERFLOW];
+  const size_t nl_bytes = size_t(TV_NL_HEADER + config_.slot_count) * 4;
+  const uint32_t* lm = reinterpret_cast<const uint32_t*>(base + nl_bytes);
+  lod_map.assign(lm, lm + size_t(sectors_x_) * sectors_y_);
+  const GpuPatch* pl = reinterpret_cast<const GpuPatch*>(base + nl_bytes + size_t(sectors_x_) * sectors_y_ * 4);
+  const uint32_t* dr = static_cast<const uint32_t*>(stats_readback_.mapped) + TV_NL_HEADER;
+  const size_t capacity = size_t(config_.slot_count) * TV_PATCHES_PER_NODE;
+  patches.assign(pl, pl + std::min<size_t>(dr[TV_DRAW_NEAR + 1], capacity));
+  patches.insert(patches.end(), pl + capacity, pl + capacity + std::min<size_t>(dr[TV_DRAW_FAR + 1], capacity));
+}
+
+}  // namespace terrain::view

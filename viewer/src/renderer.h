@@ -1,0 +1,137 @@
+// The terrain pass (FC5 sections 4-7 on Vulkan): texture-array atlases filled from node
+// deliveries, the index texture and descriptor buffer mirrored from the residency state, and per
+// frame: traversal -> LOD map -> patch list (compute) -> one indexed-indirect instanced draw.
+// One frame in flight: the caller waits for a frame's fence before the next upload()/record_frame().
+#pragma once
+#include <array>
+#include <map>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "camera.h"
+#include "reference.h"
+#include "resources.h"
+#include "target.h"
+#include "terrain_state.h"
+
+namespace terrain::view {
+
+struct RendererConfig {
+  uint32_t slot_count = 512;  // atlas layers (the streamer's slot_count())
+  // Normal and albedo atlases as RGBA8, decoded from the BC payload at upload, instead of BC3/BC1.
+  // 4x the memory, but a CPU rasteriser (lavapipe) decodes a BC block for every bilinear tap, which
+  // costs more than all the rest of the far shading (see viewer/README.md).
+  bool decode_bc = false;
+};
+
+struct FrameSettings {
+  double error_target_px = 2.0;
+  bool frustum_cull = true;
+  bool cone_cull = true;
+  bool holes = true;          // drop triangles of hole vertices
+  bool hole_nan = false;      // ... by a NaN clip position (undefined behaviour, checked on lavapipe
+                              // by a test); false: fragment discard (defined, but disables early depth)
+  bool splat = true;          // near splat shading
+  bool stitch = true;         // false only in tests: shows the cracks stitching closes
+  int debug = TV_DEBUG_NONE;
+  float clear[3] = {0.55f, 0.68f, 0.85f};  // sRGB-encoded, 0..1
+  double cone_margin_deg = 0.0;
+  double near_start_m = 150, near_end_m = 400;   // splat shading fades into the baked albedo
+  double sun_azimuth_deg = 125, sun_elevation_deg = 24;
+  double fog_density = 1.0 / 60000.0;
+};
+
+struct FrameStats {
+  uint32_t nodes = 0;
+  std::array<uint32_t, kLevelCount> level_counts{};
+  uint32_t traversal_overflow = 0;
+  uint32_t patches_considered = 0, patches_drawn = 0, culled_frustum = 0, culled_cone = 0;
+  uint32_t patches_near = 0;  // of patches_drawn, in the near (splat) shading group
+  uint64_t triangles = 0;
+  double gpu_traverse_ms = 0, gpu_lodmap_ms = 0, gpu_patches_ms = 0, gpu_draw_ms = 0, gpu_total_ms = 0;
+  bool timings_valid = false;
+};
+
+class TerrainRenderer {
+ public:
+  TerrainRenderer() = default;
+  ~TerrainRenderer();
+  TerrainRenderer(const TerrainRenderer&) = delete;
+  TerrainRenderer& operator=(const TerrainRenderer&) = delete;
+
+  Status init(const Context& ctx, const WorldInfo& world, const RendererConfig& config);
+  void destroy();
+
+  // Stages node payloads (into their atlas layers) and the dirty parts of `state` (descriptors,
+  // index rectangles); the copies are recorded at the start of the next record_frame().
+  Status upload(std::span<const NodeUpload> nodes, TerrainState& state);
+
+  // Sets camera and settings for the next record_frame().
+  void set_frame(const Camera& camera, const FrameSettings& settings, uint32_t width, uint32_t height);
+  const FrameUniforms& uniforms() const { return uniforms_; }
+  const float* cone_sin2_table() const { return cone_table_; }
+
+  // Uploads, traversal, LOD map, patches, draw into `target` (cleared), then copies counters (and,
+  // with capture_lists, the node list, LOD map and patch list) for reading after the fence.
+  void record_frame(VkCommandBuffer cmd, const RenderTarget& target, bool capture_lists);
+
+  FrameStats read_stats() const;
+  // Valid after a frame recorded with capture_lists.
+  void read_lists(NodeList& nodes, std::vector<uint32_t>& lod_map, std::vector<GpuPatch>& patches) const;
+  // Per-slot bounds and cones as uploaded (for the CPU reference).
+  const std::vector<SlotCpuData>& slot_cpu() const { return slot_cpu_; }
+
+ private:
+  struct PendingImageCopy {
+    int image;  // index into atlas images
+    VkBufferImageCopy region;
+  };
+  struct PendingBufferCopy {
+    VkBuffer dst;
+    VkBufferCopy region;
+  };
+  Status stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset);
+  Status create_pipelines();
+  // Graphics pipeline specialised for (debug view, shading group, wire overlay), made on first use.
+  VkPipeline graphics_pipeline(int debug, bool near, bool wire);
+
+  const Context* ctx_ = nullptr;
+  WorldInfo world_;
+  RendererConfig config_;
+  uint32_t sectors_x_ = 0, sectors_y_ = 0;
+  uint32_t selection_uints_ = 0;
+  std::array<uint32_t, 8> level_offsets_{};
+
+  // Atlases: 0 heights R16_UINT, 1 normals BC3, 2 albedo BC1 sRGB, 3 splat R8_UINT, 4 cones BC3, 5 index.
+  std::array<Image, 6> images_;
+  bool images_initialised_ = false;
+  VkSampler linear_ = VK_NULL_HANDLE, nearest_ = VK_NULL_HANDLE;
+
+  Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, node_list_, selection_, lod_map_, draw_, patches_,
+      index_buffer_, stats_readback_, lists_readback_;
+  bool lists_captured_ = false;
+  Buffer staging_;
+  VkDeviceSize staging_used_ = 0;
+  std::vector<PendingImageCopy> pending_images_;
+  std::vector<PendingBufferCopy> pending_buffers_;
+  std::vector<uint8_t> scratch_;
+
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  VkPipelineLayout pipeline_layout_ = VK_NULL_HANDLE;
+  VkDescriptorPool descriptor_pool_ = VK_NULL_HANDLE;
+  VkDescriptorSet set_ = VK_NULL_HANDLE;
+  VkPipeline traverse_ = VK_NULL_HANDLE, lodmap_ = VK_NULL_HANDLE, patches_pipe_ = VK_NULL_HANDLE;
+  VkShaderModule vs_ = VK_NULL_HANDLE, fs_ = VK_NULL_HANDLE;
+  std::map<int, VkPipeline> graphics_;  // key: debug * 8 + discard * 4 + near * 2 + wire
+  VkQueryPool queries_ = VK_NULL_HANDLE;
+  bool timestamps_ = false;
+
+  FrameUniforms uniforms_{};
+  FrameSettings settings_{};
+  float cone_table_[256] = {};
+  uint32_t stamp_ = 0;
+  std::vector<SlotCpuData> slot_cpu_;
+};
+
+}  // namespace terrain::view

@@ -1,0 +1,165 @@
+#include "sources.h"
+
+#include <algorithm>
+#include <climits>
+#include <cstdio>
+#include <map>
+
+namespace terrain::view {
+namespace {
+
+class StreamSource final : public NodeSource {
+ public:
+  Status open(const std::string& path, const StreamSourceOptions& o) {
+    StreamerConfig config;
+    config.budget_nodes = o.budget_nodes;
+    config.error_target_px = o.error_target_px;
+    config.worker_threads = o.worker_threads;
+    config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
+    return streamer_.open(path, config);
+  }
+  const WorldInfo& world() const override { return streamer_.world(); }
+  uint32_t slot_count() const override { return streamer_.slot_count(); }
+  void height_range(int32_t& lo, int32_t& hi) const override {
+    lo = INT32_MAX;
+    hi = INT32_MIN;
+    for (const NodeRecord& r : streamer_.archive().nodes())
+      if (r.key.level == uint32_t(kRootLevel)) {
+        lo = std::min(lo, r.min_height);
+        hi = std::max(hi, r.max_height);
+      }
+    if (lo > hi) lo = hi = 0;
+  }
+  Status update(const Camera& camera, const FrameUniforms& u, TerrainState& state,
+                std::vector<NodeUpload>& uploads) override {
+    if (!initialised_) {
+      state.init(streamer_.world(), streamer_.slot_count());
+      initialised_ = true;
+    }
+    View v;
+    v.x = camera.position[0];
+    v.y = camera.position[1];
+    v.z = camera.position[2];
+    v.pixels_per_radian = double(u.cam_frac[3]);
+    v.has_frustum = true;
+    for (int p = 0; p < 6; ++p)
+      v.frustum[size_t(p)] = {double(u.planes[p][0]), double(u.planes[p][1]), double(u.planes[p][2]), double(u.planes[p][3])};
+    const FrameUpdate& fu = streamer_.update({&v, 1});
+    last_ = {};
+    for (const NodeFailure& f : fu.failed)
+      std::fprintf(stderr, "terrain-view: node %u/%u/%u failed to load: %s\n", f.key.level, f.key.x, f.key.y,
+                   f.status.message.c_str());
+    // Descriptors first (the upload computes patch bounds with the slot's quantization).
+    for (uint16_t s : fu.dirty_slots) state.set_slot(s, streamer_.slots()[s]);
+    for (const NodeDelivery& d : fu.delivered) uploads.push_back({d.slot, d.data});
+    for (int level = 0; level < kLevelCount; ++level) {
+      const DirtyRect& r = fu.dirty_index[size_t(level)];
+      if (r.empty()) continue;
+      const auto grid = streamer_.index_grid(level);
+      const uint32_t w = streamer_.index_grid_size(level).width;
+      for (uint32_t y = r.y0; y < r.y1; ++y)
+        for (uint32_t x = r.x0; x < r.x1; ++x) state.set_index(level, x, y, grid[size_t(y) * w + x]);
+    }
+    const StreamerStats st = streamer_.stats();
+    last_.resident = st.resident;
+    last_.delivered = uint32_t(fu.delivered.size());
+    last_.evicted = uint32_t(fu.evicted.size());
+    last_.failed = st.failed;
+    last_.pending = st.pending;
+    last_.required_missing = st.required_missing;
+    return Status::success();
+  }
+  bool settled() const override { return last_.pending == 0 && last_.required_missing == 0; }
+  SourceStats stats() const override { return last_; }
+  const NodeData* slot_data(uint32_t slot) const override {
+    if (slot >= streamer_.slot_count()) return nullptr;
+    const SlotDescriptor& d = streamer_.slots()[slot];
+    const NodeData* data = streamer_.resident_data(NodeKey{d.level, d.x, d.y});
+    return streamer_.slot_of(NodeKey{d.level, d.x, d.y}) == int32_t(slot) ? data : nullptr;
+  }
+
+ private:
+  Streamer streamer_;
+  bool initialised_ = false;
+  SourceStats last_;
+};
+
+class LoadAllSource final : public NodeSource {
+ public:
+  Status open(const std::string& path, uint32_t max_nodes) {
+    Status s = reader_.open(path);
+    if (!s.ok()) return s;
+    const auto nodes = reader_.nodes();
+    if (nodes.size() > max_nodes)
+      return Status::failure(Error::invalid_argument,
+                             path + " has " + std::to_string(nodes.size()) + " nodes; --load-all keeps at most " +
+                                 std::to_string(max_nodes) + " (use the streamer instead)");
+    data_.resize(nodes.size());
+    std::vector<MemoryNode> memory;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      s = reader_.decode_node(i, data_[i]);
+      if (!s.ok()) return s;
+      memory.push_back({nodes[i], &data_[i]});
+    }
+    memory_ = std::move(memory);
+    return Status::success();
+  }
+  const WorldInfo& world() const override { return reader_.world(); }
+  uint32_t slot_count() const override { return uint32_t(std::max<size_t>(data_.size(), 1)); }
+  void height_range(int32_t& lo, int32_t& hi) const override {
+    lo = INT32_MAX;
+    hi = INT32_MIN;
+    for (const NodeRecord& r : reader_.nodes())
+      if (r.key.level == uint32_t(kRootLevel)) {
+        lo = std::min(lo, r.min_height);
+        hi = std::max(hi, r.max_height);
+      }
+    if (lo > hi) lo = hi = 0;
+  }
+  Status update(const Camera&, const FrameUniforms&, TerrainState& state, std::vector<NodeUpload>& uploads) override {
+    if (initialised_) return Status::success();
+    initialised_ = true;
+    residency_.init(reader_.world(), memory_, slot_count(), state);
+    Status s = residency_.apply([](const NodeKey&) { return true; }, state, uploads);
+    for (const NodeUpload& u : uploads) slot_node_[u.slot] = u.data;
+    return s;
+  }
+  bool settled() const override { return initialised_; }
+  SourceStats stats() const override {
+    SourceStats s;
+    s.resident = residency_.resident_count();
+    return s;
+  }
+  const NodeData* slot_data(uint32_t slot) const override {
+    auto it = slot_node_.find(slot);
+    return it == slot_node_.end() ? nullptr : it->second;
+  }
+
+ private:
+  ArchiveReader reader_;
+  std::vector<NodeData> data_;
+  std::vector<MemoryNode> memory_;
+  StaticResidency residency_;
+  std::map<uint32_t, const NodeData*> slot_node_;
+  bool initialised_ = false;
+};
+
+}  // namespace
+
+Status open_stream_source(const std::string& archive, const StreamSourceOptions& options, std::unique_ptr<NodeSource>& out) {
+  auto s = std::make_unique<StreamSource>();
+  Status st = s->open(archive, options);
+  if (!st.ok()) return st;
+  out = std::move(s);
+  return Status::success();
+}
+
+Status open_load_all_source(const std::string& archive, uint32_t max_nodes, std::unique_ptr<NodeSource>& out) {
+  auto s = std::make_unique<LoadAllSource>();
+  Status st = s->open(archive, max_nodes);
+  if (!st.ok()) return st;
+  out = std::move(s);
+  return Status::success();
+}
+
+}  // namespace terrain::view
