@@ -61,8 +61,11 @@ Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<Surf
     const double grid_y = double(uint64_t(w.roots_y) << (kRootLevel - level));
     if (fx < 0 || fy < 0 || fx > grid_x || fy > grid_y) return Status::success();  // outside the frame's grid
     // The node containing the point; a point on a west/south node edge also lies on the
-    // neighbour's east/north edge, which answers when the first node is absent.
+    // neighbour's east/north edge. A point on an edge or vertex shared by several triangles (of
+    // one node or of neighbours) lies on each of them and is answered by the first one drawn
+    // (heights agree along shared edges); "no data" only when none is drawn.
     const double nx = std::floor(fx), ny = std::floor(fy);
+    bool any_node = false;
     for (int cand = 0; cand < 4; ++cand) {
       const double cx = nx - ((cand & 1) ? 1 : 0), cy = ny - ((cand & 2) ? 1 : 0);
       if ((cand & 1) && fx != nx) continue;
@@ -71,30 +74,38 @@ Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<Surf
       const NodeKey key{uint32_t(level), uint32_t(cx), uint32_t(cy)};
       const int64_t index = impl_->reader.find(key);
       if (index < 0) continue;
+      any_node = true;
       const Impl::Cached* node = nullptr;
       if (Status s = impl_->get(size_t(index), node); !s.ok()) return s;
       const double s = vertex_spacing_m(level);
       const double u = (rx - cx * size) / s, v = (ry - cy * size) / s;  // 0..128
-      const int i = std::clamp(int(std::floor(u)), 0, kQuadsPerSide - 1);
-      const int j = std::clamp(int(std::floor(v)), 0, kQuadsPerSide - 1);
-      const double fu = std::clamp(u - i, 0.0, 1.0), fv = std::clamp(v - j, 0.0, 1.0);
-      auto at = [&](int a, int b) { return size_t(b * kHeightSamples + a); };
-      const size_t A = at(i, j), B = at(i + 1, j), C = at(i, j + 1), D = at(i + 1, j + 1);
+      const int i0 = std::clamp(int(std::floor(u)), 0, kQuadsPerSide - 1);
+      const int j0 = std::clamp(int(std::floor(v)), 0, kQuadsPerSide - 1);
       const auto& H = node->units;
       const auto& holes = node->holes;
-      double h = 0;
-      if (fu >= fv) {  // south-east triangle A, B, D
-        if (holes[A] || holes[B] || holes[D]) return Status::success();
-        h = units_to_metres(H[A]) + fu * (units_to_metres(H[B]) - units_to_metres(H[A])) +
-            fv * (units_to_metres(H[D]) - units_to_metres(H[B]));
-      } else {  // north-west triangle A, D, C
-        if (holes[A] || holes[D] || holes[C]) return Status::success();
-        h = units_to_metres(H[A]) + fv * (units_to_metres(H[C]) - units_to_metres(H[A])) +
-            fu * (units_to_metres(H[D]) - units_to_metres(H[C]));
+      auto at = [&](int a, int b) { return size_t(b * kHeightSamples + a); };
+      // Quads whose closed square holds the point: (i0, j0) first, then the ones to the west or
+      // south when the point is on their shared edge.
+      for (int q = 0; q < 4; ++q) {
+        const int i = i0 - (q & 1), j = j0 - ((q >> 1) & 1);
+        if (i < 0 || j < 0 || u < i || u > i + 1 || v < j || v > j + 1) continue;
+        const double fu = std::clamp(u - i, 0.0, 1.0), fv = std::clamp(v - j, 0.0, 1.0);
+        const size_t A = at(i, j), B = at(i + 1, j), C = at(i, j + 1), D = at(i + 1, j + 1);
+        if (fu >= fv && !(holes[A] || holes[B] || holes[D])) {  // south-east triangle A, B, D
+          const double h = units_to_metres(H[A]) + fu * (units_to_metres(H[B]) - units_to_metres(H[A])) +
+                           fv * (units_to_metres(H[D]) - units_to_metres(H[B]));
+          out = SurfaceSample{h, key};
+          return Status::success();
+        }
+        if (fu <= fv && !(holes[A] || holes[D] || holes[C])) {  // north-west triangle A, D, C
+          const double h = units_to_metres(H[A]) + fv * (units_to_metres(H[C]) - units_to_metres(H[A])) +
+                           fu * (units_to_metres(H[D]) - units_to_metres(H[C]));
+          out = SurfaceSample{h, key};
+          return Status::success();
+        }
       }
-      out = SurfaceSample{h, key};
-      return Status::success();
     }
+    if (any_node) return Status::success();  // the finest node here draws no triangle at the point
   }
   return Status::success();
 }

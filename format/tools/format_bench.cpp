@@ -1,7 +1,11 @@
 // terrain-format-bench: height codec (hierarchical predictor + zstd) against plain zstd on real
 // R16 tiles. Per dataset: bytes, ratios, encode ms per tile, decode MB/s next to zstd's own
 // decompression of plain-zstd tiles and memcpy; every decode is
-// checked against the input before a number is printed. Timings: fastest of --runs passes.
+// checked against the input before a number is printed. Timings: fastest of --runs passes, and
+// "paired": plain zstd -19 and the codec decoded back to back in each run (median of the per-run
+// ratios), the number to quote on a shared machine.
+#include <zip.h>
+#include <zlib.h>
 #include <zstd.h>
 
 #include <CLI/CLI.hpp>
@@ -34,9 +38,51 @@ struct Tile {
 };
 struct Dataset {
   std::string name, source;
-  int step_log2 = 0;
+  int step_log2 = 0;        // step used: max(range step, floor); -1 for archive nodes
+  int range_step_log2 = 0;  // smallest step whose 16 bits span every window's range
   std::vector<Tile> tiles;
 };
+
+// SRTM HGT (big-endian int16, square, rows north to south), plain, .zip (first .hgt member) or .gz,
+// as metres; -32768 voids -> NaN.
+bool read_hgt(const std::string& path, std::vector<float>& out, int& w, int& h) {
+  std::vector<uint8_t> bytes;
+  auto ends = [&](const char* e) { return path.size() >= std::strlen(e) && path.compare(path.size() - std::strlen(e), std::string::npos, e) == 0; };
+  if (ends(".zip")) {
+    int err = 0;
+    zip_t* z = zip_open(path.c_str(), ZIP_RDONLY, &err);
+    if (!z) return false;
+    for (zip_int64_t i = 0; i < zip_get_num_entries(z, 0) && bytes.empty(); ++i) {
+      zip_stat_t st;
+      if (zip_stat_index(z, zip_uint64_t(i), 0, &st) != 0 || !(st.valid & ZIP_STAT_SIZE)) continue;
+      const std::string n = st.name ? st.name : "";
+      if (n.size() < 4 || n.compare(n.size() - 4, 4, ".hgt") != 0) continue;
+      zip_file_t* f = zip_fopen_index(z, zip_uint64_t(i), 0);
+      if (!f) break;
+      bytes.resize(size_t(st.size));
+      if (zip_fread(f, bytes.data(), st.size) != zip_int64_t(st.size)) bytes.clear();
+      zip_fclose(f);
+    }
+    zip_close(z);
+  } else {
+    gzFile f = gzopen(path.c_str(), "rb");  // also reads uncompressed files
+    if (!f) return false;
+    uint8_t buf[1 << 16];
+    int n = 0;
+    while ((n = gzread(f, buf, sizeof(buf))) > 0) bytes.insert(bytes.end(), buf, buf + n);
+    gzclose(f);
+  }
+  const size_t count = bytes.size() / 2;
+  const int side = int(std::lround(std::sqrt(double(count))));
+  if (side < 2 || size_t(side) * size_t(side) * 2 != bytes.size()) return false;
+  w = h = side;
+  out.resize(count);
+  for (size_t k = 0; k < count; ++k) {
+    const int16_t v = int16_t(uint16_t(bytes[2 * k] << 8 | bytes[2 * k + 1]));
+    out[k] = v == -32768 ? NAN : float(v);
+  }
+  return true;
+}
 
 // Reads band 0 of a raster as metres (value * scale); nodata -> NaN. Integer rasters are read in
 // their own type so nodata compares exactly.
@@ -66,16 +112,18 @@ bool read_raster(const std::string& path, double scale, std::optional<double> no
   return true;
 }
 
-// 129x129 windows on a 128 stride, rows flipped so row 0 is south; windows with nodata skipped.
-// Quantized as the cooker does for one level: units = round(m * 1024), one step for the level
-// (smallest that fits every tile's range), offset = tile min rounded down to the step.
-Dataset make_tiles(const std::string& name, const std::string& source, const std::vector<float>& m, int w, int h, size_t max_tiles) {
-  Dataset d{name, source, 0, {}};
-  std::vector<std::vector<int64_t>> units;
-  int64_t max_range = 0;
+// 129x129 windows on a 128 stride, rows flipped so row 0 is south; windows with nodata skipped;
+// at most max_tiles of them, spread evenly over the raster. Quantized as the cooker does for one
+// level: units of 2^-10 m; the level's step 2^s is the larger of the smallest step whose 16 bits
+// span every window's range and the floor 2^step_floor (the cooker's tolerance/32 floor: 4 at the
+// default 0.5 m); heights rounded to multiples of the step, offset = window minimum.
+Dataset make_tiles(const std::string& name, const std::string& source, const std::vector<float>& m, int w, int h, size_t max_tiles,
+                   int step_floor) {
+  Dataset d{name, source, 0, 0, {}};
+  std::vector<std::vector<double>> windows;
   for (int ty = 0; ty + kHeightSamples <= h; ty += 128)
     for (int tx = 0; tx + kHeightSamples <= w; tx += 128) {
-      std::vector<int64_t> u(static_cast<size_t>(kHeightCount));
+      std::vector<double> u(static_cast<size_t>(kHeightCount));
       bool ok = true;
       for (int j = 0; j < kHeightSamples && ok; ++j)
         for (int i = 0; i < kHeightSamples; ++i) {
@@ -84,23 +132,30 @@ Dataset make_tiles(const std::string& name, const std::string& source, const std
             ok = false;
             break;
           }
-          u[size_t(j * kHeightSamples + i)] = std::llround(double(v) * 1024.0);
+          u[size_t(j * kHeightSamples + i)] = double(v) * 1024.0;
         }
-      if (!ok) continue;
-      const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
-      max_range = std::max(max_range, *hi - *lo);
-      units.push_back(std::move(u));
-      if (units.size() >= max_tiles) break;
+      if (ok) windows.push_back(std::move(u));
     }
-  while ((int64_t(65535) << d.step_log2) < max_range + (int64_t(1) << d.step_log2)) ++d.step_log2;
-  const int s = d.step_log2;
-  for (const auto& u : units) {
-    const int64_t lo = *std::min_element(u.begin(), u.end());
-    const int64_t offset = (lo >> s) << s;
+  if (windows.size() > max_tiles) {  // even spread, deterministic
+    std::vector<std::vector<double>> keep;
+    for (size_t k = 0; k < max_tiles; ++k) keep.push_back(std::move(windows[k * windows.size() / max_tiles]));
+    windows.swap(keep);
+  }
+  double max_range = 0;
+  for (const auto& u : windows) {
+    const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
+    max_range = std::max(max_range, *hi - *lo);
+  }
+  while (std::ldexp(65535.0, d.range_step_log2) < max_range + std::ldexp(1.0, d.range_step_log2)) ++d.range_step_log2;
+  d.step_log2 = std::max(d.range_step_log2, step_floor);
+  const double scale = std::ldexp(1.0, -d.step_log2);
+  for (const auto& u : windows) {
+    std::vector<int64_t> q(u.size());
+    for (size_t k = 0; k < u.size(); ++k) q[k] = int64_t(std::floor(u[k] * scale + 0.5));
+    const int64_t lo = *std::min_element(q.begin(), q.end());
     Tile t;
     t.r16.resize(size_t(kHeightCount));
-    for (size_t k = 0; k < u.size(); ++k)
-      t.r16[k] = uint16_t(std::min<int64_t>(65535, (u[k] - offset + ((int64_t(1) << s) >> 1)) >> s));
+    for (size_t k = 0; k < q.size(); ++k) t.r16[k] = uint16_t(std::min<int64_t>(65535, q[k] - lo));
     d.tiles.push_back(std::move(t));
   }
   return d;
@@ -150,11 +205,14 @@ struct LevelResult {
   uint64_t bytes = 0;
   double encode_ms_per_tile = 0;
   double decode_mbps = 0, decode_mbps_median = 0;
+  // Paired: each run decodes every tile with plain zstd -19 and then with the codec, back to back,
+  // so load from other processes hits both alike; the median of the per-run speed ratios.
+  double paired_pct = 0, paired_zstd19_mbps = 0, paired_mbps = 0;
 };
 struct Result {
   std::string name, source;
   size_t tiles = 0;
-  int step_log2 = 0;
+  int step_log2 = 0, range_step_log2 = 0;
   uint64_t raw = 0, zstd19 = 0, zstd_default = 0;
   double zstd19_decode_mbps = 0, zstd_default_decode_mbps = 0, memcpy_mbps = 0;
   double zstd19_decode_mbps_median = 0;
@@ -166,12 +224,14 @@ bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_l
   res.source = d.source;
   res.tiles = d.tiles.size();
   res.step_log2 = d.step_log2;
+  res.range_step_log2 = d.range_step_log2;
   res.raw = d.tiles.size() * kTileBytes;
   const double mb = double(res.raw) / 1e6;
   std::vector<std::vector<uint8_t>> raw;
   for (const Tile& t : d.tiles) raw.push_back(le_bytes(t.r16));
   std::vector<uint8_t> out(kTileBytes), out2(kTileBytes);
   ZSTD_DCtx* dctx = ZSTD_createDCtx();
+  std::vector<std::vector<uint8_t>> z19;
   auto plain = [&](int level, uint64_t& bytes, double& mbps, double& mbps_median) {
     std::vector<std::vector<uint8_t>> z;
     bytes = 0;
@@ -188,6 +248,7 @@ bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_l
     });
     mbps = mb / t.best;
     mbps_median = mb / t.median;
+    if (level == 19) z19 = std::move(z);
     return true;
   };
   double unused = 0;
@@ -232,6 +293,32 @@ bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_l
     });
     lr.decode_mbps = mb / t.best;
     lr.decode_mbps_median = mb / t.median;
+    {
+      ZSTD_DCtx* pctx = ZSTD_createDCtx();
+      auto zpass = [&] {
+        for (const auto& zi : z19) ZSTD_decompressDCtx(pctx, out.data(), out.size(), zi.data(), zi.size());
+      };
+      auto ppass = [&] {
+        for (const auto& p : payloads) (void)terrain::decode_node_payload(p, terrain::kSectionHeights, *data);
+      };
+      zpass();
+      ppass();
+      std::vector<double> tz, tp, ratio;
+      for (int r = 0; r < runs; ++r) {
+        const auto a = Clock::now();
+        zpass();
+        const auto b = Clock::now();
+        ppass();
+        const auto c = Clock::now();
+        tz.push_back(std::chrono::duration<double>(b - a).count());
+        tp.push_back(std::chrono::duration<double>(c - b).count());
+        ratio.push_back(tz.back() / tp.back());
+      }
+      ZSTD_freeDCtx(pctx);
+      lr.paired_pct = 100.0 * median(ratio);
+      lr.paired_zstd19_mbps = mb / median(tz);
+      lr.paired_mbps = mb / median(tp);
+    }
     res.levels.push_back(lr);
   }
   return true;
@@ -248,13 +335,19 @@ int main(int argc, char** argv) {
   int default_level = 9;
   int runs = 15;
   size_t max_tiles = 400;
+  int step_floor = 4;
   bool json = false;
   app.add_option("--data", data_dir, "folder of the shared real DEMs")->capture_default_str();
   app.add_option("--archive", archives, "also benchmark the height grids of every node of these cooked archives");
   app.add_option("--levels", levels, "zstd levels for predictor+zstd")->capture_default_str();
   app.add_option("--default-level", default_level, "zstd level of the plain-zstd speed baseline")->capture_default_str();
   app.add_option("--runs", runs, "timed runs per measurement (the fastest is reported)")->capture_default_str()->check(CLI::Range(1, 1000));
-  app.add_option("--max-tiles", max_tiles, "tiles per dataset")->capture_default_str();
+  app.add_option("--max-tiles", max_tiles, "tiles per dataset (spread evenly over the DEM)")->capture_default_str();
+  app.add_option("--step-floor", step_floor,
+                 "smallest quantization step_log2 for DEM windows (the cooker's floor: largest power of two <= tolerance/32 "
+                 "in 2^-10 m units, 4 at 0.5 m); 0 = range-driven step only")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 14));
   app.add_flag("--json", json, "print JSON instead of the table");
   CLI11_PARSE(app, argc, argv);
 
@@ -264,21 +357,24 @@ int main(int argc, char** argv) {
     const char* file;
     double scale;
     std::optional<double> nodata;
+    bool hgt = false;
   };
   const Source sources[] = {
       {"kilauea", "kilauea_utm5n.tif", 1.0, -32768.0},  {"oetztal", "srtm_oetztal.tif", 1.0, std::nullopt},
       {"slovenia", "slovenia_TM1_564_146.tif", 1.0, std::nullopt}, {"tahoe", "tahoe_lidar_bareearth.tif", 1.0, std::nullopt},
       {"tahoe_hh", "tahoe_lidar_highesthit.tif", 1.0, std::nullopt}, {"puget", "ps_height_1k.png", 0.1, std::nullopt},
+      {"kauai_srtm3", "N22W160.hgt.zip", 1.0, std::nullopt, true},   {"hilo_srtm3", "N19W155.hgt.zip", 1.0, std::nullopt, true},
+      {"sanjorge_srtm1", "S46W066.hgt.gz", 1.0, std::nullopt, true},
   };
   for (const Source& s : sources) {
     const std::string path = (std::filesystem::path(data_dir) / s.file).string();
     std::vector<float> m;
     int w = 0, h = 0;
-    if (!std::filesystem::exists(path) || !read_raster(path, s.scale, s.nodata, m, w, h)) {
+    if (!std::filesystem::exists(path) || !(s.hgt ? read_hgt(path, m, w, h) : read_raster(path, s.scale, s.nodata, m, w, h))) {
       fmt::print(stderr, "skipping {}: cannot read {}\n", s.name, path);
       continue;
     }
-    Dataset d = make_tiles(s.name, s.file, m, w, h, max_tiles);
+    Dataset d = make_tiles(s.name, s.file, m, w, h, max_tiles, step_floor);
     if (!d.tiles.empty()) sets.push_back(std::move(d));
   }
   for (const std::string& a : archives) {
@@ -287,9 +383,11 @@ int main(int argc, char** argv) {
       fmt::print(stderr, "{}\n", st.to_string());
       return 1;
     }
-    Dataset d{std::filesystem::path(a).filename().string(), a, -1, {}};
+    Dataset d{std::filesystem::path(a).filename().string(), a, -1, -1, {}};
     auto node = std::make_unique<terrain::NodeData>();
-    for (size_t i = 0; i < reader.nodes().size() && d.tiles.size() < max_tiles; ++i) {
+    const size_t n = reader.nodes().size(), take = std::min(n, max_tiles);
+    for (size_t k = 0; k < take; ++k) {  // spread evenly over the directory (all levels)
+      const size_t i = k * n / take;
       if (terrain::Status st = reader.decode_node(i, *node, terrain::kSectionHeights); !st.ok()) {
         fmt::print(stderr, "{}\n", st.to_string());
         return 1;
@@ -315,7 +413,7 @@ int main(int argc, char** argv) {
   if (json) {
     nlohmann::json j = nlohmann::json::array();
     for (const Result& r : results) {
-      nlohmann::json o = {{"dataset", r.name}, {"source", r.source}, {"tiles", r.tiles}, {"step_log2", r.step_log2},
+      nlohmann::json o = {{"dataset", r.name}, {"source", r.source}, {"tiles", r.tiles}, {"step_log2", r.step_log2}, {"range_step_log2", r.range_step_log2}, {"step_floor", step_floor},
                           {"raw_bytes", r.raw}, {"zstd19_bytes", r.zstd19}, {"zstd19_decode_mbps", r.zstd19_decode_mbps}, {"zstd19_decode_mbps_median", r.zstd19_decode_mbps_median},
                           {"zstd_default_level", default_level}, {"zstd_default_bytes", r.zstd_default},
                           {"zstd_default_decode_mbps", r.zstd_default_decode_mbps}, {"memcpy_mbps", r.memcpy_mbps}};
@@ -324,7 +422,9 @@ int main(int argc, char** argv) {
                                   {"ratio_vs_zstd19", double(l.bytes) / double(r.zstd19)},
                                   {"encode_ms_per_tile", l.encode_ms_per_tile}, {"decode_mbps", l.decode_mbps},
                                   {"decode_mbps_median", l.decode_mbps_median},
-                                  {"decode_vs_zstd19", l.decode_mbps / r.zstd19_decode_mbps}});
+                                  {"decode_vs_zstd19", l.decode_mbps / r.zstd19_decode_mbps},
+                                  {"paired_decode_pct_of_zstd19", l.paired_pct}, {"paired_decode_mbps", l.paired_mbps},
+                                  {"paired_zstd19_decode_mbps", l.paired_zstd19_mbps}});
       j.push_back(o);
     }
     fmt::print("{}\n", j.dump(2));
@@ -332,7 +432,8 @@ int main(int argc, char** argv) {
   }
   fmt::print("# height codec benchmark: fastest of {} runs per timing (encode: fastest of 3 passes, per tile); MB/s of decoded R16 output\n", runs);
   for (const Result& r : results) {
-    fmt::print("\n{} ({}): {} tiles of 129x129, step_log2 {}, raw {} B\n", r.name, r.source, r.tiles, r.step_log2, r.raw);
+    fmt::print("\n{} ({}): {} tiles of 129x129, step_log2 {} (range-driven {}, floor {}; -1: archive nodes), raw {} B\n", r.name,
+               r.source, r.tiles, r.step_log2, r.range_step_log2, step_floor, r.raw);
     fmt::print("  plain zstd -19     {:>9} B  ratio {:5.2f}  decode {:7.0f} MB/s (median {:.0f})\n", r.zstd19,
                double(r.raw) / double(r.zstd19), r.zstd19_decode_mbps, r.zstd19_decode_mbps_median);
     fmt::print("  plain zstd -{:<2}     {:>9} B  ratio {:5.2f}  decode {:7.0f} MB/s\n", default_level, r.zstd_default,
@@ -340,16 +441,17 @@ int main(int argc, char** argv) {
     fmt::print("  memcpy                                           {:7.0f} MB/s\n", r.memcpy_mbps);
     for (const LevelResult& l : r.levels)
       fmt::print("  predictor+zstd -{:<2} {:>9} B  ratio {:5.2f}  vs zstd19 {:4.2f}x  encode {:6.3f} ms/tile  decode {:7.0f} MB/s "
-                 "({:3.0f}% of zstd19; medians {:.0f} MB/s, {:.0f}%)\n",
+                 "({:3.0f}% of zstd19; medians {:.0f} MB/s, {:.0f}%; paired {:.0f}% = {:.0f} vs {:.0f} MB/s)\n",
                  l.level, l.bytes, double(r.raw) / double(l.bytes), double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile,
                  l.decode_mbps, 100.0 * l.decode_mbps / r.zstd19_decode_mbps, l.decode_mbps_median,
-                 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median);
+                 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median, l.paired_pct, l.paired_mbps, l.paired_zstd19_mbps);
   }
-  fmt::print("\n# summary (tab-separated)\ndataset\ttiles\tzstd19_B\tlevel\tpred_B\tratio_vs_zstd19\tencode_ms\tdecode_MBps\tzstd19_decode_MBps\tpct\tpct_median\n");
+  fmt::print("\n# summary (tab-separated)\ndataset\ttiles\tzstd19_B\tlevel\tpred_B\tratio_vs_zstd19\tencode_ms\tdecode_MBps\tzstd19_decode_MBps\tpct\tpct_median\tpaired_MBps\tpaired_zstd19_MBps\tpaired_pct\tmemcpy_MBps\n");
   for (const Result& r : results)
     for (const LevelResult& l : r.levels)
-      fmt::print("{}\t{}\t{}\t{}\t{}\t{:.3f}\t{:.3f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\n", r.name, r.tiles, r.zstd19, l.level, l.bytes,
-                 double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile, l.decode_mbps, r.zstd19_decode_mbps,
-                 100.0 * l.decode_mbps / r.zstd19_decode_mbps, 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median);
+      fmt::print("{}\t{}\t{}\t{}\t{}\t{:.3f}\t{:.3f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\n", r.name, r.tiles, r.zstd19,
+                 l.level, l.bytes, double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile, l.decode_mbps, r.zstd19_decode_mbps,
+                 100.0 * l.decode_mbps / r.zstd19_decode_mbps, 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median,
+                 l.paired_mbps, l.paired_zstd19_mbps, l.paired_pct, r.memcpy_mbps);
   return 0;
 }

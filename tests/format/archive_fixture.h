@@ -225,7 +225,8 @@ inline BuiltNode make_seed_node(const WorldInfo& w, const NodeKey& key) {
 }
 
 // Seed archives: 0 = one root in a local frame; 1 = a 6-level chain with a hole (UTM frame);
-// 2 = one root with plain-zstd heights and a stored (incompressible) cones section.
+// 2 = one root with plain-zstd heights and a stored (incompressible) cones section;
+// 3 = one root whose heights are constant (heights codec 3, SPEC 9.3).
 inline Status write_seed_archive(const std::string& path, int kind) {
   WorldInfo w = make_world(1, 1);
   if (kind != 1) {
@@ -244,6 +245,10 @@ inline Status write_seed_archive(const std::string& path, int kind) {
     n.record.child_mask = child_mask_of(keys, k);
     if (kind == 2)
       for (size_t i = 0; i < n.data->cones_bc3.size(); ++i) n.data->cones_bc3[i] = uint8_t(i * 151 + 7);
+    if (kind == 3) {  // flat at the offset: every r = 0
+      n.data->heights.fill(0);
+      n.record.min_height = n.record.max_height = n.record.height_offset;
+    }
     if (Status s = encode_node_payload(*n.data, options, payload); !s.ok()) return s;
     if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
   }

@@ -42,6 +42,7 @@ void check_golden(const std::string& name, int kind) {
 TEST(GoldenArchive, OneRootMatchesFrozenBytes) { check_golden("one_root.terrain", 0); }
 TEST(GoldenArchive, SixLevelChainMatchesFrozenBytes) { check_golden("chain6.terrain", 1); }
 TEST(GoldenArchive, PlainAndStoredCodecsMatchFrozenBytes) { check_golden("plain_codecs.terrain", 2); }
+TEST(GoldenArchive, ConstantHeightsCodecMatchesFrozenBytes) { check_golden("constant_heights.terrain", 3); }
 
 }  // namespace
 }  // namespace terrain

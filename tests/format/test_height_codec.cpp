@@ -1,8 +1,11 @@
 // Height codec: exact round trip on adversarial grids, random grids and real DEM windows; the
-// residual layout and the height_shift rule; decoding rejects wrong sizes.
+// residual layout and the height_shift rule; decoding rejects wrong sizes; codec 3 (constant
+// grid) layout, and damage to its section entry or bytes gives clean errors.
 #include <gtest/gtest.h>
 
 #include <random>
+
+#include "terrain/archive_layout.h"
 
 #include "real_dem.h"
 #include "terrain/archive_writer.h"
@@ -140,6 +143,182 @@ TEST(HeightCodec, ExactOnRealKilaueaWindows) {
       }
     }
   EXPECT_GE(windows, 40);
+}
+
+// ---- codec 3 (constant grid) -----------------------------------------------------------------
+// Heights entry of the section table: payload bytes 4..15 (id, codec, height_shift, reserved,
+// stored_size u32, raw_size u32); the heights data starts at byte 64.
+constexpr size_t kHeightsEntry = 4;
+constexpr size_t kHeightsData = 64;
+
+std::vector<uint8_t> encode_heights(const Grid& g, int level = 9) {
+  auto node = std::make_unique<NodeData>();
+  std::copy(g.begin(), g.end(), node->heights.begin());
+  std::vector<uint8_t> payload;
+  EXPECT_TRUE(encode_node_payload(*node, PayloadOptions{level, true}, payload).ok());
+  return payload;
+}
+uint32_t u32_at(const std::vector<uint8_t>& b, size_t at) {
+  return uint32_t(b[at]) | uint32_t(b[at + 1]) << 8 | uint32_t(b[at + 2]) << 16 | uint32_t(b[at + 3]) << 24;
+}
+
+TEST(HeightCodec, ConstantGridIsStoredAsCodec3InTwoBytes) {
+  for (uint16_t v : {uint16_t(0), uint16_t(1), uint16_t(0x1234), uint16_t(65535)})
+    for (int level : {1, 3, 9, 19}) {
+      const auto payload = encode_heights(filled(v), level);
+      EXPECT_EQ(payload[kHeightsEntry + 1], uint8_t(layout::Codec::height_constant));
+      EXPECT_EQ(payload[kHeightsEntry + 2], 0);  // height_shift is reserved (0) with codec 3
+      EXPECT_EQ(u32_at(payload, kHeightsEntry + 4), 2u);
+      EXPECT_EQ(u32_at(payload, kHeightsEntry + 8), 2u * kHeightCount);
+      EXPECT_EQ(payload[kHeightsData], uint8_t(v));
+      EXPECT_EQ(payload[kHeightsData + 1], uint8_t(v >> 8));
+      auto out = std::make_unique<NodeData>();
+      std::fill(out->heights.begin(), out->heights.end(), uint16_t(v ^ 0x5555));
+      ASSERT_TRUE(decode_node_payload(payload, kSectionHeights, *out).ok());
+      EXPECT_TRUE(std::all_of(out->heights.begin(), out->heights.end(), [&](uint16_t h) { return h == v; })) << v;
+    }
+}
+
+TEST(HeightCodec, OneDifferentSampleLeavesCodec3) {
+  // Any sample, including the last one and a corner, makes the grid non-constant.
+  for (int k : {0, 128, 64 * 129 + 64, kHeightCount - 1}) {
+    Grid g = filled(700);
+    g[size_t(k)] = 701;
+    const auto payload = encode_heights(g);
+    EXPECT_NE(payload[kHeightsEntry + 1], uint8_t(layout::Codec::height_constant)) << k;
+    auto out = std::make_unique<NodeData>();
+    ASSERT_TRUE(decode_node_payload(payload, kSectionHeights, *out).ok());
+    EXPECT_TRUE(std::equal(g.begin(), g.end(), out->heights.begin())) << k;
+  }
+}
+
+TEST(HeightCodec, DamagedCodec3EntriesAreRejectedByName) {
+  const auto good = encode_heights(filled(4242));
+  auto decode = [](const std::vector<uint8_t>& b) {
+    auto out = std::make_unique<NodeData>();
+    return decode_node_payload(b, kSectionHeights, *out);
+  };
+  ASSERT_TRUE(decode(good).ok());
+  {  // stored_size 3 with one extra byte: the section must be exactly 2 bytes
+    auto b = good;
+    b.insert(b.begin() + std::ptrdiff_t(kHeightsData + 2), uint8_t(0));
+    b[kHeightsEntry + 4] = 3;
+    const Status s = decode(b);
+    EXPECT_EQ(s.code, Error::payload_invalid);
+    EXPECT_NE(s.message.find("constant"), std::string::npos) << s.message;
+  }
+  {  // stored_size 1 (one byte moved to the next section): rejected, never a 1-byte read past
+    auto b = good;
+    b[kHeightsEntry + 4] = 1;
+    b[kHeightsEntry + 12 + 4] += 1;
+    EXPECT_EQ(decode(b).code, Error::payload_invalid);
+  }
+  {  // height_shift byte is reserved with codec 3
+    auto b = good;
+    b[kHeightsEntry + 2] = 1;
+    EXPECT_EQ(decode(b).code, Error::payload_invalid);
+  }
+  {  // codec 3 is heights-only: on the normals section it is an unknown codec
+    auto b = good;
+    b[kHeightsEntry + 12 + 1] = uint8_t(layout::Codec::height_constant);
+    const Status s = decode(b);
+    EXPECT_EQ(s.code, Error::payload_invalid);
+    EXPECT_NE(s.message.find("normals section has unknown codec 3"), std::string::npos) << s.message;
+  }
+  {  // codec 4 does not exist
+    auto b = good;
+    b[kHeightsEntry + 1] = 4;
+    EXPECT_EQ(decode(b).code, Error::payload_invalid);
+  }
+  {  // a predictor payload relabelled as constant: its stored size is not 2
+    Grid g = filled(0);
+    for (int k = 0; k < kHeightCount; ++k) g[size_t(k)] = uint16_t(k % 977);
+    auto b = encode_heights(g);
+    ASSERT_EQ(b[kHeightsEntry + 1], uint8_t(layout::Codec::height_predictor));
+    b[kHeightsEntry + 1] = uint8_t(layout::Codec::height_constant);
+    b[kHeightsEntry + 2] = 0;
+    EXPECT_EQ(decode(b).code, Error::payload_invalid);
+  }
+}
+
+TEST(HeightCodec, EveryTruncationAndByteChangeOfAConstantPayloadIsSafe) {
+  // Exhaustive over the table and the heights data: each damaged payload either decodes (to some
+  // grid: the checksum guards the bytes) or fails with payload_invalid / decompress_failed.
+  const auto good = encode_heights(filled(31337));
+  int rejected = 0, decoded = 0;
+  auto check = [&](const std::vector<uint8_t>& b) {
+    auto out = std::make_unique<NodeData>();
+    const Status s = decode_node_payload(b, kSectionAll, *out);
+    if (s.ok()) {
+      ++decoded;
+    } else {
+      ++rejected;
+      EXPECT_TRUE(s.code == Error::payload_invalid || s.code == Error::decompress_failed) << s.to_string();
+    }
+  };
+  for (size_t n = 0; n < good.size(); ++n) check(std::vector<uint8_t>(good.begin(), good.begin() + std::ptrdiff_t(n)));
+  for (size_t at = 0; at < kHeightsData + 2; ++at)
+    for (int bit = 0; bit < 8; ++bit) {
+      auto b = good;
+      b[at] ^= uint8_t(1 << bit);
+      check(b);
+    }
+  EXPECT_EQ(rejected + decoded, int(good.size() + 8 * (kHeightsData + 2)));
+  EXPECT_GE(rejected, int(good.size()));  // every truncation at least
+  EXPECT_GE(decoded, 16);                 // flips of the value bytes decode to another constant
+}
+
+TEST(HeightCodec, ExactOnHolesNoiseAndFullRangeGrids) {
+  std::mt19937 rng(777);
+  Grid g = filled(0);
+  // Smooth surface with hole patches filled by 0 and by 65535 (as a hole fill might leave them).
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i)
+      g[size_t(j * kHeightSamples + i)] = uint16_t(20000 + 40 * i - 25 * j + (i * j) % 17);
+  for (int j = 30; j < 50; ++j)
+    for (int i = 10; i < 90; ++i) g[size_t(j * kHeightSamples + i)] = 0;
+  for (int j = 100; j < 129; ++j)
+    for (int i = 100; i < 129; ++i) g[size_t(j * kHeightSamples + i)] = 65535;
+  expect_round_trip(g, "holes");
+  // Sensor noise at the cooker's 16-unit floor step (values multiples of 16): shift 4 path.
+  for (auto& v : g) v = uint16_t((1875 + rng() % 64) * 16);
+  expect_round_trip(g, "noise at step 16");
+  // Full range alternating by rows and by columns.
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i) g[size_t(j * kHeightSamples + i)] = (j & 1) ? 65535 : 0;
+  expect_round_trip(g, "rows 0/65535");
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i) g[size_t(j * kHeightSamples + i)] = (i & 1) ? 0 : 65535;
+  expect_round_trip(g, "columns 65535/0");
+}
+
+TEST(HeightCodec, ExactOnRealLidarWindowsAtTheCookerSteps) {
+  // First-return lidar (trees) and bare-earth lidar, quantized at 1/1024 m (step 0) and at the
+  // cooker's default floor 2^4 units (15.6 mm), windows on a 64-sample stride.
+  int windows = 0;
+  for (const char* file : {"tahoe_lidar_highesthit.tif", "slovenia_TM1_564_146.tif"}) {
+    const auto path = test::data_file(file);
+    TERRAIN_REQUIRE_DATA(path);
+    test::Dem dem;
+    ASSERT_TRUE(test::read_dem(path.string(), -1e30f, dem)) << file;
+    for (int y0 = 0; y0 + kHeightSamples <= dem.height && y0 <= 512; y0 += 64)
+      for (int x0 = 0; x0 + kHeightSamples <= dem.width && x0 <= 512; x0 += 64)
+        for (int step : {0, 4}) {
+          Grid g = filled(0);
+          double lo = 1e30;
+          for (int j = 0; j < kHeightSamples; ++j)
+            for (int i = 0; i < kHeightSamples; ++i)
+              lo = std::min(lo, double(dem.values[size_t(y0 + j) * size_t(dem.width) + size_t(x0 + i)]));
+          for (int j = 0; j < kHeightSamples; ++j)
+            for (int i = 0; i < kHeightSamples; ++i) {
+              const double m = double(dem.values[size_t(y0 + j) * size_t(dem.width) + size_t(x0 + i)]) - lo;
+              g[size_t(j * kHeightSamples + i)] = uint16_t(std::clamp(std::lround(m * 1024.0 / double(1 << step)), 0L, 65535L) << step);
+            }
+          expect_round_trip(g, file);
+          ++windows;
+        }
+  }
+  EXPECT_GE(windows, 60);
 }
 
 }  // namespace

@@ -142,6 +142,11 @@ TEST_F(Sampler, TrianglesTouchingAHoleAreDropped) {
   EXPECT_TRUE(has(39.2, 50.8));    // quad (39,50) ADC: A (39,50), D (40,51), C (39,51): no hole
   EXPECT_FALSE(has(40.1, 49.8));   // quad (40,49) ADC: C = (40,50) is the hole
   EXPECT_TRUE(has(40.8, 49.1));    // quad (40,49) ABD: A (40,49), B (41,49), D (41,50): no hole
+  // SPEC section 10, shared edges: (39, 49.5) lies on quad (39,49)'s ADC (D = (40,50) is the hole)
+  // and on quad (38,49)'s ABD (no hole), so it is drawn; (40, 49.5) lies only on triangles
+  // touching the hole vertex.
+  EXPECT_TRUE(has(39.0, 49.5));
+  EXPECT_FALSE(has(40.0, 49.5));
 }
 
 }  // namespace

@@ -94,6 +94,7 @@ enum class Codec : uint8_t {
   stored = 0,             // raw bytes
   zstd = 1,               // one zstd frame of the raw bytes
   height_predictor = 2,   // one zstd frame of the height residual planes (heights only)
+  height_constant = 3,    // 2 bytes: the one value of every height sample (heights only)
 };
 // Raw (decoded) size of each section, indexed by SectionId.
 inline constexpr std::array<uint32_t, kSectionCount> kSectionRawSize = {
