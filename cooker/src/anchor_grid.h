@@ -20,6 +20,16 @@ class AnchorGrid {
   // x per point. Each result depends on its own (x, y) only (not on the other points), so a point
   // gets the same bits whichever batch it comes in; eval() may differ in the last bit.
   void eval_row(double y, const double* x, int n, double* a, double* b) const;
+  // eval_row split in two for many rows sharing the same x (the vertex columns of a node window):
+  // the per-point column cell and weights are computed once; eval_row() is plan_row() + eval_planned()
+  // so both give the same bits.
+  struct RowPlan {
+    int i0 = 0, cols = 0;
+    std::vector<int> cell;     // per point: first anchor column used, relative to i0
+    std::vector<double> wx;    // per point: 4 Catmull-Rom weights
+  };
+  void plan_row(const double* x, int n, RowPlan& plan) const;
+  void eval_planned(double y, const RowPlan& plan, double* a, double* b) const;
 
   bool empty() const { return values_.empty(); }
   double step() const { return step_; }

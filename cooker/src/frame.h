@@ -54,6 +54,9 @@ class SourceMapping {
 
   // True when frame and source coordinates differ by an affine map only (no anchors involved).
   bool affine() const { return affine_; }
+  // The frame -> sample anchors behind map_frame_row when not affine (null when affine): callers
+  // mapping many rows of the same x plan the row once (AnchorGrid::plan_row), same bits.
+  const AnchorGrid* frame_to_sample_anchors() const { return affine_ ? nullptr : &to_sample_; }
   // Affine without rotation: a vertex's sample column depends on its frame x only and its sample
   // row on y only (exactly: the cross terms are zero), so rows and columns of vertices share them.
   bool axis_aligned() const { return affine_ && affine_map_.inv[2] == 0.0 && affine_map_.inv[4] == 0.0; }

@@ -1,6 +1,7 @@
 #include "node_cook.h"
 
-#include <chrono>
+#include <time.h>
+
 #include <cmath>
 #include <fmt/format.h>
 
@@ -9,8 +10,13 @@
 namespace terrain::cook {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+// Stage times are this thread's CPU time (not wall time): on a loaded machine a preempted thread
+// would otherwise charge other processes' time to the stage, and "per CPU-second" means that.
+double thread_cpu_s() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
 
 // Level-0 lattice index of vertex i (may be negative in the window margin) of a node column.
 int64_t lattice_index(uint32_t node, int i, uint32_t level) {
@@ -44,18 +50,31 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   std::array<int64_t, kWindowSize> gxs;
   std::array<double, kLevelCount> scale;
   for (int l = 0; l < kLevelCount; ++l) scale[size_t(l)] = std::ldexp(1024.0, -int(ctx.step_log2[size_t(l)]));
+  // vertex_level(gx, gy) is the smaller of vertex_level(gx, 0) and vertex_level(0, gy) (trailing
+  // zeros of gx | gy): the column part once per window.
+  std::array<uint8_t, kWindowSize> column_level;
   for (int i = 0; i < kWindowSize; ++i) {
     gxs[size_t(i)] = lattice_index(key.x, i - kWindowMargin, key.level);
     xs[size_t(i)] = ctx.lattice_x(gxs[size_t(i)]);
+    column_level[size_t(i)] = uint8_t(vertex_level(gxs[size_t(i)], 0));
   }
   // Axis-aligned sources: every row of vertices shares the columns' Catmull-Rom weights (the
   // mapping gives the same column for any row, so the bits are those of the per-vertex path).
   const bool shared_columns = ctx.mapping->axis_aligned();
   std::array<Surface::Axis, kWindowSize> column_axes;
+  std::array<bool, kWindowSize> x_in{};
+  // Other sources map every row through the anchors at the same x: plan the columns once
+  // (identical bits to map_frame_row).
+  const AnchorGrid* anchors = shared_columns ? nullptr : ctx.mapping->frame_to_sample_anchors();
+  thread_local AnchorGrid::RowPlan plan;
+  if (anchors) anchors->plan_row(xs.data(), kWindowSize, plan);
   if (shared_columns) {
     ctx.mapping->map_frame_row(ctx.lattice_y(lattice_index(key.y, 0, key.level)), xs.data(), kWindowSize, cols.data(),
                                rows.data());
-    for (int i = 0; i < kWindowSize; ++i) column_axes[size_t(i)] = ctx.surface.column(cols[size_t(i)]);
+    for (int i = 0; i < kWindowSize; ++i) {
+      column_axes[size_t(i)] = ctx.surface.column(cols[size_t(i)]);
+      x_in[size_t(i)] = ctx.surface.x_interior(column_axes[size_t(i)]);
+    }
   }
   // Vertex rows closer than source rows: cache each source row's horizontal sums (per column).
   std::array<Surface::Axis, kWindowSize> row_axes;
@@ -81,7 +100,10 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   for (int j = 0; j < kWindowSize; ++j) {
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
-    if (!shared_columns) ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
+    if (anchors)
+      anchors->eval_planned(y, plan, cols.data(), rows.data());
+    else if (!shared_columns)
+      ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
     const Surface::Axis& row_axis = row_axes[size_t(j)];
     const double* source_rows[4] = {};
     const bool use_cache = cache_rows > 0 && ctx.surface.y_interior(row_axis);
@@ -91,21 +113,40 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
         if (!cached[size_t(slot)]) {
           double* line = &cache[size_t(slot) * kWindowSize];
           for (int i = 0; i < kWindowSize; ++i)
-            if (ctx.surface.x_interior(column_axes[size_t(i)]))
+            if (x_in[size_t(i)])
               line[i] = ctx.surface.horizontal(column_axes[size_t(i)], row_axis.i - 1 + t);
           cached[size_t(slot)] = 1;
         }
         source_rows[t] = &cache[size_t(slot) * kWindowSize];
       }
+    // Cached rows: the vertical sums of sample_rows() for the whole row in one branch-free pass
+    // (same operations in the same order); a NaN sum (a nodata tap) goes to the general path below.
+    std::array<double, kWindowSize> row_sum;
+    if (use_cache) {
+      const double* r0 = source_rows[0];
+      const double* r1 = source_rows[1];
+      const double* r2 = source_rows[2];
+      const double* r3 = source_rows[3];
+      const double w0 = row_axis.w[0], w1 = row_axis.w[1], w2 = row_axis.w[2], w3 = row_axis.w[3];
+      for (int i = 0; i < kWindowSize; ++i) {
+        double sum = 0;
+        sum += w0 * r0[i];
+        sum += w1 * r1[i];
+        sum += w2 * r2[i];
+        sum += w3 * r3[i];
+        row_sum[size_t(i)] = sum;
+      }
+    }
+    const int row_level = vertex_level(0, gy);
     for (int i = 0; i < kWindowSize; ++i) {
       const size_t k = size_t(j) * kWindowSize + size_t(i);
       double h = 0;
       bool ok = false;
       if (!shared_columns) {
         ok = ctx.surface.sample(cols[size_t(i)], rows[size_t(i)], h);
-      } else if (use_cache && ctx.surface.x_interior(column_axes[size_t(i)])) {
-        const double* at[4] = {source_rows[0] + i, source_rows[1] + i, source_rows[2] + i, source_rows[3] + i};
-        ok = ctx.surface.sample_rows(column_axes[size_t(i)], row_axis, at, h);
+      } else if (use_cache && x_in[size_t(i)]) {
+        h = row_sum[size_t(i)];
+        ok = !std::isnan(h) || ctx.surface.sample_general(column_axes[size_t(i)], row_axis, h);
       } else {
         ok = ctx.surface.sample(column_axes[size_t(i)], row_axis, h);
       }
@@ -114,7 +155,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
         w.units[k] = 0;
         continue;
       }
-      const size_t vl = size_t(vertex_level(gxs[size_t(i)], gy));
+      const size_t vl = size_t(std::min(int(column_level[size_t(i)]), row_level));
       const int64_t u = quantize_units(h, scale[vl], ctx.step_log2[vl]);
       if (u > kMaxHeightUnits || u < -kMaxHeightUnits)
         return Status::failure(Error::invalid_argument,
@@ -213,7 +254,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
 void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   out = NodeResult{};
   out.record.key = key;
-  const auto t0 = Clock::now();
+  const double t0 = thread_cpu_s();
   auto window = std::make_unique<NodeWindow>();
   out.status = compute_window(ctx, key, *window);
   if (!out.status.ok()) return;
@@ -228,7 +269,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   for (int j = 0; j < kHeightSamples; ++j)
     for (int i = 0; i < kHeightSamples; ++i)
       out.vertices += window->hole[inner + size_t(j) * kWindowSize + size_t(i)] == 0;
-  const auto t1 = Clock::now();
+  const double t1 = thread_cpu_s();
 
   measure_error(ctx, key, *window, out.error);
   // Stored as float: round up so the recorded error never understates the measured one.
@@ -236,11 +277,13 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   if (double(err) < out.error.total.max_m) err = std::nextafter(err, INFINITY);
   out.record.geometric_error_m = err;
   // Refine where the error exceeds the tolerance, or where hole triangles drop valid source
-  // samples along a data edge and the node's vertices are coarser than the source (a gap of less
-  // than one source sample is not worth a finer level).
-  const bool refine = int(key.level) > ctx.finest_level &&
-                      (out.error.total.max_m > ctx.tolerance_m ||
-                       (out.error.total.uncovered > 0 && vertex_spacing_m(int(key.level)) > ctx.source_spacing_m));
+  // samples along a data edge while the vertices are coarser than half the source spacing: from
+  // there on every vertex of a triangle holding an edge sample lies within that sample's pixel,
+  // whose nearest sample is valid, so the triangle is drawn.
+  const bool refine =
+      int(key.level) > ctx.finest_level &&
+      (out.error.total.max_m > ctx.tolerance_m ||
+       (out.error.total.uncovered > 0 && vertex_spacing_m(int(key.level)) > 0.5 * ctx.source_spacing_m));
   if (refine) {
     for (int c = 0; c < 4; ++c) {
       // Parent vertices inside the quadrant are child vertices too: any with terrain decides it.
@@ -253,7 +296,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
       if (any) out.record.child_mask = uint8_t(out.record.child_mask | (1u << c));
     }
   }
-  const auto t2 = Clock::now();
+  const double t2 = thread_cpu_s();
 
   bool surface_done = false;
 #if TERRAIN_COOKER_HAS_SURFACE
@@ -271,18 +314,19 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     in.holes = window->hole.data();
     in.rules = ctx.rules;
     in.bc_quality = ctx.bc_quality;
+    in.overlays = ctx.overlays;
     out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
     if (!out.status.ok()) return;
   }
 #endif
   if (!surface_done) encode_hole_albedo(*window, data->albedo_bc1);
-  const auto t3 = Clock::now();
+  const double t3 = thread_cpu_s();
   out.status = encode_node_payload(*data, ctx.payload, out.payload);
-  const auto t4 = Clock::now();
-  out.cpu_heights = seconds_between(t0, t1);
-  out.cpu_error = seconds_between(t1, t2);
-  out.cpu_surface = seconds_between(t2, t3);
-  out.cpu_encode = seconds_between(t3, t4);
+  const double t4 = thread_cpu_s();
+  out.cpu_heights = t1 - t0;
+  out.cpu_error = t2 - t1;
+  out.cpu_surface = t3 - t2;
+  out.cpu_encode = t4 - t3;
 }
 
 }  // namespace terrain::cook

@@ -27,6 +27,16 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
   out = PyramidStats{};
   const int nthreads = resolve_threads(threads);
   const int level_count = kRootLevel - ctx.finest_level + 1;
+  // Where even the finest level's vertices are further apart than half a source sample, widen the
+  // covered band beyond the raster's outer samples to one vertex spacing (reconstruct.h), so the
+  // triangles holding the outer samples are drawn. A function of position only, as hole flags
+  // must be; 0.5 (no change) for sources of 1 m and coarser.
+  {
+    double sx = 0, sy = 0;
+    ctx.mapping->spacing_m(sx, sy);
+    const double s = vertex_spacing_m(ctx.finest_level);
+    ctx.surface.set_outer_apron(sx > 0 ? s / sx : 0.5, sy > 0 ? s / sy : 0.5);
+  }
 
   // Roots that hold terrain.
   std::vector<NodeKey> keys;
@@ -48,9 +58,13 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
       std::vector<double> bound(keys.size(), 0.0);
       parallel_for(keys.size(), nthreads, [&](size_t i) { bound[i] = node_range_bound(ctx, index, keys[i]); });
       const double worst = *std::max_element(bound.begin(), bound.end());
-      const int step = level == kRootLevel ? required_step(worst, -1)
-                                           : std::min(required_step(worst, ctx.step_log2[kRootLevel]),
-                                                      int(ctx.step_log2[size_t(level + 1)]));
+      // The range's step or the tolerance's, whichever is coarser; capped by the parent level's
+      // (itself >= the tolerance's), so steps never decrease towards the roots.
+      const int floor_step = tolerance_step(ctx.tolerance_m);
+      const int step = level == kRootLevel
+                           ? std::max(required_step(worst, -1), floor_step)
+                           : std::min(std::max(required_step(worst, ctx.step_log2[kRootLevel]), floor_step),
+                                      int(ctx.step_log2[size_t(level + 1)]));
       for (int l = level; l >= 0; --l) ctx.step_log2[size_t(l)] = uint8_t(step);  // finer levels: until cooked
     }
     ErrorStats& le = out.level_error[size_t(level)];

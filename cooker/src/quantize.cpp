@@ -19,6 +19,12 @@ int step_for(double range_units, double rounding_units) {
 
 }  // namespace
 
+int tolerance_step(double tolerance_m) {
+  int s = 0;
+  while (s < kMaxStepLog2 && std::ldexp(1.0, s + 1) * kHeightUnitM <= tolerance_m / 32.0) ++s;
+  return s;
+}
+
 int required_step(double range_bound_m, int root_step) {
   const double units = std::max(range_bound_m, 0.0) * 1024.0 + 1.0;
   if (root_step >= 0) return step_for(units, std::ldexp(1.0, root_step));

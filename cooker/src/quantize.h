@@ -36,8 +36,14 @@ inline int64_t quantize_units(double h_m, double scale, int step_log2) {
   return (double(t) > v ? t - 1 : t) * (int64_t(1) << step_log2);
 }
 
+// The coarsest step the tolerance allows: the largest power of two of units <= tolerance / 32
+// (2^4 units = 15.6 mm at 0.5 m), at least 1 unit, at most 2^14. Rounding then costs at most
+// 1/64 of the tolerance, and no bits are spent on sensor noise far below it.
+int tolerance_step(double tolerance_m);
+
 // The step of a level, chosen just before the level is cooked, from an upper bound on the surface
-// range of its nodes (metres): the smallest step with every node's range in 16 bits. A node's
+// range of its nodes (metres): the smallest step with every node's range in 16 bits (the caller
+// takes the larger of it and tolerance_step()). A node's
 // values are rounded at its own and coarser levels, by up to half the root step each way, so the
 // root step widens the range (`root_step` < 0: this is the root level, use its own step). The
 // caller caps it at the next coarser level's step (steps never decrease towards the roots; a

@@ -47,7 +47,9 @@ bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {
       wsum += wgt;
     }
   }
-  h = sum / wsum;
+  // No valid tap in the cell: a point in the widened outer apron (set_outer_apron) more than a
+  // sample beyond the raster; the outermost sample it is covered by carries it.
+  h = wsum > 0 ? sum / wsum : clamped_nearest(ic, ir, tx, ty);
   return true;
 }
 

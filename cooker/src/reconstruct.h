@@ -7,8 +7,12 @@
 // surrounding 2x2 cell (weights renormalised). A point is a hole when its NEAREST source sample is nodata or outside the raster,
 // so the covered area is the union of the valid samples' pixels (half a sample beyond the outer
 // samples, also for point-sampled rasters: the data's own edge samples stay fully drawn; the
-// archive's footprint and grid origin still follow their hull, frame.h).
+// archive's footprint and grid origin still follow their hull, frame.h). Beyond the raster's
+// outer samples the covered band may be widened (set_outer_apron) to one finest-lattice vertex
+// spacing when that exceeds half a sample (sources finer than 1 m): otherwise a triangle holding
+// an outer sample can have a vertex outside the band and drop it.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -26,6 +30,13 @@ inline double fast_floor(double x) {
 class Surface {
  public:
   explicit Surface(const Raster& r) : z_(r.values.data()), w_(r.width), h_(r.height) {}
+
+  // How far (in samples, per axis) beyond the outer samples the surface is covered: 0.5 (the
+  // pixel edge) by default, at most 1.5 (the linear continuation reaches two samples out).
+  void set_outer_apron(double columns, double rows) {
+    apron_c_ = std::clamp(columns, 0.5, 1.5);
+    apron_r_ = std::clamp(rows, 0.5, 1.5);
+  }
 
   // One axis of a sample position: the cell, the fraction and its Catmull-Rom weights.
   struct Axis {
@@ -53,16 +64,15 @@ class Surface {
   bool sample(const Axis& x, const Axis& y, double& h) const {
     if (!x.in || !y.in) return false;
     if (x.i >= 1 && y.i >= 1 && x.i + 2 < w_ && y.i + 2 < h_) {
+      // The nearest sample is one of the 16 taps and any NaN tap (nodata) poisons the sum (0 * NaN
+      // is NaN), so a finite sum means the point is covered; otherwise the general path decides.
       const float* p = z_ + size_t(y.i - 1) * size_t(w_) + size_t(x.i - 1);
-      const size_t nearest = size_t(x.t > 0.5 ? 2 : 1) + size_t(y.t > 0.5 ? 2 : 1) * size_t(w_);
-      if (!std::isnan(p[nearest])) {
-        double sum = 0;
-        for (int j = 0; j < 4; ++j, p += w_)
-          sum += y.w[j] * (x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3]);
-        if (!std::isnan(sum)) {  // a NaN tap (nodata) poisons the sum: the general path decides
-          h = sum;
-          return true;
-        }
+      double sum = 0;
+      for (int j = 0; j < 4; ++j, p += w_)
+        sum += y.w[j] * (x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3]);
+      if (!std::isnan(sum)) {
+        h = sum;
+        return true;
       }
     }
     return sample_general(x, y, h);
@@ -78,14 +88,11 @@ class Surface {
   }
   // `rows[j]` = horizontal(x, y.i - 1 + j); requires x_interior(x) and y_interior(y).
   bool sample_rows(const Axis& x, const Axis& y, const double* const rows[4], double& h) const {
-    const size_t nearest = size_t(y.i - 1 + (y.t > 0.5 ? 2 : 1)) * size_t(w_) + size_t(x.i - 1 + (x.t > 0.5 ? 2 : 1));
-    if (!std::isnan(z_[nearest])) {
-      double sum = 0;
-      for (int j = 0; j < 4; ++j) sum += y.w[j] * *rows[j];
-      if (!std::isnan(sum)) {
-        h = sum;
-        return true;
-      }
+    double sum = 0;  // NaN when any of the 16 taps is (see sample())
+    for (int j = 0; j < 4; ++j) sum += y.w[j] * *rows[j];
+    if (!std::isnan(sum)) {
+      h = sum;
+      return true;
     }
     return sample_general(x, y, h);
   }
@@ -96,10 +103,12 @@ class Surface {
     return nearest_valid(int(fc), int(fr), col - fc, row - fr);
   }
 
- private:
   // Edges of the raster, nodata taps and ties: the hole test, then Catmull-Rom with taps beyond
-  // the raster continued linearly, else bilinear over the valid taps.
+  // the raster continued linearly, else bilinear over the valid taps. sample() falls back to it;
+  // public for callers that evaluate the interior sums themselves (node_cook.cpp).
   bool sample_general(const Axis& x, const Axis& y, double& h) const;
+
+ private:
 
   // Sample (c, r), with samples up to two beyond the raster extrapolated linearly from the two
   // outermost ones (NaN when those are nodata). Needs a raster of at least 2x2 samples.
@@ -119,16 +128,28 @@ class Surface {
   }
   // The nearest sample of (ic + tx, ir + ty) is valid; exactly halfway between two samples either
   // may carry the point, so pixel edges belong to the covered side in every direction.
+  // Beyond the outer samples (up to the apron) the outermost sample of the row/column carries it.
   bool nearest_valid(int ic, int ir, double tx, double ty) const {
     const int c = ic + (tx > 0.5 ? 1 : 0), r = ir + (ty > 0.5 ? 1 : 0);
     if (valid(c, r)) return true;
-    if (tx != 0.5 && ty != 0.5) return false;
-    const int c2 = tx == 0.5 ? ic + 1 : c, r2 = ty == 0.5 ? ir + 1 : r;
-    return valid(c2, r) || valid(c, r2) || valid(c2, r2);
+    if (tx == 0.5 || ty == 0.5) {
+      const int c2 = tx == 0.5 ? ic + 1 : c, r2 = ty == 0.5 ? ir + 1 : r;
+      if (valid(c2, r) || valid(c, r2) || valid(c2, r2)) return true;
+    }
+    const double pc = ic + tx, pr = ir + ty;
+    const int cc = pc < 0 && pc >= -apron_c_ ? 0 : pc > w_ - 1 && pc <= w_ - 1 + apron_c_ ? w_ - 1 : c;
+    const int rr = pr < 0 && pr >= -apron_r_ ? 0 : pr > h_ - 1 && pr <= h_ - 1 + apron_r_ ? h_ - 1 : r;
+    return (cc != c || rr != r) && valid(cc, rr);
+  }
+  // The outermost valid sample nearest (ic + tx, ir + ty), for points in the widened apron.
+  double clamped_nearest(int ic, int ir, double tx, double ty) const {
+    const int c = std::clamp(ic + (tx > 0.5 ? 1 : 0), 0, w_ - 1), r = std::clamp(ir + (ty > 0.5 ? 1 : 0), 0, h_ - 1);
+    return z_[size_t(r) * size_t(w_) + size_t(c)];
   }
 
   const float* z_;
   int w_, h_;
+  double apron_c_ = 0.5, apron_r_ = 0.5;
 };
 
 }  // namespace terrain::cook

@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   app.add_option("--finest-level", o.finest_level,
-                 "Finest level to cook, 0 (0.5 m) .. 5 (16 m); default: levels down to half the source spacing")
+                 "Finest level to cook, 0 (0.5 m) .. 5 (16 m); default: the finest level with spacing >= 1/32 of the source spacing (refinement stops earlier where the tolerance is met)")
       ->check(CLI::Range(0, 5));
   app.add_option("--threads", o.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--crs", o.crs,
@@ -66,6 +66,17 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"u16", "i16", "f32"}));
   app.add_flag("--raw-big-endian", o.raw_big_endian, "Raw heightmaps are big-endian");
   app.add_option("--materials", o.materials_path, "Material rules JSON for the splat map (default: built-in)");
+  app.add_option("--albedo", o.albedo_path,
+                 "Orthophoto for the albedo: GeoTIFF RGB(A) in any supported CRS, resampled to the frame "
+                 "(default: baked from the splat materials)");
+  app.add_option("--holes", o.holes_path,
+                 "Hole mask: GeoTIFF in any supported CRS; nonzero = hole (those vertices drop their triangles)");
+  app.add_option("--landcover", o.landcover_path,
+                 "Class raster (e.g. land cover GeoTIFF, integer classes, any supported CRS) for the splat map; "
+                 "needs --landcover-table");
+  app.add_option("--landcover-table", o.landcover_table_path,
+                 "JSON class -> material table: {\"classes\": {\"10\": \"forest_floor\", \"80\": \"water\"}} "
+                 "(palette names or indices; classes not listed keep the rules' choice)");
   app.add_option("--bc-quality", quality, "Block compression quality of normals and albedo")
       ->check(CLI::IsMember({"fast", "balanced", "best"}))
       ->capture_default_str();

@@ -58,7 +58,7 @@ SyntheticDem utm_dem(int w, int h, double spacing, double east, double north) {
   return d;
 }
 
-// Max over the valid source samples of |cooked - source| - bound(node); the worst excess (<= 0
+// Max over the valid source samples of |cooked - source| - (tolerance + half step + 1 mm): the worst excess (<= 0
 // means every sample is within its bound). Samples without a cooked height count in `missing`,
 // or in `missing_edge` on the raster's outer ring or beside nodata (where a hole vertex, or the
 // sampler's choice of quad for a point exactly on the covered area's boundary, may drop them).
@@ -91,9 +91,8 @@ SourceCheck check_samples(const SyntheticDem& dem, Cooked& c, double tolerance, 
       ++r.checked;
       const double e = std::fabs(*h - z);
       r.worst_error = std::max(r.worst_error, e);
-      // The bound (tolerance + half a step + 1 mm), or the node's own measured error
-      // where the finest allowed level could not reach the tolerance.
-      const double bound = std::max(tolerance, double(node->geometric_error_m)) + half + kMm;
+      // The bound: tolerance + half a step + 1 mm.
+      const double bound = tolerance + half + kMm;
       r.worst_excess = std::max(r.worst_excess, e - bound);
     }
   return r;
@@ -211,15 +210,24 @@ TEST(HardCase, NineKilometresOfReliefInOneRoot) {
   EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
 }
 
-// 1 mm of relief over 100 m. Bounds: step 1/1024 m at every level; every sample within half a unit
-// (0.49 mm) + 1 um; the cooked relief keeps the millimetre (>= 0.5 mm between the ends).
+// 1 mm of relief over 100 m, cooked with a tolerance that resolves it (0.5 mm: the step follows
+// the tolerance, 2^4 units = 15.6 mm at the default 0.5 m would flatten it). Bounds: step 1/1024 m
+// at every level; every sample within half a unit (0.49 mm) + 1 um; the cooked relief keeps the
+// millimetre (>= 0.5 mm between the ends). At the default tolerance the step is 2^4 units.
 TEST(HardCase, OneMillimetreOfRelief) {
   SyntheticDem d = utm_dem(100, 100, 1.0, 504000.0, 5006000.0);
   d.point = true;
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col) d.at(col, row) = 500.0 + 0.001 * col / 99.0;
+  {
+    Cooked coarse;
+    cook_dem("relief1mm_default", d, {}, coarse);
+    for (uint8_t s : coarse.archive.reader.world().step_log2) EXPECT_EQ(s, 4);
+  }
+  cook::CookOptions o;
+  o.tolerance_m = 0.0005;
   Cooked c;
-  cook_dem("relief1mm", d, {}, c);
+  cook_dem("relief1mm", d, o, c);
   for (uint8_t s : c.archive.reader.world().step_log2) EXPECT_EQ(s, 0);
   const SourceCheck s = check_samples(d, c, 0.0);
   EXPECT_EQ(s.missing, 0u);

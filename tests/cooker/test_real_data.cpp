@@ -1,7 +1,5 @@
-// Real DEMs of ../shared/data cooked by the CMake fixtures (tests/cooker/CMakeLists.txt):
-//   <build>/cooker-test-archives/NAME.terrain          default options (every section)
-//   <build>/cooker-test-archives/NAME.oracle.terrain   --finest-level 0 --heights-only
-// checked against an independent oracle (GDAL through /usr/bin/python3, oracle_points.py) via
+// Real DEMs of ../shared/data cooked by the CMake fixtures (tests/cooker/CMakeLists.txt) with the
+// default options into <build>/cooker-test-archives/NAME.terrain, checked against an independent oracle (GDAL through /usr/bin/python3, oracle_points.py) via
 // terrain-inspect --sample-file, and walked for seams.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -30,8 +28,9 @@ struct RealDem {
   double scale = 1.0;          // value -> metres
   double spacing = 0.0;        // heightmap image: frame metres per sample
   bool relief = true;          // enough relief for a half-sample shift to break the bound
-  bool reaches_tolerance = true;  // level 0 (0.5 m) can meet the tolerance everywhere
-  bool single_archive = false;    // one cook (--finest-level 0 --heights-only) serves both tests
+  // Known failure (see the oracle test): sample-scale relief on samples that are not on the 0.5 m
+  // lattice, which no sampled surface on that lattice can follow.
+  bool lattice_limited = false;
 };
 
 // Built twice: the small DEMs (also run under the sanitizers) and the large ones (no_sanitizer).
@@ -44,7 +43,10 @@ const RealDem kDems[] = {
     {"n22w160", "N22W160.hgt.zip", true},
     {"n19w155", "N19W155.hgt.zip", true, 1.0, 0.0, false},
     {"s46w066", "S46W066.hgt.gz", true, 1.0, 0.0, false},
-    {"puget", "ps_height_1k.png", false, 0.1, 160.0, true, true, true},
+    {"puget", "ps_height_1k.png", false, 0.1, 160.0},
+    // Default cook with every section refines its cliffs and coast to 1-8 m: a few seconds in a
+    // release build, too slow for the sanitizer run.
+    {"kilauea", "kilauea_utm5n.tif", false},
 };
 #else
 void PrintTo(const RealDem& d, std::ostream* os) { *os << d.name; }
@@ -52,13 +54,13 @@ void PrintTo(const RealDem& d, std::ostream* os) { *os << d.name; }
 const RealDem kDems[] = {
     // Bare earth at 0.5 m: too smooth for a half-sample (0.24 m) shift to exceed the tolerance.
     {"tahoe_bare", "tahoe_lidar_bareearth.tif", true, 1.0, 0.0, false},
-    // First-return lidar: one-sample tree spikes of 10-20 m that a 0.5 m lattice offset from the
-    // 0.47 x 0.61 m samples cannot pass through (the nodes' recorded errors say so, and bound the
-    // comparison, which also hides a half-sample shift there).
-    {"tahoe_highest", "tahoe_lidar_highesthit.tif", true, 1.0, 0.0, false, false},
+    // First-return lidar: tree canopy varying by 5-17 m from one 0.47 x 0.61 m sample to the next
+    // (a third of neighbour differences exceed 1 m). The same heights re-georeferenced at 0.5 m or
+    // 1 m with every sample ON a lattice vertex cook to 7.6 mm; at 0.47, 0.53 or 0.61 m off the
+    // lattice to 13-17 m: the lattice, not the cooker's error measure, is the limit.
+    {"tahoe_highest", "tahoe_lidar_highesthit.tif", true, 1.0, 0.0, true, true},
     // 1 m lidar: half a sample (0.5 m) times its slopes stays mostly within the 0.5 m tolerance.
     {"slovenia", "slovenia_TM1_564_146.tif", false, 1.0, 0.0, false},
-    {"kilauea", "kilauea_utm5n.tif", false},
     {"jacksboro", "jacksboro_fault_dem.npz", true},
 };
 #endif
@@ -78,13 +80,9 @@ std::string gdal_path(const RealDem& d) {
   return p;
 }
 
+// The default cook (tests/cooker/CMakeLists.txt), which every test here reads.
 std::filesystem::path default_archive(const RealDem& d) {
   return bin_dir().parent_path() / "cooker-test-archives" / (std::string(d.name) + ".terrain");
-}
-// The --finest-level 0 --heights-only cook, or the default one where a single cook serves both.
-std::filesystem::path oracle_archive(const RealDem& d) {
-  const auto p = bin_dir().parent_path() / "cooker-test-archives" / (std::string(d.name) + ".oracle.terrain");
-  return d.single_archive ? default_archive(d) : p;
 }
 
 bool run(const std::string& cmd, std::string& out) {
@@ -163,13 +161,16 @@ double cook_tolerance(const ArchiveReader& r) {
 
 struct OracleResult {
   size_t points = 0, answered = 0, missing_edge = 0, missing_inner = 0;
-  size_t violations = 0, above_tolerance = 0;  // nodes whose recorded error exceeds the tolerance
-  double worst_error = 0, worst_excess = -INFINITY;
-  std::string first_violation;
+  size_t violations = 0;           // |cooked - source| > tolerance + half step + 1 mm
+  size_t above_recorded = 0;       // |cooked - source| > the answering node's recorded error + 1 mm
+  double tolerance = 0, bound = 0, worst_error = 0, worst_excess_recorded = -INFINITY;
+  std::string first_violation, first_above_recorded;
 };
 
-// Compares terrain-inspect's heights with the oracle's: |cooked - source| <= max(tolerance, error
-// of the node that answered) + half the largest quantization step + 1 mm.
+// Compares terrain-inspect's heights with the oracle's. The bound: |cooked - source| <=
+// tolerance + half the largest quantization step (every vertex is rounded at its coarsest level,
+// so the root's step bounds the rounding) + 1 mm. Also counts points beyond the geometric error
+// the answering node records (float rounding of heights near 4 km: 1 mm of slack).
 OracleResult compare(const RealDem& d, const std::filesystem::path& archive, double shift, std::string& why) {
   OracleResult r;
   std::vector<OraclePoint> pts = oracle_points(d, shift, why);
@@ -205,6 +206,8 @@ OracleResult compare(const RealDem& d, const std::filesystem::path& archive, dou
   if (!inspect_heights(archive, pts, d.lonlat, cooked, why)) return r;
   const double tol = cook_tolerance(ca.reader), half = ca.max_half_step();
   r.points = pts.size();
+  r.tolerance = tol;
+  r.bound = tol + half + kMm;
   for (size_t i = 0; i < pts.size(); ++i) {
     const OraclePoint& p = pts[i];
     if (!cooked[i]) {
@@ -214,20 +217,22 @@ OracleResult compare(const RealDem& d, const std::filesystem::path& archive, dou
     ++r.answered;
     const NodeRecord* node = nullptr;
     const auto lib = ca.height(frame[i].first, frame[i].second, &node);
-    const double node_error = lib && node ? double(node->geometric_error_m) : 0.0;
-    if (node_error > tol) ++r.above_tolerance;
     const double e = std::fabs(*cooked[i] - p.value);
-    const double bound = std::max(tol, node_error) + half + kMm;
+    auto describe = [&](double bound) {
+      std::ostringstream s;
+      s.precision(10);
+      s << "point " << p.a << " " << p.b << ": cooked " << *cooked[i] << ", source " << p.value << ", bound " << bound;
+      return s.str();
+    };
     r.worst_error = std::max(r.worst_error, e);
-    r.worst_excess = std::max(r.worst_excess, e - bound);
-    if (e > bound) {
-      if (++r.violations == 1) {
-        std::ostringstream s;
-        s.precision(10);
-        s << "point " << p.a << " " << p.b << ": cooked " << *cooked[i] << ", source " << p.value << ", bound " << bound;
-        r.first_violation = s.str();
-      }
+    if (e > r.bound && ++r.violations == 1) r.first_violation = describe(r.bound);
+    if (!lib || !node) {
+      if (++r.above_recorded == 1) r.first_above_recorded = "the library sampler found no node where inspect answered";
+      continue;
     }
+    const double recorded = double(node->geometric_error_m) + kMm;
+    r.worst_excess_recorded = std::max(r.worst_excess_recorded, e - recorded);
+    if (e > recorded && ++r.above_recorded == 1) r.first_above_recorded = describe(recorded);
   }
   return r;
 }
@@ -238,29 +243,32 @@ std::string dem_name(const ::testing::TestParamInfo<RealDem>& info) { return inf
 
 }  // namespace
 
-// The accuracy test. Cooked with --finest-level 0 so refinement can reach the tolerance:
-// every answered point within tolerance + half a step + 1 mm (or the node's recorded error where
-// even 0.5 m vertices cannot follow the data: only the Tahoe first-return spikes); every point not
-// on the raster's edge or beside nodata answered.
+// The accuracy test on the default cook: >= 10 000 random source samples with data, every
+// one answered and within tolerance + half a step + 1 mm. One documented exception to the bound,
+// asserted so that it shows when it changes: tahoe_highest (see kDems).
 TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  const auto archive = oracle_archive(d);
-  if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing (the cooker.cook_oracle fixture makes it)";
+  const auto archive = default_archive(d);
+  if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing (the cooker.cook fixture makes it)";
   std::string why;
   const OracleResult r = compare(d, archive, 0.0, why);
   if (r.points == 0) GTEST_SKIP() << why;
-  std::printf("%s: %zu points, %zu answered, worst |cooked - source| %.4f m, %zu on nodes above tolerance, "
+  std::printf("%s: %zu points, %zu answered, worst |cooked - source| %.4f m (bound %.4f m), %zu out of bound, "
               "%zu edge points without terrain\n",
-              d.name, r.points, r.answered, r.worst_error, r.above_tolerance, r.missing_edge);
+              d.name, r.points, r.answered, r.worst_error, r.bound, r.violations, r.missing_edge);
   EXPECT_GE(r.points, 10000u);
-  EXPECT_EQ(r.violations, 0u) << r.first_violation;
-  EXPECT_EQ(r.missing_inner, 0u);
-  EXPECT_LE(r.missing_edge, r.points / 100);
-  if (d.reaches_tolerance) {
-    EXPECT_EQ(r.above_tolerance, 0u);
+  EXPECT_EQ(r.tolerance, 0.5);  // the default
+  // Every point with data answered, on the raster's edge and beside nodata too (SPEC section 10's
+  // boundary rule, refinement along data edges to half the source spacing, the outer apron).
+  EXPECT_EQ(r.answered, r.points) << r.missing_inner << " inner and " << r.missing_edge << " edge points without terrain";
+  if (!d.lattice_limited) {
+    EXPECT_EQ(r.violations, 0u) << r.first_violation;
   } else {
-    EXPECT_GT(r.above_tolerance, 0u);  // documented: these points are bounded by their node's error
+    // Known failure, measured: 30 % of the points beyond the bound, worst 15.8 m. Not the cooker's
+    // sampling alone: a least-squares fit of every 0.5 m vertex to the samples (no reconstruction)
+    // still left 3.2 m and 1.2 % beyond 0.5 m on a 120 x 120 sample patch.
+    EXPECT_GT(r.violations, r.answered / 10) << "tahoe_highest now meets the bound more often: update kDems";
   }
 }
 
@@ -268,9 +276,9 @@ TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
 // for DEMs with relief, so the bound does catch half-pixel shifts.
 TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
   const RealDem& d = GetParam();
-  if (!d.relief) GTEST_SKIP() << d.name << " is too flat for a half-sample shift to show";
+  if (!d.relief || d.lattice_limited) GTEST_SKIP() << d.name << ": a half-sample shift cannot show here";
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  const auto archive = oracle_archive(d);
+  const auto archive = default_archive(d);
   if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing";
   std::string why;
   const OracleResult r = compare(d, archive, 0.5, why);
@@ -280,9 +288,10 @@ TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
   EXPECT_GT(r.violations, r.answered / 100);
 }
 
-// The default cook: the recorded geometric errors are honest (every point within max(tolerance,
-// node error) + half a step + 1 mm).
-TEST_P(RealData, DefaultCookRecordsHonestErrors) {
+// The geometric error each node records (for screen-space LOD) is honest: no oracle point is
+// further from the source than the recorded error of the node that answered it (+ 1 mm), on every
+// DEM including tahoe_highest.
+TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
   const auto archive = default_archive(d);
@@ -290,21 +299,19 @@ TEST_P(RealData, DefaultCookRecordsHonestErrors) {
   std::string why;
   const OracleResult r = compare(d, archive, 0.0, why);
   if (r.points == 0) GTEST_SKIP() << why;
-  std::printf("%s default: worst |cooked - source| %.4f m, %zu of %zu points on nodes above tolerance\n", d.name,
-              r.worst_error, r.above_tolerance, r.answered);
-  EXPECT_EQ(r.violations, 0u) << r.first_violation;
-  EXPECT_EQ(r.missing_inner, 0u);
+  std::printf("%s: worst |cooked - source| - recorded node error %.4f m over %zu points\n", d.name,
+              r.worst_excess_recorded, r.answered);
+  EXPECT_GT(r.answered, 0u);
+  EXPECT_EQ(r.above_recorded, 0u) << r.first_above_recorded;
 }
 
-// Every shared edge and parent/child vertex of both archives: bit-identical float heights and
+// Every shared edge and parent/child vertex of the archive: bit-identical float heights and
 // identical hole flags (zero mismatches), over a non-trivial number of vertex pairs.
 TEST_P(RealData, SeamsAreBitIdentical) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
   int walked = 0;
-  std::vector<std::filesystem::path> archives = {default_archive(d)};
-  if (!d.single_archive) archives.push_back(oracle_archive(d));
-  for (const auto& archive : archives) {
+  for (const auto& archive : {default_archive(d)}) {
     if (!std::filesystem::exists(archive)) continue;
     ArchiveReader reader;
     ASSERT_TRUE(reader.open(archive.string()).ok());
@@ -343,7 +350,11 @@ TEST(RealInputs, HgtVoidsAndGeoTiffNodataAreCounted) {
   EXPECT_EQ(k.crs.tm.lon0_deg, -153.0);
 }
 
-// Cooking twice with 1 and 2 threads, every section included: identical bytes.
+#endif
+
+#if TERRAIN_REAL_SET_LARGE
+// Cooking twice with 1 and 2 threads, every section included: identical bytes (no_sanitizer:
+// two full default cooks of Kilauea).
 TEST(RealDeterminism, KilaueaWithOneAndTwoThreadsIsByteIdentical) {
   TERRAIN_REQUIRE_DATA(data_file("kilauea_utm5n.tif"));
   const auto dir = scratch_dir("cooker-real-threads");

@@ -61,6 +61,24 @@ TEST(Quantize, StepsFitSixteenBitsWithTheRootRounding) {
   }
 }
 
+// The tolerance's step: the largest power of two of units <= tolerance / 32, clamped to 2^0..2^14.
+TEST(Quantize, ToleranceStepIsTheLargestPowerOfTwoWithinAThirtySecondOfTheTolerance) {
+  EXPECT_EQ(tolerance_step(0.5), 4);                 // 15.6 mm
+  EXPECT_EQ(tolerance_step(0.5 - 1e-9), 3);          // just below: 7.8 mm
+  EXPECT_EQ(tolerance_step(1.0), 5);
+  EXPECT_EQ(tolerance_step(0.1), 1);                 // 3.1 mm <= 2^1 units (1.95 mm)
+  EXPECT_EQ(tolerance_step(32.0 / 1024.0), 0);       // exactly one unit
+  EXPECT_EQ(tolerance_step(0.0005), 0);              // finer than a unit: still one unit
+  EXPECT_EQ(tolerance_step(1e6), 14);                // the format's cap
+  for (double t : {0.01, 0.05, 0.25, 0.5, 2.0, 10.0}) {
+    const double step_m = std::ldexp(1.0, tolerance_step(t)) * kHeightUnitM;
+    if (tolerance_step(t) > 0) {
+      EXPECT_LE(step_m, t / 32.0);
+    }
+    EXPECT_GT(2.0 * step_m, t / 32.0);
+  }
+}
+
 TEST(Quantize, PackStoresInheritedValuesExactly) {
   // Values rounded at a coarse step (2^6) and a fine one (2^2), packed at step 2^2.
   std::vector<int32_t> units(kHeightCount);

@@ -183,14 +183,16 @@ TEST(SurfaceReal, ConesNeverCullFrontFacingTrianglesOnRealNodes) {
   }
 }
 
-TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
-  const auto path = terrain::test::data_file("kilauea_utm5n.tif");
-  TERRAIN_REQUIRE_DATA(path);
-  const auto dem = load("kilauea_utm5n.tif");
-  AlbedoCheck own, stb, squish;
-  for (uint32_t k = 0; k < 6; ++k) {
-    bench::DemNode n;
-    bench::make_dem_node(dem, 4, 4 + 2 * k, 3 + k, 6, n);
+namespace {
+
+// Splat-baked albedo of the given nodes encoded with each method; PSNR over non-hole texels.
+struct AlbedoPsnr {
+  double own = 0, cluster = 0, stb = 0, squish = 0;
+  uint64_t mismatches = 0;  // punch-through mismatches of our two settings
+};
+AlbedoPsnr albedo_psnr(const std::vector<bench::DemNode>& nodes) {
+  AlbedoCheck own, cluster, stb, squish;
+  for (const bench::DemNode& n : nodes) {
     SplatLattice lattice;
     const SurfaceInput in = n.input(&rules(), BcQuality::balanced);
     compute_splat_lattice(in, rules(), lattice);
@@ -205,12 +207,61 @@ TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
       acc.alpha_mismatches += c.alpha_mismatches;
     };
     add(albedo_method(BcQuality::balanced), own);
+    add(Bc1Method::own_cluster, cluster);
     add(Bc1Method::stb, stb);
     add(Bc1Method::squish_cluster, squish);
   }
-  const double p_own = psnr_db(own.sq_err, own.samples), p_stb = psnr_db(stb.sq_err, stb.samples),
-               p_squish = psnr_db(squish.sq_err, squish.samples);
-  std::printf("Kilauea splat albedo PSNR: default %.2f dB, stb_dxt %.2f dB, squish cluster %.2f dB\n", p_own, p_stb, p_squish);
-  EXPECT_EQ(own.alpha_mismatches, 0u);
-  EXPECT_GE(p_own, std::max(p_stb, p_squish));
+  return {psnr_db(own.sq_err, own.samples), psnr_db(cluster.sq_err, cluster.samples), psnr_db(stb.sq_err, stb.samples),
+          psnr_db(squish.sq_err, squish.samples), own.alpha_mismatches + cluster.alpha_mismatches};
+}
+
+}  // namespace
+
+TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
+  const auto path = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(path);
+  const auto dem = load("kilauea_utm5n.tif");
+  std::vector<bench::DemNode> nodes;
+  for (uint32_t k = 0; k < 6; ++k) {
+    bench::DemNode n;
+    bench::make_dem_node(dem, 4, 4 + 2 * k, 3 + k, 6, n);
+    nodes.push_back(std::move(n));
+  }
+  const AlbedoPsnr p = albedo_psnr(nodes);
+  std::printf("Kilauea splat albedo PSNR: default %.3f dB, own-cluster %.3f dB, stb_dxt %.3f dB, squish cluster %.3f dB\n",
+              p.own, p.cluster, p.stb, p.squish);
+  EXPECT_EQ(p.mismatches, 0u);
+  EXPECT_GE(p.own, std::max(p.stb, p.squish));
+  EXPECT_GE(p.cluster, p.own);
+}
+
+// Alpine splat albedo (many material borders plus noise: 12-16 distinct colours in most blocks)
+// is the hardest set for the default. Issue 4's target (default >= max(stb_dxt, squish cluster))
+// is NOT met here yet: the default loses 0.3 dB to libsquish cluster fit, broadly over all
+// non-smooth blocks (own/squish error ratio ~1.10 across the worst 50 % of blocks, measured with
+// terrain-bc-bench --block-stats). The test pins what holds: the default beats stb_dxt, stays
+// within the measured gap of squish (bound 0.4 dB; 0.26 dB on these nodes), and own-cluster (ordering
+// search) is at least libsquish cluster fit's PSNR (+0.03 dB on these nodes, a tie on the bench's).
+TEST(SurfaceReal, AlbedoEncodersAgainstTheLibrariesOnOetztal) {
+  const auto path = terrain::test::data_file("srtm_oetztal.tif");
+  TERRAIN_REQUIRE_DATA(path);
+  const auto dem = load("srtm_oetztal.tif");
+  // Six level-5 nodes with data, spread over the raster like terrain-bc-bench picks them.
+  const uint32_t nx = bench::nodes_across(dem, 5, false), ny = bench::nodes_across(dem, 5, true);
+  std::vector<bench::DemNode> nodes;
+  const uint32_t total = nx * ny, stride = std::max(1u, total / 12);
+  for (uint32_t c = stride / 2; c < total && nodes.size() < 6; c += stride) {
+    bench::DemNode n;
+    bench::make_dem_node(dem, 5, c % nx, c / nx, 6, n);
+    if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
+  }
+  ASSERT_GE(nodes.size(), 4u);
+  const AlbedoPsnr p = albedo_psnr(nodes);
+  std::printf("Oetztal splat albedo PSNR over %zu nodes: default %.3f dB, own-cluster %.3f dB, stb_dxt %.3f dB, "
+              "squish cluster %.3f dB\n", nodes.size(), p.own, p.cluster, p.stb, p.squish);
+  EXPECT_EQ(p.mismatches, 0u);
+  EXPECT_GE(p.own, p.stb);
+  EXPECT_GE(p.own, p.squish - 0.4);
+  EXPECT_GE(p.cluster, p.squish);
+  EXPECT_GE(p.cluster, p.own);
 }

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <thread>
 
 #include "bc_blocks.h"
@@ -252,4 +253,94 @@ TEST(SurfaceSynthetic, RejectsMissingInputs) {
   NodeData d;
   const Status st = cook_surface_layers(in, d, 0, 0, d, nullptr);
   EXPECT_EQ(st.code, Error::invalid_argument);
+}
+
+namespace {
+// Overlays as the cooker provides them, from functions of frame position: a mask and a photo
+// with a solid colour east of x_photo (no data west of it).
+struct FnOverlays final : SurfaceOverlays {
+  std::function<bool(double, double)> hole;
+  double x_photo = 0;
+  uint8_t colour[3] = {200, 40, 90};
+  bool photo = true;
+  bool has_albedo() const override { return photo; }
+  bool has_holes() const override { return true; }
+  void sample(double x0, double y0, double s, uint8_t* rgb, uint8_t* valid, uint8_t* holes, uint8_t*) const override {
+    for (int j = 0; j < kWindowSize; ++j)
+      for (int i = 0; i < kWindowSize; ++i) {
+        const size_t k = size_t(j * kWindowSize + i);
+        const double x = x0 + (i - kWindowMargin) * s, y = y0 + (j - kWindowMargin) * s;
+        if (holes) holes[k] = hole(x, y);
+        if (rgb) {
+          valid[k] = x >= x_photo;
+          for (int c = 0; c < 3; ++c) rgb[k * 3 + size_t(c)] = valid[k] ? colour[c] : 0;
+        }
+      }
+  }
+};
+}  // namespace
+
+// Mask holes join the data holes exactly (every hole texel transparent, no other), the photo's
+// colour replaces the splat bake where it has data (BC1 of a constant colour: within 4 levels),
+// and the splat bake stays where it has none; cones ignore the masked vertices' triangles.
+TEST(SurfaceSynthetic, OverlayHolesAndPhotoReachTheAlbedoExactly) {
+  auto data_hole = [](double x, double y) {
+    const int i = int(std::lround(x / 0.5)) - 128, j = int(std::lround(y / 0.5)) - 128;
+    return i >= 20 && i <= 22 && j >= 20 && j <= 22;
+  };
+  const auto node = synthetic_node(rolling, 0, 1, 1, 2, data_hole);
+  FnOverlays ov;
+  ov.hole = [](double x, double y) {  // a single vertex, a diagonal stripe and a block on the south edge
+    const int i = int(std::lround(x / 0.5)) - 128, j = int(std::lround(y / 0.5)) - 128;
+    return (i == 100 && j == 100) || (i == j + 50 && i >= 60 && i < 90) || (i >= 30 && i <= 40 && j >= -2 && j <= 3);
+  };
+  ov.x_photo = 64.0 + 70 * 0.5;  // vertex column 70 of node (1, 1)
+  FnOverlays mask_only = ov;
+  mask_only.photo = false;
+  SurfaceInput in = node.input(&rules(), BcQuality::balanced), plain_in = in;
+  in.overlays = &ov;
+  plain_in.overlays = &mask_only;
+  NodeData with, without;
+  with.heights = without.heights = node.node.heights;
+  ASSERT_TRUE(cook_surface_layers(in, node.node, node.height_offset, node.step_log2, with, nullptr).ok());
+  ASSERT_TRUE(cook_surface_layers(plain_in, node.node, node.height_offset, node.step_log2, without, nullptr).ok());
+  const auto a = decode_albedo(with), b = decode_albedo(without);
+  int mask_holes = 0, smooth_checked = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      const double x = node.x0_m + (t - kApron) * node.spacing_m, y = node.y0_m + (u - kApron) * node.spacing_m;
+      const bool want = texel_is_hole(node, t, u) || ov.hole(x, y);
+      mask_holes += ov.hole(x, y) && !texel_is_hole(node, t, u);
+      const uint8_t* p = &a[size_t(u * kTexels + t) * 4];
+      ASSERT_EQ(p[3] == 0, want) << "texel " << t << "," << u;
+      if (want) continue;
+      // Texel (t, u) averages vertices t - 2 and t - 1: photo data when both are east of x_photo.
+      const double west = node.x0_m + (t - kApron) * node.spacing_m;
+      if (west >= ov.x_photo) {
+        for (int c = 0; c < 3; ++c) ASSERT_NEAR(p[c], ov.colour[c], 4) << "texel " << t << "," << u;
+      } else if (west + 3 * node.spacing_m < ov.x_photo && t > 4 && u > 4 && u < kTexels - 4) {
+        // Well west of the photo: the splat bake, as with the mask alone. Each vertex takes the
+        // mean of its four texels and each texel the mean of its four vertices (a [1 2 1] blur),
+        // so compare where the bake is locally smooth (range <= 4 levels around the block).
+        const uint8_t* q = &b[size_t(u * kTexels + t) * 4];
+        int range = 0;
+        for (int c = 0; c < 3; ++c) {
+          int lo = 255, hi = 0;
+          // Over the texel's BC1 block and a ring around it (block-wise compression).
+          for (int uu = u / 4 * 4 - 1; uu <= u / 4 * 4 + 4; ++uu)
+            for (int tt = t / 4 * 4 - 1; tt <= t / 4 * 4 + 4; ++tt) {
+              const int v = b[size_t(std::clamp(uu, 0, kTexels - 1) * kTexels + std::clamp(tt, 0, kTexels - 1)) * 4 + size_t(c)];
+              lo = std::min(lo, v);
+              hi = std::max(hi, v);
+            }
+          range = std::max(range, hi - lo);
+        }
+        if (range > 4) continue;
+        ++smooth_checked;
+        for (int c = 0; c < 3; ++c) ASSERT_NEAR(p[c], q[c], 6) << "texel " << t << "," << u;
+      }
+    }
+  EXPECT_GT(mask_holes, 60);
+  EXPECT_GT(smooth_checked, 2000);
+  EXPECT_EQ(check_cones(node, with, 200, 7).violations, 0u);
 }

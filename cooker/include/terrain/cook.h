@@ -51,6 +51,17 @@ struct CookOptions {
   // Surface layers (cooker/src/surface).
   std::string materials_path;
   SurfaceQuality surface_quality = SurfaceQuality::balanced;
+  // Orthophoto for the albedo: GeoTIFF RGB(A) (8 or 16 bits) in any supported CRS, resampled to
+  // the frame (bilinear); where it has no data (alpha 0, GDAL_NODATA, outside) the splat bake stays.
+  std::string albedo_path;
+  // Hole mask: single-band GeoTIFF in any supported CRS; a vertex whose nearest mask sample is
+  // nonzero is a hole (drops its triangles, transparent albedo). Outside the mask: no hole.
+  std::string holes_path;
+  // Class raster (e.g. land cover: single-band integer GeoTIFF, any supported CRS) and its table
+  // (JSON: {"classes": {"10": "forest_floor", "30": 2, ...}}, values palette names or indices):
+  // a splat sample whose nearest class is in the table takes that material instead of the rules.
+  std::string landcover_path;
+  std::string landcover_table_path;
   bool heights_only = false;        // skip the surface layers (benchmarks; sections stay zero)
 
   int zstd_level = 9;

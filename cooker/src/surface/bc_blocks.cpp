@@ -5,6 +5,9 @@
 #include <cstring>
 
 #include <squish.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #define STB_DXT_STATIC
 #define STB_DXT_IMPLEMENTATION
 #include <stb/stb_dxt.h>
@@ -33,10 +36,21 @@ uint16_t pack565(const uint8_t rgb[3]) {
 }
 
 uint16_t hole_mask_of(const uint8_t rgba[64]) {
+#if defined(__SSE2__)
+  // alpha < 128 <=> its top bit is clear: one movemask per 4 texels, bits 3, 7, 11, 15.
+  uint32_t m = 0;
+  for (int v = 0; v < 4; ++v) {
+    const uint32_t top = uint32_t(_mm_movemask_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(rgba + 16 * v))));
+    const uint32_t clear = ~top;
+    m |= (((clear >> 3) & 1) | ((clear >> 6) & 2) | ((clear >> 9) & 4) | ((clear >> 12) & 8)) << (4 * v);
+  }
+  return uint16_t(m);
+#else
   uint16_t m = 0;
   for (int i = 0; i < 16; ++i)
     if (rgba[4 * i + 3] < 128) m = uint16_t(m | (1u << i));
   return m;
+#endif
 }
 
 // Exact 3-colour fallback for blocks with holes: endpoints = bounding box of the opaque texels
@@ -126,6 +140,7 @@ const char* bc1_method_name(Bc1Method m) {
     case Bc1Method::own_fast: return "own-fast";
     case Bc1Method::own: return "own";
     case Bc1Method::own_best: return "own+squish";
+    case Bc1Method::own_cluster: return "own-cluster";
   }
   return "?";
 }
@@ -211,6 +226,12 @@ void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) {
 
 void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) {
   const uint16_t holes = hole_mask_of(rgba);
+  if (holes == 0 && (method == Bc1Method::own_fast || method == Bc1Method::own)) {
+    // Hot path of the default setting: our opaque encoder ignores alpha and only writes
+    // 4-colour blocks (or equal endpoints with index 0), so no copy and no re-check are needed.
+    own_encode_bc1_opaque(rgba, out, 1, method == Bc1Method::own);
+    return;
+  }
   if (holes == 0xFFFF) {  // all holes: 3-colour black block, every index transparent
     write16(out, 0);
     write16(out + 2, 0);
@@ -221,7 +242,7 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
     uint8_t tmp[64];
     std::memcpy(tmp, rgba, 64);
     for (int i = 0; i < 16; ++i) tmp[4 * i + 3] = (holes >> i & 1) ? 0 : 255;
-    if (method == Bc1Method::own || method == Bc1Method::own_fast) {
+    if (method == Bc1Method::own || method == Bc1Method::own_fast || method == Bc1Method::own_cluster) {
       own_encode_bc1_holes(rgba, holes, out);
     } else if (method == Bc1Method::own_best) {
       uint8_t a[8], b[8];
@@ -246,10 +267,11 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
     case Bc1Method::stb: stb_compress_dxt_block(out, opaque, 0, STB_DXT_NORMAL); break;
     case Bc1Method::stb_hq: stb_compress_dxt_block(out, opaque, 0, STB_DXT_HIGHQUAL); break;
     case Bc1Method::own_fast: own_encode_bc1_opaque(opaque, out, 1); break;
-    case Bc1Method::own: own_encode_bc1_opaque(opaque, out, 2); break;
+    case Bc1Method::own: own_encode_bc1_opaque(opaque, out, 1, true); break;
+    case Bc1Method::own_cluster: own_encode_bc1_opaque(opaque, out, 1, true, false, 2); break;
     case Bc1Method::own_best: {
       uint8_t a[8], b[8];
-      own_encode_bc1_opaque(opaque, a, 2);
+      own_encode_bc1_opaque(opaque, a, 2, true, true);
       squish::Compress(opaque, b, squish::kDxt1 | squish::kColourClusterFit);
       const bool b_ok = bc1_transparent_mask(b) == 0;
       std::memcpy(out, b_ok && colour_sq_err(rgba, b) < colour_sq_err(rgba, a) ? b : a, 8);

@@ -103,7 +103,12 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
     for (int k = 0; k < kSplatLattice; ++k) {
       SurfaceSample s;
       const bool has = measure_sample(in, 2 * k - 2, 2 * l - 2, s);
-      out.ids[size_t(l * kSplatLattice + k)] = has ? choose_material(rules, s) : rules.default_material;
+      // A class raster's material (--landcover) wins over the rules where it has one.
+      const uint8_t cls = in.class_materials
+                              ? in.class_materials[size_t((2 * l - 2 + kWindowMargin) * kWindowSize + 2 * k - 2 + kWindowMargin)]
+                              : kNoClassMaterial;
+      out.ids[size_t(l * kSplatLattice + k)] =
+          !has ? rules.default_material : cls != kNoClassMaterial && cls < rules.palette.size() ? cls : choose_material(rules, s);
     }
 }
 

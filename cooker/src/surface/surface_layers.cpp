@@ -1,7 +1,9 @@
 // cook_surface_layers(): normals, albedo, splat and cones of one node.
 #include "surface_layers.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 #include <ctime>
 #include <string>
 
@@ -87,11 +89,68 @@ double psnr_db(double sq_err, uint64_t samples) {
   return 10.0 * std::log10(255.0 * 255.0 * double(samples) / sq_err);
 }
 
+namespace {
+
+// The overlays resampled to the window, then the plain path: mask holes join the data holes
+// (a hole vertex drops its triangles, so the cones ignore them too); orthophoto colours replace
+// the splat bake, which stays where the orthophoto has no data.
+Status cook_with_overlays(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset, int step_log2,
+                          NodeData& out, SurfaceStats* stats) {
+  static thread_local std::vector<uint8_t> rgb, valid, holes, classes;
+  const SurfaceOverlays& ov = *in.overlays;
+  const bool with_rgb = ov.has_albedo() && in.rules && !in.rules->palette.empty();
+  rgb.assign(with_rgb ? size_t(kWindowCount) * 3 : 0, 0);
+  valid.assign(with_rgb ? size_t(kWindowCount) : 0, 0);
+  holes.assign(ov.has_holes() ? size_t(kWindowCount) : 0, 0);
+  classes.assign(ov.has_classes() ? size_t(kWindowCount) : 0, kNoClassMaterial);
+  ov.sample(in.x0_m, in.y0_m, in.spacing_m, with_rgb ? rgb.data() : nullptr, with_rgb ? valid.data() : nullptr,
+            ov.has_holes() ? holes.data() : nullptr, ov.has_classes() ? classes.data() : nullptr);
+  SurfaceInput plain = in;
+  plain.overlays = nullptr;
+  if (ov.has_classes()) plain.class_materials = classes.data();
+  if (ov.has_holes()) {
+    if (in.holes)
+      for (size_t k = 0; k < size_t(kWindowCount); ++k) holes[k] = uint8_t(holes[k] | in.holes[k]);
+    plain.holes = holes.data();
+  }
+  if (with_rgb) {
+    size_t missing = 0;
+    for (uint8_t v : valid) missing += v == 0;
+    if (missing == size_t(kWindowCount)) return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats);
+    if (missing > 0) {
+      // Vertices without orthophoto data take the splat-baked colour around them: vertex v is
+      // the corner of texels v + 1 and v + 2 (centres v -/+ 0.5), so no shift.
+      SplatLattice lattice;
+      compute_splat_lattice(plain, *in.rules, lattice);
+      static thread_local std::array<uint8_t, kTexelCount * 4> baked;
+      bake_albedo(plain, *in.rules, lattice, baked.data());
+      for (int j = 0; j < kWindowSize; ++j)
+        for (int i = 0; i < kWindowSize; ++i) {
+          const size_t k = size_t(j * kWindowSize + i);
+          if (valid[k]) continue;
+          const int t0 = std::clamp(i - kWindowMargin + kApron - 1, 0, kTexels - 1);
+          const int t1 = std::clamp(i - kWindowMargin + kApron, 0, kTexels - 1);
+          const int u0 = std::clamp(j - kWindowMargin + kApron - 1, 0, kTexels - 1);
+          const int u1 = std::clamp(j - kWindowMargin + kApron, 0, kTexels - 1);
+          for (int c = 0; c < 3; ++c) {
+            const auto at = [&](int t, int u) { return int(baked[size_t(u * kTexels + t) * 4 + size_t(c)]); };
+            rgb[k * 3 + size_t(c)] = uint8_t((at(t0, u0) + at(t1, u0) + at(t0, u1) + at(t1, u1) + 2) / 4);
+          }
+        }
+    }
+    plain.albedo_rgb = rgb.data();
+  }
+  return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats);
+}
+
+}  // namespace
+
 Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset, int step_log2,
                            NodeData& out, SurfaceStats* stats) {
   if (!in.heights_m || !in.rules || !(in.spacing_m > 0) || in.rules->palette.empty())
     return Status::failure(Error::invalid_argument,
                            node_name(in.key) + ": surface input needs heights, material rules and a positive spacing");
+  if (in.overlays) return cook_with_overlays(in, node_heights, height_offset, step_log2, out, stats);
   const MaterialRules& rules = *in.rules;
 
   // Splat (first: the albedo is baked from it).

@@ -24,14 +24,33 @@ enum class BcQuality : uint8_t { fast, balanced, best };
 struct SurfaceOptions {
   std::string materials_path;   // JSON rules file; empty = built-in default rules and palette
   BcQuality bc_quality = BcQuality::balanced;
-  // Orthophoto albedo and hole-mask rasters are resampled to the frame by the pyramid side and
-  // arrive per node in SurfaceInput::albedo_rgb and SurfaceInput::holes.
+  // Orthophoto, hole-mask and class rasters (--albedo, --holes, --landcover) are mapped to the frame
+  // by the cooker (cook.cpp) and sampled per node through SurfaceInput::overlays.
 };
 
 // Material rules and palette, loaded once per cook (owned by the surface side).
 struct MaterialRules;  // defined in cooker/src/surface/materials.h
 Status load_material_rules(const SurfaceOptions& options, std::shared_ptr<const MaterialRules>& out);
 const std::vector<Material>& palette_of(const MaterialRules& rules);
+
+// Optional rasters of a cook (--albedo orthophoto, --holes mask) resampled to a node's window
+// vertices. The cooker implements it (cook.cpp: it owns the CRS mapping to the frame); the
+// surface side only samples. Must be thread-safe and a pure function of the window position.
+class SurfaceOverlays {
+ public:
+  virtual ~SurfaceOverlays() = default;
+  virtual bool has_albedo() const = 0;
+  virtual bool has_holes() const = 0;
+  virtual bool has_classes() const { return false; }
+  // Window vertex (i, j) (0..136, element j * kWindowSize + i) sits at frame
+  // (x0 + (i - kWindowMargin) * spacing, y0 + (j - kWindowMargin) * spacing). Fills kWindowCount
+  // entries of each non-null output: rgb (3 bytes, sRGB) with rgb_valid 0 where the orthophoto
+  // has no data; holes 1 where the mask marks a hole (0 outside the mask); class_materials the
+  // palette index the class raster's table gives the vertex, kNoClassMaterial where none.
+  virtual void sample(double x0, double y0, double spacing, uint8_t* rgb, uint8_t* rgb_valid, uint8_t* holes,
+                      uint8_t* class_materials) const = 0;
+};
+inline constexpr uint8_t kNoClassMaterial = 255;
 
 struct SurfaceInput {
   NodeKey key;
@@ -46,8 +65,14 @@ struct SurfaceInput {
   const uint8_t* holes = nullptr;    // kWindowCount, 1 = hole vertex (also outside the data); may be null
   // Optional RGB orthophoto colour per window vertex (kWindowCount * 3, sRGB), or null.
   const uint8_t* albedo_rgb = nullptr;
+  // Optional palette index per window vertex from a class raster (--landcover), or null;
+  // kNoClassMaterial where the raster gives none. A splat sample with one uses it instead of the rules.
+  const uint8_t* class_materials = nullptr;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
+  // Orthophoto and hole mask of the cook (may be null). Its holes add to `holes`; its colours
+  // replace the splat-baked albedo where the orthophoto has data.
+  const SurfaceOverlays* overlays = nullptr;
 };
 
 struct SurfaceStats {  // summed over nodes by the caller

@@ -50,6 +50,13 @@ constexpr Dataset kDatasets[] = {
     {"tahoe_lidar_highesthit.tif", 0, 12}, // 0.5 m lidar with trees: spiky normals
 };
 
+// Per-node cook times: every shared DEM the bench can read, at its finest useful level.
+constexpr Dataset kCookDatasets[] = {
+    {"kilauea_utm5n.tif", 4, 48},        {"N22W160.hgt.zip", 5, 48},           {"N19W155.hgt.zip", 5, 48},
+    {"srtm_oetztal.tif", 5, 48},         {"slovenia_TM1_564_146.tif", 1, 48},  {"tahoe_lidar_bareearth.tif", 0, 48},
+    {"tahoe_lidar_highesthit.tif", 0, 48},
+};
+
 int step_for_level(uint32_t level) {
   static const int kSteps[kLevelCount] = {2, 3, 4, 5, 6, 6};
   return kSteps[level];
@@ -115,15 +122,98 @@ struct Row {
   uint64_t mismatches = 0;
 };
 
+// --block-stats: where the albedo error of the default encoder sits, block by block, against
+// libsquish cluster fit (hole-free blocks of the splat albedo only): the share of the squared
+// error held by the worst blocks, and how many distinct colours those blocks have.
+void print_block_stats(const char* name, const std::vector<NodePayload>& payloads) {
+  struct BlockErr {
+    int own, squish, colours, cluster;
+  };
+  std::vector<BlockErr> v;
+  for (const NodePayload& p : payloads)
+    for (int by = 0; by < kTexelBlocks; ++by)
+      for (int bx = 0; bx < kTexelBlocks; ++bx) {
+        uint8_t block[64];
+        for (int r = 0; r < 4; ++r)
+          std::memcpy(block + 16 * r, &p.albedo_splat[size_t((by * 4 + r) * kTexels + bx * 4) * 4], 16);
+        bool hole = false;
+        uint32_t cols[16];
+        int ncol = 0;
+        for (int i = 0; i < 16; ++i) {
+          hole |= block[4 * i + 3] < 128;
+          uint32_t c;
+          std::memcpy(&c, block + 4 * i, 4);
+          c &= 0xFFFFFFu;
+          if (std::find(cols, cols + ncol, c) == cols + ncol) cols[ncol++] = c;
+        }
+        if (hole) continue;
+        auto err = [&](Bc1Method m) {
+          uint8_t out[8], dec[64];
+          encode_bc1_block(block, m, out);
+          decode_bc1_block(out, dec);
+          int e = 0;
+          for (int i = 0; i < 16; ++i)
+            for (int c = 0; c < 3; ++c) e += (block[4 * i + c] - dec[4 * i + c]) * (block[4 * i + c] - dec[4 * i + c]);
+          return e;
+        };
+        v.push_back({err(Bc1Method::own), err(Bc1Method::squish_cluster), ncol, err(Bc1Method::own_cluster)});
+      }
+  if (v.empty()) return;
+  double own_total = 0, sq_total = 0, cl_total = 0;
+  for (const BlockErr& b : v) { own_total += b.own; sq_total += b.squish; cl_total += b.cluster; }
+  const double samples = double(v.size()) * 48;
+  std::printf("\n# block stats %s splat albedo: %zu hole-free blocks; own %.2f dB, squish-cluster %.2f dB, own-cluster %.2f dB\n",
+              name, v.size(), psnr_db(own_total, uint64_t(samples)), psnr_db(sq_total, uint64_t(samples)),
+              psnr_db(cl_total, uint64_t(samples)));
+  std::sort(v.begin(), v.end(), [](const BlockErr& a, const BlockErr& b) { return a.own > b.own; });
+  std::printf("# share of own squared error in the worst blocks (by own error) and squish's error on the same blocks\n");
+  std::printf("%8s %10s %12s %12s %10s\n", "worst %", "blocks", "own share", "own/squish", "mean cols");
+  for (double f : {0.01, 0.02, 0.05, 0.10, 0.20, 0.50}) {
+    const size_t n = std::max<size_t>(1, size_t(f * double(v.size())));
+    double o = 0, q = 0, cols = 0;
+    for (size_t i = 0; i < n; ++i) { o += v[i].own; q += v[i].squish; cols += v[i].colours; }
+    std::printf("%8.0f %10zu %11.1f%% %12.3f %10.2f\n", f * 100, n, 100 * o / own_total, q > 0 ? o / q : 0, cols / double(n));
+  }
+  // Where own loses to squish: sum of (own - squish) over blocks where own is worse.
+  double lose = 0, win = 0;
+  std::vector<int> lose_by_cols(17, 0);
+  std::vector<double> lose_err_by_cols(17, 0);
+  for (const BlockErr& b : v) {
+    if (b.own > b.squish) {
+      lose += b.own - b.squish;
+      lose_by_cols[std::min(b.colours, 16)]++;
+      lose_err_by_cols[std::min(b.colours, 16)] += b.own - b.squish;
+    } else {
+      win += b.squish - b.own;
+    }
+  }
+  std::printf("# own - squish squared error: +%.0f on blocks where own is worse, -%.0f where better (net %.1f%% of own)\n",
+              lose, win, 100 * (lose - win) / own_total);
+  std::printf("# blocks where own is worse, by distinct colours: ");
+  for (int c = 1; c <= 16; ++c)
+    if (lose_by_cols[size_t(c)]) std::printf("%d:%d(%.0f%%) ", c, lose_by_cols[size_t(c)], 100 * lose_err_by_cols[size_t(c)] / lose);
+  std::printf("\n# all blocks by distinct colours (count, own error share): ");
+  std::vector<int> all_cols(17, 0);
+  std::vector<double> all_err(17, 0);
+  for (const BlockErr& b : v) { all_cols[size_t(b.colours)]++; all_err[size_t(b.colours)] += b.own; }
+  for (int c = 1; c <= 16; ++c)
+    if (all_cols[size_t(c)]) std::printf("%d:%d(%.0f%%) ", c, all_cols[size_t(c)], 100 * all_err[size_t(c)] / own_total);
+  std::printf("\n");
+}
+
 void print_usage(FILE* to) {
   std::fprintf(to,
-      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--json] [--quiet] [--help]\n"
+      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--encoder NAME] [--block-stats] [--json] [--quiet] [--help]\n"
       "  Encodes real-node payloads (albedo with holes, normals) with libsquish, stb_dxt and our\n"
       "  encoder; prints us/block (median of N runs), albedo PSNR, punch-through mismatches and\n"
       "  normal angular error, then the per-node surface cook time per quality setting.\n"
       "  --data DIR  folder of the shared DEMs (default: $TERRAIN_DATA_DIR or %s)\n"
       "  --reps N    timing repetitions (default 5)\n"
-      "  --only NAME only the shared DEMs whose file name contains NAME\n",
+      "  --only NAME only the shared DEMs whose file name contains NAME\n"
+      "  --encoder NAME  only the encoder rows with exactly this name (e.g. own; for\n"
+      "              profiling; skips the cook-time table)\n"
+      "  --block-stats  only the per-block error distribution of the default encoder against libsquish\n"
+      "              cluster fit on the splat albedo (where the dB are lost), no timing\n",
       TERRAIN_BENCH_DATA_DIR);
 }
 
@@ -133,16 +223,18 @@ int main(int argc, char** argv) {
   std::string data_dir = TERRAIN_BENCH_DATA_DIR;
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
   int reps = 5;
-  bool json = false, quiet = false;
-  std::string only;
+  bool json = false, quiet = false, block_stats = false;
+  std::string only, encoder_only;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") { print_usage(stdout); return 0; }
     if (a == "--json") json = true;
     else if (a == "--quiet") quiet = true;
+    else if (a == "--block-stats") block_stats = true;
     else if (a == "--data" && i + 1 < argc) data_dir = argv[++i];
     else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
+    else if (a == "--encoder" && i + 1 < argc) encoder_only = argv[++i];
     else { std::fprintf(stderr, "terrain-bc-bench: unknown argument '%s'\n", a.c_str()); print_usage(stderr); return 2; }
   }
   const bool progress = !quiet && isatty(2);
@@ -150,15 +242,16 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   struct CookRow {
     std::string dataset, quality;
-    double ms_median, ms_max;
     int nodes;
+    double ms_median, ms_p99, ms_max;           // payloads: splat + cones + normals + albedo (with compression)
+    double ms_checked_median, ms_checked_max;   // the whole call, incl. the error statistics the cooker reports
     double ms_splat, ms_cones, ms_normals, ms_albedo;  // mean per node
   };
   std::vector<CookRow> cook_rows;
 
   const Bc1Method bc1_methods[] = {Bc1Method::stb,          Bc1Method::stb_hq,   Bc1Method::squish_range,
                                    Bc1Method::squish_cluster, Bc1Method::squish_iterative, Bc1Method::own_fast,
-                                   Bc1Method::own,          Bc1Method::own_best};
+                                   Bc1Method::own,          Bc1Method::own_cluster, Bc1Method::own_best};
   const Bc3Method bc3_methods[] = {Bc3Method::stb, Bc3Method::stb_hq, Bc3Method::squish_cluster, Bc3Method::own,
                                    Bc3Method::own_hq};
 
@@ -189,11 +282,16 @@ int main(int argc, char** argv) {
       build_payload(nodes[i], rules, payloads[i]);
       holes += payloads[i].hole_texels;
     }
+    if (block_stats) {
+      print_block_stats(dem.name.c_str(), payloads);
+      continue;
+    }
     const double blocks = double(nodes.size()) * kTexelBlocks * kTexelBlocks;
     std::vector<uint8_t> out(size_t(kAlbedoBytes) * 2);
 
     for (int which = 0; which < 2; ++which)
       for (Bc1Method m : bc1_methods) {
+        if (!encoder_only.empty() && encoder_only != bc1_method_name(m)) continue;
         Row row{dem.name, which ? "albedo-relief" : "albedo-splat", bc1_method_name(m)};
         std::vector<double> times;
         AlbedoCheck total;
@@ -222,6 +320,7 @@ int main(int argc, char** argv) {
     for (int variant = 0; variant < 2; ++variant)
       for (Bc3Method m : bc3_methods) {
         if (variant == 1 && m != Bc3Method::own && m != Bc3Method::stb) continue;
+        if (!encoder_only.empty() && encoder_only != bc3_method_name(m)) continue;
         Row row{dem.name, variant ? "normals(R=const)" : "normals(R=AO)", bc3_method_name(m)};
         std::vector<double> times;
         AngleStats err;
@@ -246,31 +345,69 @@ int main(int argc, char** argv) {
         row.max_deg = err.max_deg;
         rows.push_back(row);
       }
-    // Whole surface cook per node (normals, albedo, splat, cones + compression), one thread.
+    if (progress) std::fprintf(stderr, "  %d hole texels over %zu nodes\n", holes, nodes.size());
+  }
+
+  if (block_stats) return 0;
+  const bool cook_table = encoder_only.empty();
+  // Whole surface cook per node (normals, albedo, splat, cones + compression), one thread, on up
+  // to 48 nodes of every known shared DEM: per node the median over the repetitions.
+  for (const Dataset& ds : kCookDatasets) {
+    if (!cook_table) break;
+    if (!only.empty() && std::string(ds.file).find(only) == std::string::npos) continue;
+    const std::string path = (std::filesystem::path(data_dir) / ds.file).string();
+    bench::DemRaster dem;
+    if (Status s = bench::load_dem(path, dem); !s.ok()) {
+      std::fprintf(stderr, "terrain-bc-bench: skipping %s: %s\n", ds.file, s.to_string().c_str());
+      continue;
+    }
+    std::vector<bench::DemNode> nodes;
+    const uint32_t nx = bench::nodes_across(dem, ds.level, false), ny = bench::nodes_across(dem, ds.level, true);
+    std::vector<std::pair<uint32_t, uint32_t>> cand;
+    for (uint32_t y = 0; y < ny; ++y)
+      for (uint32_t x = 0; x < nx; ++x) cand.push_back({x, y});
+    const size_t stride = std::max<size_t>(1, cand.size() / size_t(ds.max_nodes * 2));
+    for (size_t c = 0; c < cand.size() && int(nodes.size()) < ds.max_nodes; c += stride) {
+      bench::DemNode n;
+      bench::make_dem_node(dem, ds.level, cand[c].first, cand[c].second, step_for_level(ds.level), n);
+      if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
+    }
+    if (progress) std::fprintf(stderr, "%s: cook times on %zu nodes at level %u\n", ds.file, nodes.size(), ds.level);
     for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
-      std::vector<double> per_node;
+      std::vector<double> payload_ms, checked_ms;
       NodeData outnode;
-      SurfaceStats st;
+      SurfaceStats sum;
       for (const bench::DemNode& n : nodes) {
-        std::vector<double> t;
+        std::vector<double> t, tc;
         for (int r = 0; r < reps; ++r) {
+          SurfaceStats st;
           const double t0 = thread_seconds();
           const Status s = cook_surface_layers(n.input(&rules, q), n.node, n.height_offset, n.step_log2, outnode, &st);
-          t.push_back((thread_seconds() - t0) * 1e3);
+          tc.push_back((thread_seconds() - t0) * 1e3);
           if (!s.ok()) {
             std::fprintf(stderr, "terrain-bc-bench: %s\n", s.to_string().c_str());
             return 1;
           }
+          t.push_back((st.seconds_splat + st.seconds_cones + st.seconds_normals + st.seconds_albedo) * 1e3);
+          sum.seconds_splat += st.seconds_splat;
+          sum.seconds_cones += st.seconds_cones;
+          sum.seconds_normals += st.seconds_normals;
+          sum.seconds_albedo += st.seconds_albedo;
         }
-        per_node.push_back(median(t));
+        payload_ms.push_back(median(t));
+        checked_ms.push_back(median(tc));
       }
+      if (nodes.empty()) continue;
+      std::vector<double> sorted = payload_ms;
+      std::sort(sorted.begin(), sorted.end());
+      // p99 by nearest rank (with < 100 nodes: the largest but one when there are >= 50).
+      const double p99 = sorted[std::min(sorted.size() - 1, size_t(std::ceil(0.99 * double(sorted.size()))) - 1)];
       const char* qn = q == BcQuality::fast ? "fast" : q == BcQuality::balanced ? "balanced" : "best";
       const double runs = double(nodes.size()) * reps / 1e3;
-      cook_rows.push_back({dem.name, qn, median(per_node), *std::max_element(per_node.begin(), per_node.end()),
-                           int(nodes.size()), st.seconds_splat / runs, st.seconds_cones / runs,
-                           st.seconds_normals / runs, st.seconds_albedo / runs});
+      cook_rows.push_back({dem.name, qn, int(nodes.size()), median(payload_ms), p99, sorted.back(), median(checked_ms),
+                           *std::max_element(checked_ms.begin(), checked_ms.end()), sum.seconds_splat / runs,
+                           sum.seconds_cones / runs, sum.seconds_normals / runs, sum.seconds_albedo / runs});
     }
-    if (progress) std::fprintf(stderr, "  %d hole texels over %zu nodes\n", holes, nodes.size());
   }
 
   if (json) {
@@ -284,11 +421,14 @@ int main(int argc, char** argv) {
     }
     std::printf("\n], \"cook\": [");
     for (size_t i = 0; i < cook_rows.size(); ++i)
-      std::printf("%s\n  {\"dataset\": \"%s\", \"quality\": \"%s\", \"ms_per_node_median\": %.3f, \"ms_per_node_max\": %.3f, "
-                  "\"nodes\": %d, \"ms_splat\": %.3f, \"ms_cones\": %.3f, \"ms_normals\": %.3f, \"ms_albedo\": %.3f}",
-                  i ? "," : "", cook_rows[i].dataset.c_str(), cook_rows[i].quality.c_str(), cook_rows[i].ms_median,
-                  cook_rows[i].ms_max, cook_rows[i].nodes, cook_rows[i].ms_splat, cook_rows[i].ms_cones,
-                  cook_rows[i].ms_normals, cook_rows[i].ms_albedo);
+      std::printf("%s\n  {\"dataset\": \"%s\", \"quality\": \"%s\", \"nodes\": %d, \"ms_per_node_median\": %.3f, "
+                  "\"ms_per_node_p99\": %.3f, \"ms_per_node_max\": %.3f, \"ms_with_checks_median\": %.3f, "
+                  "\"ms_with_checks_max\": %.3f, \"ms_splat\": %.3f, \"ms_cones\": %.3f, \"ms_normals\": %.3f, "
+                  "\"ms_albedo\": %.3f}",
+                  i ? "," : "", cook_rows[i].dataset.c_str(), cook_rows[i].quality.c_str(), cook_rows[i].nodes,
+                  cook_rows[i].ms_median, cook_rows[i].ms_p99, cook_rows[i].ms_max, cook_rows[i].ms_checked_median,
+                  cook_rows[i].ms_checked_max, cook_rows[i].ms_splat, cook_rows[i].ms_cones, cook_rows[i].ms_normals,
+                  cook_rows[i].ms_albedo);
     std::printf("\n]}\n");
     return 0;
   }
@@ -302,11 +442,15 @@ int main(int argc, char** argv) {
       std::printf("%-28s %-17s %-15s %9.3f %9s %6s %9.3f %9.3f\n", r.dataset.c_str(), r.payload.c_str(), r.encoder.c_str(),
                   r.us_per_block, "-", "-", r.mean_deg, r.max_deg);
   }
-  std::printf("\n%-28s %-9s %5s %13s %11s | %7s %7s %7s %7s  (mean ms per node and stage)\n", "dataset", "quality",
-              "nodes", "ms/node(med)", "ms/node max", "splat", "cones", "normals", "albedo");
+  std::printf("\n%-28s %-9s %5s | %7s %7s %7s | %9s %9s | %7s %7s %7s %7s\n", "dataset", "quality", "nodes",
+              "median", "p99", "max", "chk med", "chk max", "splat", "cones", "normals", "albedo");
   for (const CookRow& c : cook_rows)
-    std::printf("%-28s %-9s %5d %13.3f %11.3f | %7.3f %7.3f %7.3f %7.3f\n", c.dataset.c_str(), c.quality.c_str(), c.nodes,
-                c.ms_median, c.ms_max, c.ms_splat, c.ms_cones, c.ms_normals, c.ms_albedo);
+    std::printf("%-28s %-9s %5d | %7.3f %7.3f %7.3f | %9.3f %9.3f | %7.3f %7.3f %7.3f %7.3f\n", c.dataset.c_str(),
+                c.quality.c_str(), c.nodes, c.ms_median, c.ms_p99, c.ms_max, c.ms_checked_median, c.ms_checked_max,
+                c.ms_splat, c.ms_cones, c.ms_normals, c.ms_albedo);
+  std::printf("# per-node surface payload time in ms (splat + cones + normals + albedo, compression included; thread CPU\n"
+              "# time, median over reps per node); chk = the whole call incl. the error statistics the cooker reports;\n"
+              "# last four columns: mean ms per node and stage.\n");
   std::printf("\n# albedo rows: every block checked for exact punch-through (alpha! = mismatching texels); stb_dxt has no\n"
               "# 3-colour mode, so its rows encode blocks with holes with libsquish cluster fit; PSNR over non-hole texels.\n"
               "# normals: angle between decoded and float normals; R=AO (block AO, the cooker's layout) vs R constant.\n");
