@@ -40,6 +40,10 @@ double thread_cpu_ms() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
+constexpr const char* kNaiveDescription =
+    "synchronous ArchiveReader::decode_node of every wanted, non-resident node on the caller's thread inside its update(), "
+    "in split (priority) order, each into a new NodeData, with the same reader, wanted-set rule and budget; evicts by freeing";
+
 struct Options {
   std::vector<std::string> archives;
   std::string make_synthetic;
@@ -169,6 +173,9 @@ struct Result {
   std::vector<double> required_ms;  // teleports: ... that completes the required set
   std::vector<int> settle_frames;
   std::vector<uint32_t> settled_wanted;
+  std::vector<double> work_ms;        // teleports: CPU time of all decode work + the caller's update()s until settled
+  std::vector<double> teleport_loads; // teleports: nodes loaded (decodes begun) until settled
+  std::vector<double> caller_ms;      // teleports: the caller's share of work_ms (update()s; naive: all of it)
   std::vector<double> update_ms;      // caller's thread cost per frame, wall clock
   std::vector<double> update_cpu_ms;  // ... CPU time of the caller's thread
   uint64_t bytes_read = 0;
@@ -190,6 +197,10 @@ nlohmann::json to_json(const Result& r) {
     j["required_ms"] = r.required_ms;
     j["settle_frames"] = r.settle_frames;
     j["settled_wanted_nodes"] = r.settled_wanted;
+    j["work_cpu_ms"] = r.work_ms;
+    j["work_cpu_ms_median"] = median(r.work_ms);
+    j["teleport_loads"] = r.teleport_loads;
+    j["caller_cpu_ms"] = r.caller_ms;
   }
   j["update_ms_median"] = median(r.update_ms);
   j["update_ms_p99"] = percentile(r.update_ms, 0.99);
@@ -293,6 +304,8 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
     if (p.teleports) {
       for (const View& v : p.views) {
         pacer.reset();
+        const StreamerStats before = s.stats();
+        const size_t first_frame = res.update_cpu_ms.size();
         const auto t0 = Clock::now();
         double required = -1;
         for (int f = 1;; ++f) {
@@ -303,6 +316,11 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
             res.required_ms.push_back(required);
             res.settle_frames.push_back(f);
             res.settled_wanted.push_back(st.wanted);
+            double caller_ms = 0;
+            for (size_t i = first_frame; i < res.update_cpu_ms.size(); ++i) caller_ms += res.update_cpu_ms[i];
+            res.work_ms.push_back(1e3 * (st.decode_cpu_seconds - before.decode_cpu_seconds) + caller_ms);
+            res.teleport_loads.push_back(double(st.loads_started - before.loads_started));
+            res.caller_ms.push_back(caller_ms);
             break;
           }
           pacer.wait();
@@ -354,11 +372,15 @@ std::vector<Result> run_naive(const ArchiveReader& reader, const std::vector<Pat
     if (p.teleports) {
       for (const View& v : p.views) {
         // Synchronous: the set is complete when update() returns.
+        const uint64_t loads0 = res.loads;
         const double ms = frame(v);
         res.settle_ms.push_back(ms);
         res.required_ms.push_back(ms);
         res.settle_frames.push_back(1);
         res.settled_wanted.push_back(naive.wanted());
+        res.work_ms.push_back(res.update_cpu_ms.back());
+        res.teleport_loads.push_back(double(res.loads - loads0));
+        res.caller_ms.push_back(res.update_cpu_ms.back());
       }
     } else {
       frame(p.views.front());
@@ -481,6 +503,21 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
       results.push_back(x);
     }
   }
+  if (progress) std::fprintf(stderr, "%s: streamer, delivery cap = budget...\n", archive.c_str());
+  const std::string uncapped_name = "streamer, cap " + std::to_string(o.budget);
+  {
+    // Same teleports with the per-frame delivery bound lifted to the budget: what the cap costs.
+    StreamerConfig uncapped = config;
+    uncapped.max_deliveries_per_frame = o.budget;
+    std::vector<Path> tp = {paths.front()};
+    MemoryPeak m;
+    StreamerStats ss;
+    auto r = run_streamer(archive, tp, uncapped, o.fps, m, ss, nullptr, error);
+    for (auto& x : r) {
+      x.loader = uncapped_name;
+      results.push_back(x);
+    }
+  }
   if (progress) std::fprintf(stderr, "%s: naive loader...\n", archive.c_str());
   {
     auto r = run_naive(reader, paths, config, nmem);
@@ -506,6 +543,23 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   const Result* nt = find("teleport", "naive");
   const double speedup_paced = median(nt->settle_ms) / std::max(1e-9, median(st->settle_ms));
   const double speedup_unpaced = su ? median(nt->settle_ms) / std::max(1e-9, median(su->settle_ms)) : 0;
+  const Result* sc = find("teleport", uncapped_name);
+  const double speedup_uncapped = sc ? median(nt->settle_ms) / std::max(1e-9, median(sc->settle_ms)) : 0;
+  // Where the ceiling is. Both loaders decode the same nodes with the same reader, so a teleport
+  // costs about the same CPU work W either way; on C cores no loader settles faster than W / C,
+  // and the streamer additionally delivers at most `cap` nodes per update, one update per frame,
+  // starting with the update after the teleport's.
+  const double cores = std::max(1u, std::thread::hardware_concurrency());
+  const double naive_work = median(nt->work_ms), stream_work = su ? median(su->work_ms) : median(st->work_ms);
+  const double ceiling_unpaced = stream_work > 0 ? cores * naive_work / stream_work : 0;
+  std::vector<double> paced_bound;
+  const double period_ms = 1e3 / o.fps;
+  for (size_t i = 0; i < st->work_ms.size(); ++i) {
+    const double delivery_frames = std::ceil(st->teleport_loads[i] / double(o.max_deliveries));
+    const double decode_frames = std::ceil(st->work_ms[i] / cores / period_ms);
+    paced_bound.push_back(std::max({1.0, delivery_frames, decode_frames}) * period_ms);
+  }
+  const double ceiling_paced = median(nt->settle_ms) / std::max(1e-9, median(paced_bound));
   int flight_gap_frames = 0;
   bool invariants = true;
   for (const Result& r : results)
@@ -516,6 +570,7 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
 
   nlohmann::json j;
   j["archive"] = archive;
+  j["naive_loader"] = kNaiveDescription;
   j["load_average_1min"] = load_average();
   j["heap_measured"] = heap_in_use() > 0;
   j["nodes"] = reader.nodes().size();
@@ -549,6 +604,12 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
                   {"teleport_settle_ms_max", *std::max_element(st->settle_ms.begin(), st->settle_ms.end())},
                   {"speedup_vs_naive_paced", speedup_paced},
                   {"speedup_vs_naive_unpaced", speedup_unpaced},
+                  {"speedup_vs_naive_paced_cap_budget", speedup_uncapped},
+                  {"work_cpu_ms_median_naive", naive_work},
+                  {"work_cpu_ms_median_streamer", stream_work},
+                  {"speedup_ceiling_unpaced", ceiling_unpaced},
+                  {"settle_ms_lower_bound_paced_median", median(paced_bound)},
+                  {"speedup_ceiling_paced", ceiling_paced},
                   {"flight_and_walk_gap_frames", flight_gap_frames},
                   {"invariants_ok", invariants}};
   json_out.push_back(j);
@@ -581,11 +642,23 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
                   median(st->required_ms));
     }
     if (median(nt->settle_ms) >= 1.0)
-      std::printf("speed-up over the naive loader (teleport to settled, median): %.2fx at %.0f fps, %.2fx unpaced\n",
-                  speedup_paced, o.fps, speedup_unpaced);
+      std::printf("speed-up over the naive loader (teleport to settled, median): %.2fx at %.0f fps (%u deliveries/frame), "
+                  "%.2fx at %.0f fps with %u deliveries/frame, %.2fx unpaced\n",
+                  speedup_paced, o.fps, o.max_deliveries, speedup_uncapped, o.fps, o.budget, speedup_unpaced);
     else
       std::printf("speed-up over the naive loader: n/a (the naive loader settles teleports in under 1 ms here: the "
                   "archive stays resident)\n");
+    const Result* sw = su ? su : st;
+    std::printf("work per teleport until settled (CPU ms, median): naive %.1f (its update()), streamer %.1f (workers' decode "
+                "%.1f + caller's update()s %.1f over %.0f frames); loads per teleport (median): naive %.0f, streamer %.0f\n",
+                naive_work, stream_work, median(sw->work_ms) - median(sw->caller_ms), median(sw->caller_ms),
+                median(std::vector<double>(sw->settle_frames.begin(), sw->settle_frames.end())), median(nt->teleport_loads),
+                median(sw->teleport_loads));
+    std::printf("ceiling: on %.0f cores no loader doing the streamer's work settles faster than work / cores: at most %.2fx "
+                "unpaced; at %.0f fps with %u deliveries/frame the streamer settles no earlier than max(ceil(loads / cap), "
+                "ceil(work / cores / frame)) frames after the teleport's update = %.1f ms (median): at most %.2fx\n",
+                cores, ceiling_unpaced, o.fps, o.max_deliveries, median(paced_bound), ceiling_paced);
+    std::printf("naive loader: %s\n", kNaiveDescription);
     std::printf("decode (%llu nodes, 1 thread): format %.0f MB/s raw (%.0f MB/s stored); raw zstd of the same sections %.0f MB/s "
                 "raw (%.0f MB/s stored); in the streamer's workers %.0f MB/s raw per thread\n",
                 (unsigned long long)ds.nodes, ds.decode_s > 0 ? double(ds.raw_bytes) / ds.decode_s / 1e6 : 0,

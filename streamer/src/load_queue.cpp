@@ -1,8 +1,17 @@
 #include "load_queue.h"
 
+#include <time.h>
+
 #include <chrono>
 
 namespace terrain::detail {
+namespace {
+double thread_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + double(ts.tv_nsec) * 1e-9;
+}
+}  // namespace
 
 LoadQueue::LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity)
     : reader_(reader), sections_(sections), capacity_(capacity) {
@@ -109,7 +118,9 @@ void LoadQueue::worker_main() {
       data = fresh.get();
     }
     const auto t0 = std::chrono::steady_clock::now();
+    const double c0 = thread_cpu_seconds();
     Status status = reader_.decode_node(node, *data, sections_);
+    const double cpu_seconds = thread_cpu_seconds() - c0;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const uint64_t bytes = reader_.payload(node).size();
 
@@ -120,6 +131,7 @@ void LoadQueue::worker_main() {
     }
     counters_.bytes_read += bytes;
     counters_.decode_seconds += seconds;
+    counters_.decode_cpu_seconds += cpu_seconds;
     results_.push_back({node, data, std::move(status), bytes, seconds});
     result_ready_.notify_one();
   }

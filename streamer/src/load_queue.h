@@ -27,7 +27,8 @@ class LoadQueue {
   struct Counters {
     uint64_t loads_started = 0;
     uint64_t bytes_read = 0;
-    double decode_seconds = 0;
+    double decode_seconds = 0;      // wall clock, summed over workers
+    double decode_cpu_seconds = 0;  // CPU time of the workers' threads in decode (excludes waiting for a core)
     uint64_t buffers_allocated = 0;
     uint32_t in_flight = 0;
   };

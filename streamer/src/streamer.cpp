@@ -398,6 +398,7 @@ struct Streamer::Impl {
     s.bytes_read = c.bytes_read;
     s.bytes_decoded = bytes_decoded;
     s.decode_seconds = c.decode_seconds;
+    s.decode_cpu_seconds = c.decode_cpu_seconds;
     s.buffer_bytes = c.buffers_allocated * sizeof(NodeData);
     stats = s;
   }

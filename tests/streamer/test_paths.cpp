@@ -93,6 +93,11 @@ TEST(StreamerPaths, TeleportDropsTheOldQueueAndSettlesToTheReference) {
     EXPECT_EQ(after.loads_started, after.loads_delivered + after.loads_discarded + after.in_flight) << "teleport " << jump;
   }
   EXPECT_GT(streamer.stats().requests_dropped, 0u);
+  // Decode accounting (the benchmark's work-per-teleport figures): every decode takes CPU time, and
+  // a thread's CPU time never exceeds its wall time (0.1 ms slack per load for the clocks' granularity).
+  const StreamerStats s = streamer.stats();
+  EXPECT_GT(s.decode_cpu_seconds, 0.0);
+  EXPECT_LE(s.decode_cpu_seconds, s.decode_seconds + 1e-4 * double(s.loads_started));
 }
 
 TEST(StreamerPaths, TightBudgetAndSlotsRespectTheFence) {

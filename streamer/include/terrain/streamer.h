@@ -226,7 +226,8 @@ struct StreamerStats {
   uint64_t requests_dropped = 0;     // queued requests dropped (no longer wanted) before any work
   uint64_t bytes_read = 0;           // stored (compressed) payload bytes decoded by workers
   uint64_t bytes_decoded = 0;        // raw bytes produced (requested sections)
-  double decode_seconds = 0;         // sum over workers of time spent in decode
+  double decode_seconds = 0;         // sum over workers of time spent in decode (wall clock)
+  double decode_cpu_seconds = 0;     // ... CPU time of those threads (the decode work itself)
   uint64_t buffer_bytes = 0;         // decode buffers allocated: <= (budget + max_in_flight) nodes
 };
 
