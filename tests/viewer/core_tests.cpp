@@ -158,8 +158,9 @@ MeshCheck check_watertight(const PatchList& patches, double world_w_hm, double w
       patch_vertex(p, i, j, hx, hy, ti, tj);
       return std::make_pair(hx, hy);
     };
-    for (int j = 0; j < TV_QUADS_PER_PATCH; ++j)
-      for (int i = 0; i < TV_QUADS_PER_PATCH; ++i) {
+    const int n = int(patch_quads(p));
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
         const auto v00 = pos(i, j), v10 = pos(i + 1, j), v11 = pos(i + 1, j + 1), v01 = pos(i, j + 1);
         for (auto tri : {std::array{v00, v10, v11}, std::array{v00, v11, v01}}) {
           const double a2 = double(tri[1].first - tri[0].first) * double(tri[2].second - tri[0].second) -
@@ -243,6 +244,80 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   }
   EXPECT_EQ(deltas, (std::set<uint32_t>{0, 1, 2, 3, 4, 5, 6, 7}));
   EXPECT_TRUE(levels.count(0) && levels.count(5) && levels.count(7) && levels.count(8)) << "levels 7, 8: coarsened roots";
+}
+
+// Per-patch decimation of roots (config.h "Patch decimation"): root patches drawn with every 2nd..16th
+// vertex next to full patches of the same root, finer nodes and coarsened roots stay watertight,
+// and each decimation keeps the patch's total error within the target at the patch's distance.
+TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
+  SyntheticOptions o;
+  o.roots_x = 3;
+  o.roots_y = 2;
+  o.cones = false;
+  o.relief_m = 120;
+  o.flat_from_x_m = 2600;  // rough root column 0, flattening across root column 1, flat column 2
+  o.keep = [](const NodeKey& k) { return k.level >= 3; };
+  SyntheticWorld sw = make_synthetic_world(o);
+  TerrainState st;
+  StaticResidency res;
+  std::vector<MemoryNode> nodes;
+  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  res.init(sw.world, nodes, 512, st);
+  std::vector<NodeUpload> uploads;
+  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
+  std::vector<SlotCpuData> cpu(512);
+  for (auto& up : uploads) cpu[up.slot] = prepare_slot(*up.data, st.descriptor(up.slot));
+  float table[256];
+  cone_sin2_table(0, table);
+  std::set<uint32_t> decimations, interior_deltas;
+  size_t checked = 0;
+  size_t beside_coarsened = 0;  // decimated patches on a root edge facing a coarsened root
+  // (2100, 1000, 200) at 10 px: a root decimated next to a coarsened root (cracked before the cap).
+  for (const auto& [x, y, h] : {std::array{2600.0, 2048.0, 400.0}, std::array{1000.0, 500.0, 900.0},
+                                std::array{-3000.0, 2048.0, 1500.0}, std::array{2100.0, 1000.0, 200.0},
+                                std::array{-1000.0, 4000.0, 3000.0}})
+    for (double target : {0.3, 1.0, 3.0, 10.0}) {
+      Camera cam;
+      cam.position[0] = sw.world.origin_x_m + x;
+      cam.position[1] = sw.world.origin_y_m + y;
+      cam.position[2] = h;
+      const FrameUniforms u = uniforms_for(cam, sw.world, target, TV_FLAG_DECIMATE);
+      const NodeList list = reference_traverse(st, u, cpu);
+      const auto lod = reference_lod_map(st, list);
+      const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
+      for (const auto& p : patches.patches) {
+        const uint32_t e = patch_decimation(p);
+        decimations.insert(e);
+        if (e > 0 && patch_px(p) == 7) {
+          const GpuNodeDesc& d = st.descriptor(patch_slot(p));
+          const uint32_t east = (d.x + 1) << kRootLevel, row = (d.y << kRootLevel) + patch_py(p) * 4;
+          if (east < st.grid_width(0) && lod[size_t(row) * st.grid_width(0) + east] > kRootLevel + 1) ++beside_coarsened;
+        }
+        if (e > 0) {
+          ASSERT_EQ(patch_level(p), uint32_t(kRootLevel)) << "only uncoarsened roots decimate";
+          // The bound the decimation promises: total error * pixels per radian <= target * distance.
+          const GpuNodeDesc& d = st.descriptor(patch_slot(p));
+          const GpuPatchBounds b = cpu[patch_slot(p)].bounds[patch_py(p) * 8 + patch_px(p)];
+          const double size = node_size_m(kRootLevel) / 8;
+          const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - (cam.position[0] - sw.world.origin_x_m);
+          const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - (cam.position[1] - sw.world.origin_y_m);
+          const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
+          const double dz = std::max({b.min_units / 1024.0 - h, 0.0, h - b.max_units / 1024.0});
+          const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+          const double err = double(cpu[patch_slot(p)].patch_error[patch_py(p) * 8 + patch_px(p)][e - 1]);
+          EXPECT_LE(err * double(u.cam_frac[3]), target * dist * (1 + 1e-5));
+          ++checked;
+        }
+        if (patch_px(p) > 0 && patch_px(p) < 7 && edge_delta(p, TV_EDGE_W) > 0) interior_deltas.insert(edge_delta(p, TV_EDGE_W));
+      }
+      const MeshCheck m = check_watertight(patches, 3 * 4096.0, 2 * 4096.0);
+      EXPECT_EQ(m.open_edges, 0u) << "target " << target << " camera " << x << "," << y;
+      EXPECT_DOUBLE_EQ(m.area, m.expected_area);
+    }
+  EXPECT_EQ(decimations, (std::set<uint32_t>{0, 1, 2, 3, 4}));
+  EXPECT_FALSE(interior_deltas.empty()) << "decimated root patches must border less decimated ones inside a root";
+  EXPECT_GT(checked, 100u);
+  EXPECT_GT(beside_coarsened, 0u) << "decimated root patches must face coarsened roots";
 }
 
 TEST(ViewerReference, LodMapMatchesCoverage) {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <set>
 
 #include "gpu_harness.h"
 
@@ -202,6 +203,71 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
   EXPECT_EQ(deepest, 7u) << "the drawn patches must include a 7-level difference (level 0 next to a coarsened root)";
   EXPECT_GT(unstitched_cracks, 0u) << "control: unstitched LOD boundaries must crack";
   std::printf("cracks without stitching: %zu px over %zu views\n", unstitched_cracks, std::size(views));
+}
+
+// Per-patch decimation of roots (config.h): rough, flattening and flat root columns seen from far
+// and near at several targets. The GPU patch list (with each patch's decimation and the deltas of
+// edges inside a root) equals the CPU reference, no magenta shows through, and the views do
+// decimate (every e = 1..4) and stitch decimated patches inside roots.
+TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
+  World world;
+  SyntheticOptions o;
+  o.roots_x = 3;
+  o.roots_y = 2;
+  o.relief_m = 120;
+  o.detail = 1.5;
+  o.flat_from_x_m = 2600;
+  o.keep = [](const NodeKey& k) { return k.level >= 3; };
+  world.synthetic = make_synthetic_world(o);
+  TV_REQUIRE_GPU(gpu, world.synthetic.world, 512, 320, 180);
+  std::vector<NodeUpload> uploads;
+  world.residency.init(world.synthetic.world, world.memory_nodes(), 512, gpu->state);
+  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  const ViewSpec views[] = {{2600, 2048, 900, 0, -70, 1.0},   {1500, 1500, 1200, 45, -75, 0.5},
+                            {3500, 2000, 1500, 0, -80, 1.0},   {2000, 1500, 600, 90, -60, 2.0},
+                            {3000, 2048, 1200, 180, -65, 0.3}, {3000, 2048, 2000, 270, -85, 4.0},
+                            {4500, 2048, 1400, 90, -70, 1.5},  {2100, 1000, 500, 90, -60, 10.0}};
+  std::set<uint32_t> decimations;
+  size_t interior = 0, unstitched = 0;
+  for (const ViewSpec& v : views) {
+    FrameSettings s;
+    s.error_target_px = v.error;
+    s.clear[0] = 1;
+    s.clear[1] = 0;
+    s.clear[2] = 1;
+    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, true).ok());
+    uploads.clear();
+    NodeList nodes;
+    std::vector<uint32_t> lod;
+    std::vector<GpuPatch> patches;
+    gpu->renderer.read_lists(nodes, lod, patches);
+    const FrameUniforms& u = gpu->renderer.uniforms();
+    const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
+    EXPECT_EQ(sorted(nodes.entries), sorted(ref_nodes.entries));
+    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, ref_nodes);
+    EXPECT_EQ(lod, ref_lod);
+    const PatchList ref = reference_patches(gpu->state, u, ref_nodes, ref_lod, gpu->renderer.slot_cpu(),
+                                            gpu->renderer.cone_sin2_table());
+    EXPECT_EQ(sorted(patches), sorted(ref.patches)) << "view " << (&v - views);
+    for (const GpuPatch& p : patches) {
+      decimations.insert(patch_decimation(p));
+      interior += patch_level(p) == uint32_t(kRootLevel) &&
+                  ((patch_px(p) > 0 && edge_delta(p, TV_EDGE_W) > 0) || (patch_px(p) < 7 && edge_delta(p, TV_EDGE_E) > 0) ||
+                   (patch_py(p) > 0 && edge_delta(p, TV_EDGE_S) > 0) || (patch_py(p) < 7 && edge_delta(p, TV_EDGE_N) > 0));
+    }
+    std::vector<uint8_t> rgba;
+    read_color(gpu->target, rgba);
+    dump_ppm(*gpu, rgba, "decimated_" + std::to_string(&v - views));
+    EXPECT_EQ(count_color(rgba, 255, 0, 255), 0u) << "view " << (&v - views) << ": magenta shows through a crack";
+    // Control: unstitched, the decimated edges crack.
+    s.stitch = false;
+    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, false).ok());
+    read_color(gpu->target, rgba);
+    unstitched += count_color(rgba, 255, 0, 255);
+  }
+  EXPECT_GT(unstitched, 0u) << "control: unstitched decimated edges must crack";
+  EXPECT_EQ(decimations, (std::set<uint32_t>{0, 1, 2, 3, 4}));
+  EXPECT_GT(interior, 0u) << "decimated patches must border less decimated ones inside a root";
 }
 
 TEST(ViewerGpu, NoCracksAtTheStreamingFrontier) {

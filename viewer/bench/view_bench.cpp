@@ -8,6 +8,8 @@
 // between that surface and the surface the target draws, projected to pixels at the pixel's
 // distance (the quantity the LOD test bounds). Every node is decoded up front (same residency for
 // all rows), so an archive must fit --max-nodes.
+#include <sys/resource.h>
+
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -16,11 +18,19 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <unordered_map>
 
 #include "session.h"
 
 namespace terrain::view {
 namespace {
+
+// CPU time of this process (every thread), ms.
+double process_cpu_ms() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return (double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3) + double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-3;
+}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -34,22 +44,40 @@ double percentile(std::vector<double> v, double p) {
   return v[std::min(v.size() - 1, size_t(p * double(v.size())))];
 }
 
+// Decimation of each drawn root patch: key slot * 64 + patch.
+using DecimationMap = std::unordered_map<uint32_t, uint32_t>;
+DecimationMap decimations(const std::vector<GpuPatch>& patches) {
+  DecimationMap m;
+  for (const GpuPatch& p : patches)
+    if (patch_decimation(p) > 0) m[patch_slot(p) * 64 + patch_py(p) * 8 + patch_px(p)] = patch_decimation(p);
+  return m;
+}
+
 // Height (m) of the surface the frame draws at local point (lx, ly) (metres from the world
 // origin): the node drawing the sector (LOD map), its triangle (SW->NE split) at the node's
-// geometric level. Stitching (only the outermost quad strip of a node) is ignored. NaN if none.
-double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, double lx, double ly) {
+// geometric level and, for a decimated root patch, every 2^e-th vertex. Stitching (only the
+// outermost quad strip of a node or decimated patch) is ignored. NaN if none.
+double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, const DecimationMap& dec, double lx,
+                    double ly) {
   const TerrainState& st = s.state;
   if (lx < 0 || ly < 0) return NAN;
   const uint32_t sx = uint32_t(lx / 64.0), sy = uint32_t(ly / 64.0);
   if (sx >= st.grid_width(0) || sy >= st.grid_height(0)) return NAN;
   const uint32_t v = lod_map[size_t(sy) * st.grid_width(0) + sx];
   if (v == 0) return NAN;
-  const uint32_t geo = v - 1, c = coarsening_of(geo);
+  const uint32_t geo = v - 1;
+  uint32_t c = coarsening_of(geo);
   const int level = node_level_of(geo);
-  const double size = node_size_m(level), step = vertex_spacing_m(level) * double(1 << c);
+  const double size = node_size_m(level);
   const uint32_t nx = uint32_t(lx / size), ny = uint32_t(ly / size);
   const uint16_t slot = st.index(level, nx, ny);
   if (slot >= TV_SLOT_INVALID) return NAN;
+  if (geo == uint32_t(terrain::kRootLevel)) {
+    const double patch = size / TV_PATCHES_PER_SIDE;
+    const uint32_t px = std::min(uint32_t((lx - nx * size) / patch), 7u), py = std::min(uint32_t((ly - ny * size) / patch), 7u);
+    if (auto it = dec.find(slot * 64u + py * 8 + px); it != dec.end()) c = it->second;
+  }
+  const double step = vertex_spacing_m(level) * double(1 << c);
   const NodeData* data = s.source->slot_data(slot);
   if (!data) return NAN;
   const SlotDescriptor& d = st.descriptor(slot);
@@ -70,9 +98,30 @@ struct Row {
   double target = 0;
   FrameRecord last;
   double traverse = 0, lodmap = 0, patches = 0, draw = 0, total = 0, wall = 0, cpu_ref = 0;
+  double work = 0;  // process CPU time (all lavapipe threads) per frame: the work, robust to other jobs
   double err_mean = 0, err_p99 = 0, err_max = 0;
   size_t err_pixels = 0;
+  // --profile: draw time of the same frame with a constant-colour fragment shader and with
+  // rasterizer discard (vertex work only).
+  double draw_flat = 0, draw_vertex = 0;
 };
+
+// Median GPU draw time of `frames` frames (after `warmup`) drawn with `profile`.
+terrain::Status median_draw(Session& s, const Camera& cam, FrameSettings::DrawProfile profile, int warmup, int frames,
+                            double& out) {
+  const FrameSettings::DrawProfile saved = s.options.settings.profile;
+  s.options.settings.profile = profile;
+  std::vector<double> dr;
+  FrameRecord rec;
+  for (int f = 0; f < warmup + frames; ++f) {
+    terrain::Status st = render_frame(s, cam, false, rec);
+    if (!st.ok()) return st;
+    if (f >= warmup) dr.push_back(rec.gpu.gpu_draw_ms);
+  }
+  s.options.settings.profile = saved;
+  out = median(dr);
+  return terrain::Status::success();
+}
 
 }  // namespace
 }  // namespace terrain::view
@@ -83,7 +132,7 @@ int main(int argc, char** argv) {
   std::string archive, size = "1280x720", targets_text = "0.5,1,2,4,8";
   int frames = 10, warmup = 3;
   uint32_t max_nodes = 4096;
-  bool json_out = false;
+  bool json_out = false, profile = false, no_decimate = false;
   app.add_option("archive", archive, "terrain archive")->required()->check(CLI::ExistingFile);
   app.add_option("--size", size, "image size WxH")->capture_default_str();
   app.add_option("--targets", targets_text, "error targets in pixels, comma separated")->capture_default_str();
@@ -91,6 +140,9 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "frames before measuring")->capture_default_str();
   app.add_option("--max-nodes", max_nodes, "most nodes to decode up front")->capture_default_str();
   app.add_flag("--json", json_out, "print the table as JSON on stdout");
+  app.add_flag("--no-decimate", no_decimate, "no per-patch decimation of roots (the baseline it is measured against)");
+  app.add_flag("--profile", profile,
+               "also split the draw: vertex work only (rasterizer discard), constant-colour fragments, shading");
   CLI11_PARSE(app, argc, argv);
   std::vector<double> targets;
   {
@@ -103,6 +155,7 @@ int main(int argc, char** argv) {
   o.headless = true;
   o.load_all = true;
   o.quiet = true;
+  o.settings.decimate = !no_decimate;
   unsigned w = 0, h = 0;
   char x = 0;
   std::istringstream sz(size);
@@ -159,8 +212,9 @@ int main(int argc, char** argv) {
       Row row;
       row.view = view_name;
       row.target = target;
-      std::vector<double> tv, lm, pa, dr, to, wa, cpu;
+      std::vector<double> tv, lm, pa, dr, to, wa, cpu, wk;
       for (int f = 0; f < warmup + frames; ++f) {
+        const double work0 = process_cpu_ms();
         if (!(st = render_frame(s, cam, f == warmup + frames - 1, rec)).ok()) {
           std::fprintf(stderr, "terrain-view-bench: %s\n", st.message.c_str());
           return 1;
@@ -172,6 +226,7 @@ int main(int argc, char** argv) {
         dr.push_back(rec.gpu.gpu_draw_ms);
         to.push_back(rec.gpu.gpu_total_ms);
         wa.push_back(rec.wait_ms);
+        wk.push_back(process_cpu_ms() - work0);
         // The CPU reference of the same frame: traversal, LOD map, patch list.
         const auto t0 = std::chrono::steady_clock::now();
         const FrameUniforms& u = s.renderer.uniforms();
@@ -190,7 +245,16 @@ int main(int argc, char** argv) {
       row.draw = median(dr);
       row.total = median(to);
       row.wall = median(wa);
+      row.work = median(wk);
       row.cpu_ref = median(cpu);
+      if (profile) {
+        for (auto [p, out] : {std::pair{FrameSettings::DrawProfile::kFlat, &row.draw_flat},
+                              std::pair{FrameSettings::DrawProfile::kVertexOnly, &row.draw_vertex}})
+          if (!(st = median_draw(s, cam, p, warmup, frames, *out)).ok()) {
+            std::fprintf(stderr, "terrain-view-bench: %s\n", st.message.c_str());
+            return 1;
+          }
+      }
       // Error left by this target against the full-detail surface, per pixel.
       NodeList nodes;
       std::vector<uint32_t> lod;
@@ -198,6 +262,7 @@ int main(int argc, char** argv) {
       s.renderer.read_lists(nodes, lod, patches);
       const terrain::WorldInfo& wi = s.source->world();
       const double ppr = pixels_per_radian(cam.fovy, s.target.height);
+      const DecimationMap dec = decimations(patches);
       std::vector<double> errs;
       for (uint32_t py = 0; py < s.target.height; ++py)
         for (uint32_t px = 0; px < s.target.width; ++px) {
@@ -206,7 +271,7 @@ int main(int argc, char** argv) {
           double rel[3];
           unproject(cam, s.target.width, s.target.height, px, py, d, rel);
           const double lx = cam.position[0] + rel[0] - wi.origin_x_m, ly = cam.position[1] + rel[1] - wi.origin_y_m;
-          const double hl = drawn_height(s, lod, lx, ly);
+          const double hl = drawn_height(s, lod, dec, lx, ly);
           if (std::isnan(hl)) continue;
           const double dist = std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
           errs.push_back(std::abs(hl - (cam.position[2] + rel[2])) * ppr / dist);
@@ -225,30 +290,54 @@ int main(int argc, char** argv) {
 
   if (json_out) {
     nlohmann::json j = nlohmann::json::array();
-    for (const Row& r : rows)
+    for (const Row& r : rows) {
       j.push_back({{"view", r.view}, {"target_px", r.target}, {"nodes", r.last.gpu.nodes},
                    {"patches_drawn", r.last.gpu.patches_drawn}, {"culled_frustum", r.last.gpu.culled_frustum},
-                   {"culled_cone", r.last.gpu.culled_cone}, {"triangles", r.last.gpu.triangles},
+                   {"culled_cone", r.last.gpu.culled_cone}, {"triangles", r.last.gpu.triangles}, {"patches_per_decimation", r.last.gpu.patches_decimated},
                    {"gpu_traversal_ms", r.traverse}, {"gpu_lodmap_ms", r.lodmap}, {"gpu_patches_ms", r.patches},
-                   {"gpu_draw_ms", r.draw}, {"gpu_total_ms", r.total}, {"frame_ms", r.wall},
+                   {"gpu_draw_ms", r.draw}, {"gpu_total_ms", r.total}, {"frame_ms", r.wall}, {"cpu_work_ms", r.work},
                    {"cpu_reference_ms", r.cpu_ref}, {"error_mean_px", r.err_mean}, {"error_p99_px", r.err_p99},
                    {"error_max_px", r.err_max}});
+      if (profile) {
+        j.back()["draw_vertex_ms"] = r.draw_vertex;
+        j.back()["draw_flat_ms"] = r.draw_flat;
+      }
+    }
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
   std::printf("terrain-view-bench %s, %ux%u, device %s, median of %d frames\n", archive.c_str(), w, h,
               s.ctx.device_name.c_str(), frames);
-  std::printf("%-9s %6s %6s %7s %7s %6s %8s %8s %8s %8s %8s %8s %6s %8s %7s %7s %7s\n", "view", "target", "nodes",
-              "patches", "frustum", "cone", "tris", "trav_ms", "cull_ms", "draw_ms", "gpu_ms", "frame_ms", "tc_%",
+  std::printf("%-9s %6s %6s %7s %7s %6s %8s %8s %8s %8s %8s %8s %8s %6s %8s %7s %7s %7s\n", "view", "target", "nodes",
+              "patches", "frustum", "cone", "tris", "trav_ms", "cull_ms", "draw_ms", "gpu_ms", "frame_ms", "work_ms", "tc_%",
               "cpu_ref", "err_avg", "err_p99", "err_max");
   for (const Row& r : rows) {
     const double cull = r.lodmap + r.patches;
-    std::printf("%-9s %6.2f %6u %7u %7u %6u %8llu %8.3f %8.3f %8.2f %8.2f %8.2f %6.2f %8.3f %7.3f %7.3f %7.2f\n",
+    std::printf("%-9s %6.2f %6u %7u %7u %6u %8llu %8.3f %8.3f %8.2f %8.2f %8.2f %8.2f %6.2f %8.3f %7.3f %7.3f %7.2f\n",
                 r.view.c_str(), r.target, r.last.gpu.nodes, r.last.gpu.patches_drawn, r.last.gpu.culled_frustum,
                 r.last.gpu.culled_cone, static_cast<unsigned long long>(r.last.gpu.triangles), r.traverse, cull, r.draw,
-                r.total, r.wall, 100.0 * (r.traverse + cull) / std::max(r.total, 1e-9), r.cpu_ref, r.err_mean,
+                r.total, r.wall, r.work, 100.0 * (r.traverse + cull) / std::max(r.total, 1e-9), r.cpu_ref, r.err_mean,
                 r.err_p99, r.err_max);
   }
+  std::printf("\npatches drawn per decimation e = 0..%d (16 >> e quads per side), near (splat) patches\n", TV_MAX_DECIMATE);
+  for (const Row& r : rows) {
+    std::printf("%-9s %6.2f ", r.view.c_str(), r.target);
+    for (uint32_t n : r.last.gpu.patches_decimated) std::printf(" %6u", n);
+    std::printf("   near %u\n", r.last.gpu.patches_near);
+  }
+  if (profile) {
+    std::printf("\ndraw split (GPU ms, medians): vertex = rasterizer discard; raster = constant-colour draw - vertex; "
+                "shade = full draw - constant-colour draw\n");
+    std::printf("%-9s %6s %8s %8s %8s %8s %9s %9s\n", "view", "target", "tris", "draw_ms", "vertex", "raster", "shade",
+                "ns/tri_vx");
+    for (const Row& r : rows)
+      std::printf("%-9s %6.2f %8llu %8.2f %8.2f %8.2f %8.2f %9.1f\n", r.view.c_str(), r.target,
+                  static_cast<unsigned long long>(r.last.gpu.triangles), r.draw, r.draw_vertex,
+                  r.draw_flat - r.draw_vertex, r.draw - r.draw_flat,
+                  1e6 * r.draw_vertex / std::max<double>(1.0, double(r.last.gpu.triangles)));
+  }
+  std::printf("work_ms = CPU time of the process per frame (lavapipe's threads: the frame's work, ~2x frame_ms when "
+              "both cores are busy, robust to other jobs)\n");
   std::printf("tc_%% = (traversal + culling) / GPU frame; cpu_ref = CPU reference traversal + LOD map + patch list of "
               "the same frame; err = |drawn - full-detail height| * pixels-per-radian / distance over terrain pixels\n");
   return 0;

@@ -10,9 +10,8 @@
 #define TV_PATCHES_PER_SIDE 8
 #define TV_PATCHES_PER_NODE 64
 #define TV_QUADS_PER_PATCH 16
-#define TV_PATCH_VERTS 17         // vertices per patch side (shared mesh: 17x17 vertices, 16x16 quads)
-// The patch mesh: a triangle list, quads split SW->NE (a strip per row measured no faster on lavapipe).
-#define TV_PATCH_INDICES (TV_QUADS_PER_PATCH * TV_QUADS_PER_PATCH * 6)
+// Patch meshes: triangle lists of (16 >> e)^2 quads split SW->NE, one per decimation e (a strip
+// per row measured no faster on lavapipe).
 #define TV_HEIGHT_SAMPLES 129
 #define TV_TEXELS 132             // normals/albedo, 2-texel apron
 #define TV_APRON 2
@@ -29,7 +28,7 @@
 
 // ---- Traversal (one workgroup, lists in shared memory, FC5 section 4.2) ----
 // Group size: more threads finish a wide level in fewer steps; lavapipe caps a group at 1024.
-#define TV_TRAVERSE_GROUP 256
+#define TV_TRAVERSE_GROUP 64
 // Longest node list one level pass may hold (2 lists of uints in 32 KiB shared memory). A bigger
 // resident set still renders: nodes beyond the cap are not split (counted as overflow).
 #define TV_MAX_LIST 2048
@@ -49,17 +48,22 @@
 // (its nodes are then level >= 5: d <= 3); levels 6 and 7 give d <= 7 against any level.
 #define TV_MAX_COARSEN 3
 
-// Selection grid (node list -> LOD map): per level and node one uint =
-// stamp << 6 | coarsening << 4 | quadrant mask.
+// Selection grid (was: node list -> LOD map): per level and node one uint =
+// stamp << 6 | coarsening << 4 | quadrant mask. No shader reads or writes it since the LOD map is
+// scattered from the node list (lodmap.comp); the buffer is still allocated and cleared once.
 #define TV_SELECT_STAMP_SHIFT 6
 #define TV_SELECT_COARSE_SHIFT 4
 #define TV_STAMP_MASK 0x03FFFFFFu
 
 // LOD map: one uint per sector, geometric level + 1 of the node drawing it (1..9), 0 = nothing
-// drawn (never stitches).
-#define TV_LODMAP_GROUP 8
+// drawn (never stitches). Written by one workgroup of TV_LODMAP_GROUP threads per listed node.
+#define TV_LODMAP_GROUP 64
 
 // ---- Patch list ----
+// The traversal lists one work item per patch of a drawn quadrant (node-list index in bits 0..15,
+// px << 16, py << 19); the patch pass runs one thread per item in groups of TV_PATCH_GROUP, so
+// coarsened roots (1..16 patches) and partly drawn nodes cost no idle workgroups.
+#define TV_PATCH_GROUP 64
 // Patch entry (uvec4): x = slot | px << 16 | py << 19 | geometric level << 22 (4 bits, 0..8);
 // y = edge deltas (4 bits each: south, west, north, east); z, w = node x, y at its own level
 // (min(geometric level, 5)). Patch (px, py) of a coarsened root covers its (1 << c)^2 root patches.
@@ -71,25 +75,42 @@
 #define TV_EDGE_N 8
 #define TV_EDGE_E 12
 
+// Patch decimation (roots drawn uncoarsened only): a patch whose own error allows it is drawn with
+// every 2^e-th vertex, e = 1..TV_MAX_DECIMATE (16 >> e quads per side), chosen per patch from its
+// own box distance and its total error (node geometric error + decimation error) so that the
+// screen-space error stays within the target. Every patch can evaluate a neighbour root patch's e
+// (a pure function of camera and that patch's data), so edges stitch without an extra pass: the
+// finer side collapses onto the coarser one as for LOD differences (effective level = 5 + e).
+// Only root patches decimate: they are never smaller than a neighbour's patch edge, so one delta
+// per edge stays exact; the exception, a coarsened root's patch spanning several root patches, is
+// never the finer side (a root patch facing it keeps e <= its coarsening). The cap
+// 5 + e <= 7 + finest drawn level keeps every collapse d <= 7.
+#define TV_PATCH_DECIM_SHIFT 26   // e in bits 26..28 of the patch entry's x
+#define TV_MAX_DECIMATE 4
+
 // Shading groups (FC5 section 3, step 4): patches whose box is within the near-shading distance
-// go to the near list (splat materials), the others to the far list (baked albedo + normal). Two
-// indexed-indirect instanced draws, each with a pipeline specialised for its group: a CPU
-// rasteriser runs every branch of a shader for every pixel, so far pixels must not carry the
-// splat code. The patch buffer holds the near list from instance 0 and the far list from
-// instance `capacity` (firstInstance of the far command).
+// go to the near list (splat materials), the others to the far list (baked albedo + normal). Each
+// group is one multi-draw of TV_MESHES indexed-indirect instanced draws (one per decimation, its
+// own mesh of (16 >> e)^2 quads), with a pipeline specialised for the group: a CPU rasteriser runs
+// every branch of a shader for every pixel, so far pixels must not carry the splat code. Patch
+// range r = group * TV_MESHES + e holds its instances from `capacity * r` (firstInstance).
+#define TV_MESHES (TV_MAX_DECIMATE + 1)
 #define TV_PATCH_NEAR_BIT (1u << 16)  // in the patch entry's edge-delta word
-#define TV_DRAW_NEAR 0            // VkDrawIndexedIndirectCommand of the near group (5 uints)
-#define TV_DRAW_FAR 5             // ... of the far group
-#define TV_CNT_CONSIDERED 10      // patches of drawn quadrants
-#define TV_CNT_FRUSTUM 11         // culled by the frustum
-#define TV_CNT_CONE 12            // culled by the patch cone
-#define TV_DRAW_UINTS 16
+#define TV_DRAW_NEAR 0            // VkDrawIndexedIndirectCommand x TV_MESHES of the near group (5 uints each)
+#define TV_DRAW_FAR (5 * TV_MESHES)  // ... of the far group
+#define TV_CNT_CONSIDERED (10 * TV_MESHES)  // patches of drawn quadrants
+#define TV_CNT_FRUSTUM (TV_CNT_CONSIDERED + 1)  // culled by the frustum
+#define TV_CNT_CONE (TV_CNT_CONSIDERED + 2)     // culled by the patch cone
+#define TV_DRAW_UINTS (TV_CNT_CONSIDERED + 4)
+#define TV_PATCH_RANGES (2 * TV_MESHES)
 
 // Traversal output header (uints) in the node-list buffer, before the entries.
-#define TV_NL_DISPATCH 0          // x, y, z of the indirect patch dispatch (x = node count)
+#define TV_NL_DISPATCH 0          // x, y, z of the indirect LOD-map dispatch (x = node count)
 #define TV_NL_COUNT 3             // nodes in the final list
 #define TV_NL_LEVEL_COUNTS 4      // 6 counts, nodes per level
 #define TV_NL_OVERFLOW 10         // nodes not split because a list was full
+#define TV_NL_PATCH_DISPATCH 11   // x, y, z of the indirect patch-pass dispatch (x = work items / group)
+#define TV_NL_PATCH_ITEMS 14      // patch work items (patches of drawn quadrants)
 #define TV_NL_HEADER 16
 
 // ---- Frame flags (FrameUniforms.misc.y) ----
@@ -99,6 +120,7 @@
 #define TV_FLAG_HOLE_NAN 8u       // ... by a NaN clip position (else: defined method, see terrain.vert)
 #define TV_FLAG_SPLAT 16u         // near splat shading
 #define TV_FLAG_NO_STITCH 32u     // tests only: ignore the edge deltas (shows what stitching fixes)
+#define TV_FLAG_DECIMATE 64u      // per-patch decimation of roots (see "Patch decimation")
 
 // ---- Debug views (FrameUniforms.misc.z) ----
 #define TV_DEBUG_NONE 0

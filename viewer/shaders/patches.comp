@@ -5,18 +5,23 @@
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
-layout(local_size_x = TV_PATCHES_PER_SIDE, local_size_y = TV_PATCHES_PER_SIDE) in;
+layout(local_size_x = TV_PATCH_GROUP) in;
+layout(std430, set = 0, binding = 17) readonly buffer PatchWork { uint patch_work[]; };
 layout(std430, set = 0, binding = 4) readonly buffer NodeList { uint node_list[]; };
 layout(std430, set = 0, binding = 6) readonly buffer LodMap { uint lod_map[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
 layout(std430, set = 0, binding = 8) writeonly buffer Patches { uvec4 patches[]; };
 layout(set = 0, binding = 13) uniform sampler2DArray cones_tex;
+// Per root patch: total error (m) drawn with decimation e = 1..4 in component e - 1.
+layout(std430, set = 0, binding = 16) readonly buffer PatchErrors { vec4 patch_error[]; };
 
 uint lod_at(int sx, int sy) {
   if (sx < 0 || sy < 0 || sx >= int(frame.world.z) || sy >= int(frame.world.w)) return 0u;
   return lod_map[uint(sy) * frame.world.z + uint(sx)];
 }
-uint delta_of(uint v, uint level) { return v > level + 1u ? v - 1u - level : 0u; }
+// A neighbour drawn coarser than this patch (effective level `own`): collapse by its level
+// minus this node's geometric level.
+uint delta_of(uint v, uint own, uint geo) { return v > own + 1u ? v - 1u - geo : 0u; }
 
 bool frustum_visible(vec3 mn, vec3 mx) {
   for (int p = 0; p < 6; ++p) {
@@ -28,6 +33,69 @@ bool frustum_visible(vec3 mn, vec3 mx) {
     if (s < 0.0) return false;
   }
   return true;
+}
+
+// Largest decimation this frame allows (max_decimation() in src/reference.cpp).
+uint max_decimation() {
+  if ((frame.misc.y & TV_FLAG_DECIMATE) == 0u) return 0u;
+  uint finest = uint(TV_ROOT_LEVEL);
+  for (int l = TV_ROOT_LEVEL; l >= 0; --l)
+    if (node_list[TV_NL_LEVEL_COUNTS + l] > 0u) finest = uint(l);
+  return min(uint(TV_MAX_DECIMATE), 7u + finest - uint(TV_ROOT_LEVEL));
+}
+
+// Same operations, in the same order, as root_patch_decimation() in src/reference.cpp, trying
+// e = max_e down to above_e + 1 only (0 when none passes: the caller only asks whether e > above_e).
+uint coarsened_cap(uint max_e, uint v) { return v >= uint(TV_ROOT_LEVEL + 2) ? min(max_e, v - uint(TV_ROOT_LEVEL + 1)) : max_e; }
+
+// On an edge facing a coarsened root (LOD map 7..9) e <= its coarsening: that root's patches span
+// several root patches and take one delta per edge, so they must never be the finer side there.
+uint root_patch_decimation(uint slot, uint px, uint py, uint max_e, uint above_e) {
+  NodeDesc d = nodes[slot];
+  if (max_e == 0u) return 0u;
+  int rx = int(d.x) << TV_ROOT_LEVEL, ry = int(d.y) << TV_ROOT_LEVEL;
+  const int spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+  int mx = rx + int(px) * spp + spp / 2, my = ry + int(py) * spp + spp / 2;
+  if (px == 0u) max_e = coarsened_cap(max_e, lod_at(rx - 1, my));
+  if (px == uint(TV_PATCHES_PER_SIDE - 1)) max_e = coarsened_cap(max_e, lod_at(rx + TV_SECTORS_PER_ROOT, my));
+  if (py == 0u) max_e = coarsened_cap(max_e, lod_at(mx, ry - 1));
+  if (py == uint(TV_PATCHES_PER_SIDE - 1)) max_e = coarsened_cap(max_e, lod_at(mx, ry + TV_SECTORS_PER_ROOT));
+  if (max_e <= above_e) return 0u;
+  uint p = slot * uint(TV_PATCHES_PER_NODE) + py * uint(TV_PATCHES_PER_SIDE) + px;
+  ivec2 b = patch_bounds[p];
+  uint q = uint(TV_QUADS_PER_PATCH);
+  float mnx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), px * q));
+  float mxx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), (px + 1u) * q));
+  float mny = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), py * q));
+  float mxy = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), (py + 1u) * q));
+  float mnz = rel_z(b.x);
+  float mxz = rel_z(b.y);
+  precise float dx = max(max(mnx, -mxx), 0.0);
+  precise float dy = max(max(mny, -mxy), 0.0);
+  precise float dz = max(max(mnz, -mxz), 0.0);
+  precise float d2 = dx * dx + dy * dy + dz * dz;
+  precise float t = frame.lod.x;
+  vec4 errors = patch_error[p];
+  for (uint e = max_e; e > above_e; --e) {
+    precise float err = errors[e - 1u] * frame.cam_frac.w;
+    precise float lhs = err * err;
+    precise float rhs = (t * t) * d2;
+    if (!(lhs > rhs)) return e;
+  }
+  return 0u;
+}
+
+// Effective level + 1 of the surface drawn at a sector: the LOD map's, plus the decimation of the
+// root patch there when its root is drawn uncoarsened. Exact only when above `own` (the effective
+// level of the asking patch): only a coarser neighbour changes a delta.
+uint eff_at(int sx, int sy, uint max_e, uint own) {
+  uint v = lod_at(sx, sy);
+  if (v != uint(TV_ROOT_LEVEL + 1) || max_e == 0u || own >= uint(TV_ROOT_LEVEL) + max_e) return v;
+  uint above = own > uint(TV_ROOT_LEVEL) ? own - uint(TV_ROOT_LEVEL) : 0u;
+  uint root = texelFetch(index_tex, ivec2(sx >> TV_ROOT_LEVEL, sy >> TV_ROOT_LEVEL), TV_ROOT_LEVEL).r;
+  const int spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+  return v + root_patch_decimation(root, uint((sx & (TV_SECTORS_PER_ROOT - 1)) / spp),
+                                   uint((sy & (TV_SECTORS_PER_ROOT - 1)) / spp), max_e, above);
 }
 
 float cone_sin2(uint a) { return palette.cone_sin2[a >> 2][a & 3u]; }
@@ -66,28 +134,33 @@ ivec2 coarse_patch_bounds(uint base, uint c, uint px, uint py, ivec2 b) {
 }
 
 void main() {
-  uint entry = node_list[TV_NL_HEADER + gl_WorkGroupID.x];
+  if (gl_GlobalInvocationID.x >= node_list[TV_NL_PATCH_ITEMS]) return;
+  uint item = patch_work[gl_GlobalInvocationID.x];  // a patch of a drawn quadrant
+  uint entry = node_list[TV_NL_HEADER + (item & 0xFFFFu)];
   uint slot = entry & TV_ENTRY_SLOT_MASK;
-  uint mask = (entry >> TV_ENTRY_QUAD_SHIFT) & 15u;
   uint c = (entry >> TV_ENTRY_COARSE_SHIFT) & 3u;
   uint pps = uint(TV_PATCHES_PER_SIDE) >> c;
-  uint px = gl_LocalInvocationID.x, py = gl_LocalInvocationID.y;
-  if (px >= pps || py >= pps) return;
-  uint quadrant = (px >= pps / 2u ? 1u : 0u) | (py >= pps / 2u ? 2u : 0u);
-  if (c == 0u && (mask & (1u << quadrant)) == 0u) return;
-  atomicAdd(draw[TV_CNT_CONSIDERED], 1u);
+  uint px = (item >> 16) & 7u, py = (item >> 19) & 7u;
   NodeDesc d = nodes[slot];
   uint level = node_level(d);
   uint geo = level + c;
-
+  // Decimation: root patches drawn uncoarsened only (their edges then also face decimated root
+  // patches of the same node, so every edge is looked up).
+  uint max_e = max_decimation();
+  bool root_patch = level == uint(TV_ROOT_LEVEL) && c == 0u && max_e > 0u;
+  uint dec = root_patch ? root_patch_decimation(slot, px, py, max_e, 0u) : 0u;
+  // Per-edge LOD deltas (node vertices at the geometric level) from the sector just outside the
+  // patch edge's middle: the finer side collapses onto the coarser one.
   int node_sx = int(d.x << level), node_sy = int(d.y << level);
   int mid_x = node_sx + int(((px * 2u + 1u) << level) / (2u * pps));
   int mid_y = node_sy + int(((py * 2u + 1u) << level) / (2u * pps));
-  int size = 1 << level;
-  uint ds = py == 0u ? delta_of(lod_at(mid_x, node_sy - 1), geo) : 0u;
-  uint dw = px == 0u ? delta_of(lod_at(node_sx - 1, mid_y), geo) : 0u;
-  uint dn = py == pps - 1u ? delta_of(lod_at(mid_x, node_sy + size), geo) : 0u;
-  uint de = px == pps - 1u ? delta_of(lod_at(node_sx + size, mid_y), geo) : 0u;
+  int x0 = node_sx + int((px << level) / pps), x1 = node_sx + int(((px + 1u) << level) / pps);
+  int y0 = node_sy + int((py << level) / pps), y1 = node_sy + int(((py + 1u) << level) / pps);
+  uint own = geo + dec;
+  uint ds = py == 0u || root_patch ? delta_of(eff_at(mid_x, y0 - 1, max_e, own), own, geo) : 0u;
+  uint dw = px == 0u || root_patch ? delta_of(eff_at(x0 - 1, mid_y, max_e, own), own, geo) : 0u;
+  uint dn = py == pps - 1u || root_patch ? delta_of(eff_at(mid_x, y1, max_e, own), own, geo) : 0u;
+  uint de = px == pps - 1u || root_patch ? delta_of(eff_at(x1, mid_y, max_e, own), own, geo) : 0u;
 
   // Bounds, grown over the earlier patches a wide stitch collapses onto (see reference.cpp).
   uint dsn = max(ds, dn), dwe = max(dw, de);
@@ -111,7 +184,7 @@ void main() {
   // The cooked cones cover the node's own triangles, stitched up to d = 4 (cone_cull.h).
   // Cones leave out triangles touching hole vertices: with holes drawn, nodes with holes are not culled.
   bool cones_valid = (flags & TV_FLAG_HOLES) != 0u || ((d.packed >> 16) & 1u) == 0u;
-  if ((flags & TV_FLAG_CONE_CULL) != 0u && c == 0u && max(dsn, dwe) <= 4u && cones_valid) {
+  if ((flags & TV_FLAG_CONE_CULL) != 0u && c == 0u && dec == 0u && max(dsn, dwe) <= 4u && cones_valid) {
     uvec4 t = uvec4(round(texelFetch(cones_tex, ivec3(int(px), int(py), int(slot)), 0) * 255.0));
     if (cone_backfacing(mn, mx, t)) {
       atomicAdd(draw[TV_CNT_CONE], 1u);
@@ -128,7 +201,9 @@ void main() {
     precise float r2 = frame.lod.w * frame.lod.w;
     near = n2 < r2;
   }
-  uint k = near ? atomicAdd(draw[TV_DRAW_NEAR + 1], 1u) : frame.misc.w + atomicAdd(draw[TV_DRAW_FAR + 1], 1u);
-  patches[k] = uvec4(slot | (px << TV_PATCH_PX_SHIFT) | (py << TV_PATCH_PY_SHIFT) | (geo << TV_PATCH_LEVEL_SHIFT),
+  uint range = (near ? 0u : uint(TV_MESHES)) + dec;
+  uint k = frame.misc.w * range + atomicAdd(draw[range * 5u + 1u], 1u);
+  patches[k] = uvec4(slot | (px << TV_PATCH_PX_SHIFT) | (py << TV_PATCH_PY_SHIFT) | (geo << TV_PATCH_LEVEL_SHIFT) |
+                         (dec << TV_PATCH_DECIM_SHIFT),
                      deltas | (near ? TV_PATCH_NEAR_BIT : 0u), d.x, d.y);
 }

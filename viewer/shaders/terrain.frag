@@ -10,7 +10,7 @@ layout(set = 0, binding = 11) uniform sampler2DArray albedo_tex;
 layout(set = 0, binding = 12) uniform usampler2DArray splat_tex;
 layout(set = 0, binding = 13) uniform sampler2DArray cones_tex;
 
-layout(location = 0) in vec3 v_rel;
+layout(location = 0) in float v_dist;
 layout(location = 1) in vec2 v_node;
 layout(location = 2) in float v_hole;
 layout(location = 3) flat in uvec4 v_patch;
@@ -24,6 +24,8 @@ layout(constant_id = 2) const bool kNearGroup = false;
 // Holes by discard (defined behaviour). Off when holes are dropped by a NaN clip position: a shader
 // without discard lets the depth test run before shading.
 layout(constant_id = 3) const bool kHoleDiscard = true;
+// Profiling only (FrameSettings::DrawProfile::kFlat): a constant colour, to time the rest of the draw.
+layout(constant_id = 4) const bool kFlatProfile = false;
 
 // The colour target is UNORM holding sRGB-encoded values, and the albedo atlas is read as UNORM:
 // both conversions are done here with cheap fits (within 1/255 over [0, 1]), which a CPU
@@ -68,7 +70,7 @@ vec3 baked_normal(vec4 t) {
 }
 
 void main() {
-  if (kWirePass) {
+  if (kWirePass || kFlatProfile) {
     out_color = vec4(0.02, 0.02, 0.02, 1.0);
     return;
   }
@@ -79,8 +81,8 @@ void main() {
   vec4 normal_texel = texture(normals_tex, uvw);
   vec3 n = baked_normal(normal_texel);
   float ao = normal_texel.r;
-  float dist = length(v_rel);
-  vec3 sun = normalize(frame.sun_dir.xyz);
+  float dist = v_dist;
+  vec3 sun = frame.sun_dir.xyz;  // unit length (set_frame)
   const int debug_view = kDebugView;
 
   vec3 albedo;

@@ -11,7 +11,8 @@ layout(set = 0, binding = 9) uniform usampler2DArray heights_tex;
 layout(set = 0, binding = 11) uniform sampler2DArray albedo_tex;
 
 // Few varyings: a CPU rasteriser sets up every one of them for every triangle.
-layout(location = 0) out vec3 v_rel;          // camera-relative position (m)
+layout(location = 0) out float v_dist;        // distance to the camera (m; linear over a triangle is
+                                              // within fog's and the near blend's needs, 2 fewer varyings)
 layout(location = 1) out vec2 v_node;         // node-local vertex coordinates (0..128)
 layout(location = 2) out float v_hole;        // > 0 inside triangles touching a hole vertex
 layout(location = 3) flat out uvec4 v_patch;  // the patch entry
@@ -23,16 +24,18 @@ void main() {
   uint geo = (p.x >> TV_PATCH_LEVEL_SHIFT) & 15u;  // geometric level (6, 7: a coarsened root)
   uint level = min(geo, uint(TV_ROOT_LEVEL));
   uint c = geo - level;
-  uint i = uint(gl_VertexIndex) % uint(TV_PATCH_VERTS), j = uint(gl_VertexIndex) / uint(TV_PATCH_VERTS);
-  uint ni = px * uint(TV_QUADS_PER_PATCH) + i, nj = py * uint(TV_QUADS_PER_PATCH) + j;
-  // Stitching (stitch_vertex() in src/reference.cpp). Deltas are non-zero only on node edges.
+  uint e = (p.x >> TV_PATCH_DECIM_SHIFT) & 7u;  // decimation: mesh of n = 16 >> e quads per side
+  uint n = uint(TV_QUADS_PER_PATCH) >> e;
+  uint i = uint(gl_VertexIndex) % (n + 1u), j = uint(gl_VertexIndex) / (n + 1u);
+  uint ni = px * uint(TV_QUADS_PER_PATCH) + (i << e), nj = py * uint(TV_QUADS_PER_PATCH) + (j << e);
+  // Stitching (stitch_vertex() in src/reference.cpp).
   uint ds = (p.y >> TV_EDGE_S) & 15u, dw = (p.y >> TV_EDGE_W) & 15u;
   uint dn = (p.y >> TV_EDGE_N) & 15u, de = (p.y >> TV_EDGE_E) & 15u;
   if ((frame.misc.y & TV_FLAG_NO_STITCH) != 0u) ds = dw = dn = de = 0u;
   if (j == 0u && ds > 0u) ni = (ni >> ds) << ds;
-  if (j == uint(TV_QUADS_PER_PATCH) && dn > 0u) ni = (ni >> dn) << dn;
+  if (j == n && dn > 0u) ni = (ni >> dn) << dn;
   if (i == 0u && dw > 0u) nj = (nj >> dw) << dw;
-  if (i == uint(TV_QUADS_PER_PATCH) && de > 0u) nj = (nj >> de) << de;
+  if (i == n && de > 0u) nj = (nj >> de) << de;
 
   ni <<= c;  // coarsened roots read every (1 << c)-th vertex
   nj <<= c;
@@ -53,7 +56,7 @@ void main() {
   } else if (hole) {
     v_hole = -1.0;       // holes kept (debug view marks them)
   }
-  v_rel = pos;
+  v_dist = length(pos);
   v_node = vec2(ni, nj);
   v_patch = p;
 }

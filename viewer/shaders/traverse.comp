@@ -8,12 +8,13 @@
 layout(local_size_x = TV_TRAVERSE_GROUP) in;
 
 layout(std430, set = 0, binding = 4) buffer NodeList { uint node_list[]; };  // header + entries
-layout(std430, set = 0, binding = 5) buffer Selection { uint selection[]; };
+layout(std430, set = 0, binding = 17) writeonly buffer PatchWork { uint patch_work[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
 
 shared uint lists[2][TV_MAX_LIST];
 shared uint counts[2];
 shared uint final_count;
+shared uint item_count;
 shared uint level_counts[TV_LEVELS];
 shared uint overflow;
 
@@ -54,8 +55,16 @@ void emit_final(uint slot, uint mask, uint coarse, NodeDesc d) {
   uint k = atomicAdd(final_count, 1u);
   node_list[TV_NL_HEADER + k] = slot | (mask << TV_ENTRY_QUAD_SHIFT) | (coarse << TV_ENTRY_COARSE_SHIFT);
   atomicAdd(level_counts[level], 1u);
-  selection[level_offset(level) + d.y * level_width(level) + d.x] =
-      ((frame.misc.x & TV_STAMP_MASK) << TV_SELECT_STAMP_SHIFT) | (coarse << TV_SELECT_COARSE_SHIFT) | mask;
+  // Patch work items: the patches of the drawn quadrants (all of a coarsened root's).
+  uint pps = uint(TV_PATCHES_PER_SIDE) >> coarse, half_pps = pps >> 1;
+  uint n = coarse > 0u ? pps * pps : bitCount(mask) * 16u;
+  uint base = atomicAdd(item_count, n);
+  for (uint py = 0u; py < pps; ++py)
+    for (uint px = 0u; px < pps; ++px) {
+      uint quadrant = (px >= half_pps ? 1u : 0u) | (py >= half_pps ? 2u : 0u);
+      if (coarse == 0u && (mask & (1u << quadrant)) == 0u) continue;
+      patch_work[base++] = k | (px << 16) | (py << 19);
+    }
 }
 
 void main() {
@@ -64,6 +73,7 @@ void main() {
     counts[0] = 0u;
     counts[1] = 0u;
     final_count = 0u;
+    item_count = 0u;
     overflow = 0u;
     for (int l = 0; l < TV_LEVELS; ++l) level_counts[l] = 0u;
   }
@@ -138,11 +148,20 @@ void main() {
     node_list[TV_NL_COUNT] = final_count;
     for (int l = 0; l < TV_LEVELS; ++l) node_list[TV_NL_LEVEL_COUNTS + l] = level_counts[l];
     node_list[TV_NL_OVERFLOW] = overflow;
-    // Reset the two draw commands (near list from instance 0, far list from instance capacity)
-    // and the counters for the patch pass.
+    node_list[TV_NL_PATCH_DISPATCH + 0] = (item_count + uint(TV_PATCH_GROUP) - 1u) / uint(TV_PATCH_GROUP);
+    node_list[TV_NL_PATCH_DISPATCH + 1] = 1u;
+    node_list[TV_NL_PATCH_DISPATCH + 2] = 1u;
+    node_list[TV_NL_PATCH_ITEMS] = item_count;
+    // Reset the draw commands (range r = group * TV_MESHES + e: mesh e of the index buffer,
+    // instances from capacity * r) and the counters for the patch pass.
     for (int k = 0; k < TV_DRAW_UINTS; ++k) draw[k] = 0u;
-    draw[TV_DRAW_NEAR] = uint(TV_PATCH_INDICES);
-    draw[TV_DRAW_FAR] = uint(TV_PATCH_INDICES);
-    draw[TV_DRAW_FAR + 4] = frame.misc.w;  // firstInstance
+    draw[TV_CNT_CONSIDERED] = item_count;
+    for (uint r = 0u; r < uint(TV_PATCH_RANGES); ++r) {
+      uint e = r % uint(TV_MESHES), first = 0u;
+      for (uint k = 0u; k < e; ++k) first += (256u >> (2u * k)) * 6u;
+      draw[r * 5u + 0u] = (256u >> (2u * e)) * 6u;  // indexCount: (16 >> e)^2 quads
+      draw[r * 5u + 2u] = first;                      // firstIndex
+      draw[r * 5u + 4u] = frame.misc.w * r;           // firstInstance
+    }
   }
 }

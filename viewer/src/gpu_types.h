@@ -41,6 +41,8 @@ inline uint32_t patch_slot(const GpuPatch& p) { return p.slot_patch_level & 0xFF
 inline uint32_t patch_px(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PX_SHIFT) & 7u; }
 inline uint32_t patch_py(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PY_SHIFT) & 7u; }
 inline uint32_t patch_level(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_LEVEL_SHIFT) & 15u; }
+inline uint32_t patch_decimation(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_DECIM_SHIFT) & 7u; }
+inline uint32_t patch_quads(const GpuPatch& p) { return uint32_t(TV_QUADS_PER_PATCH) >> patch_decimation(p); }  // per side
 inline uint32_t edge_delta(const GpuPatch& p, int shift) { return (p.edge_deltas >> shift) & 0xFu; }
 inline bool patch_near(const GpuPatch& p) { return (p.edge_deltas & TV_PATCH_NEAR_BIT) != 0; }
 

@@ -60,6 +60,39 @@ std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offs
   return out;
 }
 
+PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_offset, int step_log2) {
+  PatchErrorArray out{};
+  std::vector<uint8_t> holes(kHeightCount);
+  decode_hole_mask(data, holes.data());
+  auto h = [&](int i, int j) {
+    return double(vertex_units(height_offset, data.heights[size_t(j) * kHeightSamples + i], step_log2)) * kHeightUnitM;
+  };
+  for (int q = 0; q < TV_PATCHES_PER_SIDE; ++q)
+    for (int p = 0; p < TV_PATCHES_PER_SIDE; ++p) {
+      const int i0 = p * TV_QUADS_PER_PATCH, j0 = q * TV_QUADS_PER_PATCH;
+      for (int e = 1; e <= TV_MAX_DECIMATE; ++e) {
+        const int s = 1 << e, cells = TV_QUADS_PER_PATCH / s;
+        double worst = 0;
+        for (int j = 0; j <= TV_QUADS_PER_PATCH; ++j)
+          for (int i = 0; i <= TV_QUADS_PER_PATCH; ++i) {
+            const int ci = std::min(i / s, cells - 1) * s, cj = std::min(j / s, cells - 1) * s;
+            const double a = double(i - ci) / s, b = double(j - cj) / s;
+            const double h00 = h(i0 + ci, j0 + cj), h10 = h(i0 + ci + s, j0 + cj);
+            const double h01 = h(i0 + ci, j0 + cj + s), h11 = h(i0 + ci + s, j0 + cj + s);
+            const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+            worst = std::max(worst, std::abs(coarse - h(i0 + i, j0 + j)));
+          }
+        out[size_t(q * TV_PATCHES_PER_SIDE + p)][size_t(e - 1)] = float(worst);
+      }
+      // A patch with a hole vertex keeps every vertex (its holes drop exactly their triangles).
+      bool any_hole = false;
+      for (int j = j0; j <= j0 + TV_QUADS_PER_PATCH; ++j)
+        for (int i = i0; i <= i0 + TV_QUADS_PER_PATCH; ++i) any_hole = any_hole || holes[size_t(j) * kHeightSamples + i];
+      if (any_hole) out[size_t(q * TV_PATCHES_PER_SIDE + p)].fill(kNeverDecimate);
+    }
+  return out;
+}
+
 void cone_sin2_table(double margin_deg, float out[256]) {
   for (int a = 0; a < 256; ++a) {
     const double angle = a / 255.0 * 90.0 + margin_deg;

@@ -20,6 +20,15 @@ ConeTexels decode_cones(const NodeData& data);
 // triangulation), over non-hole vertices. Index 0 is 0.
 std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offset, int step_log2);
 
+// Patch decimation (config.h): per patch (q * 8 + p), for e = 1..TV_MAX_DECIMATE in component
+// e - 1, the largest vertical distance (metres) between the patch's surface and the surface of its
+// every (1 << e)-th vertex (same SW->NE triangulation); kNeverDecimate for patches with a hole
+// vertex.
+inline constexpr float kNeverDecimate = 1e30f;  // squared at any distance: +inf, never within the target
+using PatchErrorArray = std::array<std::array<float, 4>, TV_PATCHES_PER_NODE>;
+static_assert(TV_MAX_DECIMATE == 4);
+PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_offset, int step_log2);
+
 // Decoded cone of one texel, as the patch pass sees it (layout and test: the surface layers'
 // cooker/src/surface/cone_cull.h). Culling is allowed only when `cullable`.
 struct Cone {

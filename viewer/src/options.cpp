@@ -52,7 +52,7 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   app.add_option("--atlas", o.atlas, "normal/albedo atlas format: bc (as cooked), rgba8 (decoded at upload), auto (rgba8 on CPU devices)")
       ->capture_default_str()->check(CLI::IsMember({"auto", "bc", "rgba8"}));
   app.add_flag("--load-all", o.load_all, "decode every node up front instead of streaming (small archives)");
-  bool no_frustum = false, no_cone = false, no_holes = false, no_splat = false;
+  bool no_frustum = false, no_cone = false, no_holes = false, no_splat = false, no_decimate = false;
   app.add_flag("--no-frustum-cull", no_frustum, "draw patches outside the view too");
   app.add_flag("--no-cone-cull", no_cone, "no patch-cone backface culling");
   app.add_flag("--no-holes", no_holes, "draw hole vertices as terrain");
@@ -61,6 +61,7 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
                  "(defined), auto (nan on lavapipe, where tests check it; discard elsewhere)")
       ->capture_default_str()->check(CLI::IsMember({"auto", "nan", "discard"}));
   app.add_flag("--no-splat", no_splat, "far (baked) shading everywhere");
+  app.add_flag("--no-decimate", no_decimate, "draw every root patch with all its vertices (no per-patch decimation)");
   app.add_flag("--validation", o.validation, "enable the Khronos validation layer");
   app.add_flag("-q,--quiet", o.quiet, "no progress or summary on stderr");
   try {
@@ -109,6 +110,7 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   o.settings.cone_cull = !no_cone;
   o.settings.holes = !no_holes;
   o.settings.splat = !no_splat;
+  o.settings.decimate = !no_decimate;
   if (o.headless && o.out_png.empty() && o.stats_json.empty()) return usage("--headless needs --out FILE.png or --stats FILE.json");
   if (o.frames < 0) return usage("--frames must be >= 0");
   return true;

@@ -65,6 +65,9 @@ SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc) {
   if (desc.level == kRootLevel) {
     const auto dec = coarsening_errors(data, desc.height_offset, desc.step_log2);
     for (int c = 1; c <= TV_MAX_COARSEN; ++c) cpu.coarse_error[size_t(c)] = desc.geometric_error_m + dec[size_t(c)];
+    cpu.patch_error = patch_decimation_errors(data, desc.height_offset, desc.step_log2);
+    for (auto& p : cpu.patch_error)
+      for (float& e : p) e = desc.geometric_error_m + e;
   }
   return cpu;
 }
@@ -171,6 +174,55 @@ std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeLis
   return map;
 }
 
+uint32_t max_decimation(const FrameUniforms& u, const NodeList& list) {
+  if (!(u.misc[1] & TV_FLAG_DECIMATE)) return 0;
+  uint32_t finest = kRootLevel;
+  for (int l = kRootLevel; l >= 0; --l)
+    if (list.level_counts[size_t(l)] > 0) finest = uint32_t(l);
+  return std::min<uint32_t>(TV_MAX_DECIMATE, 7 + finest - kRootLevel);
+}
+
+uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
+                               const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t px, uint32_t py,
+                               uint32_t max_e) {
+  // Same operations, in the same order, as root_patch_decimation() in shaders/patches.comp.
+  const GpuNodeDesc& d = state.descriptor(slot);
+  if (max_e == 0) return 0;
+  // Edges facing a coarsened root (LOD map value 7..9): e <= its coarsening.
+  const int64_t rx = int64_t(d.x) << kRootLevel, ry = int64_t(d.y) << kRootLevel;
+  const int64_t spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+  const int64_t mx = rx + int64_t(px) * spp + spp / 2, my = ry + int64_t(py) * spp + spp / 2;
+  auto cap = [&](int64_t sx, int64_t sy) {
+    if (sx < 0 || sy < 0 || sx >= int64_t(u.world[2]) || sy >= int64_t(u.world[3])) return;
+    const uint32_t v = lod_map[size_t(sy) * u.world[2] + size_t(sx)];
+    if (v >= kRootLevel + 2) max_e = std::min(max_e, v - (kRootLevel + 1));
+  };
+  if (px == 0) cap(rx - 1, my);
+  if (px == TV_PATCHES_PER_SIDE - 1) cap(rx + TV_SECTORS_PER_ROOT, my);
+  if (py == 0) cap(mx, ry - 1);
+  if (py == TV_PATCHES_PER_SIDE - 1) cap(mx, ry + TV_SECTORS_PER_ROOT);
+  if (max_e == 0) return 0;
+  const uint32_t p = py * TV_PATCHES_PER_SIDE + px;
+  const GpuPatchBounds b = slots[slot].bounds[p];
+  const int q = TV_QUADS_PER_PATCH;
+  const float mnx = rel_x(vertex_half_metres(d.x, kRootLevel, int(px) * q), u);
+  const float mxx = rel_x(vertex_half_metres(d.x, kRootLevel, int(px + 1) * q), u);
+  const float mny = rel_y(vertex_half_metres(d.y, kRootLevel, int(py) * q), u);
+  const float mxy = rel_y(vertex_half_metres(d.y, kRootLevel, int(py + 1) * q), u);
+  const float mnz = rel_z(b.min_units, u);
+  const float mxz = rel_z(b.max_units, u);
+  const float dx = std::max(std::max(mnx, -mxx), 0.0f);
+  const float dy = std::max(std::max(mny, -mxy), 0.0f);
+  const float dz = std::max(std::max(mnz, -mxz), 0.0f);
+  const float d2 = dx * dx + dy * dy + dz * dz;
+  const float t = u.lod[0];
+  for (uint32_t e = max_e; e >= 1; --e) {
+    const float err = slots[slot].patch_error[p][e - 1] * u.cam_frac[3];
+    if (!(err * err > (t * t) * d2)) return e;
+  }
+  return 0;
+}
+
 PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, const NodeList& list,
                             const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
                             const float* sin2_table) {
@@ -179,6 +231,17 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
   auto lod_at = [&](int64_t sx, int64_t sy) -> uint32_t {
     if (sx < 0 || sy < 0 || sx >= sx_count || sy >= sy_count) return 0;
     return lod_map[size_t(sy) * sx_count + size_t(sx)];
+  };
+  const uint32_t max_e = max_decimation(u, list);
+  // Effective level + 1 of the surface drawn at a sector: the LOD map's, plus the decimation of
+  // the root patch there when its root is drawn uncoarsened.
+  auto eff_at = [&](int64_t sx, int64_t sy) -> uint32_t {
+    const uint32_t v = lod_at(sx, sy);
+    if (v != kRootLevel + 1 || max_e == 0) return v;
+    const uint16_t root = state.index(kRootLevel, uint32_t(sx >> kRootLevel), uint32_t(sy >> kRootLevel));
+    const uint32_t sectors_per_patch = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+    return v + root_patch_decimation(state, u, slots, lod_map, root, uint32_t(sx & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch,
+                                     uint32_t(sy & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch, max_e);
   };
   for (uint32_t e : list.entries) {
     const uint32_t slot = e & TV_ENTRY_SLOT_MASK, mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu;
@@ -192,16 +255,21 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
         const uint32_t quadrant = uint32_t(px >= pps / 2) | uint32_t(py >= pps / 2) << 1;
         if (c == 0 && !(mask & (1u << quadrant))) continue;
         ++out.considered;
-        // Per-edge LOD deltas from the sector just outside the patch edge's middle.
+        // Decimation: root patches drawn uncoarsened only (their edges then also face decimated
+        // root patches of the same node, so every edge is looked up).
+        const bool root_patch = level == kRootLevel && c == 0 && max_e > 0;
+        const uint32_t dec = root_patch ? root_patch_decimation(state, u, slots, lod_map, slot, px, py, max_e) : 0u;
+        // Per-edge LOD deltas (in node vertices at this node's geometric level) from the sector just
+        // outside the patch edge's middle: the finer side collapses onto the coarser one.
         const int64_t node_sx = int64_t(d.x) << level, node_sy = int64_t(d.y) << level;
-        const int64_t size = int64_t(1) << level;
+        auto start = [&](int64_t node_s, uint32_t p) { return node_s + (int64_t(p) << level) / pps; };
         const int64_t mid_x = node_sx + ((int64_t(px) * 2 + 1) << level) / (2 * pps);
         const int64_t mid_y = node_sy + ((int64_t(py) * 2 + 1) << level) / (2 * pps);
-        auto delta = [&](uint32_t v) -> uint32_t { return v > geo + 1 ? v - 1 - geo : 0u; };
-        const uint32_t ds = py == 0 ? delta(lod_at(mid_x, node_sy - 1)) : 0u;
-        const uint32_t dw = px == 0 ? delta(lod_at(node_sx - 1, mid_y)) : 0u;
-        const uint32_t dn = py == pps - 1 ? delta(lod_at(mid_x, node_sy + size)) : 0u;
-        const uint32_t de = px == pps - 1 ? delta(lod_at(node_sx + size, mid_y)) : 0u;
+        auto delta = [&](uint32_t v) -> uint32_t { return v > geo + dec + 1 ? v - 1 - geo : 0u; };
+        const uint32_t ds = py == 0 || root_patch ? delta(eff_at(mid_x, start(node_sy, py) - 1)) : 0u;
+        const uint32_t dw = px == 0 || root_patch ? delta(eff_at(start(node_sx, px) - 1, mid_y)) : 0u;
+        const uint32_t dn = py == pps - 1 || root_patch ? delta(eff_at(mid_x, start(node_sy, py + 1))) : 0u;
+        const uint32_t de = px == pps - 1 || root_patch ? delta(eff_at(start(node_sx, px + 1), mid_y)) : 0u;
         // Bounds; a south/north edge collapsing groups wider than a patch reaches west into earlier
         // patches of the same row (a west/east edge: south), so the box grows to cover them.
         const uint32_t dsn = std::max(ds, dn), dwe = std::max(dw, de);
@@ -226,7 +294,7 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
         // The cooked cones cover the node's own triangles, stitched up to kConeMaxStitchDelta, but
         // not those touching hole vertices: with holes drawn, nodes with holes are not culled.
         const bool cones_valid = (u.misc[1] & TV_FLAG_HOLES) || !(d.flags & kNodeFlagHasHoles);
-        if ((u.misc[1] & TV_FLAG_CONE_CULL) && c == 0 && std::max(dsn, dwe) <= kConeMaxStitchDelta && cones_valid &&
+        if ((u.misc[1] & TV_FLAG_CONE_CULL) && c == 0 && dec == 0 && std::max(dsn, dwe) <= kConeMaxStitchDelta && cones_valid &&
             cone_backfacing(b, decode_cone(cpu.cones[py * 8 + px], sin2_table))) {
           ++out.culled_cone;
           continue;
@@ -241,7 +309,8 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
           near = n2 < u.lod[3] * u.lod[3];
         }
         GpuPatch p;
-        p.slot_patch_level = slot | px << TV_PATCH_PX_SHIFT | py << TV_PATCH_PY_SHIFT | geo << TV_PATCH_LEVEL_SHIFT;
+        p.slot_patch_level = slot | px << TV_PATCH_PX_SHIFT | py << TV_PATCH_PY_SHIFT | geo << TV_PATCH_LEVEL_SHIFT |
+                             dec << TV_PATCH_DECIM_SHIFT;
         p.edge_deltas = deltas | (near ? TV_PATCH_NEAR_BIT : 0u);
         p.node_x = d.x;
         p.node_y = d.y;
@@ -252,15 +321,15 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
 }
 
 void stitch_vertex(const GpuPatch& p, int i, int j, int& ni, int& nj) {
-  ni = int(patch_px(p)) * TV_QUADS_PER_PATCH + i;
-  nj = int(patch_py(p)) * TV_QUADS_PER_PATCH + j;
+  const int e = int(patch_decimation(p)), n = int(patch_quads(p));
+  ni = int(patch_px(p)) * TV_QUADS_PER_PATCH + (i << e);
+  nj = int(patch_py(p)) * TV_QUADS_PER_PATCH + (j << e);
   const int ds = int(edge_delta(p, TV_EDGE_S)), dn = int(edge_delta(p, TV_EDGE_N));
   const int dw = int(edge_delta(p, TV_EDGE_W)), de = int(edge_delta(p, TV_EDGE_E));
-  // Deltas are non-zero only on node edges, so j == 0 here means the node's south row.
   if (j == 0 && ds > 0) ni = ni >> ds << ds;
-  if (j == TV_QUADS_PER_PATCH && dn > 0) ni = ni >> dn << dn;
+  if (j == n && dn > 0) ni = ni >> dn << dn;
   if (i == 0 && dw > 0) nj = nj >> dw << dw;
-  if (i == TV_QUADS_PER_PATCH && de > 0) nj = nj >> de << de;
+  if (i == n && de > 0) nj = nj >> de << de;
 }
 
 void patch_vertex(const GpuPatch& p, int i, int j, int64_t& hx, int64_t& hy, int& ti, int& tj) {

@@ -26,6 +26,9 @@ struct SlotCpuData {
   // Total error (metres) of the node drawn with coarsening c = 1..3 (roots only; see config.h):
   // its geometric error plus the decimation error. Index 0 unused.
   std::array<float, 4> coarse_error{};
+  // Total error (metres) of each patch drawn with decimation e = 1..4 in component e - 1 (roots
+  // only; see config.h "Patch decimation"): geometric error plus the patch's decimation error.
+  PatchErrorArray patch_error{};
 };
 
 // What the renderer derives from a node payload at upload (bounds, cones, coarsening errors).
@@ -53,8 +56,19 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
                             const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
                             const float* cone_sin2_table);
 
+// Largest patch decimation this frame allows (0 = none): TV_MAX_DECIMATE capped so that every
+// stitch onto a decimated root patch collapses by d <= 7 (config.h), from the list's finest level.
+uint32_t max_decimation(const FrameUniforms& u, const NodeList& list);
+// Decimation e of root patch (px, py) of `slot` (a root drawn uncoarsened), at most `max_e`: the
+// largest e whose total error seen at the patch box's distance meets the target. On an edge facing
+// a coarsened root (level 5 + c in the LOD map) e <= c: that root's patches span several root
+// patches and take one delta per edge, so they must never be the finer side there.
+uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
+                               const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t px, uint32_t py,
+                               uint32_t max_e);
+
 // Stitching: vertex indices in the patch's node grid (0..128 >> coarsening) that patch vertex
-// (i, j) (0..16) is drawn at after collapsing onto every coarser neighbour (groups of 2^d vertices
+// (i, j) (0..16 >> decimation, every 2^decimation-th node vertex) is drawn at after collapsing onto every coarser neighbour (groups of 2^d vertices
 // fall onto the group's first).
 void stitch_vertex(const GpuPatch& patch, int i, int j, int& node_i, int& node_j);
 

@@ -32,10 +32,15 @@ enum Binding : uint32_t {
   kBindCones = 13,
   kBindPalette = 14,
   kBindCoarseErrors = 15,
-  kBindCount = 16,
+  kBindPatchErrors = 16,
+  kBindPatchWork = 17,
+  kBindCount = 18,
 };
 
-constexpr uint32_t kIndicesPerPatch = TV_PATCH_INDICES;
+// The patch meshes of every decimation e, one after the other: (16 >> e)^2 quads each.
+constexpr uint32_t mesh_indices(uint32_t e) { return (uint32_t(TV_QUADS_PER_PATCH) >> e) * (uint32_t(TV_QUADS_PER_PATCH) >> e) * 6; }
+constexpr uint32_t kMeshIndices = mesh_indices(0) + mesh_indices(1) + mesh_indices(2) + mesh_indices(3) + mesh_indices(4);
+static_assert(TV_MESHES == 5);
 constexpr uint32_t kTimestamps = 5;
 
 float srgb_to_linear(uint8_t v) {
@@ -107,19 +112,22 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatchBounds), storage,
                               patch_bounds_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 16, storage, coarse_errors_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 16, storage, patch_errors_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(selection_uints_) * 4, storage, selection_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(sectors_x_) * sectors_y_ * 4, storage, lod_map_));
   TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
-  // Near list from instance 0, far list from instance `capacity` (config.h, shading groups).
-  TV_TRY(create_device_buffer(ctx, 2 * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch), storage, patches_));
-  TV_TRY(create_device_buffer(ctx, kIndicesPerPatch * 2, VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+  // Patch range r (shading group x decimation) from instance r * capacity (config.h, shading groups).
+  const VkDeviceSize patch_list_bytes = TV_PATCH_RANGES * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
+  TV_TRY(create_device_buffer(ctx, patch_list_bytes, storage, patches_));
+  TV_TRY(create_device_buffer(ctx, kMeshIndices * 2, VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                               index_buffer_));
   TV_TRY(create_host_buffer(ctx, (TV_NL_HEADER + TV_DRAW_UINTS) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, stats_readback_));
   TV_TRY(create_host_buffer(ctx,
                             VkDeviceSize(TV_NL_HEADER + slots) * 4 + VkDeviceSize(sectors_x_) * sectors_y_ * 4 +
-                                2 * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch),
+                                patch_list_bytes,
                             VK_BUFFER_USAGE_TRANSFER_DST_BIT, lists_readback_));
   TV_TRY(create_host_buffer(ctx, 8u << 20, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, staging_));
 
@@ -140,14 +148,17 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
     }
   }
   std::vector<uint16_t> indices;
-  indices.reserve(kIndicesPerPatch);
-  for (uint16_t j = 0; j < TV_QUADS_PER_PATCH; ++j)
-    for (uint16_t i = 0; i < TV_QUADS_PER_PATCH; ++i) {
-      const uint16_t v00 = uint16_t(j * TV_PATCH_VERTS + i), v10 = uint16_t(v00 + 1);
-      const uint16_t v01 = uint16_t(v00 + TV_PATCH_VERTS), v11 = uint16_t(v01 + 1);
-      // Split along the SW->NE diagonal, counter-clockwise seen from above (format/SPEC.md).
-      for (uint16_t v : {v00, v10, v11, v00, v11, v01}) indices.push_back(v);
-    }
+  indices.reserve(kMeshIndices);
+  for (int e = 0; e < TV_MESHES; ++e) {
+    const int n = TV_QUADS_PER_PATCH >> e;
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const uint16_t v00 = uint16_t(j * (n + 1) + i), v10 = uint16_t(v00 + 1);
+        const uint16_t v01 = uint16_t(v00 + n + 1), v11 = uint16_t(v01 + 1);
+        // Split along the SW->NE diagonal, counter-clockwise seen from above (format/SPEC.md).
+        for (uint16_t v : {v00, v10, v11, v00, v11, v01}) indices.push_back(v);
+      }
+  }
   VkDeviceSize off = 0;
   TV_TRY(stage_bytes(indices.data(), indices.size() * 2, 16, off));
   pending_buffers_.push_back({index_buffer_.buffer, {off, 0, indices.size() * 2}});
@@ -215,6 +226,8 @@ Status TerrainRenderer::create_pipelines() {
   buf(kBindDraw, draw_);
   buf(kBindPatches, patches_);
   buf(kBindCoarseErrors, coarse_errors_);
+  buf(kBindPatchErrors, patch_errors_);
+  buf(kBindPatchWork, patch_work_);
   auto img = [&](uint32_t binding, const Image& image, VkSampler sampler) {
     ii[binding] = {sampler, image.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   };
@@ -262,7 +275,8 @@ Status TerrainRenderer::create_pipelines() {
 
 VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
   const bool discard = !settings_.hole_nan;
-  const int key = debug * 8 + (discard ? 4 : 0) + (near ? 2 : 0) + (wire ? 1 : 0);
+  const int profile = int(settings_.profile);
+  const int key = (profile * 16 + debug) * 8 + (discard ? 4 : 0) + (near ? 2 : 0) + (wire ? 1 : 0);
   if (auto it = graphics_.find(key); it != graphics_.end()) return it->second;
   const Context& ctx = *ctx_;
   struct Spec {
@@ -270,12 +284,15 @@ VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
     int32_t debug;
     VkBool32 near;
     VkBool32 discard;
-  } spec_data{wire ? VK_TRUE : VK_FALSE, debug, near ? VK_TRUE : VK_FALSE, discard ? VK_TRUE : VK_FALSE};
-  const VkSpecializationMapEntry entries[4] = {{0, offsetof(Spec, wire), sizeof(VkBool32)},
+    VkBool32 flat;
+  } spec_data{wire ? VK_TRUE : VK_FALSE, debug, near ? VK_TRUE : VK_FALSE, discard ? VK_TRUE : VK_FALSE,
+              settings_.profile == FrameSettings::DrawProfile::kFlat ? VK_TRUE : VK_FALSE};
+  const VkSpecializationMapEntry entries[5] = {{0, offsetof(Spec, wire), sizeof(VkBool32)},
                                                {1, offsetof(Spec, debug), sizeof(int32_t)},
                                                {2, offsetof(Spec, near), sizeof(VkBool32)},
-                                               {3, offsetof(Spec, discard), sizeof(VkBool32)}};
-  VkSpecializationInfo spec{4, entries, sizeof(Spec), &spec_data};
+                                               {3, offsetof(Spec, discard), sizeof(VkBool32)},
+                                               {4, offsetof(Spec, flat), sizeof(VkBool32)}};
+  VkSpecializationInfo spec{5, entries, sizeof(Spec), &spec_data};
   VkPipelineShaderStageCreateInfo stages[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
                                                {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
@@ -292,6 +309,7 @@ VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
   vp.viewportCount = 1;
   vp.scissorCount = 1;
   VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.rasterizerDiscardEnable = settings_.profile == FrameSettings::DrawProfile::kVertexOnly ? VK_TRUE : VK_FALSE;
   rs.polygonMode = wire ? VK_POLYGON_MODE_LINE : VK_POLYGON_MODE_FILL;
   rs.cullMode = VK_CULL_MODE_BACK_BIT;
   rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
@@ -362,7 +380,7 @@ void TerrainRenderer::destroy() {
   if (nearest_) vkDestroySampler(ctx.device, nearest_, nullptr);
   linear_ = nearest_ = VK_NULL_HANDLE;
   for (Image& i : images_) destroy_image(ctx, i);
-  for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &node_list_, &selection_, &lod_map_,
+  for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &patch_errors_, &patch_work_, &node_list_, &selection_, &lod_map_,
                     &draw_, &patches_, &index_buffer_, &stats_readback_, &lists_readback_, &staging_})
     destroy_buffer(ctx, *b);
   images_initialised_ = false;
@@ -428,6 +446,10 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     pending_buffers_.push_back({patch_bounds_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.bounds), sizeof(cpu.bounds)}});
     TV_TRY(stage_bytes(cpu.coarse_error.data(), 16, 16, off));
     pending_buffers_.push_back({coarse_errors_.buffer, {off, VkDeviceSize(n.slot) * 16, 16}});
+    static_assert(sizeof(cpu.patch_error) == TV_PATCHES_PER_NODE * 16);
+    TV_TRY(stage_bytes(cpu.patch_error.data(), sizeof(cpu.patch_error), 16, off));
+    pending_buffers_.push_back(
+        {patch_errors_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.patch_error), sizeof(cpu.patch_error)}});
   }
   TerrainState::Dirty dirty = state.take_dirty();
   // Descriptors: contiguous runs of dirty slots become one copy each.
@@ -481,6 +503,7 @@ void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, ui
   if (s.hole_nan) flags |= TV_FLAG_HOLE_NAN;
   if (s.splat && (s.debug == TV_DEBUG_NONE || s.debug == TV_DEBUG_WIRE)) flags |= TV_FLAG_SPLAT;
   if (!s.stitch) flags |= TV_FLAG_NO_STITCH;
+  if (s.decimate) flags |= TV_FLAG_DECIMATE;
   u.misc[0] = stamp_;
   u.misc[1] = flags;
   u.misc[2] = uint32_t(s.debug);
@@ -555,14 +578,18 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
                  VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                  rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
   if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 1);
+  // The LOD map is scattered by the listed nodes: sectors no node draws stay 0 (cleared here, in
+  // the timed LOD-map step).
+  vkCmdFillBuffer(cmd, lod_map_.buffer, 0, VK_WHOLE_SIZE, 0);
+  memory_barrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                 rw);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, lodmap_);
-  vkCmdDispatch(cmd, (sectors_x_ + TV_LODMAP_GROUP - 1) / TV_LODMAP_GROUP, (sectors_y_ + TV_LODMAP_GROUP - 1) / TV_LODMAP_GROUP,
-                1);
+  vkCmdDispatchIndirect(cmd, node_list_.buffer, TV_NL_DISPATCH * 4);  // one workgroup per listed node
   memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT,
                  VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, rw);
   if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 2);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, patches_pipe_);
-  vkCmdDispatchIndirect(cmd, node_list_.buffer, TV_NL_DISPATCH * 4);
+  vkCmdDispatchIndirect(cmd, node_list_.buffer, TV_NL_PATCH_DISPATCH * 4);  // one thread per patch work item
   memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT,
                  VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT |
                      VK_PIPELINE_STAGE_2_COPY_BIT,
@@ -609,13 +636,14 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
   const int debug = settings_.debug;
   const bool shaded = debug == TV_DEBUG_NONE || debug == TV_DEBUG_WIRE;
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, shaded, false));
-  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, 1, 0);
+  const uint32_t stride = 5 * 4;  // VkDrawIndexedIndirectCommand
+  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, TV_MESHES, stride);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, false));
-  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, 1, 0);
+  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, TV_MESHES, stride);
   if (debug == TV_DEBUG_WIRE) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, true));
-    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, 1, 0);
-    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, 1, 0);
+    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, TV_MESHES, stride);
+    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, TV_MESHES, stride);
   }
   vkCmdEndRendering(cmd);
   if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 4);
@@ -629,7 +657,7 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
   if (capture_lists) {
     const VkDeviceSize nl = VkDeviceSize(TV_NL_HEADER + config_.slot_count) * 4;
     const VkDeviceSize lm = VkDeviceSize(sectors_x_) * sectors_y_ * 4;
-    const VkDeviceSize pl = 2 * VkDeviceSize(config_.slot_count) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
+    const VkDeviceSize pl = TV_PATCH_RANGES * VkDeviceSize(config_.slot_count) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
     c = {0, 0, nl};
     vkCmdCopyBuffer(cmd, node_list_.buffer, lists_readback_.buffer, 1, &c);
     c = {0, nl, lm};
@@ -649,12 +677,16 @@ FrameStats TerrainRenderer::read_stats() const {
   s.nodes = nl[TV_NL_COUNT];
   for (int l = 0; l < kLevelCount; ++l) s.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
   s.traversal_overflow = nl[TV_NL_OVERFLOW];
-  s.patches_near = dr[TV_DRAW_NEAR + 1];
-  s.patches_drawn = dr[TV_DRAW_NEAR + 1] + dr[TV_DRAW_FAR + 1];
+  for (uint32_t r = 0; r < TV_PATCH_RANGES; ++r) {
+    const uint32_t count = dr[r * 5 + 1], e = r % TV_MESHES;
+    if (r < TV_MESHES) s.patches_near += count;
+    s.patches_drawn += count;
+    s.patches_decimated[e] += count;
+    s.triangles += uint64_t(count) * (mesh_indices(e) / 3);
+  }
   s.patches_considered = dr[TV_CNT_CONSIDERED];
   s.culled_frustum = dr[TV_CNT_FRUSTUM];
   s.culled_cone = dr[TV_CNT_CONE];
-  s.triangles = uint64_t(s.patches_drawn) * TV_QUADS_PER_PATCH * TV_QUADS_PER_PATCH * 2;
   if (timestamps_) {
     uint64_t t[kTimestamps];
     if (vkGetQueryPoolResults(ctx_->device, queries_, 0, kTimestamps, sizeof(t), t, sizeof(uint64_t),
@@ -685,8 +717,9 @@ void TerrainRenderer::read_lists(NodeList& nodes, std::vector<uint32_t>& lod_map
   const GpuPatch* pl = reinterpret_cast<const GpuPatch*>(base + nl_bytes + size_t(sectors_x_) * sectors_y_ * 4);
   const uint32_t* dr = static_cast<const uint32_t*>(stats_readback_.mapped) + TV_NL_HEADER;
   const size_t capacity = size_t(config_.slot_count) * TV_PATCHES_PER_NODE;
-  patches.assign(pl, pl + std::min<size_t>(dr[TV_DRAW_NEAR + 1], capacity));
-  patches.insert(patches.end(), pl + capacity, pl + capacity + std::min<size_t>(dr[TV_DRAW_FAR + 1], capacity));
+  patches.clear();
+  for (uint32_t r = 0; r < TV_PATCH_RANGES; ++r)
+    patches.insert(patches.end(), pl + capacity * r, pl + capacity * r + std::min<size_t>(dr[r * 5 + 1], capacity));
 }
 
 }  // namespace terrain::view

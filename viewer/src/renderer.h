@@ -34,7 +34,13 @@ struct FrameSettings {
                               // by a test); false: fragment discard (defined, but disables early depth)
   bool splat = true;          // near splat shading
   bool stitch = true;         // false only in tests: shows the cracks stitching closes
+  bool decimate = true;       // per-patch decimation of roots (config.h "Patch decimation")
   int debug = TV_DEBUG_NONE;
+  // Profiling (terrain-view-bench --profile): draw the same patches with less of the pipeline to
+  // split the draw time. kFull: everything; kFlat: constant-colour fragments (vertex + setup +
+  // raster + depth); kVertexOnly: rasterizer discard (vertex shading + primitive assembly + clipping).
+  enum class DrawProfile { kFull, kFlat, kVertexOnly };
+  DrawProfile profile = DrawProfile::kFull;
   float clear[3] = {0.55f, 0.68f, 0.85f};  // sRGB-encoded, 0..1
   double cone_margin_deg = 0.0;
   double near_start_m = 150, near_end_m = 400;   // splat shading fades into the baked albedo
@@ -48,6 +54,7 @@ struct FrameStats {
   uint32_t traversal_overflow = 0;
   uint32_t patches_considered = 0, patches_drawn = 0, culled_frustum = 0, culled_cone = 0;
   uint32_t patches_near = 0;  // of patches_drawn, in the near (splat) shading group
+  std::array<uint32_t, TV_MESHES> patches_decimated{};  // of patches_drawn, per decimation e
   uint64_t triangles = 0;
   double gpu_traverse_ms = 0, gpu_lodmap_ms = 0, gpu_patches_ms = 0, gpu_draw_ms = 0, gpu_total_ms = 0;
   bool timings_valid = false;
@@ -108,7 +115,7 @@ class TerrainRenderer {
   bool images_initialised_ = false;
   VkSampler linear_ = VK_NULL_HANDLE, nearest_ = VK_NULL_HANDLE;
 
-  Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, node_list_, selection_, lod_map_, draw_, patches_,
+  Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, patch_errors_, patch_work_, node_list_, selection_, lod_map_, draw_, patches_,
       index_buffer_, stats_readback_, lists_readback_;
   bool lists_captured_ = false;
   Buffer staging_;
@@ -123,7 +130,7 @@ class TerrainRenderer {
   VkDescriptorSet set_ = VK_NULL_HANDLE;
   VkPipeline traverse_ = VK_NULL_HANDLE, lodmap_ = VK_NULL_HANDLE, patches_pipe_ = VK_NULL_HANDLE;
   VkShaderModule vs_ = VK_NULL_HANDLE, fs_ = VK_NULL_HANDLE;
-  std::map<int, VkPipeline> graphics_;  // key: debug * 8 + discard * 4 + near * 2 + wire
+  std::map<int, VkPipeline> graphics_;  // key: (profile * 16 + debug) * 8 + discard * 4 + near * 2 + wire
   VkQueryPool queries_ = VK_NULL_HANDLE;
   bool timestamps_ = false;
 

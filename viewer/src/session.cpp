@@ -179,6 +179,7 @@ Status write_stats_json(const Session& s, const std::string& path) {
     f["patches_drawn"] = r.gpu.patches_drawn;
     f["patches_culled_frustum"] = r.gpu.culled_frustum;
     f["patches_culled_cone"] = r.gpu.culled_cone;
+    f["patches_per_decimation"] = r.gpu.patches_decimated;  // e = 0..4
     f["triangles"] = r.gpu.triangles;
     f["traversal_overflow"] = r.gpu.traversal_overflow;
     f["resident"] = r.source.resident;
