@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <random>
 #include <set>
 
@@ -192,6 +193,29 @@ MeshCheck check_watertight(const PatchList& patches, double world_w_hm, double w
   return m;
 }
 
+// A synthetic world with every node resident in 512 slots, and the slots' CPU data (the input of
+// the reference traversal); null when residency fails.
+struct ResidentScene {
+  SyntheticWorld sw;
+  TerrainState st;
+  std::vector<SlotCpuData> cpu;
+  float cone_table[256];
+};
+std::unique_ptr<ResidentScene> resident_scene(const SyntheticOptions& o) {
+  auto scene = std::make_unique<ResidentScene>();
+  scene->sw = make_synthetic_world(o);
+  StaticResidency res;
+  std::vector<MemoryNode> nodes;
+  for (auto& n : scene->sw.nodes) nodes.push_back({n.record, &n.data});
+  res.init(scene->sw.world, nodes, 512, scene->st);
+  std::vector<NodeUpload> uploads;
+  if (!res.apply([](const NodeKey&) { return true; }, scene->st, uploads).ok()) return nullptr;
+  scene->cpu.resize(512);
+  for (auto& up : uploads) scene->cpu[up.slot] = prepare_slot(*up.data, scene->st.descriptor(up.slot));
+  cone_sin2_table(0, scene->cone_table);
+  return scene;
+}
+
 TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   // Root (0,0) refined to level 0 around one corner point, root (1,0) never refined: the traversal
   // produces neighbours differing by 1..5 levels. Culling off: the whole world is meshed.
@@ -209,18 +233,9 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
     const double dy = std::max({k.y * size - cy, 0.0, cy - (k.y + 1) * size});
     return dx * dx + dy * dy < 150.0 * 150.0;
   };
-  SyntheticWorld sw = make_synthetic_world(o);
-  TerrainState st;
-  StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(sw.world, nodes, 512, st);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
-  std::vector<SlotCpuData> cpu(512);
-  for (auto& up : uploads) cpu[up.slot] = prepare_slot(*up.data, st.descriptor(up.slot));
-  float table[256];
-  cone_sin2_table(0, table);
+  const auto scene = resident_scene(o);
+  ASSERT_TRUE(scene);
+  const auto& [sw, st, cpu, table] = *scene;
   Camera cam;
   cam.position[0] = sw.world.origin_x_m + 2040;
   cam.position[1] = sw.world.origin_y_m + 1030;
@@ -257,18 +272,9 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
   o.relief_m = 120;
   o.flat_from_x_m = 2600;  // rough root column 0, flattening across root column 1, flat column 2
   o.keep = [](const NodeKey& k) { return k.level >= 3; };
-  SyntheticWorld sw = make_synthetic_world(o);
-  TerrainState st;
-  StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(sw.world, nodes, 512, st);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
-  std::vector<SlotCpuData> cpu(512);
-  for (auto& up : uploads) cpu[up.slot] = prepare_slot(*up.data, st.descriptor(up.slot));
-  float table[256];
-  cone_sin2_table(0, table);
+  const auto scene = resident_scene(o);
+  ASSERT_TRUE(scene);
+  const auto& [sw, st, cpu, table] = *scene;
   std::set<uint32_t> decimations, interior_deltas;
   size_t checked = 0;
   size_t beside_coarsened = 0;  // decimated patches on a root edge facing a coarsened root

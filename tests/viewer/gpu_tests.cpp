@@ -91,6 +91,30 @@ uint32_t max_delta(const std::vector<GpuPatch>& patches) {
   return m;
 }
 
+// Crack-test settings: the given error target over a magenta clear colour.
+FrameSettings magenta_clear(double error_target_px) {
+  FrameSettings s;
+  s.error_target_px = error_target_px;
+  s.clear[0] = 1;
+  s.clear[1] = 0;
+  s.clear[2] = 1;
+  return s;
+}
+
+// The GPU's node list, LOD map and patch list of the last frame.
+struct GpuLists {
+  NodeList nodes;
+  std::vector<uint32_t> lod;
+  std::vector<GpuPatch> patches;
+};
+// Renders a view with its lists kept (consuming `uploads`) and reads the lists back.
+Status render_view(Gpu& gpu, std::vector<NodeUpload>& uploads, const Camera& camera, const FrameSettings& s, GpuLists& out) {
+  if (Status st = render_frame(gpu, uploads, camera, s, true); !st.ok()) return st;
+  uploads.clear();
+  gpu.renderer.read_lists(out.nodes, out.lod, out.patches);
+  return Status::success();
+}
+
 TEST(ViewerGpu, ListsEqualCpuReference) {
   World world;
   world.synthetic = deep_world().synthetic;
@@ -177,17 +201,10 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
   uint32_t deepest = 0;
   size_t unstitched_cracks = 0;
   for (const ViewSpec& v : views) {
-    FrameSettings s;
-    s.error_target_px = v.error;
-    s.clear[0] = 1;
-    s.clear[1] = 0;
-    s.clear[2] = 1;
-    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, true).ok());
-    uploads.clear();
-    NodeList nodes;
-    std::vector<uint32_t> lod;
-    std::vector<GpuPatch> patches;
-    gpu->renderer.read_lists(nodes, lod, patches);
+    FrameSettings s = magenta_clear(v.error);
+    GpuLists lists;
+    ASSERT_TRUE(render_view(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, lists).ok());
+    const auto& [nodes, lod, patches] = lists;
     deepest = std::max(deepest, max_delta(patches));
     std::vector<uint8_t> rgba;
     read_color(gpu->target, rgba);
@@ -230,17 +247,10 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
   std::set<uint32_t> decimations;
   size_t interior = 0, unstitched = 0;
   for (const ViewSpec& v : views) {
-    FrameSettings s;
-    s.error_target_px = v.error;
-    s.clear[0] = 1;
-    s.clear[1] = 0;
-    s.clear[2] = 1;
-    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, true).ok());
-    uploads.clear();
-    NodeList nodes;
-    std::vector<uint32_t> lod;
-    std::vector<GpuPatch> patches;
-    gpu->renderer.read_lists(nodes, lod, patches);
+    FrameSettings s = magenta_clear(v.error);
+    GpuLists lists;
+    ASSERT_TRUE(render_view(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, lists).ok());
+    const auto& [nodes, lod, patches] = lists;
     const FrameUniforms& u = gpu->renderer.uniforms();
     const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
     EXPECT_EQ(sorted(nodes.entries), sorted(ref_nodes.entries));
@@ -285,11 +295,7 @@ TEST(ViewerGpu, NoCracksAtTheStreamingFrontier) {
                       return k.level == kRootLevel || (h >> 24) % 10 < 6;
                     }, gpu->state, uploads)
                     .ok());
-    FrameSettings s;
-    s.error_target_px = 0.02;
-    s.clear[0] = 1;
-    s.clear[1] = 0;
-    s.clear[2] = 1;
+    const FrameSettings s = magenta_clear(0.02);
     for (const ViewSpec& v : {ViewSpec{kFocusX - 120, kFocusY, 420, 90, -55, 0.02}, ViewSpec{kBumpyX, kBumpyY, 700, 30, -60, 0.01},
                               ViewSpec{2048, 2048, 1500, 45, -86, 0.1}}) {
       ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, false).ok());
@@ -357,11 +363,7 @@ TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   world.residency.init(world.synthetic.world, world.memory_nodes(), 64, gpu->state);
   ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
   const Camera cam = camera_at(world.synthetic.world, 1000, 1000, 900, 0, -90);
-  FrameSettings s;
-  s.error_target_px = 0.01;  // all the way to level 3
-  s.clear[0] = 1;
-  s.clear[1] = 0;
-  s.clear[2] = 1;
+  FrameSettings s = magenta_clear(0.01);  // all the way to level 3
   size_t magenta[3];
   for (int mode = 0; mode < 3; ++mode) {
     s.holes = mode != 0;

@@ -70,6 +70,35 @@ struct NodePayload {
 };
 
 // Hypsometric tint with hillshade-free colours, like `gdaldem color-relief` with a typical ramp.
+// Up to `max_nodes` nodes of a level with data on at least a quarter of their vertices, spread
+// evenly over the raster (deterministic choice).
+std::vector<bench::DemNode> pick_nodes(const bench::DemRaster& dem, uint32_t level, int max_nodes) {
+  std::vector<bench::DemNode> nodes;
+  const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+  std::vector<std::pair<uint32_t, uint32_t>> cand;
+  for (uint32_t y = 0; y < ny; ++y)
+    for (uint32_t x = 0; x < nx; ++x) cand.push_back({x, y});
+  const size_t stride = std::max<size_t>(1, cand.size() / size_t(max_nodes * 2));
+  for (size_t c = 0; c < cand.size() && int(nodes.size()) < max_nodes; c += stride) {
+    bench::DemNode n;
+    bench::make_dem_node(dem, level, cand[c].first, cand[c].second, step_for_level(level), n);
+    if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
+  }
+  return nodes;
+}
+
+// Loads a dataset's DEM and picks its nodes; false (with a message) when the file cannot be read.
+bool load_dataset(const std::string& data_dir, const Dataset& ds, bench::DemRaster& dem,
+                  std::vector<bench::DemNode>& nodes) {
+  const std::string path = (std::filesystem::path(data_dir) / ds.file).string();
+  if (Status s = bench::load_dem(path, dem); !s.ok()) {
+    std::fprintf(stderr, "terrain-bc-bench: skipping %s: %s\n", ds.file, s.to_string().c_str());
+    return false;
+  }
+  nodes = pick_nodes(dem, ds.level, ds.max_nodes);
+  return true;
+}
+
 void relief_colour(double h, uint8_t rgb[3]) {
   static const double stops[][4] = {{0, 40, 110, 60},     {100, 90, 150, 70},   {400, 170, 180, 100},
                                     {800, 190, 160, 110}, {1200, 150, 120, 90}, {2000, 130, 110, 100},
@@ -257,24 +286,9 @@ int main(int argc, char** argv) {
 
   for (const Dataset& ds : kDatasets) {
     if (!only.empty() && std::string(ds.file).find(only) == std::string::npos) continue;
-    const std::string path = (std::filesystem::path(data_dir) / ds.file).string();
     bench::DemRaster dem;
-    if (Status s = bench::load_dem(path, dem); !s.ok()) {
-      std::fprintf(stderr, "terrain-bc-bench: skipping %s: %s\n", ds.file, s.to_string().c_str());
-      continue;
-    }
-    // Nodes with data, spread evenly over the raster (deterministic choice).
     std::vector<bench::DemNode> nodes;
-    const uint32_t nx = bench::nodes_across(dem, ds.level, false), ny = bench::nodes_across(dem, ds.level, true);
-    std::vector<std::pair<uint32_t, uint32_t>> cand;
-    for (uint32_t y = 0; y < ny; ++y)
-      for (uint32_t x = 0; x < nx; ++x) cand.push_back({x, y});
-    const size_t stride = std::max<size_t>(1, cand.size() / size_t(ds.max_nodes * 2));
-    for (size_t c = 0; c < cand.size() && int(nodes.size()) < ds.max_nodes; c += stride) {
-      bench::DemNode n;
-      bench::make_dem_node(dem, ds.level, cand[c].first, cand[c].second, step_for_level(ds.level), n);
-      if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
-    }
+    if (!load_dataset(data_dir, ds, dem, nodes)) continue;
     if (progress) std::fprintf(stderr, "%s: %zu nodes at level %u\n", ds.file, nodes.size(), ds.level);
     std::vector<NodePayload> payloads(nodes.size());
     int holes = 0;
@@ -355,23 +369,9 @@ int main(int argc, char** argv) {
   for (const Dataset& ds : kCookDatasets) {
     if (!cook_table) break;
     if (!only.empty() && std::string(ds.file).find(only) == std::string::npos) continue;
-    const std::string path = (std::filesystem::path(data_dir) / ds.file).string();
     bench::DemRaster dem;
-    if (Status s = bench::load_dem(path, dem); !s.ok()) {
-      std::fprintf(stderr, "terrain-bc-bench: skipping %s: %s\n", ds.file, s.to_string().c_str());
-      continue;
-    }
     std::vector<bench::DemNode> nodes;
-    const uint32_t nx = bench::nodes_across(dem, ds.level, false), ny = bench::nodes_across(dem, ds.level, true);
-    std::vector<std::pair<uint32_t, uint32_t>> cand;
-    for (uint32_t y = 0; y < ny; ++y)
-      for (uint32_t x = 0; x < nx; ++x) cand.push_back({x, y});
-    const size_t stride = std::max<size_t>(1, cand.size() / size_t(ds.max_nodes * 2));
-    for (size_t c = 0; c < cand.size() && int(nodes.size()) < ds.max_nodes; c += stride) {
-      bench::DemNode n;
-      bench::make_dem_node(dem, ds.level, cand[c].first, cand[c].second, step_for_level(ds.level), n);
-      if (n.data_vertices > kHeightCount / 4) nodes.push_back(std::move(n));
-    }
+    if (!load_dataset(data_dir, ds, dem, nodes)) continue;
     if (progress) std::fprintf(stderr, "%s: cook times on %zu nodes at level %u\n", ds.file, nodes.size(), ds.level);
     for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
       std::vector<double> payload_ms, checked_ms;
