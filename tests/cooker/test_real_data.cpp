@@ -243,16 +243,25 @@ std::string dem_name(const ::testing::TestParamInfo<RealDem>& info) { return inf
 
 }  // namespace
 
+// The oracle comparison on the default cook of `d` (points shifted by `shift` samples); no points,
+// with `why` saying so, when the fixture's archive is missing.
+OracleResult oracle_on_default_cook(const RealDem& d, double shift, std::string& why) {
+  const auto archive = default_archive(d);
+  if (!std::filesystem::exists(archive)) {
+    why = archive.string() + " missing (the cooker.cook fixture makes it)";
+    return {};
+  }
+  return compare(d, archive, shift, why);
+}
+
 // The accuracy test on the default cook: >= 10 000 random source samples with data, every
 // one answered and within tolerance + half a step + 1 mm. One documented exception to the bound,
 // asserted so that it shows when it changes: tahoe_highest (see kDems).
 TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  const auto archive = default_archive(d);
-  if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing (the cooker.cook fixture makes it)";
   std::string why;
-  const OracleResult r = compare(d, archive, 0.0, why);
+  const OracleResult r = oracle_on_default_cook(d, 0.0, why);
   if (r.points == 0) GTEST_SKIP() << why;
   std::printf("%s: %zu points, %zu answered, worst |cooked - source| %.4f m (bound %.4f m), %zu out of bound, "
               "%zu edge points without terrain\n",
@@ -278,10 +287,8 @@ TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
   const RealDem& d = GetParam();
   if (!d.relief || d.lattice_limited) GTEST_SKIP() << d.name << ": a half-sample shift cannot show here";
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  const auto archive = default_archive(d);
-  if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing";
   std::string why;
-  const OracleResult r = compare(d, archive, 0.5, why);
+  const OracleResult r = oracle_on_default_cook(d, 0.5, why);
   if (r.points == 0) GTEST_SKIP() << why;
   std::printf("%s shifted half a sample: %zu of %zu points out of bound (worst %.3f m)\n", d.name, r.violations,
               r.answered, r.worst_error);
@@ -294,10 +301,8 @@ TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
 TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  const auto archive = default_archive(d);
-  if (!std::filesystem::exists(archive)) GTEST_SKIP() << archive << " missing (the cooker.cook fixture makes it)";
   std::string why;
-  const OracleResult r = compare(d, archive, 0.0, why);
+  const OracleResult r = oracle_on_default_cook(d, 0.0, why);
   if (r.points == 0) GTEST_SKIP() << why;
   std::printf("%s: worst |cooked - source| - recorded node error %.4f m over %zu points\n", d.name,
               r.worst_excess_recorded, r.answered);

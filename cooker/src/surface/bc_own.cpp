@@ -29,6 +29,23 @@ namespace {
 inline int expand5(int q) { return (q << 3) | (q >> 2); }
 inline int expand6(int q) { return (q << 2) | (q >> 4); }
 inline int expand_bits(int q, int bits) { return bits == 5 ? expand5(q) : expand6(q); }
+
+// Principal axis of a colour covariance (xx, xy, xz, yy, yz, zz) by three power iterations,
+// starting from `ax` (the bounding-box diagonal) with the covariance's signs; unchanged when the
+// covariance is zero.
+inline void principal_axis(const float cov[6], float ax[3]) {
+  if (cov[1] < 0) ax[1] = -ax[1];
+  if (cov[2] < 0) ax[2] = -ax[2];
+  for (int it = 0; it < 3; ++it) {
+    const float x = cov[0] * ax[0] + cov[1] * ax[1] + cov[2] * ax[2];
+    const float y = cov[1] * ax[0] + cov[3] * ax[1] + cov[4] * ax[2];
+    const float z = cov[2] * ax[0] + cov[4] * ax[1] + cov[5] * ax[2];
+    const float m = std::max({std::fabs(x), std::fabs(y), std::fabs(z)});
+    if (!(m > 0)) break;
+    const float inv = 1.0f / m;
+    ax[0] = x * inv; ax[1] = y * inv; ax[2] = z * inv;
+  }
+}
 constexpr int kBits[3] = {5, 6, 5};
 
 void write16(uint8_t* p, uint16_t v) { p[0] = uint8_t(v); p[1] = uint8_t(v >> 8); }
@@ -288,17 +305,7 @@ void encode_colour(const uint8_t rgba[64], uint16_t active, bool four, const flo
     }
     float ax[3] = {float(hi[0] - lo[0]) * w[0], float(hi[1] - lo[1]) * w[1], float(hi[2] - lo[2]) * w[2]};
     // Start from the bounding-box diagonal with the covariance's signs.
-    if (cov[1] < 0) ax[1] = -ax[1];
-    if (cov[2] < 0) ax[2] = -ax[2];
-    for (int it = 0; it < 3; ++it) {
-      const float x = cov[0] * ax[0] + cov[1] * ax[1] + cov[2] * ax[2];
-      const float y = cov[1] * ax[0] + cov[3] * ax[1] + cov[4] * ax[2];
-      const float z = cov[2] * ax[0] + cov[4] * ax[1] + cov[5] * ax[2];
-      const float m = std::max({std::fabs(x), std::fabs(y), std::fabs(z)});
-      if (!(m > 0)) break;
-      const float inv = 1.0f / m;
-      ax[0] = x * inv; ax[1] = y * inv; ax[2] = z * inv;
-    }
+    principal_axis(cov, ax);
     alignas(16) float proj[16];
     float pmin = 3.4e38f, pmax = -3.4e38f;
     const float k0 = ax[0] * w[0], k1 = ax[1] * w[1], k2 = ax[2] * w[2];
@@ -733,17 +740,7 @@ void encode_opaque_sse(const uint8_t rgba[64], const float w[3], int iterations,
                     (sq[2] - sum[0] * sum[2] * inv16) * w[0] * w[2], (sq[3] - sum[1] * sum[1] * inv16) * w[1] * w[1],
                     (sq[4] - sum[1] * sum[2] * inv16) * w[1] * w[2], (sq[5] - sum[2] * sum[2] * inv16) * w[2] * w[2]};
     float ax[3] = {(mx[0] - mn[0]) * w[0], (mx[1] - mn[1]) * w[1], (mx[2] - mn[2]) * w[2]};
-    if (cov[1] < 0) ax[1] = -ax[1];
-    if (cov[2] < 0) ax[2] = -ax[2];
-    for (int it = 0; it < 3; ++it) {
-      const float x = cov[0] * ax[0] + cov[1] * ax[1] + cov[2] * ax[2];
-      const float y = cov[1] * ax[0] + cov[3] * ax[1] + cov[4] * ax[2];
-      const float z = cov[2] * ax[0] + cov[4] * ax[1] + cov[5] * ax[2];
-      const float m = std::max({std::fabs(x), std::fabs(y), std::fabs(z)});
-      if (!(m > 0)) break;
-      const float inv = 1.0f / m;
-      ax[0] = x * inv; ax[1] = y * inv; ax[2] = z * inv;
-    }
+    principal_axis(cov, ax);
     const __m128 k0 = _mm_set1_ps(ax[0] * w[0]), k1 = _mm_set1_ps(ax[1] * w[1]), k2 = _mm_set1_ps(ax[2] * w[2]);
     __m128 proj[4], pl, ph;
     for (int v = 0; v < 4; ++v) {
