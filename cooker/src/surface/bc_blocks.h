@@ -61,6 +61,17 @@ void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16])
 // Smooth blocks cost the same either way.
 void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iterations = 1, bool refine_hard = false,
                            bool try_three_colour = false, int ordering_sweeps = 0);
+// The same with every effort knob explicit (thresholds: squared RGB error summed over the block,
+// i.e. 48 x the mean squared error per channel). The overload above uses the defaults below;
+// terrain-bc-bench --frontier sweeps the thresholds to chart speed against PSNR.
+struct Bc1OpaqueEffort {
+  int iterations = 1;
+  bool refine_hard = false;
+  int ordering_sweeps = 0;
+  float ordering_threshold = 16.0f;      // blocks above this error run the ordering search
+  float three_colour_threshold = -1.0f;  // blocks above this error also try 3 colours (< 0: never)
+};
+void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
 // 3-colour punch-through block: texel i transparent iff bit i of `holes` (not all 16 set).
 void own_encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations = 2);
 // BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).

@@ -921,6 +921,15 @@ constexpr float kThreeColourThreshold = 48.0f * 4.0f;
 
 void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iterations, bool refine_hard,
                            bool try_three_colour, int ordering_sweeps) {
+  Bc1OpaqueEffort effort;
+  effort.iterations = iterations;
+  effort.refine_hard = refine_hard;
+  effort.ordering_sweeps = ordering_sweeps;
+  effort.three_colour_threshold = try_three_colour ? kThreeColourThreshold : -1.0f;
+  own_encode_bc1_opaque(rgba, out, effort);
+}
+
+void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort) {
   static const float kUniform[3] = {1, 1, 1};
   // Constant blocks (common in smooth albedo): straight from the single-colour tables.
   uint32_t first, px;
@@ -954,21 +963,22 @@ void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iteration
   }
 #if defined(__SSE2__)
   HardBlocks hard;
-  if (refine_hard) {
+  if (effort.refine_hard) {
     hard.iterations = kHardIterations;
     hard.threshold = kHardThreshold;
   }
-  hard.ordering_sweeps = ordering_sweeps;
+  hard.ordering_sweeps = effort.ordering_sweeps;
+  hard.ordering_threshold = effort.ordering_threshold;
   float err = 0;
-  encode_opaque_sse<true>(rgba, kUniform, iterations, hard, out, &err);
-  if (try_three_colour && err > kThreeColourThreshold) {
+  encode_opaque_sse<true>(rgba, kUniform, effort.iterations, hard, out, &err);
+  if (effort.three_colour_threshold >= 0 && err > effort.three_colour_threshold) {
     // Two clusters and their midpoint fit the 3-colour mode better (index 3 is not used).
     uint8_t three[8];
     encode_colour(rgba, 0xFFFF, false, kUniform, 2, three);
     if (block_sq_err(rgba, three) < block_sq_err(rgba, out)) std::memcpy(out, three, 8);
   }
 #else
-  encode_colour(rgba, 0xFFFF, true, kUniform, iterations, out);
+  encode_colour(rgba, 0xFFFF, true, kUniform, effort.iterations, out);
 #endif
 }
 

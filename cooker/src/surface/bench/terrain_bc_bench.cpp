@@ -230,9 +230,90 @@ void print_block_stats(const char* name, const std::vector<NodePayload>& payload
   std::printf("\n");
 }
 
+// --frontier: speed against PSNR of our opaque BC1 encoder as its effort knobs are swept (hole-free
+// blocks of each albedo set; hole blocks take the same 3-colour path in every setting), next to
+// stb_dxt and libsquish cluster fit on the same blocks. All rows go through the calls the cooker
+// makes (encode_bc1_block for the libraries and the default, own_encode_bc1_opaque for the
+// variants, which is what the default's hot path calls); a row "meets" the albedo target when its
+// PSNR >= max(stb, squish cluster) and its time <= stb's.
+void print_frontier(const char* name, const std::vector<NodePayload>& payloads, int reps) {
+  for (int set = 0; set < 2; ++set) {
+    std::vector<uint8_t> blocks;
+    for (const NodePayload& p : payloads) {
+      const std::vector<uint8_t>& img = set == 0 ? p.albedo_splat : p.albedo_relief;
+      for (int by = 0; by < kTexelBlocks; ++by)
+        for (int bx = 0; bx < kTexelBlocks; ++bx) {
+          uint8_t block[64];
+          for (int r = 0; r < 4; ++r) std::memcpy(block + 16 * r, &img[size_t((by * 4 + r) * kTexels + bx * 4) * 4], 16);
+          bool hole = false;
+          for (int i = 0; i < 16; ++i) hole |= block[4 * i + 3] < 128;
+          if (!hole) blocks.insert(blocks.end(), block, block + 64);
+        }
+    }
+    const size_t n = blocks.size() / 64;
+    if (n == 0) continue;
+    std::vector<uint8_t> out(n * 8);
+    struct Result { std::string label; double us, psnr; };
+    auto measure = [&](const std::string& label, auto&& encode) {
+      std::vector<double> t;
+      for (int r = 0; r < reps; ++r) {
+        const double t0 = thread_seconds();
+        for (size_t i = 0; i < n; ++i) encode(&blocks[i * 64], &out[i * 8]);
+        t.push_back(thread_seconds() - t0);
+      }
+      std::sort(t.begin(), t.end());
+      double se = 0;
+      for (size_t i = 0; i < n; ++i) {
+        uint8_t dec[64];
+        decode_bc1_block(&out[i * 8], dec);
+        for (int k = 0; k < 16; ++k)
+          for (int c = 0; c < 3; ++c) {
+            const double d = double(blocks[i * 64 + 4 * k + c]) - double(dec[4 * k + c]);
+            se += d * d;
+          }
+      }
+      return Result{label, 1e6 * t[t.size() / 2] / double(n), psnr_db(se, uint64_t(n) * 48)};
+    };
+    auto library = [&](Bc1Method m) {
+      return measure(bc1_method_name(m), [m](const uint8_t* in, uint8_t* o) { encode_bc1_block(in, m, o); });
+    };
+    const Result stb = library(Bc1Method::stb), squish = library(Bc1Method::squish_cluster);
+    std::vector<Result> rows = {library(Bc1Method::own)};
+    struct Variant { const char* label; Bc1OpaqueEffort e; };
+    auto effort = [](int sweeps, float search_thr, float three_thr) {
+      Bc1OpaqueEffort e;
+      e.refine_hard = true;
+      e.ordering_sweeps = sweeps;
+      e.ordering_threshold = search_thr;
+      e.three_colour_threshold = three_thr;
+      return e;
+    };
+    const Variant variants[] = {
+        {"search1 >800", effort(1, 800, -1)},           {"search2 >400", effort(2, 400, -1)},
+        {"search2 >200", effort(2, 200, -1)},           {"search2 >100", effort(2, 100, -1)},
+        {"search2 >16 (own-cluster)", effort(2, 16, -1)}, {"3-colour >1600", effort(0, 16, 1600)},
+        {"3-colour >800", effort(0, 16, 800)},          {"search1 >800 + 3-col >1600", effort(1, 800, 1600)},
+        {"search2 >400 + 3-col >800", effort(2, 400, 800)}, {"search2 >100 + 3-col >400", effort(2, 100, 400)},
+        {"search2 >16 + 3-col >192", effort(2, 16, 192)},
+    };
+    for (const Variant& v : variants)
+      rows.push_back(measure(std::string("own ") + v.label,
+                             [&e = v.e](const uint8_t* in, uint8_t* o) { own_encode_bc1_opaque(in, o, e); }));
+    const double target_db = std::max(stb.psnr, squish.psnr);
+    std::printf("\n# frontier %s %s albedo: %zu hole-free blocks; target >= %.2f dB at <= %.3f us/block\n", name,
+                set == 0 ? "splat" : "relief", n, target_db, stb.us);
+    std::printf("%-34s %9s %8s %6s\n", "encoder / effort", "us/block", "PSNR", "meets");
+    std::printf("%-34s %9.3f %8.2f %6s\n", stb.label.c_str(), stb.us, stb.psnr, "-");
+    std::printf("%-34s %9.3f %8.2f %6s\n", squish.label.c_str(), squish.us, squish.psnr, "-");
+    for (const Result& r : rows)
+      std::printf("%-34s %9.3f %8.2f %6s\n", r.label.c_str(), r.us, r.psnr,
+                  r.psnr >= target_db && r.us <= stb.us ? "yes" : "no");
+  }
+}
+
 void print_usage(FILE* to) {
   std::fprintf(to,
-      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--encoder NAME] [--block-stats] [--json] [--quiet] [--help]\n"
+      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--encoder NAME] [--block-stats] [--frontier] [--json] [--quiet] [--help]\n"
       "  Encodes real-node payloads (albedo with holes, normals) with libsquish, stb_dxt and our\n"
       "  encoder; prints us/block (median of N runs), albedo PSNR, punch-through mismatches and\n"
       "  normal angular error, then the per-node surface cook time per quality setting.\n"
@@ -242,7 +323,9 @@ void print_usage(FILE* to) {
       "  --encoder NAME  only the encoder rows with exactly this name (e.g. own; for\n"
       "              profiling; skips the cook-time table)\n"
       "  --block-stats  only the per-block error distribution of the default encoder against libsquish\n"
-      "              cluster fit on the splat albedo (where the dB are lost), no timing\n",
+      "              cluster fit on the splat albedo (where the dB are lost), no timing\n"
+      "  --frontier  only speed against PSNR of our BC1 encoder as its effort knobs are swept, next to\n"
+      "              stb_dxt and libsquish cluster fit (hole-free albedo blocks)\n",
       TERRAIN_BENCH_DATA_DIR);
 }
 
@@ -252,7 +335,7 @@ int main(int argc, char** argv) {
   std::string data_dir = TERRAIN_BENCH_DATA_DIR;
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
   int reps = 5;
-  bool json = false, quiet = false, block_stats = false;
+  bool json = false, quiet = false, block_stats = false, frontier = false;
   std::string only, encoder_only;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -260,6 +343,7 @@ int main(int argc, char** argv) {
     if (a == "--json") json = true;
     else if (a == "--quiet") quiet = true;
     else if (a == "--block-stats") block_stats = true;
+    else if (a == "--frontier") frontier = true;
     else if (a == "--data" && i + 1 < argc) data_dir = argv[++i];
     else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
@@ -295,6 +379,10 @@ int main(int argc, char** argv) {
     for (size_t i = 0; i < nodes.size(); ++i) {
       build_payload(nodes[i], rules, payloads[i]);
       holes += payloads[i].hole_texels;
+    }
+    if (frontier) {
+      print_frontier(dem.name.c_str(), payloads, reps);
+      continue;
     }
     if (block_stats) {
       print_block_stats(dem.name.c_str(), payloads);
@@ -362,7 +450,7 @@ int main(int argc, char** argv) {
     if (progress) std::fprintf(stderr, "  %d hole texels over %zu nodes\n", holes, nodes.size());
   }
 
-  if (block_stats) return 0;
+  if (block_stats || frontier) return 0;
   const bool cook_table = encoder_only.empty();
   // Whole surface cook per node (normals, albedo, splat, cones + compression), one thread, on up
   // to 48 nodes of every known shared DEM: per node the median over the repetitions.
