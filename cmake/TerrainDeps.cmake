@@ -54,6 +54,18 @@ if(TERRAIN_BUILD_TESTS)
 endif()
 if(TERRAIN_BUILD_BENCHMARKS)
   find_package(benchmark CONFIG QUIET)
+  # CharLS (JPEG-LS), optional: the peer-coder column of terrain-format-bench (libcharls-dev).
+  # Debian ships a config file with target `charls`; fall back to a plain header/library search.
+  find_package(charls CONFIG QUIET)
+  if(NOT TARGET charls)
+    find_path(CHARLS_INCLUDE_DIR charls/charls.h)
+    find_library(CHARLS_LIBRARY charls)
+    if(EXISTS "${CHARLS_INCLUDE_DIR}/charls/charls.h" AND CHARLS_LIBRARY)
+      add_library(charls UNKNOWN IMPORTED)
+      set_target_properties(charls PROPERTIES IMPORTED_LOCATION "${CHARLS_LIBRARY}"
+                                              INTERFACE_INCLUDE_DIRECTORIES "${CHARLS_INCLUDE_DIR}")
+    endif()
+  endif()
 endif()
 if(TERRAIN_BUILD_VIEWER)
   find_package(Vulkan REQUIRED COMPONENTS glslc)

@@ -4,6 +4,9 @@
 // checked against the input before a number is printed. Timings: fastest of --runs passes, and
 // "paired": plain zstd -19 and the codec decoded back to back in each run (median of the per-run
 // ratios), the number to quote on a shared machine.
+// Peer coder: JPEG-LS lossless (CharLS, when built with it) on the same tiles, timed and checked
+// the same way. --dump-pgm writes every tile as a 16-bit PGM for external coders
+// (tools/peer_lossless.sh runs JPEG-XL's cjxl over them).
 #include <zip.h>
 #include <zlib.h>
 #include <zstd.h>
@@ -16,6 +19,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fmt/core.h>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -25,6 +29,10 @@
 #include "terrain/archive_writer.h"
 #include "terrain/format.h"
 #include "terrain/height_codec.h"
+
+#if TERRAIN_HAVE_CHARLS
+#include <charls/charls.h>
+#endif
 
 namespace {
 
@@ -200,6 +208,73 @@ Timing time_runs(int runs, F&& fn) {
   return {*std::min_element(t.begin(), t.end()), median(t)};
 }
 
+// Paired timing: each run decodes every tile with plain zstd -19 (zpass) and then with the other
+// coder (ppass), back to back, so load from other processes hits both alike.
+struct Paired {
+  double pct = 0, zstd19_mbps = 0, mbps = 0;  // median of per-run speed ratios; median MB/s of each
+};
+template <typename Z, typename P>
+Paired time_paired(int runs, double mb, Z&& zpass, P&& ppass) {
+  zpass();
+  ppass();
+  std::vector<double> tz, tp, ratio;
+  for (int r = 0; r < runs; ++r) {
+    const auto a = Clock::now();
+    zpass();
+    const auto b = Clock::now();
+    ppass();
+    const auto c = Clock::now();
+    tz.push_back(std::chrono::duration<double>(b - a).count());
+    tp.push_back(std::chrono::duration<double>(c - b).count());
+    ratio.push_back(tz.back() / tp.back());
+  }
+  return {100.0 * median(ratio), mb / median(tz), mb / median(tp)};
+}
+
+// JPEG-LS lossless (CharLS) of one tile: one component, 129x129, the fewest bits per sample that
+// hold the tile's largest value (9..16; JPEG-LS codes against MAXVAL = 2^bits - 1), no optional
+// marker segments. Empty on error.
+#if TERRAIN_HAVE_CHARLS
+std::vector<uint8_t> charls_encode(const std::vector<uint16_t>& r16) {
+  const uint16_t hi = *std::max_element(r16.begin(), r16.end());
+  int bits = 9;  // 2..8 bits would take one byte per sample
+  while (bits < 16 && (uint32_t(hi) >> bits) != 0) ++bits;
+  try {
+    charls::jpegls_encoder enc;
+    enc.frame_info({uint32_t(kHeightSamples), uint32_t(kHeightSamples), bits, 1})
+        .near_lossless(0)
+        .encoding_options(charls::encoding_options::none);
+    std::vector<uint8_t> out(enc.estimated_destination_size());
+    enc.destination(out);
+    out.resize(enc.encode(r16.data(), r16.size() * sizeof(uint16_t)));
+    return out;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "CharLS encode: {}\n", e.what());
+    return {};
+  }
+}
+bool charls_decode(const std::vector<uint8_t>& src, std::vector<uint16_t>& out) {
+  try {
+    charls::jpegls_decoder dec(src.data(), src.size(), true);
+    const charls::frame_info f = dec.frame_info();
+    if (f.width != uint32_t(kHeightSamples) || f.height != uint32_t(kHeightSamples) || f.component_count != 1 || f.bits_per_sample <= 8)
+      return false;
+    dec.decode(out.data(), out.size() * sizeof(uint16_t));
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+#endif
+
+struct PeerResult {
+  bool measured = false;
+  uint64_t bytes = 0;
+  double encode_ms_per_tile = 0;
+  double decode_mbps = 0, decode_mbps_median = 0;
+  Paired paired;
+};
+
 struct LevelResult {
   int level = 0;
   uint64_t bytes = 0;
@@ -217,6 +292,7 @@ struct Result {
   double zstd19_decode_mbps = 0, zstd_default_decode_mbps = 0, memcpy_mbps = 0;
   double zstd19_decode_mbps_median = 0;
   std::vector<LevelResult> levels;
+  PeerResult charls;  // JPEG-LS lossless
 };
 
 bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_level, int runs, Result& res) {
@@ -295,31 +371,93 @@ bool run_dataset(const Dataset& d, const std::vector<int>& levels, int default_l
     lr.decode_mbps_median = mb / t.median;
     {
       ZSTD_DCtx* pctx = ZSTD_createDCtx();
-      auto zpass = [&] {
-        for (const auto& zi : z19) ZSTD_decompressDCtx(pctx, out.data(), out.size(), zi.data(), zi.size());
-      };
-      auto ppass = [&] {
-        for (const auto& p : payloads) (void)terrain::decode_node_payload(p, terrain::kSectionHeights, *data);
-      };
-      zpass();
-      ppass();
-      std::vector<double> tz, tp, ratio;
-      for (int r = 0; r < runs; ++r) {
-        const auto a = Clock::now();
-        zpass();
-        const auto b = Clock::now();
-        ppass();
-        const auto c = Clock::now();
-        tz.push_back(std::chrono::duration<double>(b - a).count());
-        tp.push_back(std::chrono::duration<double>(c - b).count());
-        ratio.push_back(tz.back() / tp.back());
-      }
+      const Paired p = time_paired(
+          runs, mb, [&] { for (const auto& zi : z19) ZSTD_decompressDCtx(pctx, out.data(), out.size(), zi.data(), zi.size()); },
+          [&] { for (const auto& pl : payloads) (void)terrain::decode_node_payload(pl, terrain::kSectionHeights, *data); });
       ZSTD_freeDCtx(pctx);
-      lr.paired_pct = 100.0 * median(ratio);
-      lr.paired_zstd19_mbps = mb / median(tz);
-      lr.paired_mbps = mb / median(tp);
+      lr.paired_pct = p.pct;
+      lr.paired_zstd19_mbps = p.zstd19_mbps;
+      lr.paired_mbps = p.mbps;
     }
     res.levels.push_back(lr);
+  }
+#if TERRAIN_HAVE_CHARLS
+  {
+    PeerResult& pr = res.charls;
+    std::vector<std::vector<uint8_t>> coded(d.tiles.size());
+    bool encoded = true;
+    const Timing enc = time_runs(1, [&] {
+      for (size_t i = 0; i < d.tiles.size(); ++i) {
+        coded[i] = charls_encode(d.tiles[i].r16);
+        encoded &= !coded[i].empty();
+      }
+    });
+    if (!encoded) return false;
+    pr.encode_ms_per_tile = 1e3 * enc.best / double(d.tiles.size());
+    std::vector<uint16_t> dec(static_cast<size_t>(kHeightCount));
+    for (size_t i = 0; i < d.tiles.size(); ++i) {
+      pr.bytes += coded[i].size();
+      std::fill(dec.begin(), dec.end(), uint16_t(0));
+      if (!charls_decode(coded[i], dec) || dec != d.tiles[i].r16) {
+        fmt::print(stderr, "{}: JPEG-LS: tile {} decodes wrong\n", d.name, i);
+        return false;
+      }
+    }
+    auto cpass = [&] {
+      for (const auto& c : coded) (void)charls_decode(c, dec);
+    };
+    const Timing t = time_runs(runs, cpass);
+    pr.decode_mbps = mb / t.best;
+    pr.decode_mbps_median = mb / t.median;
+    ZSTD_DCtx* pctx = ZSTD_createDCtx();
+    pr.paired = time_paired(
+        runs, mb, [&] { for (const auto& zi : z19) ZSTD_decompressDCtx(pctx, out.data(), out.size(), zi.data(), zi.size()); }, cpass);
+    ZSTD_freeDCtx(pctx);
+    pr.measured = true;
+  }
+#endif
+  return true;
+}
+
+// Every tile as a binary 16-bit PGM (P5, maxval 65535, big-endian samples, rows in memory order:
+// row 0 = south first, the order every coder here scans): DIR/<dataset>/<index>.pgm.
+bool dump_pgm(const std::string& dir, const Dataset& d) {
+  const std::filesystem::path sub = std::filesystem::path(dir) / d.name;
+  std::error_code ec;
+  std::filesystem::create_directories(sub, ec);
+  if (ec) {
+    fmt::print(stderr, "--dump-pgm: cannot create {}: {}\n", sub.string(), ec.message());
+    return false;
+  }
+  const std::string header = fmt::format("P5\n{} {}\n65535\n", kHeightSamples, kHeightSamples);
+  std::vector<char> body(kTileBytes);
+  for (size_t i = 0; i < d.tiles.size(); ++i) {
+    for (size_t k = 0; k < d.tiles[i].r16.size(); ++k) {
+      body[2 * k] = char(d.tiles[i].r16[k] >> 8);
+      body[2 * k + 1] = char(d.tiles[i].r16[k] & 0xff);
+    }
+    const std::filesystem::path file = sub / fmt::format("{:05}.pgm", i);
+    std::ofstream f(file, std::ios::binary | std::ios::trunc);
+    f.write(header.data(), std::streamsize(header.size()));
+    f.write(body.data(), std::streamsize(body.size()));
+    if (!f.flush()) {
+      fmt::print(stderr, "--dump-pgm: cannot write {}\n", file.string());
+      return false;
+    }
+  }
+  return true;
+}
+
+// Byte counts of the in-process coders next to the PGMs, for tools/peer_lossless.sh.
+bool write_bytes_file(const std::string& dir, const Result& r) {
+  const std::filesystem::path file = std::filesystem::path(dir) / r.name / "bench_bytes.tsv";
+  std::ofstream f(file, std::ios::trunc);
+  f << "tiles\t" << r.tiles << "\nraw\t" << r.raw << "\nzstd19\t" << r.zstd19 << "\n";
+  for (const LevelResult& l : r.levels) f << "predictor_zstd" << l.level << "\t" << l.bytes << "\n";
+  if (r.charls.measured) f << "jpegls_charls\t" << r.charls.bytes << "\n";
+  if (!f.flush()) {
+    fmt::print(stderr, "--dump-pgm: cannot write {}\n", file.string());
+    return false;
   }
   return true;
 }
@@ -336,7 +474,8 @@ int main(int argc, char** argv) {
   int runs = 15;
   size_t max_tiles = 400;
   int step_floor = 4;
-  bool json = false;
+  bool json = false, archives_only = false;
+  std::string dump_dir;
   app.add_option("--data", data_dir, "folder of the shared real DEMs")->capture_default_str();
   app.add_option("--archive", archives, "also benchmark the height grids of every node of these cooked archives");
   app.add_option("--levels", levels, "zstd levels for predictor+zstd")->capture_default_str();
@@ -348,6 +487,10 @@ int main(int argc, char** argv) {
                  "in 2^-10 m units, 4 at 0.5 m); 0 = range-driven step only")
       ->capture_default_str()
       ->check(CLI::Range(0, 14));
+  app.add_flag("--archives-only", archives_only, "skip the shared DEMs: only the --archive datasets");
+  app.add_option("--dump-pgm", dump_dir,
+                 "write every tile as a 16-bit PGM to DIR/<dataset>/NNNNN.pgm (plus bench_bytes.tsv) for external coders "
+                 "(tools/peer_lossless.sh)");
   app.add_flag("--json", json, "print JSON instead of the table");
   CLI11_PARSE(app, argc, argv);
 
@@ -367,6 +510,7 @@ int main(int argc, char** argv) {
       {"sanjorge_srtm1", "S46W066.hgt.gz", 1.0, std::nullopt, true},
   };
   for (const Source& s : sources) {
+    if (archives_only) break;
     const std::string path = (std::filesystem::path(data_dir) / s.file).string();
     std::vector<float> m;
     int w = 0, h = 0;
@@ -403,11 +547,13 @@ int main(int argc, char** argv) {
 
   std::vector<Result> results;
   for (const Dataset& d : sets) {
+    if (!dump_dir.empty() && !dump_pgm(dump_dir, d)) return 1;
     Result r;
     if (!run_dataset(d, levels, default_level, runs, r)) {
       fmt::print(stderr, "{}: benchmark failed (decode mismatch or codec error)\n", d.name);
       return 1;
     }
+    if (!dump_dir.empty() && !write_bytes_file(dump_dir, r)) return 1;
     results.push_back(std::move(r));
   }
   if (json) {
@@ -425,6 +571,13 @@ int main(int argc, char** argv) {
                                   {"decode_vs_zstd19", l.decode_mbps / r.zstd19_decode_mbps},
                                   {"paired_decode_pct_of_zstd19", l.paired_pct}, {"paired_decode_mbps", l.paired_mbps},
                                   {"paired_zstd19_decode_mbps", l.paired_zstd19_mbps}});
+      if (r.charls.measured)
+        o["jpegls_charls"] = {{"bytes", r.charls.bytes}, {"ratio_vs_zstd19", double(r.charls.bytes) / double(r.zstd19)},
+                              {"encode_ms_per_tile", r.charls.encode_ms_per_tile}, {"decode_mbps", r.charls.decode_mbps},
+                              {"decode_mbps_median", r.charls.decode_mbps_median},
+                              {"decode_vs_zstd19", r.charls.decode_mbps / r.zstd19_decode_mbps},
+                              {"paired_decode_pct_of_zstd19", r.charls.paired.pct}, {"paired_decode_mbps", r.charls.paired.mbps},
+                              {"paired_zstd19_decode_mbps", r.charls.paired.zstd19_mbps}};
       j.push_back(o);
     }
     fmt::print("{}\n", j.dump(2));
@@ -445,6 +598,12 @@ int main(int argc, char** argv) {
                  l.level, l.bytes, double(r.raw) / double(l.bytes), double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile,
                  l.decode_mbps, 100.0 * l.decode_mbps / r.zstd19_decode_mbps, l.decode_mbps_median,
                  100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median, l.paired_pct, l.paired_mbps, l.paired_zstd19_mbps);
+    if (const PeerResult& c = r.charls; c.measured)
+      fmt::print("  JPEG-LS (CharLS)   {:>9} B  ratio {:5.2f}  vs zstd19 {:4.2f}x  encode {:6.3f} ms/tile  decode {:7.0f} MB/s "
+                 "({:3.0f}% of zstd19; medians {:.0f} MB/s, {:.0f}%; paired {:.0f}% = {:.0f} vs {:.0f} MB/s)\n",
+                 c.bytes, double(r.raw) / double(c.bytes), double(c.bytes) / double(r.zstd19), c.encode_ms_per_tile, c.decode_mbps,
+                 100.0 * c.decode_mbps / r.zstd19_decode_mbps, c.decode_mbps_median,
+                 100.0 * c.decode_mbps_median / r.zstd19_decode_mbps_median, c.paired.pct, c.paired.mbps, c.paired.zstd19_mbps);
   }
   fmt::print("\n# summary (tab-separated)\ndataset\ttiles\tzstd19_B\tlevel\tpred_B\tratio_vs_zstd19\tencode_ms\tdecode_MBps\tzstd19_decode_MBps\tpct\tpct_median\tpaired_MBps\tpaired_zstd19_MBps\tpaired_pct\tmemcpy_MBps\n");
   for (const Result& r : results)
@@ -453,5 +612,16 @@ int main(int argc, char** argv) {
                  l.level, l.bytes, double(l.bytes) / double(r.zstd19), l.encode_ms_per_tile, l.decode_mbps, r.zstd19_decode_mbps,
                  100.0 * l.decode_mbps / r.zstd19_decode_mbps, 100.0 * l.decode_mbps_median / r.zstd19_decode_mbps_median,
                  l.paired_mbps, l.paired_zstd19_mbps, l.paired_pct, r.memcpy_mbps);
+#if TERRAIN_HAVE_CHARLS
+  fmt::print("\n# JPEG-LS lossless (CharLS {}.{}.{}; tab-separated)\ndataset\ttiles\tzstd19_B\tjpegls_B\tratio_vs_zstd19\tencode_ms\tdecode_MBps\tzstd19_decode_MBps\tpct\tpaired_MBps\tpaired_zstd19_MBps\tpaired_pct\n",
+             CHARLS_VERSION_MAJOR, CHARLS_VERSION_MINOR, CHARLS_VERSION_PATCH);
+  for (const Result& r : results)
+    if (const PeerResult& c = r.charls; c.measured)
+      fmt::print("{}\t{}\t{}\t{}\t{:.3f}\t{:.3f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\t{:.0f}\n", r.name, r.tiles, r.zstd19, c.bytes,
+                 double(c.bytes) / double(r.zstd19), c.encode_ms_per_tile, c.decode_mbps, r.zstd19_decode_mbps,
+                 100.0 * c.decode_mbps / r.zstd19_decode_mbps, c.paired.mbps, c.paired.zstd19_mbps, c.paired.pct);
+#else
+  fmt::print("\n# JPEG-LS column off: built without CharLS (libcharls-dev)\n");
+#endif
   return 0;
 }
