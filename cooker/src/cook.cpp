@@ -73,7 +73,9 @@ std::string cook_info(const CookOptions& o, const CookReport& r, const std::vect
                   {"holes", o.holes_path},
                   {"landcover", o.landcover_path},
                   {"landcover_table", o.landcover_table_path},
-                  {"heights_only", o.heights_only}};
+                  {"heights_only", o.heights_only},
+                  {"zstd_level", o.zstd_level},
+                  {"surface_zstd_level", o.surface_zstd_level}};
   if (o.origin) j["options"]["origin"] = *o.origin;
   if (o.spacing) j["options"]["spacing"] = *o.spacing;
   if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
@@ -381,6 +383,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   ctx.source_spacing_m = report.source_spacing_m;
   ctx.heights_only = options.heights_only;
   ctx.payload.zstd_level = options.zstd_level;
+  ctx.payload.surface_zstd_level = options.surface_zstd_level;
 
   RangeIndex index;
   index.build(source);

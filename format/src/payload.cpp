@@ -129,6 +129,9 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
   using namespace detail;
   if (options.zstd_level < -7 || options.zstd_level > 22)
     return Status::failure(Error::invalid_argument, "zstd_level " + std::to_string(options.zstd_level) + " outside -7..22");
+  const int surface_level = options.surface_zstd_level.value_or(options.zstd_level);
+  if (surface_level < -7 || surface_level > 22)
+    return Status::failure(Error::invalid_argument, "surface_zstd_level " + std::to_string(surface_level) + " outside -7..22");
   out.assign(layout::kPayloadHeaderSize, 0);
   out.reserve(layout::kPayloadHeaderSize + 40000);
   out[0] = uint8_t(layout::kSectionCount);
@@ -178,7 +181,7 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
         st = compress_section(scratch, options.zstd_level, layout::Codec::zstd, out, entries[s]);
       }
     } else {
-      st = compress_section(raw[s], options.zstd_level, layout::Codec::zstd, out, entries[s]);
+      st = compress_section(raw[s], surface_level, layout::Codec::zstd, out, entries[s]);
     }
     if (!st.ok()) return st;
   }

@@ -118,6 +118,43 @@ TEST_F(ArchiveRoundTrip, DecodeOnlyRequestedSections) {
   EXPECT_TRUE(std::all_of(got->cones_bc3.begin(), got->cones_bc3.end(), [](uint8_t b) { return b == 0xCD; }));
 }
 
+// surface_zstd_level changes only the four surface sections: the height section's bytes stay
+// those of zstd_level, every section decodes back exactly, and an out-of-range level is an error
+// that names the option.
+TEST(PayloadOptionsTest, SurfaceLevelAppliesToTheSurfaceSectionsOnly) {
+  const WorldInfo w = make_world();
+  const auto node = test::make_synthetic_node(w, NodeKey{0, 3, 2}, 7);
+  PayloadOptions heights_only_level{9, true};
+  PayloadOptions split = heights_only_level;
+  split.surface_zstd_level = 1;
+  std::vector<uint8_t> a, b;
+  ASSERT_TRUE(encode_node_payload(*node.data, heights_only_level, a).ok());
+  ASSERT_TRUE(encode_node_payload(*node.data, split, b).ok());
+  // Section table entries: [id, codec, shift, pad, stored u32, raw u32]; heights come first.
+  auto stored = [](const std::vector<uint8_t>& p, int s) {
+    const uint8_t* e = p.data() + 4 + s * layout::kPayloadTableEntrySize;
+    return uint32_t(e[4]) | uint32_t(e[5]) << 8 | uint32_t(e[6]) << 16 | uint32_t(e[7]) << 24;
+  };
+  const uint32_t heights = stored(a, 0);
+  EXPECT_EQ(heights, stored(b, 0));
+  EXPECT_TRUE(std::equal(a.begin() + layout::kPayloadHeaderSize, a.begin() + layout::kPayloadHeaderSize + heights,
+                         b.begin() + layout::kPayloadHeaderSize));
+  EXPECT_NE(a, b);  // the surface sections were compressed differently
+  for (const auto* p : {&a, &b}) {
+    auto got = std::make_unique<NodeData>();
+    ASSERT_TRUE(decode_node_payload(*p, kSectionAll, *got).ok());
+    EXPECT_EQ(got->heights, node.data->heights);
+    EXPECT_EQ(got->normals_bc3, node.data->normals_bc3);
+    EXPECT_EQ(got->albedo_bc1, node.data->albedo_bc1);
+    EXPECT_EQ(got->splat, node.data->splat);
+    EXPECT_EQ(got->cones_bc3, node.data->cones_bc3);
+  }
+  split.surface_zstd_level = 23;
+  const Status bad = encode_node_payload(*node.data, split, b);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.to_string().find("surface_zstd_level 23"), std::string::npos) << bad.to_string();
+}
+
 TEST_F(ArchiveRoundTrip, LookupsAcrossASparseTreeTellPresentFromAbsent) {
   const WorldInfo w = make_world(2, 1);
   const auto keys = test::sparse_keys();

@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -16,11 +17,14 @@
 namespace terrain {
 
 struct PayloadOptions {
-  // Applied to every section. 3 (measured by terrain-format-bench on real DEM tiles): heights
-  // within 1-4 % of level 9's bytes at a quarter to a fifth of the encode time; level 9 and above
-  // cost 0.2-1.1 ms per node for the heights alone, too much of the cooker's ~2 ms per node.
+  // zstd level of the heights (and of every section unless surface_zstd_level is set). 3 is the
+  // quick general default; levels 9-18 switch the height residuals to tuned optimal parsing
+  // (payload.cpp), which terrain-cook uses (level 9) for 0.5-18 % fewer height bytes.
   int zstd_level = 3;
   bool height_predictor = true;  // predictor + zstd (or plain zstd where smaller); false: plain zstd only (benchmarks)
+  // zstd level of the normals, albedo, splat and cones sections (BC blocks and material ids);
+  // unset: zstd_level. Those sections gain little from high levels (see CookOptions).
+  std::optional<int> surface_zstd_level;
 };
 
 // Encodes one node's payload (section table + zstd sections) into `out` (replaced).
