@@ -8,8 +8,7 @@ layout(std140, set = 0, binding = 0) uniform Frame {
   vec4 cam_frac;    // x, y remainder (m); z camera height (m); w pixels per radian
   vec4 lod;         // x error target px; y cone margin; z, w near-shading start, end (m)
   uvec4 world;      // roots_x, roots_y, sectors_x, sectors_y
-  uvec4 misc;       // stamp, flags, debug view, patch capacity
-  uvec4 level_offsets[2];
+  uvec4 misc;       // unused, flags, debug view, patch capacity
   vec4 sun_dir;
   vec4 sun_color;   // w: ambient strength
   vec4 sky_color;
@@ -42,7 +41,6 @@ layout(std140, set = 0, binding = 14) uniform Palette {
 
 uint node_level(NodeDesc d) { return d.packed & 0xFFu; }
 uint node_step(NodeDesc d) { return (d.packed >> 8) & 0xFFu; }
-uint level_offset(uint level) { return frame.level_offsets[level >> 2][level & 3u]; }
 uint level_width(uint level) { return frame.world.x << (TV_ROOT_LEVEL - level); }
 
 // Camera-relative coordinates of exact half-metre integers and height units (see camera.h).

@@ -48,13 +48,6 @@
 // (its nodes are then level >= 5: d <= 3); levels 6 and 7 give d <= 7 against any level.
 #define TV_MAX_COARSEN 3
 
-// Selection grid (was: node list -> LOD map): per level and node one uint =
-// stamp << 6 | coarsening << 4 | quadrant mask. No shader reads or writes it since the LOD map is
-// scattered from the node list (lodmap.comp); the buffer is still allocated and cleared once.
-#define TV_SELECT_STAMP_SHIFT 6
-#define TV_SELECT_COARSE_SHIFT 4
-#define TV_STAMP_MASK 0x03FFFFFFu
-
 // LOD map: one uint per sector, geometric level + 1 of the node drawing it (1..9), 0 = nothing
 // drawn (never stitches). Written by one workgroup of TV_LODMAP_GROUP threads per listed node.
 #define TV_LODMAP_GROUP 64

@@ -6,7 +6,7 @@
 #include "common.glsl"
 
 layout(local_size_x = TV_PATCH_GROUP) in;
-layout(std430, set = 0, binding = 17) readonly buffer PatchWork { uint patch_work[]; };
+layout(std430, set = 0, binding = 5) readonly buffer PatchWork { uint patch_work[]; };
 layout(std430, set = 0, binding = 4) readonly buffer NodeList { uint node_list[]; };
 layout(std430, set = 0, binding = 6) readonly buffer LodMap { uint lod_map[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };

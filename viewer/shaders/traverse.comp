@@ -8,7 +8,7 @@
 layout(local_size_x = TV_TRAVERSE_GROUP) in;
 
 layout(std430, set = 0, binding = 4) buffer NodeList { uint node_list[]; };  // header + entries
-layout(std430, set = 0, binding = 17) writeonly buffer PatchWork { uint patch_work[]; };
+layout(std430, set = 0, binding = 5) writeonly buffer PatchWork { uint patch_work[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
 
 shared uint lists[2][TV_MAX_LIST];

@@ -161,6 +161,8 @@ Status create_context(const DeviceOptions& options, Context& ctx) {
   f2.pNext = &f13;
   f2.features.textureCompressionBC = VK_TRUE;
   f2.features.fillModeNonSolid = supported.fillModeNonSolid;
+  f2.features.multiDrawIndirect = supported.multiDrawIndirect;
+  ctx.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;
   const float priority = 1.0f;
   VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
   qci.queueFamilyIndex = family;

@@ -29,6 +29,7 @@ struct Context {
   VkPhysicalDeviceMemoryProperties memory{};
   std::string device_name;
   uint32_t validation_errors = 0;  // messages of severity error seen by the debug messenger
+  bool multi_draw_indirect = false;  // drawCount > 1 in one indirect draw (else one call per draw)
 };
 
 // Error::unsupported_input with "no Vulkan device" in the message when the loader finds no

@@ -54,8 +54,7 @@ struct FrameUniforms {
   float cam_frac[4] = {};     // x, y remainder in metres [0, 0.5); z camera height m; w pixels per radian
   float lod[4] = {};          // x error target px, y cone margin (sin), z near-shading start m, w end m
   uint32_t world[4] = {};     // roots_x, roots_y, sectors_x, sectors_y
-  uint32_t misc[4] = {};      // frame stamp, flags (TV_FLAG_*), debug view (TV_DEBUG_*), patch capacity
-  uint32_t level_offsets[8] = {};  // selection-grid offset of each level (uints)
+  uint32_t misc[4] = {};      // unused (0), flags (TV_FLAG_*), debug view (TV_DEBUG_*), patch capacity
   float sun_dir[4] = {};      // towards the sun, w unused
   float sun_color[4] = {};    // linear rgb, w ambient strength
   float sky_color[4] = {};    // linear rgb, w unused

@@ -21,7 +21,7 @@ enum Binding : uint32_t {
   kBindPatchBounds = 2,
   kBindIndexTex = 3,
   kBindNodeList = 4,
-  kBindSelection = 5,
+  kBindPatchWork = 5,
   kBindLodMap = 6,
   kBindDraw = 7,
   kBindPatches = 8,
@@ -33,8 +33,7 @@ enum Binding : uint32_t {
   kBindPalette = 14,
   kBindCoarseErrors = 15,
   kBindPatchErrors = 16,
-  kBindPatchWork = 17,
-  kBindCount = 18,
+  kBindCount = 17,
 };
 
 // The patch meshes of every decimation e, one after the other: (16 >> e)^2 quads each.
@@ -67,11 +66,6 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   if (world.roots_x == 0 || world.roots_y == 0) return Status::failure(Error::invalid_argument, "renderer: empty world");
   sectors_x_ = level_grid_width(world.roots_x, 0);
   sectors_y_ = level_grid_width(world.roots_y, 0);
-  selection_uints_ = 0;
-  for (int l = 0; l < kLevelCount; ++l) {
-    level_offsets_[size_t(l)] = selection_uints_;
-    selection_uints_ += level_grid_width(world.roots_x, l) * level_grid_width(world.roots_y, l);
-  }
   const uint32_t slots = config.slot_count;
   slot_cpu_.assign(slots, SlotCpuData{});
 
@@ -116,7 +110,6 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(selection_uints_) * 4, storage, selection_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(sectors_x_) * sectors_y_ * 4, storage, lod_map_));
   TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
   // Patch range r (shading group x decimation) from instance r * capacity (config.h, shading groups).
@@ -198,9 +191,13 @@ Status TerrainRenderer::create_pipelines() {
   plci.pSetLayouts = &set_layout_;
   VK_TRY(vkCreatePipelineLayout(ctx.device, &plci, nullptr, &pipeline_layout_));
 
-  VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},
-                                   {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 8},
-                                   {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 6}};
+  // Pool sizes counted from the layout itself, so they cannot drift from the bindings.
+  VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 0},
+                                   {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 0},
+                                   {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 0}};
+  for (const VkDescriptorSetLayoutBinding& binding : b)
+    for (VkDescriptorPoolSize& size : sizes)
+      if (size.type == binding.descriptorType) size.descriptorCount += binding.descriptorCount;
   VkDescriptorPoolCreateInfo dpci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpci.maxSets = 1;
   dpci.poolSizeCount = 3;
@@ -221,7 +218,6 @@ Status TerrainRenderer::create_pipelines() {
   buf(kBindNodeDesc, node_desc_);
   buf(kBindPatchBounds, patch_bounds_);
   buf(kBindNodeList, node_list_);
-  buf(kBindSelection, selection_);
   buf(kBindLodMap, lod_map_);
   buf(kBindDraw, draw_);
   buf(kBindPatches, patches_);
@@ -380,7 +376,7 @@ void TerrainRenderer::destroy() {
   if (nearest_) vkDestroySampler(ctx.device, nearest_, nullptr);
   linear_ = nearest_ = VK_NULL_HANDLE;
   for (Image& i : images_) destroy_image(ctx, i);
-  for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &patch_errors_, &patch_work_, &node_list_, &selection_, &lod_map_,
+  for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &patch_errors_, &patch_work_, &node_list_, &lod_map_,
                     &draw_, &patches_, &index_buffer_, &stats_readback_, &lists_readback_, &staging_})
     destroy_buffer(ctx, *b);
   images_initialised_ = false;
@@ -486,8 +482,6 @@ void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, ui
   settings_ = s;
   FrameUniforms& u = uniforms_;
   fill_view_uniforms(camera, world_, width, height, u);
-  stamp_ = (stamp_ + 1) & TV_STAMP_MASK;
-  if (stamp_ == 0) stamp_ = 1;  // 0 is the selection grid's cleared value
   u.lod[0] = float(s.error_target_px);
   u.lod[1] = float(s.cone_margin_deg);
   u.lod[2] = float(s.near_start_m);
@@ -504,11 +498,10 @@ void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, ui
   if (s.splat && (s.debug == TV_DEBUG_NONE || s.debug == TV_DEBUG_WIRE)) flags |= TV_FLAG_SPLAT;
   if (!s.stitch) flags |= TV_FLAG_NO_STITCH;
   if (s.decimate) flags |= TV_FLAG_DECIMATE;
-  u.misc[0] = stamp_;
+  u.misc[0] = 0;
   u.misc[1] = flags;
   u.misc[2] = uint32_t(s.debug);
   u.misc[3] = config_.slot_count * TV_PATCHES_PER_NODE;
-  for (size_t l = 0; l < 8; ++l) u.level_offsets[l] = level_offsets_[l];
   const double az = s.sun_azimuth_deg * M_PI / 180.0, el = s.sun_elevation_deg * M_PI / 180.0;
   u.sun_dir[0] = float(std::sin(az) * std::cos(el));
   u.sun_dir[1] = float(std::cos(az) * std::cos(el));
@@ -542,7 +535,6 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
     for (Image& img : images_)
       image_barrier(cmd, img, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                     VK_PIPELINE_STAGE_2_NONE, 0, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
-    vkCmdFillBuffer(cmd, selection_.buffer, 0, VK_WHOLE_SIZE, 0);
   } else if (!pending_images_.empty()) {
     for (Image& img : images_)
       image_barrier(cmd, img, VK_IMAGE_ASPECT_COLOR_BIT, read_layout, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, shader_stages,
@@ -637,13 +629,21 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
   const bool shaded = debug == TV_DEBUG_NONE || debug == TV_DEBUG_WIRE;
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, shaded, false));
   const uint32_t stride = 5 * 4;  // VkDrawIndexedIndirectCommand
-  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, TV_MESHES, stride);
+  // One draw per decimation mesh: a single multi-draw where the device has the feature.
+  auto draw_group = [&](uint32_t first_uint) {
+    if (ctx_->multi_draw_indirect) {
+      vkCmdDrawIndexedIndirect(cmd, draw_.buffer, first_uint * 4, TV_MESHES, stride);
+    } else {
+      for (uint32_t m = 0; m < TV_MESHES; ++m) vkCmdDrawIndexedIndirect(cmd, draw_.buffer, first_uint * 4 + m * stride, 1, stride);
+    }
+  };
+  draw_group(TV_DRAW_NEAR);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, false));
-  vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, TV_MESHES, stride);
+  draw_group(TV_DRAW_FAR);
   if (debug == TV_DEBUG_WIRE) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, true));
-    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_NEAR * 4, TV_MESHES, stride);
-    vkCmdDrawIndexedIndirect(cmd, draw_.buffer, TV_DRAW_FAR * 4, TV_MESHES, stride);
+    draw_group(TV_DRAW_NEAR);
+    draw_group(TV_DRAW_FAR);
   }
   vkCmdEndRendering(cmd);
   if (timestamps_) vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, queries_, 4);

@@ -107,15 +107,13 @@ class TerrainRenderer {
   WorldInfo world_;
   RendererConfig config_;
   uint32_t sectors_x_ = 0, sectors_y_ = 0;
-  uint32_t selection_uints_ = 0;
-  std::array<uint32_t, 8> level_offsets_{};
 
   // Atlases: 0 heights R16_UINT, 1 normals BC3, 2 albedo BC1 sRGB, 3 splat R8_UINT, 4 cones BC3, 5 index.
   std::array<Image, 6> images_;
   bool images_initialised_ = false;
   VkSampler linear_ = VK_NULL_HANDLE, nearest_ = VK_NULL_HANDLE;
 
-  Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, patch_errors_, patch_work_, node_list_, selection_, lod_map_, draw_, patches_,
+  Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, patch_errors_, patch_work_, node_list_, lod_map_, draw_, patches_,
       index_buffer_, stats_readback_, lists_readback_;
   bool lists_captured_ = false;
   Buffer staging_;
@@ -137,7 +135,6 @@ class TerrainRenderer {
   FrameUniforms uniforms_{};
   FrameSettings settings_{};
   float cone_table_[256] = {};
-  uint32_t stamp_ = 0;
   std::vector<SlotCpuData> slot_cpu_;
 };
 
