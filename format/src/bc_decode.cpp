@@ -13,7 +13,8 @@ void expand565(uint16_t c, int rgb[3]) {
 }
 
 // Colour part shared by BC1 and BC3. `allow_punch_through` is false for BC3 (always 4 colours).
-void decode_colour(const uint8_t* b, bool allow_punch_through, uint8_t rgba[64]) {
+void decode_colour(const uint8_t* b, bool allow_punch_through, BcRounding rounding, uint8_t rgba[64]) {
+  const int bias = rounding == BcRounding::nearest ? 1 : 0;
   const uint16_t c0 = uint16_t(b[0] | (b[1] << 8));
   const uint16_t c1 = uint16_t(b[2] | (b[3] << 8));
   int e0[3], e1[3];
@@ -27,12 +28,12 @@ void decode_colour(const uint8_t* b, bool allow_punch_through, uint8_t rgba[64])
   palette[0][3] = palette[1][3] = 255;
   if (c0 > c1 || !allow_punch_through) {
     for (int k = 0; k < 3; ++k) {
-      palette[2][k] = uint8_t((2 * e0[k] + e1[k] + 1) / 3);
-      palette[3][k] = uint8_t((e0[k] + 2 * e1[k] + 1) / 3);
+      palette[2][k] = uint8_t((2 * e0[k] + e1[k] + bias) / 3);
+      palette[3][k] = uint8_t((e0[k] + 2 * e1[k] + bias) / 3);
     }
     palette[2][3] = palette[3][3] = 255;
   } else {
-    for (int k = 0; k < 3; ++k) palette[2][k] = uint8_t((e0[k] + e1[k] + 1) / 2);
+    for (int k = 0; k < 3; ++k) palette[2][k] = uint8_t((e0[k] + e1[k] + bias) / 2);
     palette[2][3] = 255;
     palette[3][0] = palette[3][1] = palette[3][2] = palette[3][3] = 0;
   }
@@ -42,18 +43,22 @@ void decode_colour(const uint8_t* b, bool allow_punch_through, uint8_t rgba[64])
 
 }  // namespace
 
-void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]) { decode_colour(block, true, rgba); }
+void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64], BcRounding rounding) {
+  decode_colour(block, true, rounding, rgba);
+}
+void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]) { decode_bc1_block(block, rgba, BcRounding::nearest); }
 
-void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) {
-  decode_colour(block + 8, false, rgba);
+void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding rounding) {
+  decode_colour(block + 8, false, rounding, rgba);
+  const bool nearest = rounding == BcRounding::nearest;
   const int a0 = block[0], a1 = block[1];
   uint8_t alpha[8];
   alpha[0] = uint8_t(a0);
   alpha[1] = uint8_t(a1);
   if (a0 > a1) {
-    for (int k = 1; k <= 6; ++k) alpha[1 + k] = uint8_t(((7 - k) * a0 + k * a1 + 3) / 7);
+    for (int k = 1; k <= 6; ++k) alpha[1 + k] = uint8_t(((7 - k) * a0 + k * a1 + (nearest ? 3 : 0)) / 7);
   } else {
-    for (int k = 1; k <= 4; ++k) alpha[1 + k] = uint8_t(((5 - k) * a0 + k * a1 + 2) / 5);
+    for (int k = 1; k <= 4; ++k) alpha[1 + k] = uint8_t(((5 - k) * a0 + k * a1 + (nearest ? 2 : 0)) / 5);
     alpha[6] = 0;
     alpha[7] = 255;
   }
@@ -61,26 +66,33 @@ void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) {
   for (int i = 0; i < 6; ++i) bits |= uint64_t(block[2 + i]) << (8 * i);
   for (int p = 0; p < 16; ++p) rgba[4 * p + 3] = alpha[(bits >> (3 * p)) & 7];
 }
+void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) { decode_bc3_block(block, rgba, BcRounding::nearest); }
 
 namespace {
-template <int kBlockBytes, void (*Decode)(const uint8_t*, uint8_t*)>
-void decode_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba) {
+template <int kBlockBytes, void (*Decode)(const uint8_t*, uint8_t*, BcRounding)>
+void decode_image(const uint8_t* blocks, int blocks_x, int blocks_y, BcRounding rounding, uint8_t* rgba) {
   const size_t width = size_t(blocks_x) * 4;
   uint8_t px[64];
   for (int by = 0; by < blocks_y; ++by)
     for (int bx = 0; bx < blocks_x; ++bx) {
-      Decode(blocks + (size_t(by) * size_t(blocks_x) + size_t(bx)) * kBlockBytes, px);
+      Decode(blocks + (size_t(by) * size_t(blocks_x) + size_t(bx)) * kBlockBytes, px, rounding);
       for (int r = 0; r < 4; ++r)
         std::memcpy(rgba + ((size_t(by) * 4 + size_t(r)) * width + size_t(bx) * 4) * 4, px + 16 * r, 16);
     }
 }
 }  // namespace
 
+void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding) {
+  decode_image<8, decode_bc1_block>(blocks, blocks_x, blocks_y, rounding, rgba);
+}
+void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding) {
+  decode_image<16, decode_bc3_block>(blocks, blocks_x, blocks_y, rounding, rgba);
+}
 void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba) {
-  decode_image<8, decode_bc1_block>(blocks, blocks_x, blocks_y, rgba);
+  decode_bc1_image(blocks, blocks_x, blocks_y, rgba, BcRounding::nearest);
 }
 void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba) {
-  decode_image<16, decode_bc3_block>(blocks, blocks_x, blocks_y, rgba);
+  decode_bc3_image(blocks, blocks_x, blocks_y, rgba, BcRounding::nearest);
 }
 
 uint8_t bc1_texel_alpha(const uint8_t* blocks, int blocks_x, int t, int u) {

@@ -153,19 +153,27 @@ inline uint8_t child_mask_of(const std::vector<NodeKey>& keys, const NodeKey& k)
   return mask;
 }
 
-// Writes the synthetic world over `keys` (already closed under parents). Returns the status.
-inline Status write_synthetic_archive(const std::string& path, const WorldInfo& w, const std::vector<NodeKey>& keys,
-                                      const PayloadOptions& options = {}, uint32_t seed = 1) {
+// Writes the nodes `build(key)` (a BuiltNode) makes for `keys` (already closed under parents), in
+// that order, with child masks from `keys`. Returns the status.
+template <class Build>
+Status write_archive_of(const std::string& path, const WorldInfo& w, const std::vector<NodeKey>& keys,
+                        const PayloadOptions& options, Build&& build) {
   ArchiveWriter writer;
   if (Status s = writer.open(path); !s.ok()) return s;
   std::vector<uint8_t> payload;
   for (const NodeKey& k : keys) {
-    BuiltNode n = make_synthetic_node(w, k, seed);
+    BuiltNode n = build(k);
     n.record.child_mask = child_mask_of(keys, k);
     if (Status s = encode_node_payload(*n.data, options, payload); !s.ok()) return s;
     if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
   }
   return writer.finish(w);
+}
+
+// Writes the synthetic world over `keys` (already closed under parents). Returns the status.
+inline Status write_synthetic_archive(const std::string& path, const WorldInfo& w, const std::vector<NodeKey>& keys,
+                                      const PayloadOptions& options = {}, uint32_t seed = 1) {
+  return write_archive_of(path, w, keys, options, [&](const NodeKey& k) { return make_synthetic_node(w, k, seed); });
 }
 
 // A small sparse tree: a few level-0 leaves under root (0,0) and one leaf under root (1,0).

@@ -123,17 +123,7 @@ inline std::vector<NodeKey> dem_keys(const Dem& dem) {
 inline Status write_dem_archive(const std::string& path, const Dem& dem, WorldInfo& w, const PayloadOptions& options = {}) {
   w = make_world(1, 1);
   w.step_log2 = {5, 5, 5, 5, 5, 5};
-  const auto keys = dem_keys(dem);
-  ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
-  std::vector<uint8_t> payload;
-  for (const NodeKey& k : keys) {
-    BuiltNode n = make_dem_node(dem, w, k);
-    n.record.child_mask = child_mask_of(keys, k);
-    if (Status s = encode_node_payload(*n.data, options, payload); !s.ok()) return s;
-    if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
-  }
-  return writer.finish(w);
+  return write_archive_of(path, w, dem_keys(dem), options, [&](const NodeKey& k) { return make_dem_node(dem, w, k); });
 }
 
 }  // namespace terrain::test

@@ -9,6 +9,11 @@
 
 namespace terrain::cook::test {
 
+const MaterialRules& default_rules() {
+  static const MaterialRules r = default_material_rules();
+  return r;
+}
+
 bench::DemNode synthetic_node(const HeightFn& f, uint32_t level, uint32_t nx, uint32_t ny, int step_log2,
                               const HoleFn& hole) {
   bench::DemRaster r;

@@ -11,6 +11,11 @@
 
 namespace terrain::cook::test {
 
+constexpr double kPi = 3.14159265358979323846;
+
+// The built-in material rules (default_material_rules()), built once.
+const MaterialRules& default_rules();
+
 using HeightFn = std::function<double(double x_m, double y_m)>;
 using HoleFn = std::function<bool(double x_m, double y_m)>;
 

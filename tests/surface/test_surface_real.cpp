@@ -18,13 +18,6 @@ using namespace terrain::cook::test;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-const MaterialRules& rules() {
-  static const MaterialRules r = default_material_rules();
-  return r;
-}
-
 bench::DemRaster load(const std::string& file) {
   bench::DemRaster dem;
   const Status st = bench::load_dem(terrain::test::data_file(file).string(), dem);
@@ -68,7 +61,7 @@ TEST(SurfaceReal, KilaueaSeaHolesSurviveCompressionExactly) {
   ASSERT_GE(nodes.size(), 3u);
   for (const auto& n : nodes)
     for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
-      const Cooked c = cook_node(n, rules(), q);
+      const Cooked c = cook_node(n, default_rules(), q);
       ASSERT_TRUE(c.status.ok()) << c.status.to_string();
       expect_exact_punch_through(n, c.data);
     }
@@ -81,7 +74,7 @@ TEST(SurfaceReal, N22W160VoidsSurviveCompressionExactly) {
   const auto nodes = nodes_with_holes(dem, 5, 6, 6);
   ASSERT_GE(nodes.size(), 3u);
   for (const auto& n : nodes) {
-    const Cooked c = cook_node(n, rules(), BcQuality::balanced);
+    const Cooked c = cook_node(n, default_rules(), BcQuality::balanced);
     ASSERT_TRUE(c.status.ok());
     expect_exact_punch_through(n, c.data);
     EXPECT_EQ(check_cones(n, c.data, 60, n.key.x).violations, 0u);
@@ -98,7 +91,7 @@ TEST(SurfaceReal, KilaueaNeighboursAgreeInTheirOverlap) {
   bench::make_dem_node(dem, 3, 21, 18, 5, east);
   bench::make_dem_node(dem, 3, 20, 19, 5, north);
   ASSERT_EQ(a.hole_vertices, 0);
-  const Cooked ca = cook_node(a, rules()), ce = cook_node(east, rules()), cn = cook_node(north, rules());
+  const Cooked ca = cook_node(a, default_rules()), ce = cook_node(east, default_rules()), cn = cook_node(north, default_rules());
   const auto da = decode_normals(ca.data), de = decode_normals(ce.data), dn = decode_normals(cn.data);
   auto compare = [&](const std::vector<uint8_t>& other, const Cooked& co, bool east_pair) {
     double worst = 0, sum = 0;
@@ -140,7 +133,7 @@ TEST(SurfaceReal, TahoeHighestHitSpikyNormalsAndCones) {
   ASSERT_EQ(n.hole_vertices, 0);
   double mean_fast = 0;
   for (BcQuality q : {BcQuality::fast, BcQuality::balanced}) {
-    const Cooked c = cook_node(n, rules(), q);
+    const Cooked c = cook_node(n, default_rules(), q);
     ASSERT_TRUE(c.status.ok());
     const double mean = c.stats.normal_err_sum_deg / double(c.stats.normal_samples);
     std::printf("tahoe highest-hit, quality %d: normal error mean %.3f max %.3f deg; cones exact %.1f encoded %.1f deg\n",
@@ -172,7 +165,7 @@ TEST(SurfaceReal, ConesNeverCullFrontFacingTrianglesOnRealNodes) {
     bench::DemNode n;
     bench::make_dem_node(dem, p.level, p.x, p.y, p.step, n);
     ASSERT_GT(n.data_vertices, 10000) << p.file;
-    const Cooked c = cook_node(n, rules());
+    const Cooked c = cook_node(n, default_rules());
     ASSERT_TRUE(c.status.ok());
     const ConeCheck check = check_cones(n, c.data, 400, p.x * 131 + p.y);
     std::printf("%s: %llu eyes, %llu of %llu patch tests culled, %llu triangles checked, worst cos %.4f\n", p.file,
@@ -194,10 +187,10 @@ AlbedoPsnr albedo_psnr(const std::vector<bench::DemNode>& nodes) {
   AlbedoCheck own, cluster, stb, squish;
   for (const bench::DemNode& n : nodes) {
     SplatLattice lattice;
-    const SurfaceInput in = n.input(&rules(), BcQuality::balanced);
-    compute_splat_lattice(in, rules(), lattice);
+    const SurfaceInput in = n.input(&default_rules(), BcQuality::balanced);
+    compute_splat_lattice(in, default_rules(), lattice);
     std::vector<uint8_t> rgba(size_t(kTexelCount) * 4);
-    bake_albedo(in, rules(), lattice, rgba.data());
+    bake_albedo(in, default_rules(), lattice, rgba.data());
     std::vector<uint8_t> blocks(static_cast<size_t>(kAlbedoBytes));
     auto add = [&](Bc1Method m, AlbedoCheck& acc) {
       encode_bc1_image(rgba.data(), m, blocks.data());

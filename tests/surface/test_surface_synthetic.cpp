@@ -19,13 +19,6 @@ using namespace terrain::cook::test;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-const MaterialRules& rules() {
-  static const MaterialRules r = default_material_rules();
-  return r;
-}
-
 double rolling(double x, double y) { return 300 + 20 * std::sin(x / 37.0) * std::cos(y / 23.0) + 0.05 * x; }
 
 // Decoded cone of patch k.
@@ -41,7 +34,7 @@ cone::DecodedCone decoded_cone(const NodeData& d, int k) {
 
 TEST(SurfaceSynthetic, FlatNodeHasZeroAngleConesThatCullFromBelow) {
   const auto node = synthetic_node([](double, double) { return 100.0; }, 0, 2, 3);
-  const Cooked c = cook_node(node, rules());
+  const Cooked c = cook_node(node, default_rules());
   ASSERT_TRUE(c.status.ok()) << c.status.to_string();
   PatchNormals pn;
   collect_patch_normals(node.node, node.height_offset, node.step_log2, node.spacing_m, node.holes.data(), pn);
@@ -81,11 +74,11 @@ TEST(SurfaceSynthetic, NearVerticalCliffNormalsAndCones) {
   // inside node (1, 1) of level 0 (x 64..128 m).
   auto f = [](double x, double y) { return 1000 + 0.2 * y + (x > 100.2 ? 400.0 : 0.0) + 0.05 * (x > 100.2 ? x - 100 : 0); };
   const auto node = synthetic_node(f, 0, 1, 1);
-  const Cooked c = cook_node(node, rules());
+  const Cooked c = cook_node(node, default_rules());
   ASSERT_TRUE(c.status.ok());
   // The float normal of the cliff cell is ~89.9 degrees from up; the decoded one keeps that tilt.
   NormalTexels ref;
-  compute_normal_texels(node.input(&rules(), BcQuality::balanced), ref);
+  compute_normal_texels(node.input(&default_rules(), BcQuality::balanced), ref);
   const auto dec = decode_normals(c.data);
   double worst_cliff = 0, worst_tilt = 90;
   int cliff_texels = 0;
@@ -115,7 +108,7 @@ TEST(SurfaceSynthetic, RidgeWithNormalsSpreadingPast90Degrees) {
   const double k60 = std::tan(60 * kPi / 180);
   auto f = [&](double x, double y) { return 500 - k60 * std::fabs(x - 36.0) + 0.01 * y; };
   const auto node = synthetic_node(f, 0, 0, 1);
-  const Cooked c = cook_node(node, rules());
+  const Cooked c = cook_node(node, default_rules());
   ASSERT_TRUE(c.status.ok());
   PatchNormals pn;
   collect_patch_normals(node.node, node.height_offset, node.step_log2, node.spacing_m, node.holes.data(), pn);
@@ -143,7 +136,7 @@ TEST(SurfaceSynthetic, SpikySurfaceConesStayConservative) {
     return 2500 + ((h >> 7) % 1000) * 0.008;
   };
   const auto node = synthetic_node(f, 0, 1, 1);
-  const Cooked c = cook_node(node, rules());
+  const Cooked c = cook_node(node, default_rules());
   ASSERT_TRUE(c.status.ok());
   const ConeCheck check = check_cones(node, c.data, 600, 4);
   EXPECT_EQ(check.violations, 0u) << "worst cos " << check.worst_cos;
@@ -159,7 +152,7 @@ TEST(SurfaceSynthetic, HolesSurviveAtVertexGranularity) {
   };
   const auto node = synthetic_node(rolling, 0, 1, 1, 2, hole);
   for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
-    const Cooked c = cook_node(node, rules(), q);
+    const Cooked c = cook_node(node, default_rules(), q);
     ASSERT_TRUE(c.status.ok());
     const auto alb = decode_albedo(c.data);
     int holes = 0;
@@ -181,7 +174,7 @@ TEST(SurfaceSynthetic, NodeAtTheEdgeOfTheDataCooksWithHolesAndFiniteNormals) {
   auto f = [](double x, double y) { return x < 40.0 ? rolling(x, y) : NAN; };
   const auto node = synthetic_node(f, 0, 0, 1);
   ASSERT_GT(node.hole_vertices, 0);
-  const Cooked c = cook_node(node, rules());
+  const Cooked c = cook_node(node, default_rules());
   ASSERT_TRUE(c.status.ok());
   const auto alb = decode_albedo(c.data);
   for (int u = 0; u < kTexels; ++u)
@@ -200,14 +193,14 @@ TEST(SurfaceSynthetic, NodeAtTheEdgeOfTheDataCooksWithHolesAndFiniteNormals) {
 TEST(SurfaceSynthetic, NeighboursAgreeOnTheirOverlap) {
   const auto a = synthetic_node(rolling, 0, 1, 1), b = synthetic_node(rolling, 0, 2, 1);  // b east of a
   NormalTexels na, nb;
-  compute_normal_texels(a.input(&rules(), BcQuality::balanced), na);
-  compute_normal_texels(b.input(&rules(), BcQuality::balanced), nb);
+  compute_normal_texels(a.input(&default_rules(), BcQuality::balanced), na);
+  compute_normal_texels(b.input(&default_rules(), BcQuality::balanced), nb);
   // a's texel t (>= 128) covers the same cell as b's texel t - 128: identical float normals.
   for (int u = 0; u < kTexels; ++u)
     for (int t = 128; t < kTexels; ++t)
       for (int c = 0; c < 3; ++c)
         ASSERT_EQ(na.n[size_t(u * kTexels + t) * 3 + size_t(c)], nb.n[size_t(u * kTexels + t - 128) * 3 + size_t(c)]);
-  const Cooked ca = cook_node(a, rules()), cb = cook_node(b, rules());
+  const Cooked ca = cook_node(a, default_rules()), cb = cook_node(b, default_rules());
   // Splat: a's east column is b's west column.
   for (int j = 0; j < kSplatSamples; ++j)
     ASSERT_EQ(ca.data.splat[size_t(j * kSplatSamples + 64)], cb.data.splat[size_t(j * kSplatSamples)]) << j;
@@ -233,11 +226,11 @@ TEST(SurfaceSynthetic, NeighboursAgreeOnTheirOverlap) {
 
 TEST(SurfaceSynthetic, CookingIsDeterministicAcrossThreads) {
   const auto node = synthetic_node(rolling, 1, 3, 2);
-  const Cooked ref = cook_node(node, rules());
+  const Cooked ref = cook_node(node, default_rules());
   ASSERT_TRUE(ref.status.ok());
   Cooked other[2];
-  std::thread t0([&] { other[0] = cook_node(node, rules()); });
-  std::thread t1([&] { other[1] = cook_node(node, rules()); });
+  std::thread t0([&] { other[0] = cook_node(node, default_rules()); });
+  std::thread t1([&] { other[1] = cook_node(node, default_rules()); });
   t0.join();
   t1.join();
   for (const Cooked& o : other) {
@@ -297,7 +290,7 @@ TEST(SurfaceSynthetic, OverlayHolesAndPhotoReachTheAlbedoExactly) {
   ov.x_photo = 64.0 + 70 * 0.5;  // vertex column 70 of node (1, 1)
   FnOverlays mask_only = ov;
   mask_only.photo = false;
-  SurfaceInput in = node.input(&rules(), BcQuality::balanced), plain_in = in;
+  SurfaceInput in = node.input(&default_rules(), BcQuality::balanced), plain_in = in;
   in.overlays = &ov;
   plain_in.overlays = &mask_only;
   NodeData with, without;

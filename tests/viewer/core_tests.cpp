@@ -9,11 +9,11 @@
 #include <random>
 #include <set>
 
-#include "bc_decode.h"
 #include "camera.h"
 #include "reference.h"
 #include "residency.h"
 #include "synthetic_world.h"
+#include "terrain/bc_decode.h"
 
 namespace terrain::view {
 namespace {
@@ -406,22 +406,23 @@ TEST(ViewerCamera, CameraRelativePositionsStayExactAtUtmCoordinates) {
   EXPECT_GT(std::abs(double(naive) + 0.2), 0.1);
 }
 
+// The viewer decodes with the format library's truncating form (what the device samples).
 TEST(ViewerBc, DecodesPunchThroughAndAlphaBlocks) {
   // BC1 3-colour mode (c0 <= c1): index 3 is transparent black.
   const uint8_t bc1[8] = {0x00, 0x00, 0xFF, 0xFF, 0b11100100, 0xFF, 0x00, 0x00};
-  uint8_t out[16][4];
-  decode_bc1_block(bc1, out);
-  EXPECT_EQ(out[0][3], 255);  // index 0: black
-  EXPECT_EQ(out[1][0], 255);  // index 1: white
-  EXPECT_EQ(out[2][0], 127);  // index 2: (0 + 255) / 2
-  EXPECT_EQ(out[3][3], 0);    // index 3: transparent
-  EXPECT_EQ(out[4][3], 0);
+  uint8_t out[64];  // texel t at out[4 * t]
+  decode_bc1_block(bc1, out, BcRounding::truncate);
+  EXPECT_EQ(out[4 * 0 + 3], 255);  // index 0: black
+  EXPECT_EQ(out[4 * 1 + 0], 255);  // index 1: white
+  EXPECT_EQ(out[4 * 2 + 0], 127);  // index 2: (0 + 255) / 2
+  EXPECT_EQ(out[4 * 3 + 3], 0);    // index 3: transparent
+  EXPECT_EQ(out[4 * 4 + 3], 0);
   // BC3 alpha, 8-value mode: a0 = 200, a1 = 60, index 2 = (6*200 + 60) / 7 = 180.
   uint8_t bc3[16] = {200, 60, 0b10, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0x00, 0x00, 0, 0, 0, 0};
-  decode_bc3_block(bc3, out);
-  EXPECT_EQ(out[0][3], 180);
-  EXPECT_EQ(out[1][3], 200);
-  EXPECT_EQ(out[0][0], 255);
+  decode_bc3_block(bc3, out, BcRounding::truncate);
+  EXPECT_EQ(out[4 * 0 + 3], 180);
+  EXPECT_EQ(out[4 * 1 + 3], 200);
+  EXPECT_EQ(out[4 * 0 + 0], 255);
 }
 
 }  // namespace

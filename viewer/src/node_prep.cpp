@@ -5,7 +5,6 @@
 #include <cmath>
 #include <vector>
 
-#include "bc_decode.h"
 #include "terrain/bc_decode.h"
 
 namespace terrain::view {
@@ -28,7 +27,7 @@ PatchBoundsArray compute_patch_bounds(const NodeData& data, int32_t height_offse
 
 ConeTexels decode_cones(const NodeData& data) {
   uint8_t rgba[8 * 8 * 4];
-  decode_bc3_image(data.cones_bc3.data(), 8, 8, rgba);
+  decode_bc3_image(data.cones_bc3.data(), 2, 2, rgba, BcRounding::truncate);  // as the device samples them
   ConeTexels out;
   for (int t = 0; t < 64; ++t)
     for (int k = 0; k < 4; ++k) out[t][k] = rgba[t * 4 + k];

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "bc_decode.h"
 #include "terrain/archive_writer.h"
+#include "terrain/bc_decode.h"
 
 namespace terrain::view {
 namespace {
@@ -68,12 +68,12 @@ void encode_bc1(const uint8_t rgba[16][4], uint8_t out[8]) {
   uint8_t block[8] = {uint8_t(c0), uint8_t(c0 >> 8), uint8_t(c1), uint8_t(c1 >> 8), 0, 0, 0, 0};
   uint8_t pal[8][4];  // entries 4..7: the palette (decoded from probe blocks with fixed indices)
   for (int idx = 0; idx < 4; ++idx) {
-    uint8_t probe[8], dec[16][4];
+    uint8_t probe[8], dec[64];
     std::memcpy(probe, block, 4);
     const uint8_t bits = uint8_t(idx | idx << 2 | idx << 4 | idx << 6);
     probe[4] = probe[5] = probe[6] = probe[7] = bits;
-    decode_bc1_block(probe, dec);
-    std::memcpy(pal[idx + 4], dec[0], 4);
+    decode_bc1_block(probe, dec, BcRounding::truncate);
+    std::memcpy(pal[idx + 4], dec, 4);
   }
   uint32_t indices = 0;
   for (int t = 0; t < 16; ++t) {
@@ -154,11 +154,11 @@ void encode_bc3_colour(const uint8_t rgba[16][4], uint8_t out[8]) {
   probe[11] = uint8_t(c1 >> 8);
   uint8_t pal[4][4];
   for (int idx = 0; idx < 4; ++idx) {
-    uint8_t dec[16][4];
+    uint8_t dec[64];
     const uint8_t bits = uint8_t(idx | idx << 2 | idx << 4 | idx << 6);
     probe[12] = probe[13] = probe[14] = probe[15] = bits;
-    decode_bc3_block(probe, dec);
-    std::memcpy(pal[idx], dec[0], 4);
+    decode_bc3_block(probe, dec, BcRounding::truncate);
+    std::memcpy(pal[idx], dec, 4);
   }
   uint32_t indices = 0;
   for (int t = 0; t < 16; ++t) {
@@ -382,10 +382,10 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       }
       uint8_t full[16] = {};
       std::memcpy(full + 8, colour_blocks[(q / 4) * 2 + p / 4], 8);
-      uint8_t dec[16][4];
-      decode_bc3_block(full, dec);
+      uint8_t dec[64];
+      decode_bc3_block(full, dec, BcRounding::truncate);
       const int t = (q % 4) * 4 + p % 4;
-      const double x = (double(dec[t][0]) - 132.0) / 123.0, y = (double(dec[t][1]) - 130.0) / 125.0;
+      const double x = (double(dec[4 * t]) - 132.0) / 123.0, y = (double(dec[4 * t + 1]) - 130.0) / 125.0;
       const double rr = x * x + y * y;
       const double z = rr < 1 ? std::sqrt(1 - rr) : 0;
       const double al = std::sqrt(x * x + y * y + z * z);

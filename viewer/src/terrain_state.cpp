@@ -48,21 +48,6 @@ void TerrainState::set_slot(uint32_t s, const SlotDescriptor& desc) {
   dirty_slots_.push_back(s);
 }
 
-SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& world) {
-  SlotDescriptor d;
-  d.min_height = r.min_height;
-  d.max_height = r.max_height;
-  d.height_offset = r.height_offset;
-  d.geometric_error_m = r.geometric_error_m;
-  d.x = r.key.x;
-  d.y = r.key.y;
-  d.level = uint8_t(r.key.level);
-  d.step_log2 = world.step_log2[r.key.level];
-  d.flags = r.flags;
-  d.child_mask = r.child_mask;
-  return d;
-}
-
 TerrainState::Dirty TerrainState::take_dirty() {
   Dirty out;
   out.index = dirty_index_;

@@ -18,9 +18,6 @@ struct Rect {  // half-open [x0, x1) x [y0, y1); empty when x0 >= x1
   void add(uint32_t x, uint32_t y);
 };
 
-// Slot descriptor of a node record (what the streamer's slot table holds for it).
-SlotDescriptor slot_descriptor_of(const NodeRecord& record, const WorldInfo& world);
-
 // A node payload to copy into atlas slot `slot` (the state's descriptor for the slot must already be
 // set: it gives the quantization). `data` must stay valid until the renderer's upload() returns.
 struct NodeUpload {

@@ -22,6 +22,16 @@ void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]);
 void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba);
 void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba);
 
+// The same decoders with a choice of how interpolated entries round. `nearest` is the form above.
+// `truncate` drops the rounding terms: (2a+b)/3, (a+b)/2, ((7-k)a0+k*a1)/7, ((5-k)a0+k*a1)/5, the
+// exact-integer form the viewer's CPU side uses where it must equal what the Vulkan device
+// (lavapipe) samples: the reference cone culling and its synthetic worlds' encoder.
+enum class BcRounding : uint8_t { nearest, truncate };
+void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64], BcRounding rounding);
+void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding rounding);
+void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding);
+void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding);
+
 // Alpha of one BC1 texel (t, u) of a 33x33-block albedo grid (0 or 255).
 uint8_t bc1_texel_alpha(const uint8_t* blocks, int blocks_x, int t, int u);
 

@@ -161,6 +161,23 @@ struct SlotDescriptor {
 };
 static_assert(sizeof(SlotDescriptor) == 32);
 
+// The descriptor of the node `r` of an archive with `world` (what the slot table holds for it).
+// Inline: the viewer's CPU side fills its slot table with it without linking the streamer.
+inline SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& world) {
+  SlotDescriptor d;
+  d.min_height = r.min_height;
+  d.max_height = r.max_height;
+  d.height_offset = r.height_offset;
+  d.geometric_error_m = r.geometric_error_m;
+  d.x = r.key.x;
+  d.y = r.key.y;
+  d.level = uint8_t(r.key.level);
+  d.step_log2 = world.step_log2[r.key.level];
+  d.flags = r.flags;
+  d.child_mask = r.child_mask;
+  return d;
+}
+
 // Half-open rectangle of index-grid cells [x0, x1) x [y0, y1); empty when x0 >= x1.
 struct DirtyRect {
   uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
