@@ -141,14 +141,7 @@ TEST(BcBlocks, OpaqueBlocksNeverDecodeTransparent) {
 TEST(BcBlocks, MoreEncoderEffortNeverRaisesABlocksError) {
   std::mt19937 rng(11);
   std::uniform_int_distribution<int> byte(0, 255), pick(0, 2), jitter(-12, 12);
-  auto effort = [](int sweeps, float search_above, float three_above) {
-    Bc1OpaqueEffort e;
-    e.refine_hard = true;
-    e.ordering_sweeps = sweeps;
-    e.ordering_threshold = search_above;
-    e.three_colour_threshold = three_above;
-    return e;
-  };
+  const auto effort = hard_block_effort;
   const Bc1OpaqueEffort base = effort(0, 16, -1);
   const Bc1OpaqueEffort more[] = {effort(1, 16, -1), effort(2, 16, -1), effort(2, 400, -1), effort(0, 16, 0),
                                   effort(2, 16, 192)};

@@ -101,6 +101,12 @@ FrameSettings magenta_clear(double error_target_px) {
   return s;
 }
 
+// Every node of the world resident in `slots` slots: the uploads of the first frame.
+Status make_all_resident(World& world, Gpu& gpu, uint32_t slots, std::vector<NodeUpload>& uploads) {
+  world.residency.init(world.synthetic.world, world.memory_nodes(), slots, gpu.state);
+  return world.residency.apply([](const NodeKey&) { return true; }, gpu.state, uploads);
+}
+
 // The GPU's node list, LOD map and patch list of the last frame.
 struct GpuLists {
   NodeList nodes;
@@ -120,8 +126,7 @@ TEST(ViewerGpu, ListsEqualCpuReference) {
   world.synthetic = deep_world().synthetic;
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 1024, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
   struct View {
     double x, y, h, yaw, pitch, error;
   };
@@ -189,8 +194,7 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
   world.synthetic = deep_world(true).synthetic;
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 1024, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
   // Looking down across the root edge at x = 2048 m, where level-0 nodes meet the flat root drawn
   // at level 7, and over the rough spot, where levels 0..5 meet.
   const ViewSpec views[] = {{kFocusX - 120, kFocusY, 420, 90, -55, 0.01}, {kFocusX + 30, kFocusY - 60, 430, 0, -70, 0.01},
@@ -242,8 +246,7 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
   world.synthetic = decimation_world();
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 512, 320, 180);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 512, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 512, uploads).ok());
   const ViewSpec views[] = {{2600, 2048, 900, 0, -70, 1.0},   {1500, 1500, 1200, 45, -75, 0.5},
                             {3500, 2000, 1500, 0, -80, 1.0},   {2000, 1500, 600, 90, -60, 2.0},
                             {3000, 2048, 1200, 180, -65, 0.3}, {3000, 2048, 2000, 270, -85, 4.0},
@@ -319,8 +322,7 @@ TEST(ViewerGpu, CullingNeverChangesTheImage) {
   world.synthetic = deep_world().synthetic;
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 1024, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
   uint32_t frustum = 0, cone = 0;
   for (const ViewSpec& v : {ViewSpec{kFocusX - 60, kFocusY - 80, 800, 45, -20, 0.05}, ViewSpec{3000, 3000, 700, 225, -3, 1.0},
                             ViewSpec{kFocusX - 150, kFocusY, 450, 90, -35, 0.01}}) {
@@ -356,8 +358,7 @@ TEST(ViewerGpu, OneDrawPerMeshMatchesTheMultiDraw) {
   world.synthetic = decimation_world();
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 512, 320, 180);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 512, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 512, uploads).ok());
   const bool device_multi_draw = gpu->ctx.multi_draw_indirect;
   const Camera cam = camera_at(world.synthetic.world, 3500, 2000, 1500, 0, -80);
   FrameSettings s = magenta_clear(1.0);
@@ -395,8 +396,7 @@ TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   world.synthetic = make_synthetic_world(o);
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 64, 256, 256);
   std::vector<NodeUpload> uploads;
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 64, gpu->state);
-  ASSERT_TRUE(world.residency.apply([](const NodeKey&) { return true; }, gpu->state, uploads).ok());
+  ASSERT_TRUE(make_all_resident(world, *gpu, 64, uploads).ok());
   const Camera cam = camera_at(world.synthetic.world, 1000, 1000, 900, 0, -90);
   FrameSettings s = magenta_clear(0.01);  // all the way to level 3
   size_t magenta[3];

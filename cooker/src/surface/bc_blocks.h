@@ -72,6 +72,15 @@ struct Bc1OpaqueEffort {
   float three_colour_threshold = -1.0f;  // blocks above this error also try 3 colours (< 0: never)
 };
 void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
+// The default's hard-block refits plus the given search and 3-colour settings.
+inline Bc1OpaqueEffort hard_block_effort(int ordering_sweeps, float ordering_threshold, float three_colour_threshold) {
+  Bc1OpaqueEffort e;
+  e.refine_hard = true;
+  e.ordering_sweeps = ordering_sweeps;
+  e.ordering_threshold = ordering_threshold;
+  e.three_colour_threshold = three_colour_threshold;
+  return e;
+}
 // 3-colour punch-through block: texel i transparent iff bit i of `holes` (not all 16 set).
 void own_encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations = 2);
 // BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).

@@ -280,14 +280,7 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
     const Result stb = library(Bc1Method::stb), squish = library(Bc1Method::squish_cluster);
     std::vector<Result> rows = {library(Bc1Method::own)};
     struct Variant { const char* label; Bc1OpaqueEffort e; };
-    auto effort = [](int sweeps, float search_thr, float three_thr) {
-      Bc1OpaqueEffort e;
-      e.refine_hard = true;
-      e.ordering_sweeps = sweeps;
-      e.ordering_threshold = search_thr;
-      e.three_colour_threshold = three_thr;
-      return e;
-    };
+    const auto effort = hard_block_effort;
     const Variant variants[] = {
         {"search1 >800", effort(1, 800, -1)},           {"search2 >400", effort(2, 400, -1)},
         {"search2 >200", effort(2, 200, -1)},           {"search2 >100", effort(2, 100, -1)},
