@@ -121,6 +121,24 @@ Status render_view(Gpu& gpu, std::vector<NodeUpload>& uploads, const Camera& cam
   return Status::success();
 }
 
+// The frame just rendered with `s` (stitched, magenta clear) must show no magenta; then the same
+// view without stitching is the control, whose magenta pixels (cracks) are returned: a crack test
+// whose control never cracks could not fail. Both images are dumped as `name`(_unstitched).
+size_t cracks_only_unstitched(Gpu& gpu, std::vector<NodeUpload>& uploads, const Camera& camera, FrameSettings s,
+                              const std::string& name) {
+  std::vector<uint8_t> rgba;
+  read_color(gpu.target, rgba);
+  dump_ppm(gpu, rgba, name);
+  EXPECT_EQ(count_color(rgba, 255, 0, 255), 0u) << name << ": magenta shows through a crack";
+  s.stitch = false;
+  const Status st = render_frame(gpu, uploads, camera, s, false);
+  EXPECT_TRUE(st.ok()) << st.to_string();
+  uploads.clear();
+  read_color(gpu.target, rgba);
+  dump_ppm(gpu, rgba, name + "_unstitched");
+  return count_color(rgba, 255, 0, 255);
+}
+
 TEST(ViewerGpu, ListsEqualCpuReference) {
   World world;
   world.synthetic = deep_world().synthetic;
@@ -210,16 +228,8 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
     ASSERT_TRUE(render_view(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, lists).ok());
     const auto& [nodes, lod, patches] = lists;
     deepest = std::max(deepest, max_delta(patches));
-    std::vector<uint8_t> rgba;
-    read_color(gpu->target, rgba);
-    dump_ppm(*gpu, rgba, "crack_" + std::to_string(&v - views));
-    EXPECT_EQ(count_color(rgba, 255, 0, 255), 0u) << "view " << (&v - views) << ": magenta shows through a crack";
-    // Control: without stitching the same view must show cracks, or this test could not fail.
-    s.stitch = false;
-    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, false).ok());
-    read_color(gpu->target, rgba);
-    dump_ppm(*gpu, rgba, "crack_unstitched_" + std::to_string(&v - views));
-    unstitched_cracks += count_color(rgba, 255, 0, 255);
+    unstitched_cracks += cracks_only_unstitched(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s,
+                                                "crack_" + std::to_string(&v - views));
   }
   EXPECT_EQ(deepest, 7u) << "the drawn patches must include a 7-level difference (level 0 next to a coarsened root)";
   EXPECT_GT(unstitched_cracks, 0u) << "control: unstitched LOD boundaries must crack";
@@ -272,15 +282,8 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
                   ((patch_px(p) > 0 && edge_delta(p, TV_EDGE_W) > 0) || (patch_px(p) < 7 && edge_delta(p, TV_EDGE_E) > 0) ||
                    (patch_py(p) > 0 && edge_delta(p, TV_EDGE_S) > 0) || (patch_py(p) < 7 && edge_delta(p, TV_EDGE_N) > 0));
     }
-    std::vector<uint8_t> rgba;
-    read_color(gpu->target, rgba);
-    dump_ppm(*gpu, rgba, "decimated_" + std::to_string(&v - views));
-    EXPECT_EQ(count_color(rgba, 255, 0, 255), 0u) << "view " << (&v - views) << ": magenta shows through a crack";
-    // Control: unstitched, the decimated edges crack.
-    s.stitch = false;
-    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s, false).ok());
-    read_color(gpu->target, rgba);
-    unstitched += count_color(rgba, 255, 0, 255);
+    unstitched += cracks_only_unstitched(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s,
+                                         "decimated_" + std::to_string(&v - views));
   }
   EXPECT_GT(unstitched, 0u) << "control: unstitched decimated edges must crack";
   EXPECT_EQ(decimations, (std::set<uint32_t>{0, 1, 2, 3, 4}));

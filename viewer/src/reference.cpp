@@ -18,6 +18,14 @@ float rel_y(int64_t half_metres, const FrameUniforms& u) {
   return float(int32_t(half_metres) - u.cam_hm[1]) * 0.5f - u.cam_frac[1];
 }
 float rel_z(int32_t units, const FrameUniforms& u) { return float(units) * (1.0f / 1024.0f) - u.cam_frac[2]; }
+// Squared distance from the camera (the origin) to a box of camera-relative bounds (0 inside),
+// the same operations as the shaders' node and patch tests.
+float box_distance2(float mnx, float mxx, float mny, float mxy, float mnz, float mxz) {
+  const float dx = std::max(std::max(mnx, -mxx), 0.0f);
+  const float dy = std::max(std::max(mny, -mxy), 0.0f);
+  const float dz = std::max(std::max(mnz, -mxz), 0.0f);
+  return dx * dx + dy * dy + dz * dz;
+}
 
 // Same expression order as frustum_visible() in shaders/patches.comp.
 bool frustum_visible(const Box& b, const FrameUniforms& u) {
@@ -80,10 +88,7 @@ bool wants_split(const GpuNodeDesc& n, float error_m, const FrameUniforms& u) {
   const float mxy = rel_y(vertex_half_metres(n.y + 1, level, 0), u);
   const float mnz = rel_z(n.min_height, u);
   const float mxz = rel_z(n.max_height, u);
-  const float dx = std::max(std::max(mnx, -mxx), 0.0f);
-  const float dy = std::max(std::max(mny, -mxy), 0.0f);
-  const float dz = std::max(std::max(mnz, -mxz), 0.0f);
-  const float d2 = dx * dx + dy * dy + dz * dz;
+  const float d2 = box_distance2(mnx, mxx, mny, mxy, mnz, mxz);
   const float e = error_m * u.cam_frac[3];
   const float t = u.lod[0];
   return e * e > (t * t) * d2;
@@ -211,10 +216,7 @@ uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u
   const float mxy = rel_y(vertex_half_metres(d.y, kRootLevel, int(py + 1) * q), u);
   const float mnz = rel_z(b.min_units, u);
   const float mxz = rel_z(b.max_units, u);
-  const float dx = std::max(std::max(mnx, -mxx), 0.0f);
-  const float dy = std::max(std::max(mny, -mxy), 0.0f);
-  const float dz = std::max(std::max(mnz, -mxz), 0.0f);
-  const float d2 = dx * dx + dy * dy + dz * dz;
+  const float d2 = box_distance2(mnx, mxx, mny, mxy, mnz, mxz);
   const float t = u.lod[0];
   for (uint32_t e = max_e; e >= 1; --e) {
     const float err = slots[slot].patch_error[p][e - 1] * u.cam_frac[3];
