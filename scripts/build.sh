@@ -14,6 +14,12 @@ case "$flavour" in
               -DTERRAIN_BUILD_BENCHMARKS=OFF) ;;
   *) echo "build.sh: unknown flavour '$flavour' (release, asan, tsan)" >&2; exit 2 ;;
 esac
+# ccache (installed by setup.sh) makes rebuilds and the clean-clone CI stage cheap; paths under the
+# checkout's parent are hashed relative, so other clones of the project share the cache.
+if command -v ccache >/dev/null; then
+  args+=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$(dirname "$root")} CCACHE_NOHASHDIR=1
+fi
 dir="$root/build/$flavour"
 cmake -S "$root" -B "$dir" "${args[@]}" "$@" >/dev/null
 cmake --build "$dir" -j "$(nproc)"

@@ -2,7 +2,7 @@
 # Installs every Debian 12 package the project needs. Idempotent: does nothing when all are present.
 set -euo pipefail
 packages=(
-  cmake ninja-build g++ clang libclang-rt-14-dev pkg-config
+  cmake ninja-build ccache g++ clang libclang-rt-14-dev pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libopencv-core-dev
   libgeographiclib-dev libgeotiff-dev libtiff-dev libzstd-dev zlib1g-dev libzip-dev
   libsquish-dev libstb-dev libcli11-dev nlohmann-json3-dev libfmt-dev libcharls-dev libjxl-tools
