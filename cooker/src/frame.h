@@ -70,6 +70,7 @@ class SourceMapping {
   bool affine_ = true;
   int width_ = 0, height_ = 0;
   enum class Chain { affine, geographic, other_tm } chain_ = Chain::affine;
+  double lon_centre_ = 0;  // geographic: the raster centre's longitude (model units)
   std::shared_ptr<const TmProjection> frame_tm_, source_tm_;
   AnchorGrid to_frame_, to_sample_;
 };
