@@ -323,3 +323,61 @@ TEST(Polar, PolarCapIsRefusedWithTheWayRoundAndTheWayRoundWorks) {
     std::filesystem::remove_all(dir);
   }
 }
+
+namespace {
+// The first line a command prints (empty when it fails).
+std::string first_line_of(const std::string& cmd) {
+  std::string line;
+  if (FILE* p = popen(cmd.c_str(), "r")) {
+    char buf[256];
+    if (std::fgets(buf, sizeof buf, p)) line = buf;
+    pclose(p);
+  }
+  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+  return line;
+}
+}  // namespace
+
+// A cook in NAD27 / UTM zone 11N (EPSG:26711) sampled with terrain-inspect --sample-lonlat at a
+// WGS 84 point: the height must be the one at the frame point gdaltransform (GDAL + PROJ, another
+// program) gives for that point; the data is a plane rising 1 m per metre east, so the old
+// answer (the point read on NAD27, no datum shift: ~80 m west here) would be ~80 m off. Debian
+// ships no NAD27 grid, so both use PROJ's grid-less transformation (good to metres, not mm).
+// --lonlat-crs EPSG:4267 reads the same numbers on NAD27 and gets the no-shift answer.
+TEST(LonLat, Nad27CookSampledAtAWgs84PointMatchesGdaltransform) {
+  const auto dir = scratch_dir("geodesy-nad27");
+  SyntheticDem d;
+  d.width = d.height = 200;
+  d.dx = d.dy = 2.0;
+  d.x0 = 453601.0;
+  d.y0 = 3762299.0;
+  d.epsg_projected = 26711;
+  d.values.resize(size_t(d.width) * size_t(d.height));
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = d.mx(col) - 453000.0;
+  const std::string tif = (dir / "nad27.tif").string(), out = (dir / "nad27.terrain").string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, d, true, error)) << error;
+  cook::CookOptions o;
+  o.inputs = {tif};
+  o.output = out;
+  o.heights_only = true;
+  cook::CookReport report;
+  ASSERT_TRUE(cook::cook(o, {}, report).ok());
+  const std::string inspect = (bin_dir() / "terrain-inspect").string() + " " + out;
+  const std::string xy = first_line_of("echo '-117.5 34.0' | gdaltransform -s_srs EPSG:4326 -t_srs EPSG:26711 -output_xy");
+  double gx = 0, gy = 0;
+  ASSERT_EQ(std::sscanf(xy.c_str(), "%lf %lf", &gx, &gy), 2) << "gdaltransform (gdal-bin): '" << xy << "'";
+  const std::string at_oracle = first_line_of(inspect + " --sample " + std::to_string(gx) + "," + std::to_string(gy));
+  const std::string at_wgs84 = first_line_of(inspect + " --sample-lonlat -117.5,34.0");
+  ASSERT_NE(at_oracle, "nodata");
+  EXPECT_EQ(at_wgs84, at_oracle);
+  EXPECT_NEAR(std::stod(at_wgs84), gx - 453000.0, 0.5 + kMm);  // the plane itself at the oracle's x
+  const std::string nad27 = first_line_of("echo '-117.5 34.0' | gdaltransform -s_srs EPSG:4267 -t_srs EPSG:26711 -output_xy");
+  double nx = 0, ny = 0;
+  ASSERT_EQ(std::sscanf(nad27.c_str(), "%lf %lf", &nx, &ny), 2);
+  const std::string at_nad27 = first_line_of(inspect + " --sample-lonlat -117.5,34.0 --lonlat-crs EPSG:4267");
+  EXPECT_NEAR(std::stod(at_nad27), nx - 453000.0, 0.5 + kMm);
+  EXPECT_GT(std::fabs(std::stod(at_wgs84) - std::stod(at_nad27)), 50.0);
+  std::filesystem::remove_all(dir);
+}
