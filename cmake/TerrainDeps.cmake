@@ -32,6 +32,8 @@ add_library(terrain_geotiff INTERFACE)
 target_include_directories(terrain_geotiff SYSTEM INTERFACE ${GEOTIFF_INCLUDE_DIR} ${GEOTIFF_INCLUDE_DIR}/geotiff)
 target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
 
+# PROJ (libproj-dev): terrain-inspect's lon/lat datum conversion (format/tools/inspect_lonlat.cpp).
+pkg_check_modules(proj REQUIRED IMPORTED_TARGET proj)
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)
 pkg_check_modules(squish REQUIRED IMPORTED_TARGET libsquish)
 # Debian 12's libsquish.pc has an empty prefix, so the target carries "-I/include", which CMake

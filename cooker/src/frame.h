@@ -5,6 +5,10 @@
 // at the data's centre longitude (rounded to a whole arc-second), lat0 0, k0 1, no false
 // easting/northing. UTM and any other TM input keep their CRS as the frame (so separately cooked
 // neighbouring areas share one). Local input keeps a local frame. --frame overrides (TM or local).
+// Geographic longitudes are taken within half a turn of the raster's centre, so a raster crossing
+// the antimeridian (179.9 .. 180.1 or -180.1 .. -179.9) maps whole; lon0 is kept in [-180, 180].
+// Geographic data reaching beyond 89 N/S are refused (frame.cpp: longitude's pole singularity
+// breaks the interpolated mapping), with a gdalwarp line to a Transverse Mercator raster.
 #pragma once
 #include <memory>
 #include <string>
@@ -70,6 +74,7 @@ class SourceMapping {
   bool affine_ = true;
   int width_ = 0, height_ = 0;
   enum class Chain { affine, geographic, other_tm } chain_ = Chain::affine;
+  double lon_centre_ = 0;  // geographic: the raster centre's longitude (model units)
   std::shared_ptr<const TmProjection> frame_tm_, source_tm_;
   AnchorGrid to_frame_, to_sample_;
 };

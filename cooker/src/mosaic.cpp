@@ -19,8 +19,17 @@ Status mosaic(std::vector<Raster>& inputs, Raster& out) {
   struct Placement { int64_t col, row; };
   std::vector<Placement> at(inputs.size());
   int64_t c0 = 0, r0 = 0, c1 = ref.width, r1 = ref.height;
+  double ref_lon = 0, ref_lat = 0;
+  ref_map.to_model(0.5 * (ref.width - 1), 0.5 * (ref.height - 1), ref_lon, ref_lat);
   for (size_t i = 0; i < inputs.size(); ++i) {
-    const Raster& r = inputs[i];
+    Raster& r = inputs[i];
+    if (r.crs.kind == CrsKind::geographic) {
+      // Tiles either side of the antimeridian (N19E179 and N19W180) are neighbours: move each
+      // input by whole turns to within half a turn of the first one, so they share one grid.
+      double lon = 0, lat = 0;
+      AffineMap::from(r.geo).to_model(0.5 * (r.width - 1), 0.5 * (r.height - 1), lon, lat);
+      r.geo.c[0] += std::remainder(lon - ref_lon, 360.0) - (lon - ref_lon);
+    }
     if (!same_crs(r.crs, ref.crs))
       return Status::failure(Error::unsupported_input,
                              fmt::format("{} and {} are in different CRSs ({} vs {}); mosaicked inputs must share one "

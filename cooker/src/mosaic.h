@@ -11,6 +11,7 @@ namespace terrain::cook {
 // HGT tiles, a tiled GeoTIFF export) into one raster covering their union. Overlap rule: where
 // several inputs have data for a sample, the one listed FIRST wins; later inputs only fill samples
 // the earlier ones leave as nodata (HGT tiles share their edge rows, which then agree anyway).
+// Geographic inputs are placed by longitude modulo 360 (tiles either side of the antimeridian join).
 // A single input is moved through unchanged.
 Status mosaic(std::vector<Raster>& inputs, Raster& out);
 

@@ -1,4 +1,5 @@
 #include "inspect.h"
+#include "inspect_lonlat.h"
 
 #include <GeographicLib/TransverseMercator.hpp>
 #include <OpenImageIO/imageio.h>
@@ -191,15 +192,22 @@ Status read_point_file(const std::string& path, bool lonlat, std::vector<SampleP
   return Status::success();
 }
 
-Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out) {
+Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out,
+              const std::string& lonlat_crs) {
   SurfaceSampler sampler(reader);
   out.clear();
+  LonLatToFrame to_frame;  // prepared at the first lon/lat point
+  bool to_frame_ready = false;
   for (const SamplePoint& p : points) {
     SampleAnswer a;
     a.frame_x = p.x;
     a.frame_y = p.y;
+    if (p.lonlat && !to_frame_ready) {
+      if (Status s = to_frame.init(reader.world().crs, lonlat_crs); !s.ok()) return s;
+      to_frame_ready = true;
+    }
     if (p.lonlat)
-      if (Status s = lonlat_to_frame(reader.world().crs, p.x, p.y, a.frame_x, a.frame_y); !s.ok()) return s;
+      if (Status s = to_frame.convert(p.x, p.y, a.frame_x, a.frame_y); !s.ok()) return s;
     std::optional<SurfaceSample> got;
     if (Status s = sampler.sample(a.frame_x, a.frame_y, got); !s.ok()) return s;
     if (got) {

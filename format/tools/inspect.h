@@ -17,8 +17,8 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
 // The same facts as a JSON document (doubles at full precision).
 Status summary_json(const ArchiveReader& reader, const std::string& path, std::string& out);
 
-// Frame coordinates of a geographic point, using the archive's CRS. Fails with invalid_argument
-// for a `local` frame.
+// Frame coordinates of a geographic point on the archive's own ellipsoid (no datum shift;
+// GeographicLib). Fails with invalid_argument for a `local` frame.
 Status lonlat_to_frame(const FrameCrs& crs, double lon_deg, double lat_deg, double& x, double& y);
 
 struct SamplePoint {
@@ -30,7 +30,10 @@ struct SampleAnswer {
   std::optional<double> height_m;  // nullopt: nodata
   NodeKey node;
 };
-Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out);
+// Lon/lat points are read on `lonlat_crs` (a geographic CRS PROJ knows; empty = WGS 84, EPSG:4326)
+// and converted with the datum shift PROJ finds to the archive's datum (inspect_lonlat.h).
+Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& points, std::vector<SampleAnswer>& out,
+              const std::string& lonlat_crs = "");
 // Reads "a b" pairs (whitespace or comma separated; blank lines and # comments skipped).
 Status read_point_file(const std::string& path, bool lonlat, std::vector<SamplePoint>& out);
 // Parses "A,B" (two finite numbers).

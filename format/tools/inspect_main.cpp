@@ -18,17 +18,23 @@ int fail(const terrain::Status& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"terrain-inspect: summary, verification, sampling and export of a terrain archive (format/SPEC.md)"};
-  std::string path, export_key, export_dir, sample_file;
+  std::string path, export_key, export_dir, sample_file, lonlat_crs;
   std::vector<std::string> samples, samples_lonlat, export_args;
   bool json = false, do_verify = false, lonlat = false, quiet = false;
   app.add_option("archive", path, "archive file")->required();
   app.add_flag("--json", json, "machine-readable output (summary, verification, samples)");
   app.add_flag("--verify", do_verify, "check everything; exit 0 only when the archive is fully valid");
   app.add_option("--sample", samples, "height at frame point X,Y (metres); repeatable")->type_name("X,Y");
-  app.add_option("--sample-lonlat", samples_lonlat, "height at LON,LAT (degrees); repeatable")->type_name("LON,LAT");
+  app.add_option("--sample-lonlat", samples_lonlat,
+                 "height at LON,LAT (degrees on WGS 84, EPSG:4326, as GPS and web maps give; see --lonlat-crs); repeatable")
+      ->type_name("LON,LAT");
+  app.add_option("--lonlat-crs", lonlat_crs,
+                 "geographic CRS of --sample-lonlat / --lonlat points (default EPSG:4326 WGS 84; e.g. EPSG:4267 NAD27, "
+                 "EPSG:4258 ETRS89); PROJ converts to the archive's datum (without datum grids where none are installed)")
+      ->type_name("CRS");
   app.add_option("--sample-file", sample_file, "heights at the points of FILE, one 'x y' (or 'lon lat' with --lonlat) per line")
       ->check(CLI::ExistingFile);
-  app.add_flag("--lonlat", lonlat, "--sample-file holds longitude latitude pairs");
+  app.add_flag("--lonlat", lonlat, "--sample-file holds longitude latitude pairs (on --lonlat-crs, default WGS 84)");
   app.add_option("--export", export_args, "write node LEVEL/X/Y as images into DIR")->expected(2)->type_name("LEVEL/X/Y DIR");
   app.add_flag("-q,--quiet", quiet, "no progress bar");
   app.footer("Heights print one per line in metres, or 'nodata'. Byte layout: format/SPEC.md.");
@@ -99,7 +105,7 @@ int main(int argc, char** argv) {
   }
   if (!points.empty()) {
     std::vector<terrain::inspect::SampleAnswer> answers;
-    if (terrain::Status s = terrain::inspect::sample(reader, points, answers); !s.ok()) return fail(s);
+    if (terrain::Status s = terrain::inspect::sample(reader, points, answers, lonlat_crs); !s.ok()) return fail(s);
     if (json) {
       nlohmann::json j = nlohmann::json::array();
       for (size_t i = 0; i < answers.size(); ++i) {
