@@ -15,6 +15,7 @@
 #include "crs.h"
 #include "frame.h"
 #include "inputs.h"
+#include "memory_budget.h"
 #include "mosaic.h"
 #include "node_cook.h"
 #include "parallel.h"
@@ -293,6 +294,20 @@ Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vec
 }
 #endif
 
+// Nodes stop refining at the finest level allowed, even where the error still exceeds the
+// tolerance (coarse sources: Catmull-Rom between 30-100 m samples is not met by bilinear vertices).
+std::string unmet_tolerance_warning(const CookReport& r) {
+  const int l = r.finest_level;
+  std::string why = fmt::format("level {} ({} m vertex spacing) is the finest level allowed", l, vertex_spacing_m(l));
+  if (l > 0)
+    why += fmt::format(" (from the source spacing {:.3g} m: 1/32 of it, or --finest-level); --finest-level {} lets "
+                       "nodes refine further (at the cost of more nodes)", r.source_spacing_m, l - 1);
+  else
+    why += " and the finest the format has";
+  return fmt::format("--tolerance {} m is not met everywhere: the full-detail error reaches {:.3f} m because {}",
+                     r.tolerance_m, r.leaf_error_max_m, why);
+}
+
 uint64_t peak_rss_bytes() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -322,9 +337,14 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   for (const Raster& r : rasters) {
     descriptions.push_back(r.description);
     report.input_descriptions.push_back(fmt::format("{}: {}; {}", r.path, r.description, describe_crs(r.crs)));
+    if (const uint64_t n = r.implausible.out_of_range + r.implausible.sentinel; n) {
+      report.implausible_samples += n;
+      report.warnings.push_back(implausible_heights_warning(r, options.valid_range_m));
+    }
   }
+  report.memory_limit_bytes = memory_limit_of(options);
   Raster source;
-  if (Status st = mosaic(rasters, source); !st.ok()) return st;
+  if (Status st = mosaic(rasters, source, report.memory_limit_bytes); !st.ok()) return st;
   report.source_samples = source.values.size();
   report.seconds_read = seconds_since(t_start);
 
@@ -337,7 +357,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   report.source_valid_samples = valid;
   std::vector<uint8_t> filled;
   VoidStats voids;
-  fill_voids(source, options.nodata, options.fill_max_samples, filled, voids);
+  if (Status st = fill_voids(source, options.nodata, options.fill_max_samples, filled, voids, report.memory_limit_bytes);
+      !st.ok())
+    return st;
   report.voids_filled_samples = voids.filled_samples;
   report.voids_filled_regions = voids.filled_regions;
   report.hole_samples = voids.hole_samples;
@@ -482,6 +504,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   if (pyr.surface.albedo_samples && pyr.surface.albedo_sq_err_sum > 0)
     report.albedo_psnr_db =
         10.0 * std::log10(255.0 * 255.0 / (pyr.surface.albedo_sq_err_sum / double(pyr.surface.albedo_samples)));
+  if (report.leaf_error_max_m > options.tolerance_m) report.warnings.push_back(unmet_tolerance_warning(report));
   if (progress) progress(1.0, "done");
   return Status::success();
 }

@@ -145,14 +145,23 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
     }
   }
 
+  const int bytes = bits / 8;
+  // Band 1 only: with interleaved samples, the first of each pixel.
+  const size_t pixel_stride = planar == PLANARCONFIG_CONTIG ? size_t(bytes) * spp : size_t(bytes);
+  // The decode buffer (one tile or strip, whose size the header also states) and the raster
+  // itself, checked against the budget before either is allocated.
+  const tmsize_t block_bytes = TIFFIsTiled(tif.get()) ? TIFFTileSize(tif.get()) : TIFFStripSize(tif.get());
+  if (block_bytes <= 0)
+    return Status::failure(Error::unsupported_input, fmt::format("{}: inconsistent {} size ({})", path,
+                                                                  TIFFIsTiled(tif.get()) ? "tile" : "strip", tiff_error));
+  if (Status st = check_raster_memory(path, width, height, tname, options, uint64_t(block_bytes)); !st.ok()) return st;
+
   out = Raster{};
   out.path = path;
   out.width = int(width);
   out.height = int(height);
+  out.nodata_declared = nodata.has_value();
   out.values.assign(size_t(width) * height, NAN);
-  const int bytes = bits / 8;
-  // Band 1 only: with interleaved samples, the first of each pixel.
-  const size_t pixel_stride = planar == PLANARCONFIG_CONTIG ? size_t(bytes) * spp : size_t(bytes);
   const bool is_float = format == SAMPLEFORMAT_IEEEFP;
   const float nodata_f = nodata ? float(*nodata) : 0.0f;
   auto convert = [&](const uint8_t* src, float* dst, size_t count) {
@@ -169,7 +178,7 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
     uint32_t tw = 0, th = 0;
     TIFFGetField(tif.get(), TIFFTAG_TILEWIDTH, &tw);
     TIFFGetField(tif.get(), TIFFTAG_TILELENGTH, &th);
-    buf.resize(size_t(TIFFTileSize(tif.get())));
+    buf.resize(size_t(block_bytes));
     if (tw == 0 || th == 0 || buf.size() < size_t(tw) * th * pixel_stride)
       return Status::failure(Error::unsupported_input, fmt::format("{}: inconsistent tile size", path));
     for (uint32_t ty = 0; ty < height; ty += th) {
@@ -186,7 +195,7 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
     uint32_t rows_per_strip = height;
     TIFFGetFieldDefaulted(tif.get(), TIFFTAG_ROWSPERSTRIP, &rows_per_strip);
     rows_per_strip = std::min(std::max(rows_per_strip, 1u), height);
-    buf.resize(size_t(TIFFStripSize(tif.get())));
+    buf.resize(size_t(block_bytes));
     if (buf.size() < size_t(width) * pixel_stride)
       return Status::failure(Error::unsupported_input, fmt::format("{}: inconsistent strip size", path));
     for (uint32_t row = 0; row < height; row += rows_per_strip) {

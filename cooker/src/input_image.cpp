@@ -18,7 +18,13 @@ Status read_image(const std::string& path, const ReadOptions& options, Raster& o
   if (int64_t(spec.width) * spec.height > (int64_t(1) << 32))
     return Status::failure(Error::unsupported_input, fmt::format("{}: image too large", path));
   const OIIO::TypeDesc fmt_in = spec.format;
+  // The raster and the native-type copy read_as makes.
+  if (Status st = check_raster_memory(path, uint64_t(spec.width), uint64_t(spec.height), fmt_in.c_str(), options,
+                                      uint64_t(spec.width) * uint64_t(spec.height) * 4);
+      !st.ok())
+    return st;
   out = Raster{};
+  out.nodata_declared = options.nodata_value.has_value();
   out.path = path;
   out.width = spec.width;
   out.height = spec.height;

@@ -81,7 +81,11 @@ bool parse_npy(const std::vector<uint8_t>& bytes, NpyArray& out, std::string& wh
     if (i >= p2) break;
     int64_t v = 0;
     auto [e, ec] = std::from_chars(h.data() + i, h.data() + p2, v);
-    if (ec != std::errc() || v < 0 || v > (int64_t(1) << 31)) { why = "bad shape"; return false; }
+    // Each side below 2^31 and the product at most 2^32 (checked before multiplying: no wrap).
+    if (ec != std::errc() || v < 0 || v >= (int64_t(1) << 31) || (v > 0 && out.count > (size_t(1) << 32) / size_t(v))) {
+      why = "bad shape";
+      return false;
+    }
     out.shape.push_back(v);
     out.count *= size_t(v);
     i = size_t(e - h.data());
@@ -103,7 +107,13 @@ Status read_npz(const std::string& path, const ReadOptions& options, Raster& out
     std::vector<uint8_t> bytes;
     std::string entry;
     const std::string file = std::string(name) + ".npy";
-    if (read_zip_entry(path, file, bytes, entry).ok() && (entry == file || ends_with(entry, "/" + file)))
+    // The scalars are a few hundred bytes; the array may take the budget, no more.
+    const bool array = std::string(name) == "elevation";
+    const uint64_t max_bytes = array ? options.memory_limit_bytes : uint64_t(1) << 16;
+    if (Status st = read_zip_entry(path, file, bytes, entry, max_bytes); array && !st.ok() &&
+                                                                          st.message.find("more than") != std::string::npos)
+      return Status::failure(st.code, st.message + " (--memory-limit)");
+    else if (st.ok() && (entry == file || ends_with(entry, "/" + file)))
       entries[name] = std::move(bytes);
   }
   if (!entries.count("elevation")) {
@@ -119,8 +129,14 @@ Status read_npz(const std::string& path, const ReadOptions& options, Raster& out
     return Status::failure(Error::unsupported_input, fmt::format("{}: elevation.npy: {}", path, why));
   if (elev.shape.size() != 2 || elev.shape[0] < 2 || elev.shape[1] < 2)
     return Status::failure(Error::unsupported_input, fmt::format("{}: elevation must be a 2-D array", path));
+  if (Status st = check_raster_memory(path, uint64_t(elev.shape[1]), uint64_t(elev.shape[0]),
+                                      fmt::format("{}{}", elev.kind, elev.item_bytes * 8), options,
+                                      entries["elevation"].size());
+      !st.ok())
+    return st;
   out = Raster{};
   out.path = path;
+  out.nodata_declared = options.nodata_value.has_value();
   out.height = int(elev.shape[0]);
   out.width = int(elev.shape[1]);
   out.values.resize(elev.count);

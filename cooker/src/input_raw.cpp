@@ -2,6 +2,7 @@
 // sample type come from --raw-size / --raw-type; rows north to south.
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fmt/format.h>
 
 #include "inputs.h"
@@ -20,15 +21,23 @@ Status read_raw(const std::string& path, const ReadOptions& options, Raster& out
   if (w <= 0 || h <= 0)
     return Status::failure(Error::invalid_argument,
                            fmt::format("{}: raw heightmaps need --raw-size WIDTHxHEIGHT (e.g. --raw-size 1025x1025)", path));
-  std::vector<uint8_t> data;
-  if (Status st = read_file_bytes(path, data); !st.ok()) return st;
-  const size_t expected = size_t(w) * size_t(h) * size_t(bytes);
-  if (data.size() != expected)
+  // The size is known from the flags: compare it with the file's before reading a byte.
+  const uint64_t expected = uint64_t(w) * uint64_t(h) * uint64_t(bytes);
+  std::error_code ec;
+  const uint64_t size = uint64_t(std::filesystem::file_size(path, ec));
+  if (ec) return Status::failure(Error::io_open, fmt::format("{}: cannot read its size ({})", path, ec.message()));
+  if (size != expected)
     return Status::failure(Error::unsupported_input,
                            fmt::format("{}: {} bytes, but {}x{} {} samples need {} bytes (check --raw-size / --raw-type)",
-                                       path, data.size(), w, h, type, expected));
+                                       path, size, w, h, type, expected));
+  if (Status st = check_raster_memory(path, uint64_t(w), uint64_t(h), type, options, expected); !st.ok()) return st;
+  std::vector<uint8_t> data;
+  if (Status st = read_file_bytes(path, data); !st.ok()) return st;
+  if (data.size() != expected)
+    return Status::failure(Error::io_read, fmt::format("{}: changed size while being read", path));
   out = Raster{};
   out.path = path;
+  out.nodata_declared = options.nodata_value.has_value();
   out.width = w;
   out.height = h;
   out.values.resize(size_t(w) * size_t(h));

@@ -5,6 +5,7 @@
 
 #include "crs.h"
 #include "inputs.h"
+#include "memory_budget.h"
 
 namespace terrain::cook {
 namespace {
@@ -26,7 +27,83 @@ Format format_of(const std::string& path) {
   return Format::unknown;
 }
 
+// An undeclared -9999 (the most common nodata value written without a tag) is a void when no
+// 8-neighbour other than -9999 or nodata lies within 1000 m of it: a real -9999 m depth has
+// neighbours near it, a void's rim is land or sea far above it.
+constexpr float kSentinel = -9999.0f;
+constexpr double kSentinelNeighbourM = 1000.0;
+
+uint64_t drop_sentinels(Raster& r) {
+  uint64_t n = 0;
+  const int w = r.width, h = r.height;
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col) {
+      float& v = r.values[size_t(row) * size_t(w) + size_t(col)];
+      if (v != kSentinel) continue;
+      bool near = false;
+      for (int dr = -1; dr <= 1 && !near; ++dr)
+        for (int dc = -1; dc <= 1 && !near; ++dc) {
+          const int c = col + dc, rr = row + dr;
+          if ((dc == 0 && dr == 0) || c < 0 || rr < 0 || c >= w || rr >= h) continue;
+          const float u = r.at(c, rr);
+          near = !std::isnan(u) && u != kSentinel && std::fabs(double(u) - kSentinel) <= kSentinelNeighbourM;
+        }
+      if (!near) {
+        v = NAN;
+        ++n;
+      }
+    }
+  return n;
+}
+
 }  // namespace
+
+uint64_t finish_heights(Raster& r, double scale, double offset, const std::array<double, 2>& valid_range_m,
+                        bool nodata_declared) {
+  r.implausible = {};
+  // Sentinels on the file's own values (-9999 is written before any scale applies).
+  if (!nodata_declared) r.implausible.sentinel = drop_sentinels(r);
+  const bool affine = scale != 1.0 || offset != 0.0;
+  for (float& v : r.values) {
+    if (std::isnan(v)) continue;
+    const double m = affine ? double(v) * scale + offset : double(v);
+    if (m >= valid_range_m[0] && m <= valid_range_m[1]) {
+      v = float(m);
+      continue;
+    }
+    Raster::Implausible& im = r.implausible;
+    im.lowest = im.out_of_range ? std::min(im.lowest, m) : m;
+    im.highest = im.out_of_range ? std::max(im.highest, m) : m;
+    ++im.out_of_range;
+    v = NAN;
+  }
+  return r.implausible.out_of_range + r.implausible.sentinel;
+}
+
+std::string implausible_heights_warning(const Raster& r, const std::array<double, 2>& valid_range_m) {
+  const Raster::Implausible& im = r.implausible;
+  std::string what;
+  if (im.out_of_range)
+    what = fmt::format("{} sample{} outside {} .. {} m (from {:.6g} to {:.6g} m)", im.out_of_range,
+                       im.out_of_range == 1 ? "" : "s", valid_range_m[0], valid_range_m[1], im.lowest, im.highest);
+  if (im.sentinel)
+    what += fmt::format("{}{} sample{} of -9999 with no neighbour within 1000 m", what.empty() ? "" : " and ",
+                        im.sentinel, im.sentinel == 1 ? "" : "s");
+  return fmt::format("{}: {} cannot be elevations and are treated as nodata (undeclared voids?); declare the file's "
+                     "nodata with --nodata-value, or widen the plausible heights with --valid-range MIN,MAX",
+                     r.path, what);
+}
+
+Status check_raster_memory(const std::string& path, uint64_t width, uint64_t height, const std::string& what,
+                           const ReadOptions& options, uint64_t extra_bytes) {
+  const uint64_t samples = width * height;  // both below 2^32 in every caller: no overflow
+  const uint64_t need = samples * options.bytes_per_sample + extra_bytes;
+  return check_memory(need, options.memory_limit_bytes, path,
+                      fmt::format("{} samples of {}x{} {} ({} B each while cooking)", format_count(samples), width,
+                                  height, what, options.bytes_per_sample),
+                      "raise --memory-limit if the machine has it, or cut the input into pieces (gdal_translate "
+                      "-srcwin) and cook them apart");
+}
 
 Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
   out.clear();
@@ -46,6 +123,15 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
   ro.raw_size = options.raw_size;
   ro.raw_type = options.raw_type;
   ro.raw_big_endian = options.raw_big_endian;
+  if (!(std::isfinite(options.valid_range_m[0]) && std::isfinite(options.valid_range_m[1]) &&
+        options.valid_range_m[0] < options.valid_range_m[1]))
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("--valid-range {},{}: expected MIN,MAX in metres with MIN < MAX, e.g. -12000,9000",
+                                       options.valid_range_m[0], options.valid_range_m[1]));
+  // The budget: each input's whole-cook estimate, less what the inputs before it took.
+  const uint64_t limit = memory_limit_of(options);
+  uint64_t reserved = 0;
+  ro.bytes_per_sample = kCookBytesPerSample;
 
   for (const std::string& path : options.inputs) {
     std::error_code ec;
@@ -53,6 +139,7 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
       return Status::failure(Error::io_open, fmt::format("{}: no such file", path));
     Raster r;
     Status st;
+    ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;
     switch (format_of(path)) {
       case Format::geotiff: st = read_geotiff(path, ro, r); break;
       case Format::hgt: st = read_hgt(path, ro, r); break;
@@ -98,9 +185,9 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
                              fmt::format("{}: its CRS is {}, which terrain-cook cannot use (it reads geographic lon/lat, "
                                          "UTM and other Transverse Mercator CRSs); {}",
                                          path, describe_crs(r.crs), conversion_hint(r.crs, path)));
-    if (options.height_scale != 1.0 || options.height_offset != 0.0)
-      for (float& v : r.values)
-        if (!std::isnan(v)) v = float(double(v) * options.height_scale + options.height_offset);
+    finish_heights(r, options.height_scale, options.height_offset, options.valid_range_m,
+                   r.nodata_declared || options.nodata_value.has_value());
+    reserved += uint64_t(r.values.size()) * kCookBytesPerSample;
     out.push_back(std::move(r));
   }
   return Status::success();

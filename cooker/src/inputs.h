@@ -1,6 +1,8 @@
 // Readers of the supported input formats, each producing a Raster (heights in metres, NaN = nodata),
 // and the dispatcher that picks one by file name and applies the georeferencing flags.
 #pragma once
+#include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -16,7 +18,18 @@ struct ReadOptions {
   std::array<int, 2> raw_size{0, 0};
   std::string raw_type;
   bool raw_big_endian = false;
+  // Memory budget: a reader checks samples * bytes_per_sample (plus its own buffers) against the
+  // limit before allocating. load_inputs passes the cook's budget and kCookBytesPerSample (what
+  // the whole cook will need per sample); the defaults check the raster alone against 2 GB.
+  uint64_t memory_limit_bytes = uint64_t(2) << 30;
+  uint64_t bytes_per_sample = sizeof(float);
 };
+
+// Success when a width x height raster (plus `extra_bytes` of reader buffers) fits the budget of
+// `options`; else "<path>: needs 57.6 GB for 3.6 G samples of <what> (16 B each while cooking),
+// over --memory-limit 2.0 GB; ...". Called by every reader before it allocates.
+Status check_raster_memory(const std::string& path, uint64_t width, uint64_t height, const std::string& what,
+                           const ReadOptions& options, uint64_t extra_bytes = 0);
 
 // GeoTIFF (libtiff + libgeotiff): Int8..Int32, UInt8..UInt32, Float32/64; strips or tiles;
 // GDAL_NODATA; PixelIsArea / PixelIsPoint; CRS from the geokeys.
@@ -37,9 +50,23 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out);
 // Small helpers shared by the readers.
 bool ends_with(const std::string& s, const std::string& suffix);  // case-insensitive
 Status read_file_bytes(const std::string& path, std::vector<uint8_t>& out);
-Status gunzip_file(const std::string& path, std::vector<uint8_t>& out);
-// First entry of a zip whose name ends with `suffix` (case-insensitive); its name in `entry`.
+// Refuses (before filling more) output beyond max_bytes, so a gzip bomb costs nothing.
+Status gunzip_file(const std::string& path, std::vector<uint8_t>& out,
+                   uint64_t max_bytes = uint64_t(1) << 32);
+// First entry of a zip whose name ends with `suffix` (case-insensitive); its name in `entry`. An
+// entry larger than max_bytes (its header's size, checked before allocating) is refused.
 Status read_zip_entry(const std::string& path, const std::string& suffix, std::vector<uint8_t>& out,
-                      std::string& entry);
+                      std::string& entry, uint64_t max_bytes = uint64_t(1) << 32);
+// The file name stored in a gzip header (FNAME), or "" when there is none.
+std::string gzip_stored_name(const std::string& path);
+
+// The one step after every reader: file values to metres (value * scale + offset), and heights
+// that cannot be elevations become nodata: outside valid_range_m (metres, after scale/offset,
+// +-Inf included) or, unless nodata is declared, an undeclared -9999 with no neighbour within
+// 1000 m. Counts them in r.implausible and returns how many.
+uint64_t finish_heights(Raster& r, double scale, double offset, const std::array<double, 2>& valid_range_m,
+                        bool nodata_declared);
+// The warning for them: count, what they were, and the flags that change it.
+std::string implausible_heights_warning(const Raster& r, const std::array<double, 2>& valid_range_m);
 
 }  // namespace terrain::cook

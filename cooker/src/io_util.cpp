@@ -31,7 +31,7 @@ Status read_file_bytes(const std::string& path, std::vector<uint8_t>& out) {
   return Status::success();
 }
 
-Status gunzip_file(const std::string& path, std::vector<uint8_t>& out) {
+Status gunzip_file(const std::string& path, std::vector<uint8_t>& out, uint64_t max_bytes) {
   std::unique_ptr<gzFile_s, int (*)(gzFile)> gz(gzopen(path.c_str(), "rb"), gzclose);
   if (!gz) return Status::failure(Error::io_open, fmt::format("{}: cannot open", path));
   gzbuffer(gz.get(), 1 << 17);
@@ -45,15 +45,17 @@ Status gunzip_file(const std::string& path, std::vector<uint8_t>& out) {
       return Status::failure(Error::io_read, fmt::format("{}: gzip data is corrupt ({})", path, msg ? msg : "?"));
     }
     if (got == 0) break;
+    if (uint64_t(out.size()) + uint64_t(got) > max_bytes)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{}: decompresses to more than {} bytes, more than this input can hold", path,
+                                         max_bytes));
     out.insert(out.end(), chunk.begin(), chunk.begin() + got);
-    if (out.size() > (size_t(1) << 32))
-      return Status::failure(Error::unsupported_input, fmt::format("{}: decompresses to more than 4 GiB", path));
   }
   return Status::success();
 }
 
 Status read_zip_entry(const std::string& path, const std::string& suffix, std::vector<uint8_t>& out,
-                      std::string& entry) {
+                      std::string& entry, uint64_t max_bytes) {
   int err = 0;
   std::unique_ptr<zip_t, void (*)(zip_t*)> archive(zip_open(path.c_str(), ZIP_RDONLY, &err), zip_discard);
   if (!archive) {
@@ -70,8 +72,10 @@ Status read_zip_entry(const std::string& path, const std::string& suffix, std::v
         !(st.valid & ZIP_STAT_SIZE))
       continue;
     if (!ends_with(st.name, suffix)) continue;
-    if (st.size > (zip_uint64_t(1) << 32))
-      return Status::failure(Error::unsupported_input, fmt::format("{}: entry {} is larger than 4 GiB", path, st.name));
+    if (st.size > max_bytes)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{}: entry {} is {} bytes, more than the {} this input can hold", path, st.name,
+                                         uint64_t(st.size), max_bytes));
     std::unique_ptr<zip_file_t, int (*)(zip_file_t*)> file(zip_fopen_index(archive.get(), zip_uint64_t(i), 0),
                                                           zip_fclose);
     if (!file) return Status::failure(Error::io_read, fmt::format("{}: cannot open entry {}", path, st.name));
@@ -83,6 +87,22 @@ Status read_zip_entry(const std::string& path, const std::string& suffix, std::v
     return Status::success();
   }
   return Status::failure(Error::unsupported_input, fmt::format("{}: the zip holds no *{} entry", path, suffix));
+}
+
+std::string gzip_stored_name(const std::string& path) {
+  // RFC 1952: magic 1f 8b, method, flags, mtime (4), xfl, os; FEXTRA (bit 2): 2-byte length and
+  // data; FNAME (bit 3): the original name, zero-terminated (ISO 8859-1).
+  std::ifstream in(path, std::ios::binary);
+  uint8_t h[10] = {};
+  if (!in.read(reinterpret_cast<char*>(h), 10) || h[0] != 0x1f || h[1] != 0x8b || !(h[3] & 0x08)) return "";
+  if (h[3] & 0x04) {
+    uint8_t len[2] = {};
+    if (!in.read(reinterpret_cast<char*>(len), 2)) return "";
+    in.ignore(std::streamsize(len[0] | len[1] << 8));
+  }
+  std::string name;
+  for (char c; name.size() < 4096 && in.get(c) && c != '\0';) name += c;
+  return name;
 }
 
 }  // namespace terrain::cook

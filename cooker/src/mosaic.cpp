@@ -4,10 +4,11 @@
 #include <fmt/format.h>
 
 #include "crs.h"
+#include "memory_budget.h"
 
 namespace terrain::cook {
 
-Status mosaic(std::vector<Raster>& inputs, Raster& out) {
+Status mosaic(std::vector<Raster>& inputs, Raster& out, uint64_t memory_limit_bytes) {
   if (inputs.empty()) return Status::failure(Error::invalid_argument, "no inputs to mosaic");
   if (inputs.size() == 1) {
     out = std::move(inputs[0]);
@@ -56,6 +57,16 @@ Status mosaic(std::vector<Raster>& inputs, Raster& out) {
   const int64_t w = c1 - c0, h = r1 - r0;
   if (w * h > (int64_t(1) << 32))
     return Status::failure(Error::unsupported_input, fmt::format("the mosaic would be {}x{} samples: too large", w, h));
+  // The cook will hold the mosaic (kCookBytesPerSample each); while it is built, the inputs too.
+  uint64_t inputs_bytes = 0;
+  for (const Raster& r : inputs) inputs_bytes += uint64_t(r.values.size()) * sizeof(float);
+  if (Status st = check_memory(uint64_t(w * h) * kCookBytesPerSample + inputs_bytes, memory_limit_bytes,
+                               fmt::format("the mosaic of {} and {} other inputs", ref.path, inputs.size() - 1),
+                               fmt::format("{} samples of {}x{} ({} B each while cooking) and its {} inputs",
+                                           format_count(uint64_t(w * h)), w, h, kCookBytesPerSample, inputs.size()),
+                               "raise --memory-limit, or cook inputs far apart in separate archives");
+      !st.ok())
+    return st;
   Raster m;
   m.path = ref.path;
   m.width = int(w);

@@ -1,5 +1,6 @@
 // Several inputs on one pixel grid become one raster.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "raster.h"
@@ -12,7 +13,8 @@ namespace terrain::cook {
 // several inputs have data for a sample, the one listed FIRST wins; later inputs only fill samples
 // the earlier ones leave as nodata (HGT tiles share their edge rows, which then agree anyway).
 // Geographic inputs are placed by longitude modulo 360 (tiles either side of the antimeridian join).
-// A single input is moved through unchanged.
-Status mosaic(std::vector<Raster>& inputs, Raster& out);
+// A single input is moved through unchanged. The mosaic (plus the inputs it copies from) is
+// checked against memory_limit_bytes before it is allocated (tiles far apart make a huge one).
+Status mosaic(std::vector<Raster>& inputs, Raster& out, uint64_t memory_limit_bytes = UINT64_MAX);
 
 }  // namespace terrain::cook

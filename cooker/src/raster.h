@@ -48,6 +48,13 @@ struct Raster {
   std::vector<float> values; // row-major, row 0 as stored (north-up files: north); NaN = nodata
   SampleGeo geo;
   SourceCrs crs;
+  bool nodata_declared = false;  // the file (or --nodata-value) says which value is nodata
+  // Samples load_inputs turned into nodata because they cannot be elevations (inputs.h).
+  struct Implausible {
+    uint64_t out_of_range = 0;   // outside the valid range after scale/offset (incl. +-Inf)
+    uint64_t sentinel = 0;       // undeclared -9999 with no neighbour within 1000 m of it
+    double lowest = NAN, highest = NAN;  // extremes of the out-of-range ones (metres)
+  } implausible;
 
   float at(int col, int row) const { return values[size_t(row) * size_t(width) + size_t(col)]; }
 };

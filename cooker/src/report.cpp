@@ -21,7 +21,8 @@ std::string report_json(const CookReport& r) {
                  {"voids_filled_samples", r.voids_filled_samples},
                  {"voids_filled_regions", r.voids_filled_regions},
                  {"hole_samples", r.hole_samples},
-                 {"hole_regions", r.hole_regions}};
+                 {"hole_regions", r.hole_regions},
+                 {"implausible_samples", r.implausible_samples}};
   j["frame"] = {{"description", describe_frame(r.frame)},
                 {"reason", r.frame_reason},
                 {"epsg", r.frame.epsg},
@@ -68,10 +69,12 @@ std::string report_json(const CookReport& r) {
                 {"output_vertices", r.output_vertices},
                 {"height_samples_per_cpu_s", r.height_samples_per_cpu_second}};
   j["peak_rss_bytes"] = r.peak_rss_bytes;
+  j["memory_limit_bytes"] = r.memory_limit_bytes;
   if (r.surface_layers)
     j["surface"] = {{"normal_err_max_deg", r.normal_err_max_deg},
                     {"normal_err_mean_deg", r.normal_err_mean_deg},
                     {"albedo_psnr_db", r.albedo_psnr_db}};
+  j["warnings"] = r.warnings;
   return j.dump(2);
 }
 

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
+
+#include "memory_budget.h"
 
 namespace terrain::cook {
 namespace {
@@ -85,8 +88,8 @@ double fill_one(Raster& r, const Void& v, std::vector<uint8_t>& filled) {
 
 }  // namespace
 
-void fill_voids(Raster& r, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
-                VoidStats& stats) {
+Status fill_voids(Raster& r, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
+                  VoidStats& stats, uint64_t memory_limit_bytes) {
   stats = VoidStats{};
   filled.assign(r.values.size(), 0);
   const int w = r.width, h = r.height;
@@ -115,6 +118,14 @@ void fill_voids(Raster& r, NodataPolicy policy, int64_t max_fill_samples, std::v
                       (policy == NodataPolicy::automatic && !v.touches_border &&
                        int64_t(v.samples.size()) <= max_fill_samples);
     if (fill && v.samples.size() < r.values.size()) {
+      const uint64_t need = uint64_t(r.values.size()) * kCookBytesPerSample + uint64_t(v.samples.size()) * kFillBytesPerVoidSample;
+      if (Status st = check_memory(need, memory_limit_bytes, r.path,
+                                   fmt::format("filling a void of {} samples next to sample ({}, {})",
+                                               format_count(v.samples.size()), v.samples[0] % uint32_t(w),
+                                               v.samples[0] / uint32_t(w)),
+                                   "raise --memory-limit, or leave large voids as holes (--nodata auto or hole)");
+          !st.ok())
+        return st;
       stats.max_residual_m = std::max(stats.max_residual_m, fill_one(r, v, filled));
       stats.filled_samples += v.samples.size();
       stats.filled_regions += 1;
@@ -123,6 +134,7 @@ void fill_voids(Raster& r, NodataPolicy policy, int64_t max_fill_samples, std::v
       stats.hole_regions += 1;
     }
   }
+  return Status::success();
 }
 
 }  // namespace terrain::cook

@@ -23,8 +23,10 @@ struct VoidStats {
 };
 
 // Fills voids of `raster` in place. `filled` (one byte per sample) is set to 1 where a sample was
-// filled, so error statistics can leave those samples out.
-void fill_voids(Raster& raster, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
-                VoidStats& stats);
+// filled, so error statistics can leave those samples out. Filling a void takes
+// kFillBytesPerVoidSample per void sample on top of the cook's own need (the raster's samples at
+// kCookBytesPerSample); a void that would exceed memory_limit_bytes is refused before it is filled.
+Status fill_voids(Raster& raster, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
+                  VoidStats& stats, uint64_t memory_limit_bytes = UINT64_MAX);
 
 }  // namespace terrain::cook

@@ -31,7 +31,7 @@ bool parse_pair(const std::string& text, std::array<double, 2>& out, bool allow_
 int main(int argc, char** argv) {
   using terrain::cook::CookOptions;
   CookOptions o;
-  std::string origin, spacing, raw_size, nodata = "auto", quality = "balanced", report_path;
+  std::string origin, spacing, raw_size, valid_range, memory_limit, nodata = "auto", quality = "balanced", report_path;
   std::optional<double> nodata_value;
   bool quiet = false, json = false;
 
@@ -59,6 +59,14 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "hole", "fill"}))
       ->capture_default_str();
   app.add_option("--nodata-value", nodata_value, "Nodata value (overrides the file's)");
+  app.add_option("--valid-range", valid_range,
+                 "Plausible heights MIN,MAX in metres after scale/offset; others become nodata with a warning "
+                 "(default -12000,9000)");
+  app.add_option("--memory-limit", memory_limit,
+                 "Memory budget, e.g. 256M, 2G: inputs whose cook would need more are refused before reading "
+                 "(today the cook holds the source at ~16 B per sample); default: half the RAM, cgroup limit or "
+                 "ulimit -v, whichever is least (" +
+                     fmt::format("{:.1f}G here)", double(terrain::cook::default_memory_limit_bytes()) / (1 << 30)));
   app.add_option("--fill-max", o.fill_max_samples, "auto: largest enclosed void to fill, in samples")
       ->capture_default_str();
   app.add_option("--raw-size", raw_size, "Raw heightmaps: WIDTHxHEIGHT");
@@ -110,6 +118,13 @@ int main(int argc, char** argv) {
       return usage("--raw-size expects WIDTHxHEIGHT, e.g. 1025x1025");
     o.raw_size = {w, h};
   }
+  if (!valid_range.empty()) {
+    std::array<double, 2> v{};
+    if (!parse_pair(valid_range, v, false)) return usage("--valid-range expects MIN,MAX in metres, e.g. -500,5000");
+    o.valid_range_m = v;
+  }
+  if (!memory_limit.empty() && !terrain::cook::parse_byte_size(memory_limit, o.memory_limit_bytes))
+    return usage("--memory-limit " + memory_limit + ": expects a size of at least 1M, e.g. 512M, 2G, 1.5G");
   o.nodata_value = nodata_value;
   o.nodata = nodata == "hole" ? terrain::cook::NodataPolicy::hole
              : nodata == "fill" ? terrain::cook::NodataPolicy::fill
@@ -120,8 +135,19 @@ int main(int argc, char** argv) {
 
   terrain::TerminalProgress bar(!quiet && !json);
   terrain::cook::CookReport report;
-  const terrain::Status st = terrain::cook::cook(o, bar.active() ? bar.callback() : terrain::ProgressFn{}, report);
+  terrain::Status st;
+  try {
+    st = terrain::cook::cook(o, bar.active() ? bar.callback() : terrain::ProgressFn{}, report);
+  } catch (const std::bad_alloc&) {  // past the budget's checks: the system refused (ulimit, overcommit)
+    st = terrain::Status::failure(terrain::Error::internal,
+                                  "out of memory: the system refused an allocation; give a lower --memory-limit "
+                                  "than the memory this process may use, or a smaller input");
+  } catch (const std::exception& e) {
+    st = terrain::Status::failure(terrain::Error::internal, std::string("unexpected error: ") + e.what());
+  }
   bar.done();
+  if (!quiet)
+    for (const std::string& w : report.warnings) std::fprintf(stderr, "terrain-cook: warning: %s\n", w.c_str());
   if (!st.ok()) {
     std::fprintf(stderr, "terrain-cook: %s\n", st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;

@@ -39,6 +39,13 @@ struct CookOptions {
   double height_scale = 1.0;        // metres = value * scale + offset (after nodata detection)
   double height_offset = 0.0;
   std::optional<double> nodata_value;  // overrides the file's nodata value
+  // Heights (metres, after scale/offset) outside this range cannot be elevations (Challenger Deep
+  // is -10.9 km, Everest +8.8 km): they are undeclared voids (-3.4e38, 1e30) and become nodata,
+  // counted in a warning. An undeclared -9999 far from every neighbour is treated alike.
+  std::array<double, 2> valid_range_m{-12000.0, 9000.0};
+  // Memory budget in bytes (0: default_memory_limit_bytes()). Every allocation sized by the input
+  // is checked against it first; today the cook holds the source in memory at ~16 B per sample.
+  uint64_t memory_limit_bytes = 0;
 
   // Raw heightmaps (.r16/.raw: uint16 little-endian by default, .r32/.f32: float32).
   std::array<int, 2> raw_size{0, 0};  // width, height (required for raw input)
@@ -90,6 +97,7 @@ struct CookReport {
   uint64_t source_valid_samples = 0;
   uint64_t voids_filled_samples = 0, voids_filled_regions = 0;
   uint64_t hole_samples = 0, hole_regions = 0;
+  uint64_t implausible_samples = 0;  // outside valid_range_m or undeclared -9999 voids: made nodata
   double source_spacing_m = 0;       // finest source sample spacing, frame metres
   // Frame and grid
   FrameCrs frame;
@@ -118,6 +126,10 @@ struct CookReport {
   double source_samples_per_second = 0;       // source samples / total seconds
   double height_samples_per_cpu_second = 0;   // output vertices / cpu_heights
   uint64_t peak_rss_bytes = 0;
+  uint64_t memory_limit_bytes = 0;   // the budget in force
+  // What the cook could not do as asked or had to guess (e.g. implausible heights, an unmet
+  // tolerance): printed on stderr by terrain-cook and listed in the JSON report.
+  std::vector<std::string> warnings;
   // Surface layers (when present)
   double normal_err_max_deg = 0, normal_err_mean_deg = 0, albedo_psnr_db = 0;
 };
@@ -127,6 +139,13 @@ using ProgressFn = terrain::ProgressFn;
 
 // Cooks options.inputs into options.output. On failure the previous file at output is untouched.
 Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report);
+
+// --memory-limit: "256M", "2G", "1.5G", "512K" (K/M/G/T are powers of 1024; a trailing B or iB is
+// accepted); false unless it is a finite size of at least 1 MB.
+bool parse_byte_size(const std::string& text, uint64_t& out);
+// The default budget: half the memory this process may use (physical RAM, the cgroup's memory.max
+// or ulimit -v, whichever is least). Issue 13's bounded-memory cook will make it a fixed 2 GB.
+uint64_t default_memory_limit_bytes();
 
 // The report as JSON (the --report file) and as the closing summary lines.
 std::string report_json(const CookReport& report);

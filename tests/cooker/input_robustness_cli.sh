@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# CLI tests of hostile inputs (issue 11, items 5, 10, 13): each case checks the exit code, the
+# message, and that an archive already at the output path is byte-identical afterwards.
+# Usage: input_robustness_cli.sh TERRAIN_COOK SCRATCH_DIR CASE
+set -uo pipefail
+cook=$1 dir=$2 case=$3
+rm -rf "$dir" && mkdir -p "$dir" && cd "$dir" || exit 1
+printf 'previous archive\n' > keep.terrain
+cp keep.terrain keep.orig
+fail() { echo "FAIL ($case): $*"; exit 1; }
+# expect CODE REGEX command...: runs it, checks exit code and stderr, and the kept archive.
+expect() {
+  local code=$1 re=$2; shift 2
+  "$@" > out.txt 2> err.txt
+  local rc=$?
+  echo "exit $rc: $(head -c 600 err.txt)"
+  [ "$rc" = "$code" ] || fail "exit code $rc, expected $code"
+  grep -Eq -- "$re" err.txt || fail "stderr does not match '$re'"
+  cmp -s keep.terrain keep.orig || fail "keep.terrain changed"
+}
+# A synthetic 3" HGT (1201 x 1201 big-endian Int16, a gentle ramp) under the given name.
+write_hgt() { python3 -c "
+import struct, sys
+n = 1201
+row = lambda r: b''.join(struct.pack('>h', 100 + (r + c) // 8) for c in range(n))
+open(sys.argv[1], 'wb').write(b''.join(row(r) for r in range(n)))" "$1"; }
+
+case $case in
+  sparse_60000)
+    # 60000 x 60000 Float32, tiled, sparse: a few hundred KB on disk, 3.6 G samples.
+    gdal_create -q -of GTiff -outsize 60000 60000 -ot Float32 -co SPARSE_OK=TRUE -co TILED=YES -a_srs EPSG:32633 \
+      -a_ullr 500000 5000000 560000 4940000 sparse.tif || fail "gdal_create"
+    [ "$(stat -c %s sparse.tif)" -lt 2000000 ] || fail "the sparse file is not small"
+    expect 1 "sparse.tif: needs 53.6 GB for 3.6 G samples of 60000x60000 Float32.*over --memory-limit 2.0 GB" \
+      "$cook" sparse.tif -o keep.terrain --memory-limit 2G --quiet
+    # Under an address-space limit and the default budget (derived from it): refused, no abort.
+    expect 1 "sparse.tif: needs 53.6 GB .*over --memory-limit" bash -c "ulimit -v 1500000; exec '$cook' sparse.tif -o keep.terrain --quiet"
+    ;;
+  patched_header)
+    # A small striped GeoTIFF whose ImageWidth/ImageLength are patched to 65535 (one strip of all rows).
+    gdal_create -q -of GTiff -outsize 16 16 -ot Float32 -co BLOCKYSIZE=16 -a_srs EPSG:32633 \
+      -a_ullr 500000 5000016 500016 5000000 small.tif || fail "gdal_create"
+    python3 - small.tif patched.tif <<'PY' || fail "patching the header"
+import struct, sys
+b = bytearray(open(sys.argv[1], 'rb').read())
+assert b[:4] == b'II*\0'
+ifd = struct.unpack_from('<I', b, 4)[0]
+n = struct.unpack_from('<H', b, ifd)[0]
+for i in range(n):
+    at = ifd + 2 + 12 * i
+    tag, typ = struct.unpack_from('<HH', b, at)
+    if tag in (256, 257, 278):  # ImageWidth, ImageLength, RowsPerStrip
+        if typ == 3: struct.pack_into('<H', b, at + 8, 65535)
+        else: struct.pack_into('<I', b, at + 8, 65535)
+open(sys.argv[2], 'wb').write(b)
+PY
+    expect 1 "patched.tif: needs .* for 4.3 G samples of 65535x65535 Float32.*over --memory-limit 1.0 GB" \
+      "$cook" patched.tif -o keep.terrain --memory-limit 1G --quiet
+    expect 1 "patched.tif: needs .*over --memory-limit" bash -c "ulimit -v 1500000; exec '$cook' patched.tif -o keep.terrain --quiet"
+    ;;
+  hgt_name_mismatch)
+    write_hgt N44W072.hgt
+    python3 -c "import zipfile; zipfile.ZipFile('N57E011.hgt.zip', 'w', zipfile.ZIP_DEFLATED).write('N44W072.hgt')"
+    expect 1 "N57E011.hgt.zip: holds N44W072.hgt, the tile N44W072, but its file name says N57E011" \
+      "$cook" N57E011.hgt.zip -o keep.terrain --quiet
+    gzip -c N44W072.hgt > S10W020.hgt.gz  # gzip stores the original name
+    expect 1 "S10W020.hgt.gz: holds N44W072.hgt, the tile N44W072, but its file name says S10W020" \
+      "$cook" S10W020.hgt.gz -o keep.terrain --quiet
+    ;;
+  bad_flags)
+    expect 2 "--memory-limit 2X: expects a size" "$cook" x.tif -o keep.terrain --memory-limit 2X
+    expect 2 "--memory-limit 0: expects a size" "$cook" x.tif -o keep.terrain --memory-limit 0
+    write_hgt N10E010.hgt
+    expect 2 "--valid-range 5,1: expected MIN,MAX" "$cook" N10E010.hgt -o keep.terrain --valid-range 5,1
+    expect 2 "--valid-range expects MIN,MAX" "$cook" N10E010.hgt -o keep.terrain --valid-range 5
+    ;;
+  unmet_tolerance)
+    # Jacksboro (74 m samples) held to level 5 (16 m vertices) cannot meet 0.2 m.
+    npz=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
+    [ -f "$npz" ] || { echo "SKIPPED: $npz not found"; exit 0; }
+    "$cook" "$npz" --crs EPSG:4326 -o new.terrain --tolerance 0.2 --finest-level 5 --heights-only --report r.json \
+      > out.txt 2> err.txt || fail "cook failed: $(cat err.txt)"
+    cat err.txt
+    grep -Eq "warning: --tolerance 0.2 m is not met everywhere: the full-detail error reaches [0-9.]+ m because level 5 .*--finest-level 4" err.txt \
+      || fail "no unmet-tolerance warning on stderr"
+    python3 -c "
+import json, sys
+j = json.load(open('r.json'))
+w = j['warnings']
+assert len(w) == 1 and '--finest-level 4' in w[0], w
+assert j['full_detail_error']['max_m'] > 0.2, j['full_detail_error']
+assert str(round(j['full_detail_error']['max_m'], 3)) in w[0] or ('%.3f' % j['full_detail_error']['max_m']) in w[0], w
+" || fail "report warnings"
+    # Met (default finest level): no warning, an empty array.
+    "$cook" "$npz" --crs EPSG:4326 -o new.terrain --tolerance 0.5 --heights-only --report r.json > out.txt 2> err.txt \
+      || fail "cook failed"
+    ! grep -q warning err.txt || fail "unexpected warning: $(cat err.txt)"
+    python3 -c "import json; assert json.load(open('r.json'))['warnings'] == []" || fail "warnings not empty"
+    ;;
+  *) fail "unknown case" ;;
+esac
+echo "PASS ($case)"
