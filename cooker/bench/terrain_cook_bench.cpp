@@ -333,14 +333,19 @@ int main(int argc, char** argv) {
   app.add_option("--runs", runs, "Runs per measurement (median)")->capture_default_str();
   app.add_flag("--skip-default", skip_default, "Skip the default cooks with every section");
   app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
-  app.add_option("--sizes", sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::PositiveNumber)
+  app.add_option("--sizes", sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_flag("--heights-only", heights_only, "--scale: cook with --heights-only");
   app.add_option("--work", work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
   app.add_option("--source", source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
   app.add_option("--python", python, "--scale: Python with GDAL and numpy")->capture_default_str();
   app.add_option("--script", script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return e.get_exit_code() == 0 ? 0 : 2;  // usage error: exit 2, like terrain-cook
+  }
 
   const std::filesystem::path self = std::filesystem::canonical("/proc/self/exe").parent_path();
   const std::string tool = (self / "terrain-cook").string();
@@ -349,7 +354,9 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (scale)
-    return scale_main(tool, self, sizes, heights_only, work, source.empty() ? data + "/kilauea_utm5n.tif" : source,
+    return scale_main(tool, self, sizes, heights_only, work,
+                      source.empty() ? std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string()
+                                     : source,
                       python, script);
   const std::string d = data + "/";
   std::vector<Dem> dems = {
