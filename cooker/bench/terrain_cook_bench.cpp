@@ -6,6 +6,9 @@
 //
 // Each cook runs terrain-cook (next to this program) as a child process, so peak memory is the
 // child's own (wait4 ru_maxrss) and the numbers are those a user sees.
+//
+// --scale: cooks 1 m lidar-like squares of --sizes km (made by make_lidar_like.py from a real DEM)
+// and prints peak memory, time and throughput per size: the issue-13 baseline (bounded-memory cook).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -13,10 +16,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <sys/statvfs.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -171,6 +177,144 @@ Baseline gdal_baseline(const Dem& dem, const nlohmann::json& report, double spac
 
 std::string mb(double bytes) { return fmt::format("{:.2f}", bytes / 1e6); }
 
+// ---- --scale: peak memory and throughput against source size -------------------------------------
+
+// Today's cooker holds the whole source raster (and per-sample working grids) in memory, so its
+// peak grows with the source. Refuse a size whose estimate exceeds what the machine has, instead of
+// swapping it: the estimate is the larger of this figure and the bytes per sample measured on the
+// sizes already cooked in this run.
+constexpr double kAssumedBytesPerSourceSample = 17.0;
+constexpr double kUsableMemoryFraction = 0.8;  // of MemAvailable: others share the machine
+constexpr double kGeneratedBytesPerSample = 4.5;  // disk for one generated DEM (ZSTD float32 + margin)
+
+uint64_t mem_available_bytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  uint64_t kb = 0;
+  std::string unit;
+  while (in >> key >> kb >> unit)
+    if (key == "MemAvailable:") return kb * 1024;
+  return 0;
+}
+
+uint64_t disk_free_bytes(const std::string& dir) {
+  struct statvfs s {};
+  if (statvfs(dir.c_str(), &s) != 0) return 0;
+  return uint64_t(s.f_bavail) * s.f_frsize;
+}
+
+struct ScaleRow {
+  int km = 0;
+  uint64_t samples = 0;
+  std::string status = "ok";  // or why the size was skipped / failed
+  double gen_s = NAN, wall_s = NAN, cpu_s = NAN, rss_bytes = NAN;
+  uint64_t nodes = 0, archive_bytes = 0;
+  double bytes_per_sample() const { return rss_bytes / double(samples); }
+  double samples_per_cpu_s() const { return double(samples) / cpu_s; }
+};
+
+double gb(double bytes) { return bytes / double(1ull << 30); }
+
+int scale_main(const std::string& tool, const std::filesystem::path& self, std::vector<int> sizes, bool heights_only,
+               std::string work, const std::string& source, const std::string& python, std::string script) {
+  if (work.empty()) work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
+  if (script.empty()) script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+  std::error_code ec;
+  std::filesystem::create_directories(work, ec);
+  if (ec) {
+    fmt::print(stderr, "terrain-cook-bench: cannot create --work {}: {}\n", work, ec.message());
+    return 1;
+  }
+  if (!std::filesystem::exists(source)) {
+    fmt::print(stderr, "terrain-cook-bench: source DEM {} not found (--source, or --data)\n", source);
+    return 1;
+  }
+  const std::string mode = heights_only ? "heights-only" : "full";
+  fmt::print("terrain-cook-bench --scale: {} cooks (default flags{}) of 1 m lidar-like squares from {}, work {}\n",
+             mode, heights_only ? " + --heights-only" : "", source, work);
+  fmt::print("Limit today: the cooker holds the source in memory; a size is skipped when its estimated peak "
+             "(max({} B/sample, measured so far) x samples) exceeds {:.0f}% of MemAvailable.\n\n",
+             kAssumedBytesPerSourceSample, 100 * kUsableMemoryFraction);
+  fmt::print("{:>5} {:>13} {:>9} {:>8} {:>8} {:>8} {:>10} {:>7} {:>12} {:>7}  {}\n", "km", "samples", "peak_MB",
+             "B/samp", "wall_s", "cpu_s", "MS/cpu_s", "nodes", "archive_B", "gen_s", "status");
+  std::vector<ScaleRow> rows;
+  double measured_bps = 0;
+  for (int km : sizes) {
+    ScaleRow row;
+    row.km = km;
+    row.samples = uint64_t(km) * 1000 * uint64_t(km) * 1000;
+    const std::string dem = fmt::format("{}/lidar_like_{}km.tif", work, km);
+    const double need = std::max(kAssumedBytesPerSourceSample, measured_bps) * double(row.samples);
+    const double avail = kUsableMemoryFraction * double(mem_available_bytes());
+    if (need > avail) {
+      row.status = fmt::format("skipped: in-core cook needs ~{:.1f} GB, {:.1f} GB usable (source held in memory)",
+                               gb(need), gb(avail));
+    } else if (!std::filesystem::exists(dem)) {
+      const double disk_need = kGeneratedBytesPerSample * double(row.samples);
+      if (disk_need > double(disk_free_bytes(work))) {
+        row.status = fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), work);
+      } else {
+        const Run g = run({python, script, "--source", source, "--size-km", std::to_string(km), "--out", dem});
+        row.gen_s = g.wall_s;
+        if (!g.ok) row.status = fmt::format("failed: {} {} could not make {}", python, script, dem);
+      }
+    } else {
+      row.gen_s = 0;  // reused
+    }
+    if (row.status == "ok") {
+      const std::string archive = fmt::format("{}/lidar_like_{}km.terrain", work, km);
+      std::vector<std::string> argv = {tool, dem, "-o", archive, "--json"};
+      if (heights_only) argv.push_back("--heights-only");
+      const Run r = run(argv);
+      if (!r.ok) {
+        row.status = "failed: terrain-cook exited non-zero";
+      } else {
+        const auto j = nlohmann::json::parse(r.out, nullptr, false);
+        if (j.is_discarded() || !j.contains("output")) {
+          row.status = "failed: terrain-cook printed no JSON report";
+        } else {
+          row.nodes = j["output"]["nodes"];
+          row.archive_bytes = j["output"]["archive_bytes"];
+        }
+        row.wall_s = r.wall_s;
+        row.cpu_s = r.cpu_s;
+        row.rss_bytes = double(r.rss_bytes);
+        measured_bps = std::max(measured_bps, row.bytes_per_sample());
+      }
+      std::filesystem::remove(archive, ec);  // archives of the large sizes are gigabytes
+    }
+    fmt::print("{:>5} {:>13} {:>9.0f} {:>8.2f} {:>8.2f} {:>8.2f} {:>10.2f} {:>7} {:>12} {:>7.1f}  {}\n", row.km,
+               row.samples, row.rss_bytes / 1e6, row.bytes_per_sample(), row.wall_s, row.cpu_s,
+               row.samples_per_cpu_s() / 1e6, row.nodes, row.archive_bytes, row.gen_s, row.status);
+    std::fflush(stdout);
+    rows.push_back(row);
+  }
+  // The table next to the DEMs, one file per mode (heights-only and full runs do not overwrite each other).
+  nlohmann::json js = nlohmann::json::array();
+  std::ofstream csv(fmt::format("{}/scale-{}.csv", work, mode));
+  csv << "size_km,samples,peak_rss_bytes,bytes_per_sample,wall_s,cpu_s,samples_per_cpu_s,nodes,archive_bytes,gen_s,"
+         "status\n";
+  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  for (const ScaleRow& r : rows) {
+    js.push_back({{"size_km", r.km}, {"samples", r.samples}, {"peak_rss_bytes", num(r.rss_bytes)},
+                  {"bytes_per_sample", num(r.bytes_per_sample())}, {"wall_s", num(r.wall_s)}, {"cpu_s", num(r.cpu_s)},
+                  {"samples_per_cpu_s", num(r.samples_per_cpu_s())}, {"nodes", r.nodes},
+                  {"archive_bytes", r.archive_bytes}, {"gen_s", num(r.gen_s)}, {"status", r.status}});
+    csv << fmt::format("{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.0f},{},{},{:.1f},\"{}\"\n", r.km, r.samples, r.rss_bytes,
+                       r.bytes_per_sample(), r.wall_s, r.cpu_s, r.samples_per_cpu_s(), r.nodes, r.archive_bytes,
+                       r.gen_s, r.status);
+  }
+  std::ofstream(fmt::format("{}/scale-{}.json", work, mode))
+      << nlohmann::json{{"mode", mode}, {"source", source}, {"threads", std::thread::hardware_concurrency()},
+                        {"rows", js}}
+             .dump(2)
+      << "\n";
+  fmt::print("\nWrote {}/scale-{}.json and .csv\n", work, mode);
+  bool failed = false;
+  for (const ScaleRow& r : rows) failed |= r.status.rfind("failed", 0) == 0;
+  return failed ? 1 : 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -179,13 +323,29 @@ int main(int argc, char** argv) {
   std::vector<std::string> only;
   int runs = 3;
   bool skip_default = false;
+  bool scale = false, heights_only = false;
+  std::vector<int> sizes = {4, 8, 16, 40};
+  std::string work, source, script, python = "/usr/bin/python3";
   CLI::App app{"terrain-cook-bench: tolerance sweep over the shared DEMs against gdalwarp -r cubic"};
   app.add_option("--data", data, "Folder of the shared DEMs")->capture_default_str();
   app.add_option("--tolerances", tolerances, "Tolerances to sweep (metres)")->delimiter(',');
   app.add_option("--dems", only, "Only these DEMs (names as printed)")->delimiter(',');
   app.add_option("--runs", runs, "Runs per measurement (median)")->capture_default_str();
   app.add_flag("--skip-default", skip_default, "Skip the default cooks with every section");
-  CLI11_PARSE(app, argc, argv);
+  app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
+  app.add_option("--sizes", sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_flag("--heights-only", heights_only, "--scale: cook with --heights-only");
+  app.add_option("--work", work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
+  app.add_option("--source", source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
+  app.add_option("--python", python, "--scale: Python with GDAL and numpy")->capture_default_str();
+  app.add_option("--script", script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return e.get_exit_code() == 0 ? 0 : 2;  // usage error: exit 2, like terrain-cook
+  }
 
   const std::filesystem::path self = std::filesystem::canonical("/proc/self/exe").parent_path();
   const std::string tool = (self / "terrain-cook").string();
@@ -193,6 +353,11 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
   }
+  if (scale)
+    return scale_main(tool, self, sizes, heights_only, work,
+                      source.empty() ? std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string()
+                                     : source,
+                      python, script);
   const std::string d = data + "/";
   std::vector<Dem> dems = {
       {"tahoe_bare", d + "tahoe_lidar_bareearth.tif", {}, d + "tahoe_lidar_bareearth.tif"},
