@@ -30,7 +30,7 @@ static_assert(TV_MAX_DECIMATE == 4);
 PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_offset, int step_log2);
 
 // Decoded cone of one texel, as the patch pass sees it (layout and test: the surface layers'
-// cooker/src/surface/cone_cull.h). Culling is allowed only when `cullable`.
+// terrain/surface_contract.h). Culling is allowed only when `cullable`.
 struct Cone {
   float axis[3] = {0, 0, 1};  // not normalised: axis_len2 = |axis|^2
   float axis_len2 = 1;
