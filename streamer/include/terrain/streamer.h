@@ -1,6 +1,6 @@
 // Streaming runtime: keeps the right nodes of a terrain archive resident while cameras move.
 //
-// The FC5 scheme (../shared/notes/fc5-talk.md sections 2-4): roots always resident, about 500 nodes
+// The FC5 scheme (Far Cry 5 terrain talk, GDC 2018, sections 2-4): roots always resident, about 500 nodes
 // chosen by screen-space error, loaded by background threads, handed to the caller one bounded
 // batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (per-level
 // uint16 index grids + node descriptor table) maintained incrementally with dirty regions.
