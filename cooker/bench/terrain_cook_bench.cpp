@@ -1,4 +1,4 @@
-// terrain-cook-bench: sweeps --tolerance over the real DEMs of ../shared/data and prints, per
+// terrain-cook-bench: sweeps --tolerance over the real DEMs of the data directory (TERRAIN_DATA_DIR) and prints, per
 // setting, nodes, bytes, cook time, max/RMS height error and the height stage's output samples per
 // CPU-second, next to what `gdalwarp -r cubic` (the baseline a user would otherwise run, measured
 // in the same run) takes to resample the same source to the finest cooked spacing; then the

@@ -88,7 +88,6 @@ std::string cook_info(const CookOptions& o, const CookReport& r, const std::vect
   return j.dump();
 }
 
-#if TERRAIN_COOKER_HAS_SURFACE
 // ---- --albedo / --holes / --landcover: rasters in any supported CRS, sampled at node window vertices ----
 
 // One overlay raster and its exact mapping from frame metres to its samples (frame.h), so a vertex
@@ -292,7 +291,6 @@ Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vec
   out = std::move(ov);
   return Status::success();
 }
-#endif
 
 // Nodes stop refining at the finest level allowed, even where the error still exceeds the
 // tolerance (coarse sources: Catmull-Rom between 30-100 m samples is not met by bilinear vertices).
@@ -412,7 +410,6 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
 
   // Surface layers: material rules and palette.
   std::shared_ptr<const MaterialRules> rules;
-#if TERRAIN_COOKER_HAS_SURFACE
   {
     SurfaceOptions so;
     so.materials_path = options.materials_path;
@@ -429,12 +426,6 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
       !st.ok())
     return st;
   ctx.overlays = overlays.get();
-#else
-  if (!options.materials_path.empty() || !options.albedo_path.empty() || !options.holes_path.empty() ||
-      !options.landcover_path.empty())
-    return Status::failure(Error::invalid_argument,
-                           "--materials/--albedo/--holes/--landcover: this build has no surface-layer library");
-#endif
   report.seconds_prepare = seconds_since(t_prep);
 
   // ---- pyramid ----
@@ -466,9 +457,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   world.extent_max_x_m = fx1;
   world.extent_max_y_m = fy1;
   world.step_log2 = ctx.step_log2;
-#if TERRAIN_COOKER_HAS_SURFACE
   if (rules) world.palette = palette_of(*rules);
-#endif
   world.cook_info_json = cook_info(options, report, descriptions);
   if (Status st = writer.finish(world); !st.ok()) return st;
   report.archive_bytes = writer.bytes_written();

@@ -299,7 +299,6 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   const double t2 = thread_cpu_s();
 
   bool surface_done = false;
-#if TERRAIN_COOKER_HAS_SURFACE
   if (!ctx.heights_only) {
     surface_done = true;
     std::vector<float> heights_m(kWindowCount);
@@ -318,7 +317,6 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
     if (!out.status.ok()) return;
   }
-#endif
   if (!surface_done) encode_hole_albedo(*window, data->albedo_bc1);
   const double t3 = thread_cpu_s();
   out.status = encode_node_payload(*data, ctx.payload, out.payload);

@@ -146,7 +146,7 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
                                                       std::to_string(impl_->nodes.size()) + " nodes)");
   const NodeRecord& r = impl_->nodes[index];
   const auto bytes = payload(index);
-  const std::string where = "node " + detail::node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
+  const std::string where = "node " + node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
   if (detail::crc32_of(bytes) != r.payload_crc32) return Status::failure(Error::payload_checksum, where + "payload CRC-32 mismatch");
   if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
     s.message = where + s.message;
@@ -161,7 +161,7 @@ Status ArchiveReader::section_bytes(SectionBytes& out) const {
   for (size_t i = 0; i < impl_->nodes.size(); ++i) {
     detail::PayloadTable table;
     if (Status s = detail::parse_payload_table(payload(i), table); !s.ok()) {
-      s.message = "node " + detail::node_name(impl_->nodes[i].key) + ": " + s.message;
+      s.message = "node " + node_name(impl_->nodes[i].key) + ": " + s.message;
       return s;
     }
     for (size_t s = 0; s < layout::kSectionCount; ++s) {
@@ -195,7 +195,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
   for (size_t i = 0; i < nodes.size(); ++i) {
     if (progress) progress(double(i) / double(nodes.size()), user);
     const NodeRecord& r = nodes[i];
-    const std::string where = "node " + detail::node_name(r.key) + ": ";
+    const std::string where = "node " + node_name(r.key) + ": ";
     if (Status s = load(i, self, kSectionAll); !s.ok()) return s;
     // Section contents the directory promises.
     int holes = 0;
@@ -233,7 +233,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
           if (self.units[a] != other.units[b])
             return Status::failure(Error::payload_invalid, where + "vertex (" + std::to_string(u) + ", " + std::to_string(v) + ") = " +
                                                                std::to_string(self.units[a]) + " units but " + what + " " +
-                                                               detail::node_name(key) + " stores " + std::to_string(other.units[b]) +
+                                                               node_name(key) + " stores " + std::to_string(other.units[b]) +
                                                                " at the same point");
         }
       return Status::success();

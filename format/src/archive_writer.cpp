@@ -107,9 +107,9 @@ Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t
   }
   detail::PayloadTable table;
   if (Status s = detail::parse_payload_table(payload, table); !s.ok())
-    return Status::failure(Error::invalid_argument, "node " + detail::node_name(r.key) + ": payload: " + s.to_string());
+    return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + ": payload: " + s.to_string());
   if (!w.keys.insert(r.key).second)
-    return Status::failure(Error::invalid_argument, "node " + detail::node_name(r.key) + " was added twice");
+    return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " was added twice");
   r.payload_crc32 = detail::crc32_of(payload);
   if (Status s = write_all(w.fd, payload.data(), payload.size(), w.offset, w.temp_path); !s.ok()) return w.fail(s);
   w.offset += payload.size();

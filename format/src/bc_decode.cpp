@@ -48,8 +48,7 @@ void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64], BcRounding round
 }
 void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]) { decode_bc1_block(block, rgba, BcRounding::nearest); }
 
-void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding rounding) {
-  decode_colour(block + 8, false, rounding, rgba);
+void decode_bc4_block(const uint8_t block[8], uint8_t values[16], BcRounding rounding) {
   const bool nearest = rounding == BcRounding::nearest;
   const int a0 = block[0], a1 = block[1];
   uint8_t alpha[8];
@@ -64,7 +63,15 @@ void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding roun
   }
   uint64_t bits = 0;
   for (int i = 0; i < 6; ++i) bits |= uint64_t(block[2 + i]) << (8 * i);
-  for (int p = 0; p < 16; ++p) rgba[4 * p + 3] = alpha[(bits >> (3 * p)) & 7];
+  for (int p = 0; p < 16; ++p) values[p] = alpha[(bits >> (3 * p)) & 7];
+}
+void decode_bc4_block(const uint8_t block[8], uint8_t values[16]) { decode_bc4_block(block, values, BcRounding::nearest); }
+
+void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding rounding) {
+  decode_colour(block + 8, false, rounding, rgba);
+  uint8_t alpha[16];
+  decode_bc4_block(block, alpha, rounding);
+  for (int p = 0; p < 16; ++p) rgba[4 * p + 3] = alpha[p];
 }
 void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) { decode_bc3_block(block, rgba, BcRounding::nearest); }
 
@@ -93,6 +100,16 @@ void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t
 }
 void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba) {
   decode_bc3_image(blocks, blocks_x, blocks_y, rgba, BcRounding::nearest);
+}
+
+uint16_t bc1_transparent_mask(const uint8_t block[8]) {
+  const uint16_t c0 = uint16_t(block[0] | (block[1] << 8)), c1 = uint16_t(block[2] | (block[3] << 8));
+  if (c0 > c1) return 0;
+  const uint32_t idx = uint32_t(block[4]) | (uint32_t(block[5]) << 8) | (uint32_t(block[6]) << 16) | (uint32_t(block[7]) << 24);
+  uint16_t m = 0;
+  for (int i = 0; i < 16; ++i)
+    if (((idx >> (2 * i)) & 3) == 3) m = uint16_t(m | (1u << i));
+  return m;
 }
 
 uint8_t bc1_texel_alpha(const uint8_t* blocks, int blocks_x, int t, int u) {

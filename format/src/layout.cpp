@@ -20,10 +20,6 @@ bool finite(double v) { return std::isfinite(v); }
 
 }  // namespace
 
-std::string node_name(const NodeKey& k) {
-  return std::to_string(k.level) + "/" + std::to_string(k.x) + "/" + std::to_string(k.y);
-}
-
 // ---- header ---------------------------------------------------------------------------------------
 void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]) {
   namespace f = layout::header;

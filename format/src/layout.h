@@ -8,6 +8,7 @@
 
 #include "terrain/archive_layout.h"
 #include "terrain/format.h"
+#include "terrain/surface_contract.h"
 #include "terrain/status.h"
 
 namespace terrain::detail {
@@ -40,6 +41,5 @@ Status validate_record(const NodeRecord& r, const WorldInfo* world);
 // child masks match the directory, every non-root node has its parent.
 Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size);
 
-std::string node_name(const NodeKey& k);  // "L/X/Y"
 
 }  // namespace terrain::detail

@@ -35,10 +35,6 @@ uint64_t raw_section_bytes(unsigned sections) {
   return bytes;
 }
 
-std::string key_string(const NodeKey& k) {
-  return std::to_string(k.level) + "/" + std::to_string(k.x) + "/" + std::to_string(k.y);
-}
-
 void grow(DirtyRect& r, uint32_t x, uint32_t y) {
   if (r.empty()) {
     r = {x, y, x + 1, y + 1};
@@ -196,7 +192,7 @@ struct Streamer::Impl {
     for (const NodeRecord& r : records) {
       const GridSize& g = grid_size[r.key.level];
       if (r.key.x >= g.width || r.key.y >= g.height)
-        return Status::failure(Error::directory_invalid, "streamer: node " + key_string(r.key) +
+        return Status::failure(Error::directory_invalid, "streamer: node " + node_name(r.key) +
                                                              " lies outside the " + std::to_string(world.roots_x) + "x" +
                                                              std::to_string(world.roots_y) + " root grid");
       grids[r.key.level][size_t(r.key.y) * g.width + r.key.x] = kIndexNotResident;
@@ -223,7 +219,7 @@ struct Streamer::Impl {
           loader->free_buffers({&r.data, 1});
           loader->release(1);
           if (!first_error)
-            first_error = Status::failure(r.status.code, "streamer: root node " + key_string(records[r.node].key) +
+            first_error = Status::failure(r.status.code, "streamer: root node " + node_name(records[r.node].key) +
                                                              " cannot be loaded (roots are always resident): " +
                                                              r.status.to_string());
           continue;

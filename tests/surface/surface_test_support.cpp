@@ -5,7 +5,7 @@
 #include <random>
 
 #include "bc_blocks.h"
-#include "cone_cull.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::cook::test {
 

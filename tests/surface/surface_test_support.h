@@ -47,7 +47,7 @@ struct ConeCheck {
   double worst_cos = -1;         // largest dot(unit(eye - P), unit n) over culled triangles (< 0 is back-facing)
 };
 // Draws `eyes` random eye points around and above the node, applies the runtime cone test of
-// cone_cull.h to every patch (box = patch footprint x [node min, node max] height) and checks each
+// terrain/surface_contract.h to every patch (box = patch footprint x [node min, node max] height) and checks each
 // culled patch against every triangle the renderer can draw there, stitched variants included
 // (enumerated here independently of the cooker).
 ConeCheck check_cones(const bench::DemNode& node, const NodeData& data, int eyes, uint64_t seed);

@@ -1,5 +1,5 @@
 // Block encoders: punch-through holes, constant colours, quality against the library encoders,
-// conservative BC4, and the decoder against the format library's.
+// conservative BC4.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,10 +9,9 @@
 
 #include "bc_blocks.h"
 #include "surface_encoders.h"
-#if TERRAIN_HAVE_FORMAT_DECODER
 #include "terrain/bc_decode.h"
-#endif
 
+using namespace terrain;
 using namespace terrain::cook;
 
 namespace {
@@ -294,21 +293,3 @@ TEST(BcBlocks, ConservativeBc4NeverDecodesBelowItsTargets) {
     }
   }
 }
-
-#if TERRAIN_HAVE_FORMAT_DECODER
-TEST(BcBlocks, DecoderMatchesTheFormatLibrary) {
-  std::mt19937 rng(17);
-  std::uniform_int_distribution<int> byte(0, 255);
-  for (int trial = 0; trial < 20000; ++trial) {
-    uint8_t block[16];
-    for (uint8_t& b : block) b = uint8_t(byte(rng));
-    uint8_t ours[64], theirs[64];
-    decode_bc1_block(block, ours);
-    terrain::decode_bc1_block(block, theirs);
-    ASSERT_EQ(0, std::memcmp(ours, theirs, 64)) << "BC1 trial " << trial;
-    decode_bc3_block(block, ours);
-    terrain::decode_bc3_block(block, theirs);
-    ASSERT_EQ(0, std::memcmp(ours, theirs, 64)) << "BC3 trial " << trial;
-  }
-}
-#endif

@@ -8,7 +8,7 @@
 #include <thread>
 
 #include "bc_blocks.h"
-#include "cone_cull.h"
+#include "terrain/surface_contract.h"
 #include "cones.h"
 #include "normals.h"
 #include "surface_test_support.h"

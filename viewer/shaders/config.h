@@ -22,9 +22,19 @@
 // (south-west corner of root 0,0), so shared vertices convert to bit-identical floats.
 #define TV_HALF_METRE 0.5
 
-// ---- Index texture / slot table (the streamer's values) ----
-#define TV_SLOT_EMPTY 0xFFFFu     // node exists, not resident
-#define TV_SLOT_INVALID 0xFFFEu   // no node in the archive here
+// ---- Index texture / slot table (terrain/surface_contract.h; static_asserts in src/gpu_types.h) ----
+#define TV_SLOT_EMPTY 0xFFFFu     // node exists, not resident (kIndexNotResident)
+#define TV_SLOT_INVALID 0xFFFEu   // no node in the archive here (kIndexNoNode)
+
+// ---- Surface texels (terrain/surface_contract.h; static_asserts in src/gpu_types.h) ----
+// Normal component c = (v8 - TV_NORMAL_CENTRE) / TV_NORMAL_SCALE; cone axis x = (R - TV_CONE_R_CENTRE)
+// / TV_CONE_R_SCALE, y = (G - TV_CONE_G_CENTRE) / TV_CONE_G_SCALE.
+#define TV_NORMAL_CENTRE 128
+#define TV_NORMAL_SCALE 127
+#define TV_CONE_R_CENTRE 132
+#define TV_CONE_R_SCALE 123
+#define TV_CONE_G_CENTRE 130
+#define TV_CONE_G_SCALE 125
 
 // ---- Traversal (one workgroup, lists in shared memory, FC5 section 4.2) ----
 // Group size: more threads finish a wide level in fewer steps; lavapipe caps a group at 1024.

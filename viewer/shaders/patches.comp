@@ -100,13 +100,13 @@ uint eff_at(int sx, int sy, uint max_e, uint own) {
 
 float cone_sin2(uint a) { return palette.cone_sin2[a >> 2][a & 3u]; }
 
-// Cone texel -> axis (layout: cooker/src/surface/cone_cull.h; same operations as decode_cone() in
+// Cone texel -> axis (layout: terrain/surface_contract.h; same operations as decode_cone() in
 // src/node_prep.cpp), then the 8-corner test: dot(v, a) >= sin(theta) |v| |a|, squared.
 bool cone_backfacing(vec3 mn, vec3 mx, uvec4 t) {
   float sin2 = cone_sin2(t.a);
   if (!(sin2 >= 0.0)) return false;
-  precise float ax = (float(t.r) - 132.0) * (1.0 / 123.0);
-  precise float ay = (float(t.g) - 130.0) * (1.0 / 125.0);
+  precise float ax = (float(t.r) - float(TV_CONE_R_CENTRE)) * (1.0 / float(TV_CONE_R_SCALE));
+  precise float ay = (float(t.g) - float(TV_CONE_G_CENTRE)) * (1.0 / float(TV_CONE_G_SCALE));
   precise float rr = ax * ax + ay * ay;
   precise float az = rr < 1.0 ? sqrt(1.0 - rr) : 0.0;
   precise float aa = ax * ax + ay * ay + az * az;
@@ -181,7 +181,7 @@ void main() {
     return;
   }
   uint deltas = (ds << TV_EDGE_S) | (dw << TV_EDGE_W) | (dn << TV_EDGE_N) | (de << TV_EDGE_E);
-  // The cooked cones cover the node's own triangles, stitched up to d = 4 (cone_cull.h).
+  // The cooked cones cover the node's own triangles, stitched up to d = 4 (terrain/surface_contract.h).
   // Cones leave out triangles touching hole vertices: with holes drawn, nodes with holes are not culled.
   bool cones_valid = (flags & TV_FLAG_HOLES) != 0u || ((d.packed >> 16) & 1u) == 0u;
   if ((flags & TV_FLAG_CONE_CULL) != 0u && c == 0u && dec == 0u && max(dsn, dwe) <= 4u && cones_valid) {

@@ -60,10 +60,10 @@ vec3 level_color(uint level) {
   return c[min(level, 7u)];
 }
 
-// Normals atlas (SPEC-surface.md section 2): x in A, y in G as (v8 - 128) / 127, z rebuilt;
+// Normals atlas (terrain/surface_contract.h): x in A, y in G as (v8 - 128) / 127, z rebuilt;
 // ambient occlusion of the 4x4 block in R.
 vec3 baked_normal(vec4 t) {
-  vec2 xy = (vec2(t.a, t.g) * 255.0 - 128.0) * (1.0 / 127.0);
+  vec2 xy = (vec2(t.a, t.g) * 255.0 - float(TV_NORMAL_CENTRE)) * (1.0 / float(TV_NORMAL_SCALE));
   float r2 = dot(xy, xy);
   if (r2 > 1.0) return vec3(xy * inversesqrt(r2), 0.0);
   return normalize(vec3(xy, sqrt(1.0 - r2)));

@@ -4,7 +4,7 @@
 #include <cstdint>
 
 #include "terrain/format.h"
-#include "terrain/streamer.h"
+#include "terrain/surface_contract.h"
 #include "../shaders/config.h"
 
 namespace terrain::view {
@@ -15,6 +15,11 @@ static_assert(TV_TEXELS == kTexels && TV_APRON == kApron && TV_SPLAT_SAMPLES == 
 static_assert(TV_PATCHES_PER_SIDE == kPatchesPerSide && TV_QUADS_PER_PATCH == kQuadsPerPatch);
 static_assert(TV_PATCHES_PER_SIDE * TV_QUADS_PER_PATCH == TV_QUADS_PER_NODE);
 static_assert(TV_SECTORS_PER_ROOT == (1 << TV_ROOT_LEVEL));
+// The GLSL mirror of terrain/surface_contract.h.
+static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode);
+static_assert(TV_NORMAL_CENTRE == kNormalCentre && TV_NORMAL_SCALE == kNormalScale);
+static_assert(TV_CONE_R_CENTRE == cone::kConeRCentre && TV_CONE_R_SCALE == cone::kConeRScale);
+static_assert(TV_CONE_G_CENTRE == cone::kConeGCentre && TV_CONE_G_SCALE == cone::kConeGScale);
 
 // Node descriptor, one per atlas slot: the streamer's slot table entry, uploaded as it is
 // (std430, 32 bytes; NodeDesc in shaders/common.glsl). Heights in units of 2^-10 m.

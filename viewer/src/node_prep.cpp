@@ -107,8 +107,8 @@ void cone_sin2_table(double margin_deg, float out[256]) {
 Cone decode_cone(const std::array<uint8_t, 4>& t, const float* sin2_table) {
   // Same operation order as cone_backfacing() in shaders/patches.comp.
   Cone c;
-  const float x = (float(t[0]) - 132.0f) * (1.0f / 123.0f);
-  const float y = (float(t[1]) - 130.0f) * (1.0f / 125.0f);
+  const float x = (float(t[0]) - float(cone::kConeRCentre)) * (1.0f / float(cone::kConeRScale));
+  const float y = (float(t[1]) - float(cone::kConeGCentre)) * (1.0f / float(cone::kConeGScale));
   const float rr = x * x + y * y;
   const float z = rr < 1.0f ? std::sqrt(1.0f - rr) : 0.0f;
   c.axis[0] = x;

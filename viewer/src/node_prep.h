@@ -30,7 +30,7 @@ static_assert(TV_MAX_DECIMATE == 4);
 PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_offset, int step_log2);
 
 // Decoded cone of one texel, as the patch pass sees it (layout and test: the surface layers'
-// cooker/src/surface/cone_cull.h). Culling is allowed only when `cullable`.
+// terrain/surface_contract.h). Culling is allowed only when `cullable`.
 struct Cone {
   float axis[3] = {0, 0, 1};  // not normalised: axis_len2 = |axis|^2
   float axis_len2 = 1;
@@ -38,7 +38,7 @@ struct Cone {
   bool cullable = false;
 };
 // R: axis x = (v8 - 132) / 123, G: axis y = (v8 - 130) / 125, z rebuilt positive; A: half angle
-// v8/255 * 90 degrees, 255 = never cull (cooker/src/surface/SPEC-surface.md section 5). `sin2_table` comes from cone_sin2_table for the margin in use.
+// v8/255 * 90 degrees, 255 = never cull (terrain/surface_contract.h). `sin2_table` comes from cone_sin2_table for the margin in use.
 Cone decode_cone(const std::array<uint8_t, 4>& texel, const float* sin2_table);
 // sin^2(half angle(a) + margin) per alpha value a, or -1 where the patch must never be culled.
 void cone_sin2_table(double margin_deg, float out[256]);

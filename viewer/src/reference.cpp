@@ -40,7 +40,7 @@ bool frustum_visible(const Box& b, const FrameUniforms& u) {
   return true;
 }
 
-// Every point of the box sees only back faces of the cone (cone_cull.h): for all corners v,
+// Every point of the box sees only back faces of the cone (terrain/surface_contract.h): for all corners v,
 // dot(axis, v) >= sin(theta) |v| |axis|, squared: dot >= 0 and dot^2 >= sin2 * (|v|^2 |axis|^2).
 bool cone_backfacing(const Box& b, const Cone& c) {
   if (!c.cullable) return false;

@@ -7,6 +7,7 @@
 #include <map>
 #include <vector>
 
+#include "terrain/status.h"
 #include "terrain_state.h"
 
 namespace terrain::view {

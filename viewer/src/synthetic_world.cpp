@@ -7,6 +7,7 @@
 
 #include "terrain/archive_writer.h"
 #include "terrain/bc_decode.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::view {
 namespace {
@@ -289,9 +290,9 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       const double n[3] = {-dx / len, -dy / len, 1 / len};
       uint8_t* nn = &normal_rgba[(size_t(u) * kTexels + t) * 4];
       nn[0] = 255;  // ambient occlusion: open
-      nn[1] = to_u8(128.0 + 127.0 * n[1]);  // SPEC-surface.md section 2
+      nn[1] = normal_texel_of(float(n[1]));
       nn[2] = 0;
-      nn[3] = to_u8(128.0 + 127.0 * n[0]);
+      nn[3] = normal_texel_of(float(n[0]));
       const double h = (h00 + h10 + h01 + h11) * 0.25;
       const double slope = std::sqrt(1.0 - n[2] * n[2]);
       double rgb[3] = {0.36, 0.45, 0.22};  // grass
@@ -354,13 +355,13 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       uint8_t* cr = cone_rgba[q * 8 + p];
       cr[2] = 0;
       if (!c.o->cones || normals.empty() || len <= 0) {
-        cr[0] = 132;
-        cr[1] = 130;
+        cr[0] = uint8_t(cone::kConeRCentre);
+        cr[1] = uint8_t(cone::kConeGCentre);
         cr[3] = 255;  // never cull
         continue;
       }
-      cr[0] = to_u8(axis[0] / len * 123.0 + 132.0);  // cone texel layout: SPEC-surface.md section 5
-      cr[1] = to_u8(axis[1] / len * 125.0 + 130.0);
+      cr[0] = cone::cone_texel_of_axis_x(axis[0] / len);
+      cr[1] = cone::cone_texel_of_axis_y(axis[1] / len);
       cr[3] = 0;
     }
   // Encode the axes, decode them back, then store angles that cover every normal from the decoded
@@ -385,7 +386,7 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       uint8_t dec[64];
       decode_bc3_block(full, dec, BcRounding::truncate);
       const int t = (q % 4) * 4 + p % 4;
-      const double x = (double(dec[4 * t]) - 132.0) / 123.0, y = (double(dec[4 * t + 1]) - 130.0) / 125.0;
+      const double x = cone::cone_axis_x(dec[4 * t]), y = cone::cone_axis_y(dec[4 * t + 1]);
       const double rr = x * x + y * y;
       const double z = rr < 1 ? std::sqrt(1 - rr) : 0;
       const double al = std::sqrt(x * x + y * y + z * z);

@@ -1,5 +1,7 @@
-// Block decoders, library encoder wrappers and the punch-through guarantee for BC1.
+// Library encoder wrappers and the punch-through guarantee for BC1.
 #include "bc_blocks.h"
+
+#include "terrain/bc_decode.h"
 
 #include <algorithm>
 #include <cstring>
@@ -23,7 +25,6 @@ void unpack565(uint16_t c, uint8_t out[3]) {
 }
 
 uint16_t read16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
-uint32_t read32(const uint8_t* p) { return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24); }
 void write16(uint8_t* p, uint16_t v) { p[0] = uint8_t(v); p[1] = uint8_t(v >> 8); }
 void write32(uint8_t* p, uint32_t v) {
   p[0] = uint8_t(v); p[1] = uint8_t(v >> 8); p[2] = uint8_t(v >> 16); p[3] = uint8_t(v >> 24);
@@ -154,74 +155,6 @@ const char* bc3_method_name(Bc3Method m) {
     case Bc3Method::own_hq: return "own-hq";
   }
   return "?";
-}
-
-void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]) {
-  const uint16_t c0 = read16(block), c1 = read16(block + 2);
-  const uint32_t idx = read32(block + 4);
-  uint8_t pal[4][4];
-  unpack565(c0, pal[0]);
-  unpack565(c1, pal[1]);
-  pal[0][3] = pal[1][3] = 255;
-  if (c0 > c1) {
-    for (int c = 0; c < 3; ++c) {
-      pal[2][c] = uint8_t((2 * pal[0][c] + pal[1][c] + 1) / 3);
-      pal[3][c] = uint8_t((pal[0][c] + 2 * pal[1][c] + 1) / 3);
-    }
-    pal[2][3] = pal[3][3] = 255;
-  } else {
-    for (int c = 0; c < 3; ++c) {
-      pal[2][c] = uint8_t((pal[0][c] + pal[1][c] + 1) / 2);
-      pal[3][c] = 0;
-    }
-    pal[2][3] = 255;
-    pal[3][3] = 0;
-  }
-  for (int i = 0; i < 16; ++i) std::memcpy(rgba + 4 * i, pal[(idx >> (2 * i)) & 3], 4);
-}
-
-uint16_t bc1_transparent_mask(const uint8_t block[8]) {
-  if (read16(block) > read16(block + 2)) return 0;
-  const uint32_t idx = read32(block + 4);
-  uint16_t m = 0;
-  for (int i = 0; i < 16; ++i)
-    if (((idx >> (2 * i)) & 3) == 3) m = uint16_t(m | (1u << i));
-  return m;
-}
-
-void decode_bc4_block(const uint8_t block[8], uint8_t values[16]) {
-  const int a0 = block[0], a1 = block[1];
-  int pal[8] = {a0, a1, 0, 0, 0, 0, 0, 0};
-  if (a0 > a1) {
-    for (int i = 1; i < 7; ++i) pal[i + 1] = ((7 - i) * a0 + i * a1 + 3) / 7;
-  } else {
-    for (int i = 1; i < 5; ++i) pal[i + 1] = ((5 - i) * a0 + i * a1 + 2) / 5;
-    pal[6] = 0;
-    pal[7] = 255;
-  }
-  uint64_t bits = 0;
-  for (int i = 0; i < 6; ++i) bits |= uint64_t(block[2 + i]) << (8 * i);
-  for (int i = 0; i < 16; ++i) values[i] = uint8_t(pal[(bits >> (3 * i)) & 7]);
-}
-
-void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]) {
-  decode_bc1_block(block + 8, rgba);
-  // A BC3 colour block is always decoded in 4-colour mode.
-  const uint16_t c0 = read16(block + 8), c1 = read16(block + 10);
-  if (c0 <= c1) {
-    uint8_t pal[4][3];
-    unpack565(c0, pal[0]);
-    unpack565(c1, pal[1]);
-    for (int c = 0; c < 3; ++c) {
-      pal[2][c] = uint8_t((2 * pal[0][c] + pal[1][c] + 1) / 3);
-      pal[3][c] = uint8_t((pal[0][c] + 2 * pal[1][c] + 1) / 3);
-    }
-    const uint32_t idx = read32(block + 12);
-    for (int i = 0; i < 16; ++i) std::memcpy(rgba + 4 * i, pal[(idx >> (2 * i)) & 3], 3);
-  }
-  uint8_t a[16];
-  decode_bc4_block(block, a);
-  for (int i = 0; i < 16; ++i) rgba[4 * i + 3] = a[i];
 }
 
 void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) {

@@ -1,5 +1,5 @@
-// BC1 / BC3 / BC4 block encoding for the surface layers, and the reference block decoder the
-// cooker uses to check what it wrote (punch-through holes, cone margins, error statistics).
+// BC1 / BC3 / BC4 block encoding for the surface layers. What it wrote is checked with the format
+// library's decoder (punch-through holes, cone margins, error statistics).
 //
 // Encoders: libsquish (range fit, cluster fit, iterative cluster fit; the only library encoder
 // with BC1 punch-through), stb_dxt (fast, 4-colour only) and our own (see bc_own.cpp). Every BC1
@@ -7,17 +7,12 @@
 #pragma once
 #include <cstdint>
 
+#include "terrain/bc_decode.h"
+
 namespace terrain::cook {
 
-// ---- Decoding: same arithmetic as terrain/bc_decode.h (interpolants (2a+b+1)/3, (a+b+1)/2) ----
-// Output: 16 texels x RGBA8, row-major inside the block (texel i = row i/4, column i%4).
-void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]);
-// BC4-style alpha block (the first 8 bytes of BC3): 16 values.
-void decode_bc4_block(const uint8_t block[8], uint8_t values[16]);
-void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]);
-// Bit i set when texel i of the BC1 block decodes with alpha 0.
-uint16_t bc1_transparent_mask(const uint8_t block[8]);
-
+// Decoding (decode_bc1/bc3/bc4_block, bc1_transparent_mask) is the format library's
+// terrain/bc_decode.h: one decoder for cooker, runtime and tests.
 // ---- BC1 --------------------------------------------------------------------------------
 enum class Bc1Method : uint8_t {
   stb,               // stb_dxt, one refinement step

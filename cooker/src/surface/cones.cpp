@@ -12,7 +12,7 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#include "cone_cull.h"
+#include "terrain/surface_contract.h"
 #include "fast_math.h"
 #include "surface_layers.h"
 
@@ -140,12 +140,8 @@ double decoder_perturbation(double r8, double g8, double tol) {
   return worst * 1.1 + 1e-4;
 }
 
-uint8_t axis_x_to_v8(double c) {
-  return uint8_t(std::clamp(std::lround(cone::kConeRCentre + cone::kConeRScale * c), 0L, 255L));
-}
-uint8_t axis_y_to_v8(double c) {
-  return uint8_t(std::clamp(std::lround(cone::kConeGCentre + cone::kConeGScale * c), 0L, 255L));
-}
+uint8_t axis_x_to_v8(double c) { return cone::cone_texel_of_axis_x(c); }
+uint8_t axis_y_to_v8(double c) { return cone::cone_texel_of_axis_y(c); }
 
 uint8_t angle_target(double need_rad) {
   if (!(need_rad < kPi / 2)) return 255;

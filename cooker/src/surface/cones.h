@@ -56,7 +56,7 @@ struct ConeStats {
   int patches_never_cull = 0;
 };
 
-// Encodes 64 cones into kConesBytes of BC3 (layout in cone_cull.h). For every patch the decoded
+// Encodes 64 cones into kConesBytes of BC3 (layout in terrain/surface_contract.h). For every patch the decoded
 // cone is checked against every normal with the margins of format/SPEC.md section 16.5; returns false if a
 // check fails (a bug, never expected).
 bool encode_patch_cones(const PatchNormals& normals, const Cone cones[kPatchCount], uint8_t out[kConesBytes],

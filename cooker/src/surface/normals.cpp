@@ -4,6 +4,7 @@
 #include "normals.h"
 
 #include "fast_math.h"
+#include "terrain/surface_contract.h"
 
 #include <algorithm>
 #include <cmath>
@@ -83,20 +84,19 @@ void compute_normal_texels(const SurfaceInput& in, NormalTexels& out) {
 }
 
 void pack_normal_texels(const NormalTexels& in, std::array<uint8_t, kTexelCount * 4>& rgba, bool ao_in_red) {
-  auto to8 = [](float c) { return uint8_t(std::clamp(int(128.5f + 127.0f * c), 1, 255)); };  // round half up
   for (int u = 0; u < kTexels; ++u)
     for (int t = 0; t < kTexels; ++t) {
       const size_t k = size_t(u * kTexels + t);
       const int q5 = int(std::clamp(in.ao[size_t((u / 4) * kTexelBlocks + t / 4)], 0.0f, 1.0f) * 31.0f + 0.5f);
       rgba[k * 4 + 0] = ao_in_red ? uint8_t((q5 << 3) | (q5 >> 2)) : 255;
-      rgba[k * 4 + 1] = to8(in.n[k * 3 + 1]);
+      rgba[k * 4 + 1] = normal_texel_of(in.n[k * 3 + 1]);
       rgba[k * 4 + 2] = 0;
-      rgba[k * 4 + 3] = to8(in.n[k * 3 + 0]);
+      rgba[k * 4 + 3] = normal_texel_of(in.n[k * 3 + 0]);
     }
 }
 
 void unpack_normal(const uint8_t rgba[4], float n[3]) {
-  float x = (float(rgba[3]) - 128.0f) / 127.0f, y = (float(rgba[1]) - 128.0f) / 127.0f;
+  float x = normal_of_texel(rgba[3]), y = normal_of_texel(rgba[1]);
   const float rr = x * x + y * y;
   float z = 0;
   if (rr < 1.0f) {

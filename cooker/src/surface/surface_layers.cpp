@@ -13,6 +13,7 @@
 #include "normals.h"
 #include "splat.h"
 #include "surface_encoders.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::cook {
 namespace {
@@ -23,10 +24,6 @@ double thread_seconds() {
   timespec t;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
-
-std::string node_name(const NodeKey& k) {
-  return "node " + std::to_string(k.level) + "/" + std::to_string(k.x) + "/" + std::to_string(k.y);
 }
 
 }  // namespace
@@ -149,7 +146,7 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
                            NodeData& out, SurfaceStats* stats) {
   if (!in.heights_m || !in.rules || !(in.spacing_m > 0) || in.rules->palette.empty())
     return Status::failure(Error::invalid_argument,
-                           node_name(in.key) + ": surface input needs heights, material rules and a positive spacing");
+                           "node " + node_name(in.key) + ": surface input needs heights, material rules and a positive spacing");
   if (in.overlays) return cook_with_overlays(in, node_heights, height_offset, step_log2, out, stats);
   const MaterialRules& rules = *in.rules;
 
@@ -168,7 +165,7 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   for (int k = 0; k < kPatchCount; ++k) cones[k] = smallest_enclosing_cone(patch_normals.patch(k));
   ConeStats cone_stats;
   if (!encode_patch_cones(patch_normals, cones, out.cones_bc3.data(), &cone_stats))
-    return Status::failure(Error::internal, node_name(in.key) + ": a decoded patch cone does not contain its normals");
+    return Status::failure(Error::internal, "node " + node_name(in.key) + ": a decoded patch cone does not contain its normals");
   const double t_cones = thread_seconds() - t0;
 
   // Normals.

@@ -17,6 +17,11 @@ void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]);
 // uses the 4-colour mode.
 void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]);
 
+// BC4 (the alpha half of BC3, its first 8 bytes): 16 values, same roundings as BC3's alpha.
+void decode_bc4_block(const uint8_t block[8], uint8_t values[16]);
+// Bit i set when texel i of the BC1 block decodes with alpha 0 (3-colour mode, index 3).
+uint16_t bc1_transparent_mask(const uint8_t block[8]);
+
 // Decodes blocks_x * blocks_y blocks (block rows first-to-last) into a (4*blocks_x) x (4*blocks_y)
 // RGBA8 image, row-major, row 0 from the first block row. `rgba` holds 64 * blocks_x * blocks_y bytes.
 void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba);
@@ -29,6 +34,7 @@ void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t
 enum class BcRounding : uint8_t { nearest, truncate };
 void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64], BcRounding rounding);
 void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64], BcRounding rounding);
+void decode_bc4_block(const uint8_t block[8], uint8_t values[16], BcRounding rounding);
 void decode_bc1_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding);
 void decode_bc3_image(const uint8_t* blocks, int blocks_x, int blocks_y, uint8_t* rgba, BcRounding rounding);
 

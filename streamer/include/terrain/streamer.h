@@ -1,6 +1,6 @@
 // Streaming runtime: keeps the right nodes of a terrain archive resident while cameras move.
 //
-// The FC5 scheme (../shared/notes/fc5-talk.md sections 2-4): roots always resident, about 500 nodes
+// The FC5 scheme (Far Cry 5 terrain talk, GDC 2018, sections 2-4): roots always resident, about 500 nodes
 // chosen by screen-space error, loaded by background threads, handed to the caller one bounded
 // batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (per-level
 // uint16 index grids + node descriptor table) maintained incrementally with dirty regions.
@@ -61,6 +61,7 @@
 #include "terrain/archive_reader.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain {
 
@@ -134,49 +135,8 @@ double pixels_per_radian(double viewport_px, double fov_rad);
 
 // ---- GPU-side state ---------------------------------------------------------------------------
 
-inline constexpr uint16_t kIndexNotResident = 0xFFFF;  // the node exists but is not resident
-inline constexpr uint16_t kIndexNoNode = 0xFFFE;       // no node here, or its payload failed to load
-inline constexpr uint32_t kMaxSlots = 0xFFFE;          // slot ids are 0 .. 0xFFFD
-
-// One entry of the node descriptor table (the FC5 "node description buffer"), indexed by slot.
-// 32 bytes, std430/scalar compatible: in GLSL declare it as
-//   struct SlotDescriptor { int min_height; int max_height; int height_offset; float geometric_error_m;
-//                           uint x; uint y; uint packed; uint reserved; };
-// with level = packed & 0xFF, step_log2 = (packed >> 8) & 0xFF, flags = (packed >> 16) & 0xFF,
-// child_mask = packed >> 24 (little endian).
-// Heights: vertex units = height_offset + (r16 << step_log2); metres = units * 2^-10.
-// A slot's descriptor is written when a node is delivered into it and left untouched when the
-// node is evicted (the index grids stop pointing at it at once; the fence protects the rest).
-struct SlotDescriptor {
-  int32_t min_height = 0;       // height units, over the node's non-hole vertices
-  int32_t max_height = 0;
-  int32_t height_offset = 0;    // quantization offset, height units
-  float geometric_error_m = 0;  // from the archive (metres)
-  uint32_t x = 0, y = 0;        // node coordinates at its level
-  uint8_t level = 0;            // 0 = finest
-  uint8_t step_log2 = 0;        // quantization step exponent of the level (height units)
-  uint8_t flags = 0;            // kNodeFlag* of the archive record
-  uint8_t child_mask = 0;       // children that exist in the archive (bit c = child_of(key, c))
-  uint32_t reserved = 0;
-};
-static_assert(sizeof(SlotDescriptor) == 32);
-
-// The descriptor of the node `r` of an archive with `world` (what the slot table holds for it).
-// Inline: the viewer's CPU side fills its slot table with it without linking the streamer.
-inline SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& world) {
-  SlotDescriptor d;
-  d.min_height = r.min_height;
-  d.max_height = r.max_height;
-  d.height_offset = r.height_offset;
-  d.geometric_error_m = r.geometric_error_m;
-  d.x = r.key.x;
-  d.y = r.key.y;
-  d.level = uint8_t(r.key.level);
-  d.step_log2 = world.step_log2[r.key.level];
-  d.flags = r.flags;
-  d.child_mask = r.child_mask;
-  return d;
-}
+// kIndexNotResident, kIndexNoNode, kMaxSlots, SlotDescriptor and slot_descriptor_of: the format
+// library's terrain/surface_contract.h (the viewer's shaders read them as they are).
 
 // Half-open rectangle of index-grid cells [x0, x1) x [y0, y1); empty when x0 >= x1.
 struct DirtyRect {

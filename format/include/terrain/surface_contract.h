@@ -1,0 +1,138 @@
+// The rules cooker and runtime must agree on beyond the byte layout of format.h: how surface
+// texels encode normals and patch cones, the runtime's back-face test, the slot table and index
+// grid the streamer hands to the GPU, and how a node is named in messages. One definition here;
+// the viewer's GLSL (viewer/shaders/config.h) mirrors the constants and viewer/src/gpu_types.h
+// static_asserts that the two agree. BC block decoding is terrain/bc_decode.h.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <string>
+
+#include "terrain/format.h"
+
+namespace terrain {
+
+// ---- Node names -------------------------------------------------------------------------------
+// "L/X/Y", the form every message and report uses.
+std::string node_name(const NodeKey& k);
+
+// ---- Normal texels (normals atlas, BC3: x in A, y in G, z rebuilt) ------------------------------
+// v8 = 128 + 127 * c rounded half up, clamped to 1..255 (so -1, 0, 1 are exact and 0 unused);
+// c = (v8 - 128) / 127.
+inline constexpr int kNormalCentre = 128, kNormalScale = 127;
+inline uint8_t normal_texel_of(float c) { return uint8_t(std::clamp(int(128.5f + 127.0f * c), 1, 255)); }
+inline float normal_of_texel(uint8_t v8) { return (float(v8) - 128.0f) / 127.0f; }
+
+// ---- Slot table and index grids (streamer -> GPU) ---------------------------------------------
+inline constexpr uint16_t kIndexNotResident = 0xFFFF;  // the node exists but is not resident
+inline constexpr uint16_t kIndexNoNode = 0xFFFE;       // no node here, or its payload failed to load
+inline constexpr uint32_t kMaxSlots = 0xFFFE;          // slot ids are 0 .. 0xFFFD
+
+// One entry of the node descriptor table (the FC5 "node description buffer"), indexed by slot.
+// 32 bytes, std430/scalar compatible: in GLSL declare it as
+//   struct SlotDescriptor { int min_height; int max_height; int height_offset; float geometric_error_m;
+//                           uint x; uint y; uint packed; uint reserved; };
+// with level = packed & 0xFF, step_log2 = (packed >> 8) & 0xFF, flags = (packed >> 16) & 0xFF,
+// child_mask = packed >> 24 (little endian).
+// Heights: vertex units = height_offset + (r16 << step_log2); metres = units * 2^-10.
+// A slot's descriptor is written when a node is delivered into it and left untouched when the
+// node is evicted (the index grids stop pointing at it at once; the fence protects the rest).
+struct SlotDescriptor {
+  int32_t min_height = 0;       // height units, over the node's non-hole vertices
+  int32_t max_height = 0;
+  int32_t height_offset = 0;    // quantization offset, height units
+  float geometric_error_m = 0;  // from the archive (metres)
+  uint32_t x = 0, y = 0;        // node coordinates at its level
+  uint8_t level = 0;            // 0 = finest
+  uint8_t step_log2 = 0;        // quantization step exponent of the level (height units)
+  uint8_t flags = 0;            // kNodeFlag* of the archive record
+  uint8_t child_mask = 0;       // children that exist in the archive (bit c = child_of(key, c))
+  uint32_t reserved = 0;
+};
+static_assert(sizeof(SlotDescriptor) == 32);
+
+// The descriptor of the node `r` of an archive with `world` (what the slot table holds for it).
+inline SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& world) {
+  SlotDescriptor d;
+  d.min_height = r.min_height;
+  d.max_height = r.max_height;
+  d.height_offset = r.height_offset;
+  d.geometric_error_m = r.geometric_error_m;
+  d.x = r.key.x;
+  d.y = r.key.y;
+  d.level = uint8_t(r.key.level);
+  d.step_log2 = world.step_log2[r.key.level];
+  d.flags = r.flags;
+  d.child_mask = r.child_mask;
+  return d;
+}
+
+}  // namespace terrain
+
+// ---- Patch cones ---------------------------------------------------------------------------------
+// Cone texture: BC3 8x8 per node, texel (p, q) = patch p east, q north (rows south to north).
+// Read with texelFetch (no filtering) as UNORM; v8 = round(channel * 255):
+//   R: axis x (east)   x = (v8 - 132) / 123   (132 is a 5-bit endpoint value: x = 0 is exact)
+//   G: axis y (north)  y = (v8 - 130) / 125   (130 is a 6-bit endpoint value: y = 0 is exact)
+//   B: 0 (unused)
+//   A: half-angle      theta = v8 / 255 * 90 degrees;  v8 = 255 means "never cull"
+//   axis z = sqrt(max(0, 1 - x^2 - y^2)), then the axis is normalised.
+// Every triangle normal the renderer draws in the patch (including stitched edge triangles,
+// edge collapse d <= 4) lies within theta of the decoded axis, with margins for GPU decoder
+// differences (see format/SPEC.md section 16), so the test below is conservative as written.
+namespace terrain::cone {
+
+inline constexpr double kHalfPi = 1.57079632679489661923;
+
+struct DecodedCone {
+  double axis[3] = {0, 0, 1};
+  double half_angle_rad = kHalfPi;
+  bool never_cull = true;
+};
+
+inline constexpr int kConeRCentre = 132, kConeRScale = 123, kConeGCentre = 130, kConeGScale = 125;
+inline double cone_axis_x(double r8) { return (r8 - kConeRCentre) / kConeRScale; }
+inline double cone_axis_y(double g8) { return (g8 - kConeGCentre) / kConeGScale; }
+// The texel values of axis components x, y (nearest, clamped to 0..255).
+inline uint8_t cone_texel_of_axis_x(double x) {
+  return uint8_t(std::clamp(std::lround(kConeRCentre + kConeRScale * x), 0L, 255L));
+}
+inline uint8_t cone_texel_of_axis_y(double y) {
+  return uint8_t(std::clamp(std::lround(kConeGCentre + kConeGScale * y), 0L, 255L));
+}
+
+inline DecodedCone decode_cone_texel(uint8_t r, uint8_t g, uint8_t a) {
+  DecodedCone c;
+  double x = cone_axis_x(r), y = cone_axis_y(g);
+  const double rr = x * x + y * y;
+  double z = rr < 1.0 ? std::sqrt(1.0 - rr) : 0.0;
+  const double len = std::sqrt(x * x + y * y + z * z);
+  c.axis[0] = x / len;
+  c.axis[1] = y / len;
+  c.axis[2] = z / len;
+  c.half_angle_rad = double(a) / 255.0 * kHalfPi;
+  c.never_cull = a == 255;
+  return c;
+}
+
+// True when no triangle of the patch can face the eye: for every corner C of the patch box
+// (the patch's x/y footprint times [min height, max height]; node min/max are fine),
+//   dot(C - eye, axis) >= sin(theta) * |C - eye|.
+// The left side minus the right is concave in C, so checking the 8 box corners covers every
+// point of the box, and for every normal n within theta of the axis, dot(P - eye, n) >= 0.
+inline bool cone_patch_backfacing(const DecodedCone& c, const double eye[3], const double box_min[3],
+                                  const double box_max[3]) {
+  if (c.never_cull || c.half_angle_rad >= kHalfPi) return false;
+  const double s = std::sin(c.half_angle_rad);
+  for (int k = 0; k < 8; ++k) {
+    const double p[3] = {(k & 1) ? box_max[0] : box_min[0], (k & 2) ? box_max[1] : box_min[1],
+                         (k & 4) ? box_max[2] : box_min[2]};
+    const double d[3] = {p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]};
+    const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (d[0] * c.axis[0] + d[1] * c.axis[1] + d[2] * c.axis[2] < s * len) return false;
+  }
+  return true;
+}
+
+}  // namespace terrain::cone
