@@ -1,10 +1,11 @@
 // --memory-limit: parsing, the default, and the check every input-sized allocation goes through.
 //
 // kCookBytesPerSample, measured with /usr/bin/time -v (peak RSS) on Kilauea (30 m UTM) resampled to
-// 2000 x 2000 and 4000 x 4000 Float32 at 30 m, heights only, one thread: see the commit message for
-// the numbers. The marginal cost per source sample is the raster (4 B), the void-fill flags (2 B),
-// the range index (~1 B), the source-to-frame mapping and the pyramid's per-node state; issue 13
-// measured ~17 B at 64 M samples of 1 m lidar-like data.
+// 2000 x 2000 and 4000 x 4000 Float32 at 30 m, heights only, one thread: peaks of 166 MB and
+// 257 MB, so 7.8 B per extra sample (the raster 4 B, the void-fill flags 2 B, the range index ~1 B,
+// the mapping). Issue 13 measured ~17 B per sample for whole cooks (surface layers included) at
+// 64 M samples of 1 m lidar-like data; 16 B covers the full cook's per-sample state, and the
+// ~150 MB fixed cost stays outside the estimate.
 #include "memory_budget.h"
 
 #include <sys/resource.h>
