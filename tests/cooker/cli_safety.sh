@@ -59,6 +59,11 @@ case $case_name in
       [ "$(snapshot)" = "$before" ] || { echo "FAIL: SIG$sig changed files"; exit 1; }
       echo "ok: SIG$sig -> $rc, no temp files, files unchanged"
     done ;;
+  view_flags)
+    for a in "--error 0" "--budget 0" "--threads 1000"; do
+      expect 2 "must be" "$bin/terrain-view" keep.terrain --headless --out x.png $a
+    done ;;
+  view_fifo) VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json expect 1 "not a regular file \(FIFO\)" "$bin/terrain-view" fifo --headless --out x.png ;;
   *) echo "unknown case $case_name"; exit 1 ;;
 esac
 cd .. && rm -rf "$work"
