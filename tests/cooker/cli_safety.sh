@@ -64,6 +64,9 @@ case $case_name in
       expect 2 "must be" "$bin/terrain-view" keep.terrain --headless --out x.png $a
     done ;;
   view_fifo) VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json expect 1 "not a regular file \(FIFO\)" "$bin/terrain-view" fifo --headless --out x.png ;;
+  work_bound)  # 64 x 64 samples at 100 km: 9.5 M roots, refused in well under a second
+    head -c 8192 /dev/zero > coarse.r16; before=$(snapshot)
+    expect 1 "3077 x 3077 root nodes.*--force" "$bin/terrain-cook" coarse.r16 --raw-size 64x64 --spacing 100000 --crs local -q -o x.terrain ;;
   *) echo "unknown case $case_name"; exit 1 ;;
 esac
 cd .. && rm -rf "$work"
