@@ -382,6 +382,13 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     return Status::failure(Error::unsupported_input,
                            fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
                                        (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
+  if (!options.force && (roots_x * roots_y > double(kMaxPlannedRoots) || roots_x > kStreamerMaxRootsPerSide ||
+                         roots_y > kStreamerMaxRootsPerSide))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the plan needs {:.0f} x {:.0f} root nodes (the data spans {:.0f} x {:.0f} km): "
+                                       "beyond {} roots or {} per side (terrain-view's limit); check --spacing and "
+                                       "the CRS, or give --force", roots_x, roots_y, (fx1 - fx0) / 1000,
+                                       (fy1 - fy0) / 1000, kMaxPlannedRoots, kStreamerMaxRootsPerSide));
   report.roots_x = uint32_t(std::max(1.0, roots_x));
   report.roots_y = uint32_t(std::max(1.0, roots_y));
   report.origin_x_m = ctx.origin_x;

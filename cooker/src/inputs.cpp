@@ -6,6 +6,7 @@
 #include "crs.h"
 #include "inputs.h"
 #include "memory_budget.h"
+#include "terrain/output_paths.h"
 
 namespace terrain::cook {
 namespace {
@@ -134,9 +135,7 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
   ro.bytes_per_sample = kCookBytesPerSample;
 
   for (const std::string& path : options.inputs) {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec))
-      return Status::failure(Error::io_open, fmt::format("{}: no such file", path));
+    if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
     Raster r;
     Status st;
     ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;

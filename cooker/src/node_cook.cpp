@@ -157,8 +157,8 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       }
       const size_t vl = size_t(std::min(int(column_level[size_t(i)]), row_level));
       const int64_t u = quantize_units(h, scale[vl], ctx.step_log2[vl]);
-      if (u > kMaxHeightUnits || u < -kMaxHeightUnits)
-        return Status::failure(Error::invalid_argument,
+      if (u > kMaxHeightUnits || u < -kMaxHeightUnits)  // bad data (exit 1), not a bad flag
+        return Status::failure(Error::unsupported_input,
                                fmt::format("height {:.3f} m at frame ({:.3f}, {:.3f}) is outside the archive's +-16384 m "
                                            "(a nodata value not declared? see --nodata-value, --height-scale)",
                                            h, xs[size_t(i)], y));

@@ -94,7 +94,10 @@ std::string report_summary(const CookReport& r) {
     s += fmt::format("{:>5}  {:>6.1f}  {:>6}  {:>8.3f}  {:>10.3f}  {:>10.3f}  {}\n", l, vertex_spacing_m(l), v.nodes,
                      std::ldexp(1.0, v.step_log2) * kHeightUnitM * 1000.0, v.error_max_m, v.error_rms_m, v.error_samples);
   }
-  s += fmt::format("full detail: error max {:.3f} m, rms {:.3f} m over {} source samples\n", r.leaf_error_max_m,
+  // Counted per node (node_cook.cpp measure_error): a valid sample on an edge shared by two finest
+  // nodes is measured in both, so the count can exceed the raster's samples.
+  s += fmt::format("full detail: error max {:.3f} m, rms {:.3f} m over {} sample measurements (each valid source "
+                   "sample against every finest node touching it)\n", r.leaf_error_max_m,
                    r.leaf_error_rms_m, r.leaf_error_samples);
   s += "bytes:";
   for (int k = 0; k < 5; ++k) s += fmt::format(" {} {}", kSectionNames[k], r.section_stored_bytes[size_t(k)]);

@@ -1,12 +1,23 @@
 // terrain-cook: a thin shell over terrain::cook::cook(). Exit codes: 0 ok, 1 failure, 2 usage error.
+// Safety of the files it names (output_paths.h): outputs that are inputs, devices, FIFOs or
+// directories are refused before any work; the archive and the report are staged beside their
+// targets and committed together at the end; SIGINT/SIGTERM remove the staged files.
 #include <CLI/CLI.hpp>
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <unistd.h>
 
-#include <charconv>
+#include <atomic>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <csignal>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 
+#include "terrain/cli_checks.h"
 #include "terrain/cook.h"
+#include "terrain/output_paths.h"
 #include "terrain/progress.h"
 
 namespace {
@@ -14,22 +25,64 @@ namespace {
 // "A,B" or a single "A" (then both) into two numbers.
 bool parse_pair(const std::string& text, std::array<double, 2>& out, bool allow_single) {
   const size_t comma = text.find(',');
-  auto num = [](std::string_view s, double& v) {
-    auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    return ec == std::errc() && p == s.data() + s.size();
-  };
   if (comma == std::string::npos) {
-    if (!allow_single || !num(text, out[0])) return false;
+    if (!allow_single || !terrain::cli::parse_number(text, out[0])) return false;
     out[1] = out[0];
     return true;
   }
-  return num(std::string_view(text).substr(0, comma), out[0]) && num(std::string_view(text).substr(comma + 1), out[1]);
+  return terrain::cli::parse_number(text.substr(0, comma), out[0]) &&
+         terrain::cli::parse_number(text.substr(comma + 1), out[1]);
 }
 
-}  // namespace
+// ---- staged files, removed on SIGINT/SIGTERM ----
+// Fixed buffers and unlink() only: the handler must be async-signal-safe. A path is fully written
+// before the count that publishes it.
+constexpr int kMaxStaged = 4;
+char g_staged[kMaxStaged][PATH_MAX];
+std::atomic<int> g_staged_count{0};
 
-int main(int argc, char** argv) {
+void stage_for_cleanup(const std::string& path) {
+  const int i = g_staged_count.load();
+  if (i >= kMaxStaged || path.size() >= PATH_MAX) return;
+  std::memcpy(g_staged[i], path.c_str(), path.size() + 1);
+  g_staged_count.store(i + 1);
+}
+
+extern "C" void remove_staged_and_die(int sig) {
+  const int n = g_staged_count.load();
+  for (int i = 0; i < n; ++i) ::unlink(g_staged[i]);
+  // SA_RESETHAND restored the default action: the re-raised signal ends the process once this
+  // handler returns, with the usual "killed by signal" status.
+  ::raise(sig);
+}
+
+void install_signal_cleanup() {
+  struct sigaction sa {};
+  sa.sa_handler = remove_staged_and_die;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESETHAND;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+// Writes `text` to `path` (created or truncated) and fsyncs it.
+bool write_file_durably(const std::string& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return false;
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    done += size_t(n);
+  }
+  const bool ok = done == text.size() && ::fsync(fd) == 0;
+  return ::close(fd) == 0 && ok;
+}
+
+int run(int argc, char** argv) {
   using terrain::cook::CookOptions;
+  namespace cli = terrain::cli;
   CookOptions o;
   std::string origin, spacing, raw_size, valid_range, memory_limit, nodata = "auto", quality = "balanced", report_path;
   std::optional<double> nodata_value;
@@ -37,28 +90,38 @@ int main(int argc, char** argv) {
 
   CLI::App app{"terrain-cook: real DEMs (GeoTIFF, SRTM HGT, PNG16/EXR/raw heightmaps, .npz) to a sparse, crack-free "
                "terrain archive"};
+  app.footer(std::string(cli::kExitCodes) +
+             "\nOutputs (-o, --report) must not name an input, each other, a device, a FIFO or a directory; both are "
+             "written beside their targets and replace them together at the end (or not at all).");
   app.add_option("inputs", o.inputs, "Input DEM(s); several are mosaicked (same CRS and pixel grid, first listed wins)")
       ->required();
   app.add_option("-o,--output", o.output, "Archive to write (atomically)")->required();
   app.add_option("--tolerance", o.tolerance_m, "Refine nodes while their geometric error exceeds this (metres)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(cli::number_check("> 0 and <= 10000", [](double v) { return v > 0 && v <= 1e4; }));
   app.add_option("--finest-level", o.finest_level,
                  "Finest level to cook, 0 (0.5 m) .. 5 (16 m); default: the finest level with spacing >= 1/32 of the source spacing (refinement stops earlier where the tolerance is met)")
-      ->check(CLI::Range(0, 5));
-  app.add_option("--threads", o.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+      ->check(cli::int_range(0, 5));
+  app.add_option("--threads", o.threads, "Worker threads (default 0: all cores)")->check(cli::int_range(0, 1024));
   app.add_option("--crs", o.crs,
                  "CRS of inputs that lack one (or override): EPSG:4326, EPSG:326xx, any Transverse Mercator EPSG code, "
                  "tm:lon0=..,lat0=..,k0=..,x0=..,y0=..,ellps=WGS84|GRS80, or local");
   app.add_option("--frame", o.frame, "Archive frame instead of the automatic choice (same forms; TM or local)");
-  app.add_option("--origin", origin, "Images/raw: frame coordinates X,Y of the south-west sample (default 0,0)");
-  app.add_option("--spacing", spacing, "Images/raw: sample spacing D or DX,DY in CRS units");
-  app.add_option("--height-scale", o.height_scale, "metres = value * scale + offset")->capture_default_str();
-  app.add_option("--height-offset", o.height_offset, "metres = value * scale + offset")->capture_default_str();
+  app.add_option("--origin", origin,
+                 "Images/raw: frame coordinates X,Y of the south-west sample (default 0,0; each within +-1e8 CRS units)");
+  app.add_option("--spacing", spacing, "Images/raw: sample spacing D or DX,DY in CRS units (> 0, <= 1e7)");
+  app.add_option("--height-scale", o.height_scale, "metres = value * scale + offset (finite, non-zero)")
+      ->capture_default_str()
+      ->check(cli::number_check("finite and non-zero", [](double v) { return std::isfinite(v) && v != 0; }));
+  app.add_option("--height-offset", o.height_offset, "metres = value * scale + offset")
+      ->capture_default_str()
+      ->check(cli::in_range(-1e6, 1e6));
   app.add_option("--nodata", nodata, "auto: fill small enclosed voids, holes elsewhere; hole; fill")
       ->check(CLI::IsMember({"auto", "hole", "fill"}))
       ->capture_default_str();
-  app.add_option("--nodata-value", nodata_value, "Nodata value (overrides the file's)");
+  // NaN samples are nodata anyway, so NaN is refused as a value; +-inf is allowed (voids stored as infinity).
+  app.add_option("--nodata-value", nodata_value, "Nodata value (overrides the file's); any number or +-inf, not nan")
+      ->check(cli::number_check("a number (NaN samples are always nodata)", [](double v) { return !std::isnan(v); }));
   app.add_option("--valid-range", valid_range,
                  "Plausible heights MIN,MAX in metres after scale/offset; others become nodata with a warning "
                  "(default -12000,9000)");
@@ -68,7 +131,8 @@ int main(int argc, char** argv) {
                  "ulimit -v, whichever is least (" +
                      fmt::format("{:.1f}G here)", double(terrain::cook::default_memory_limit_bytes()) / (1 << 30)));
   app.add_option("--fill-max", o.fill_max_samples, "auto: largest enclosed void to fill, in samples")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::int_range(0, 1000000000000LL));
   app.add_option("--raw-size", raw_size, "Raw heightmaps: WIDTHxHEIGHT");
   app.add_option("--raw-type", o.raw_type, "Raw heightmaps: u16 (default for .r16/.raw), i16, f32 (.r32/.f32)")
       ->check(CLI::IsMember({"u16", "i16", "f32"}));
@@ -89,6 +153,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"fast", "balanced", "best"}))
       ->capture_default_str();
   app.add_flag("--heights-only", o.heights_only, "Skip normals, albedo, splat and cones (they stay zero)");
+  app.add_flag("--force", o.force,
+               fmt::format("Cook even when the plan needs more than {} root nodes or more than {} roots per side "
+                           "(terrain-view's limit)",
+                           terrain::cook::kMaxPlannedRoots, terrain::kStreamerMaxRootsPerSide));
   app.add_option("--report", report_path, "Write the cook report (JSON) to this file");
   app.add_flag("--json", json, "Print the report as JSON on stdout instead of the summary");
   app.add_flag("-q,--quiet", quiet, "No progress bar and no summary");
@@ -104,17 +172,22 @@ int main(int argc, char** argv) {
   };
   if (!origin.empty()) {
     std::array<double, 2> v{};
-    if (!parse_pair(origin, v, false)) return usage("--origin expects X,Y");
+    if (!parse_pair(origin, v, false)) return usage("--origin expects X,Y (two numbers), got '" + origin + "'");
+    for (double c : v)
+      if (!(std::fabs(c) <= 1e8)) return usage("--origin: each coordinate must be finite and within +-1e8, got '" + origin + "'");
     o.origin = v;
   }
   if (!spacing.empty()) {
     std::array<double, 2> v{};
-    if (!parse_pair(spacing, v, true)) return usage("--spacing expects D or DX,DY");
+    if (!parse_pair(spacing, v, true)) return usage("--spacing expects D or DX,DY (numbers), got '" + spacing + "'");
+    for (double c : v)
+      if (!(c > 0 && c <= 1e7)) return usage("--spacing: must be > 0 and <= 1e7, got '" + spacing + "'");
     o.spacing = v;
   }
   if (!raw_size.empty()) {
     int w = 0, h = 0;
-    if (std::sscanf(raw_size.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0)
+    char tail = 0;
+    if (std::sscanf(raw_size.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w <= 0 || h <= 0)
       return usage("--raw-size expects WIDTHxHEIGHT, e.g. 1025x1025");
     o.raw_size = {w, h};
   }
@@ -133,6 +206,35 @@ int main(int argc, char** argv) {
                       : quality == "best" ? terrain::cook::SurfaceQuality::best
                                           : terrain::cook::SurfaceQuality::balanced;
 
+  // ---- the files: refuse before any work ----
+  auto fail = [](const terrain::Status& st) {
+    std::fprintf(stderr, "terrain-cook: %s\n", st.to_string().c_str());
+    return st.code == terrain::Error::invalid_argument ? 2 : 1;
+  };
+  std::vector<terrain::NamedPath> inputs, outputs{{"-o", o.output}};
+  for (const std::string& p : o.inputs) inputs.push_back({"input", p});
+  for (const auto& [flag, p] : {std::pair<const char*, const std::string&>{"--albedo", o.albedo_path},
+                                {"--holes", o.holes_path},
+                                {"--landcover", o.landcover_path},
+                                {"--landcover-table", o.landcover_table_path},
+                                {"--materials", o.materials_path}})
+    if (!p.empty()) inputs.push_back({flag, p});
+  if (!report_path.empty()) outputs.push_back({"--report", report_path});
+  for (const terrain::NamedPath& in : inputs)
+    if (terrain::Status st = terrain::check_input_file(in.flag == "input" ? "" : in.flag, in.path); !st.ok()) return fail(st);
+  if (terrain::Status st = terrain::check_output_paths(inputs, outputs); !st.ok()) return fail(st);
+
+  // ---- cook into staged files beside the targets ----
+  const std::string pid = std::to_string(::getpid());
+  const std::string final_archive = o.output;
+  const std::string staged_archive = final_archive + ".tmp-" + pid;
+  const std::string staged_report = report_path.empty() ? "" : report_path + ".tmp-" + pid;
+  stage_for_cleanup(staged_archive + ".tmp-" + pid);  // the writer's own temp file (archive_writer.h)
+  stage_for_cleanup(staged_archive);
+  if (!staged_report.empty()) stage_for_cleanup(staged_report);
+  install_signal_cleanup();
+  o.output = staged_archive;
+
   terrain::TerminalProgress bar(!quiet && !json);
   terrain::cook::CookReport report;
   terrain::Status st;
@@ -149,18 +251,41 @@ int main(int argc, char** argv) {
   if (!quiet)
     for (const std::string& w : report.warnings) std::fprintf(stderr, "terrain-cook: warning: %s\n", w.c_str());
   if (!st.ok()) {
-    std::fprintf(stderr, "terrain-cook: %s\n", st.to_string().c_str());
-    return st.code == terrain::Error::invalid_argument ? 2 : 1;
+    ::unlink(staged_archive.c_str());
+    return fail(st);
   }
-  if (!report_path.empty()) {
-    std::ofstream out(report_path);
-    out << terrain::cook::report_json(report) << "\n";
-    if (!out) {
-      std::fprintf(stderr, "terrain-cook: cannot write the report %s\n", report_path.c_str());
+  const std::string report_text = terrain::cook::report_json(report);
+  // ---- commit: the report's temp file first, so a report that cannot be written leaves the old archive ----
+  if (!staged_report.empty()) {
+    if (!write_file_durably(staged_report, report_text + "\n")) {
+      const int e = errno;
+      ::unlink(staged_report.c_str());
+      ::unlink(staged_archive.c_str());
+      std::fprintf(stderr, "terrain-cook: cannot write the report %s: %s; %s was not replaced\n", report_path.c_str(),
+                   std::strerror(e), final_archive.c_str());
+      return 1;
+    }
+    if (::rename(staged_report.c_str(), report_path.c_str()) != 0) {
+      const int e = errno;
+      ::unlink(staged_report.c_str());
+      ::unlink(staged_archive.c_str());
+      std::fprintf(stderr, "terrain-cook: cannot rename %s to %s: %s; %s was not replaced\n", staged_report.c_str(),
+                   report_path.c_str(), std::strerror(e), final_archive.c_str());
       return 1;
     }
   }
-  if (json) std::printf("%s\n", terrain::cook::report_json(report).c_str());
+  if (::rename(staged_archive.c_str(), final_archive.c_str()) != 0) {
+    const int e = errno;
+    ::unlink(staged_archive.c_str());
+    std::fprintf(stderr, "terrain-cook: cannot rename %s to %s: %s%s\n", staged_archive.c_str(), final_archive.c_str(),
+                 std::strerror(e), report_path.empty() ? "" : " (the report was written)");
+    return 1;
+  }
+  if (json) std::printf("%s\n", report_text.c_str());
   else if (!quiet) std::printf("%s", terrain::cook::report_summary(report).c_str());
   return 0;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return terrain::cli::guarded_main("terrain-cook", [&] { return run(argc, argv); }); }

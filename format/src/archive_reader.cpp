@@ -1,6 +1,7 @@
 // Memory-mapped reader. open() checks header, metadata and directory before anything else is
 // believed; payload bytes are checked (CRC-32, then the section table) on every decode.
 #include "terrain/archive_reader.h"
+#include "terrain/output_paths.h"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -63,7 +64,8 @@ ArchiveReader& ArchiveReader::operator=(ArchiveReader&&) noexcept = default;
 Status ArchiveReader::open(const std::string& path) {
   impl_.reset();
   auto impl = std::make_unique<Impl>();
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; the file-type check below refuses it.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return Status::failure(Error::io_open, path + ": cannot open: " + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
@@ -73,7 +75,7 @@ Status ArchiveReader::open(const std::string& path) {
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
-    return Status::failure(Error::io_open, path + ": not a regular file");
+    return Status::failure(Error::io_open, path + ": not a regular file (" + file_kind_name(st.st_mode) + ")");
   }
   impl->size = size_t(st.st_size);
   if (impl->size == 0) {

@@ -2,6 +2,7 @@
 // 48-byte directory entries stay in memory. finish() appends directory and metadata, writes the
 // header into the 128 bytes reserved at the start, fsyncs and renames over the final path.
 #include "terrain/archive_writer.h"
+#include "terrain/output_paths.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -80,6 +81,11 @@ Status ArchiveWriter::open(const std::string& path) {
   abort();
   impl_->failed = {};
   if (path.empty()) return Status::failure(Error::invalid_argument, "empty archive path");
+  // The rename at finish() replaces whatever `path` names: as root that would turn /dev/null or a
+  // FIFO into a regular file, and a directory cannot be replaced at all. Refuse before any work.
+  if (struct stat st {}; ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return Status::failure(Error::invalid_argument,
+                           path + ": is a " + file_kind_name(st.st_mode) + ", not a regular file; refusing to replace it");
   impl_->path = path;
   impl_->temp_path = path + ".tmp-" + std::to_string(::getpid());
   impl_->fd = ::open(impl_->temp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);

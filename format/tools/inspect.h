@@ -45,6 +45,9 @@ bool parse_key(const std::string& text, NodeKey& out);
 // normals.png, albedo.png (alpha = hole mask), cones.png, splat.pgm (raw ids), splat.png
 // (palette colours) and node.json into `dir` (created). Images are north up.
 Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::string& dir, std::vector<std::string>& written);
+// The files export_node writes (terrain-inspect checks them against the archive before any work).
+inline constexpr const char* kExportFiles[] = {"heights.exr", "heights.png", "normals.png", "albedo.png",
+                                               "cones.png",   "splat.pgm",   "splat.png",   "node.json"};
 
 // Full verification with a progress callback (may be empty).
 Status verify(const ArchiveReader& reader, const ProgressFn& progress);

@@ -1,11 +1,14 @@
 // terrain-inspect: a thin shell over terrain::inspect (inspect.h).
 // Exit codes: 0 ok, 1 failure (bad archive, verification failed, I/O), 2 usage error.
 #include <CLI/CLI.hpp>
+#include <sys/stat.h>
 #include <cstdio>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include "inspect.h"
+#include "terrain/cli_checks.h"
+#include "terrain/output_paths.h"
 
 namespace {
 
@@ -14,9 +17,20 @@ int fail(const terrain::Status& s) {
   return s.code == terrain::Error::invalid_argument ? 2 : 1;
 }
 
-}  // namespace
+// --export DIR: DIR is a directory or absent; none of the files it receives is the archive or a
+// non-regular file (output_paths.h).
+terrain::Status check_export_dir(const std::string& archive, const std::string& dir) {
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) != 0) return terrain::Status::success();  // created by export_node
+  if (!S_ISDIR(st.st_mode))
+    return terrain::Status::failure(terrain::Error::invalid_argument,
+                                    "--export " + dir + ": is a " + terrain::file_kind_name(st.st_mode) + ", not a directory");
+  std::vector<terrain::NamedPath> outputs;
+  for (const char* name : terrain::inspect::kExportFiles) outputs.push_back({"--export", dir + "/" + name});
+  return terrain::check_output_paths({{"archive", archive}}, outputs);
+}
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   CLI::App app{"terrain-inspect: summary, verification, sampling and export of a terrain archive (format/SPEC.md)"};
   std::string path, export_key, export_dir, sample_file, lonlat_crs;
   std::vector<std::string> samples, samples_lonlat, export_args;
@@ -37,7 +51,10 @@ int main(int argc, char** argv) {
   app.add_flag("--lonlat", lonlat, "--sample-file holds longitude latitude pairs (on --lonlat-crs, default WGS 84)");
   app.add_option("--export", export_args, "write node LEVEL/X/Y as images into DIR")->expected(2)->type_name("LEVEL/X/Y DIR");
   app.add_flag("-q,--quiet", quiet, "no progress bar");
-  app.footer("Heights print one per line in metres, or 'nodata'. Byte layout: format/SPEC.md.");
+  app.footer(std::string("Heights print one per line in metres, or 'nodata'. With --json, one JSON document: the summary, "
+                         "or {file, valid, nodes, error} for --verify plus samples: [...] for --sample.\n"
+                         "Byte layout: format/SPEC.md.\n") +
+             terrain::cli::kExitCodes);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -75,6 +92,9 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (!export_args.empty())
+    if (terrain::Status s = check_export_dir(path, export_args[1]); !s.ok()) return fail(s);
+
   terrain::ArchiveReader reader;
   if (terrain::Status s = reader.open(path); !s.ok()) return fail(s);
 
@@ -86,14 +106,17 @@ int main(int argc, char** argv) {
     std::fputs(text.c_str(), stdout);
     return 0;
   }
+  // --json: one document for --verify and --sample together (printed once, at the end).
+  nlohmann::json doc = {{"file", path}};
   if (do_verify) {
     terrain::TerminalProgress bar(!quiet);
     const terrain::Status s = terrain::inspect::verify(reader, bar.callback());
     bar.done();
     if (json) {
-      nlohmann::json j = {{"file", path}, {"valid", s.ok()}, {"nodes", reader.nodes().size()}};
-      if (!s.ok()) j["error"] = {{"code", int(s.code)}, {"name", terrain::error_name(s.code)}, {"message", s.message}};
-      std::printf("%s\n", j.dump(2).c_str());
+      doc["valid"] = s.ok();
+      doc["nodes"] = reader.nodes().size();
+      if (!s.ok()) doc["error"] = {{"code", int(s.code)}, {"name", terrain::error_name(s.code)}, {"message", s.message}};
+      if (!s.ok()) std::printf("%s\n", doc.dump(2).c_str());
     } else if (s.ok()) {
       std::printf("%s: valid (%zu nodes, %llu bytes)\n", path.c_str(), reader.nodes().size(),
                   static_cast<unsigned long long>(reader.file_size()));
@@ -115,7 +138,7 @@ int main(int argc, char** argv) {
         if (a.height_m) o["node"] = fmt::format("{}/{}/{}", a.node.level, a.node.x, a.node.y);
         j.push_back(o);
       }
-      std::printf("%s\n", j.dump(2).c_str());
+      doc["samples"] = j;
     } else {
       for (const auto& a : answers) {
         if (a.height_m)
@@ -125,6 +148,7 @@ int main(int argc, char** argv) {
       }
     }
   }
+  if (json && (do_verify || !points.empty())) std::printf("%s\n", doc.dump(2).c_str());
   if (!export_args.empty()) {
     std::vector<std::string> written;
     if (terrain::Status s = terrain::inspect::export_node(reader, export_node, export_args[1], written); !s.ok()) return fail(s);
@@ -132,4 +156,10 @@ int main(int argc, char** argv) {
       for (const std::string& f : written) std::fprintf(stderr, "wrote %s\n", f.c_str());
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return terrain::cli::guarded_main("terrain-inspect", [&] { return run(argc, argv); });
 }

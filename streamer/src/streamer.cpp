@@ -164,11 +164,13 @@ struct Streamer::Impl {
     if (Status s = reader.open(path); !s.ok()) return s;
     records = reader.nodes();
     const WorldInfo& world = reader.world();
-    if (world.roots_x == 0 || world.roots_y == 0 || uint64_t(world.roots_x) << kRootLevel > 0xFFFFu ||
-        uint64_t(world.roots_y) << kRootLevel > 0xFFFFu)
-      return Status::failure(Error::unsupported_input, "streamer: " + path + ": root grid " +
-                                                           std::to_string(world.roots_x) + "x" +
-                                                           std::to_string(world.roots_y) + " is outside what the index grids hold");
+    if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||
+        world.roots_y > kStreamerMaxRootsPerSide)
+      return Status::failure(Error::unsupported_input,
+                             "streamer: " + path + ": root grid " + std::to_string(world.roots_x) + "x" +
+                                 std::to_string(world.roots_y) + " is outside the streamer's 1.." +
+                                 std::to_string(kStreamerMaxRootsPerSide) +
+                                 " roots per side (16-bit index grids; format/SPEC.md section 12)");
     tree = detail::build_node_tree(reader);
     root_count = uint32_t(tree.roots.size());
     if (root_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "app.h"
+#include "terrain/cli_checks.h"
 
 namespace terrain::view {
 
@@ -44,9 +45,10 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   app.add_option("--debug", debug, "validation view: lod, nodes, patches, cones, holes, normals, splat, wire")
       ->check(CLI::IsMember({"none", "lod", "nodes", "patches", "cones", "holes", "normals", "splat", "wire"}));
   app.add_option("--error", o.settings.error_target_px, "screen-space error target, pixels")
-      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer")->capture_default_str();
-  app.add_option("--threads", o.worker_threads, "streamer worker threads (0 = all cores)");
+      ->capture_default_str()->check(terrain::cli::number_check("> 0 and <= 1000", [](double v) { return v > 0 && v <= 1000; }));
+  app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer (at least the archive's roots)")
+      ->capture_default_str()->check(terrain::cli::int_range(1, 65534));
+  app.add_option("--threads", o.worker_threads, "streamer worker threads (0 = all cores)")->check(terrain::cli::int_range(0, 256));
   app.add_option("--deliveries", o.max_deliveries, "most nodes uploaded per frame (small values show the streaming frontier)")
       ->capture_default_str()->check(CLI::Range(1u, 65535u));
   app.add_option("--atlas", o.atlas, "normal/albedo atlas format: bc (as cooked), rgba8 (decoded at upload), auto (rgba8 on CPU devices)")

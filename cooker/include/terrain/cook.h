@@ -70,6 +70,7 @@ struct CookOptions {
   std::string landcover_path;
   std::string landcover_table_path;
   bool heights_only = false;        // skip the surface layers (benchmarks; sections stay zero)
+  bool force = false;               // cook plans beyond kMaxPlannedRoots / kStreamerMaxRootsPerSide
 
   // zstd levels: heights at 9 (tuned optimal parsing of the predictor residuals, see
   // format/src/payload.cpp); the surface sections at 6. Measured on the 2532 nodes of the Oetztal
@@ -79,6 +80,11 @@ struct CookOptions {
   int zstd_level = 9;
   int surface_zstd_level = 6;
 };
+
+// Work bound: every root of the plan is cooked (at least 129 x 129 vertices each, about 50 us of
+// CPU for flat ones), so a coarse raster spread over a huge area (64 x 64 samples at 100 km: 9.8 M
+// roots) is refused with a named error unless CookOptions::force.
+inline constexpr uint64_t kMaxPlannedRoots = 1000000;
 
 struct LevelStats {
   uint32_t nodes = 0;

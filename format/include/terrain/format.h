@@ -13,6 +13,9 @@ namespace terrain {
 // ---- Quadtree geometry ------------------------------------------------------------------------
 inline constexpr int kLevelCount = 6;          // level 0 = finest (64 m nodes), level 5 = roots (2048 m)
 inline constexpr int kRootLevel = kLevelCount - 1;
+// The reference streamer (terrain-view) holds level-0 node indices in 16-bit grids: at most 2047
+// roots per side, below the format's 65536 (SPEC section 12); terrain-cook refuses more unless --force.
+inline constexpr uint32_t kStreamerMaxRootsPerSide = 0xFFFFu >> kRootLevel;
 inline constexpr double kLevel0NodeSizeM = 64.0;
 inline constexpr int kQuadsPerSide = 128;      // 8 patches x 16 quads
 inline constexpr int kHeightSamples = 129;     // vertices per node side (shared edge rows with neighbours)

@@ -1,0 +1,101 @@
+#include "terrain/output_paths.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <climits>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+
+namespace terrain {
+namespace {
+
+struct Identity {
+  bool exists = false;
+  dev_t dev = 0;
+  ino_t ino = 0;
+  mode_t mode = 0;
+  std::string resolved;  // realpath of the directory + file name (outputs that do not exist yet)
+};
+
+std::string directory_of(const std::string& path) {
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  return dir.empty() ? "." : dir;
+}
+
+Identity identify(const std::string& path) {
+  Identity id;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    id.exists = true;
+    id.dev = st.st_dev;
+    id.ino = st.st_ino;
+    id.mode = st.st_mode;
+  }
+  char buf[PATH_MAX];
+  if (::realpath(directory_of(path).c_str(), buf))
+    id.resolved = std::string(buf) + "/" + std::filesystem::path(path).filename().string();
+  return id;
+}
+
+bool same_file(const Identity& a, const Identity& b) {
+  if (a.exists && b.exists) return a.dev == b.dev && a.ino == b.ino;
+  return !a.exists && !b.exists && !a.resolved.empty() && a.resolved == b.resolved;
+}
+
+std::string named(const NamedPath& p) { return p.flag + " " + p.path; }
+
+}  // namespace
+
+const char* file_kind_name(unsigned m) {
+  if (S_ISREG(m)) return "regular file";
+  if (S_ISDIR(m)) return "directory";
+  if (S_ISFIFO(m)) return "FIFO";
+  if (S_ISCHR(m)) return "character device";
+  if (S_ISBLK(m)) return "block device";
+  if (S_ISSOCK(m)) return "socket";
+  if (S_ISLNK(m)) return "symbolic link";
+  return "special file";
+}
+
+Status check_input_file(const std::string& what, const std::string& path) {
+  struct stat st {};
+  const std::string name = what.empty() ? path : what + " " + path;
+  if (::stat(path.c_str(), &st) != 0)
+    return Status::failure(Error::io_open, name + (errno == ENOENT ? ": no such file" : ": cannot stat: " + std::string(std::strerror(errno))));
+  if (!S_ISREG(st.st_mode))
+    return Status::failure(Error::io_open, name + ": not a regular file (" + file_kind_name(st.st_mode) + ")");
+  return Status::success();
+}
+
+Status check_output_paths(const std::vector<NamedPath>& inputs, const std::vector<NamedPath>& outputs) {
+  std::vector<Identity> in_ids, out_ids;
+  for (const NamedPath& p : inputs) in_ids.push_back(identify(p.path));
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty()) return Status::failure(Error::invalid_argument, out.flag + ": empty path");
+    const Identity id = identify(out.path);
+    if (id.exists && !S_ISREG(id.mode))
+      return Status::failure(Error::invalid_argument, named(out) + ": is a " + std::string(file_kind_name(id.mode)) +
+                                                          ", not a regular file; refusing to replace it");
+    for (size_t k = 0; k < inputs.size(); ++k)
+      if (in_ids[k].exists && id.exists && same_file(id, in_ids[k]))
+        return Status::failure(Error::invalid_argument,
+                               named(out) + ": is the same file as " + named(inputs[k]) + "; refusing to overwrite an input");
+    for (size_t k = 0; k < i; ++k)
+      if (same_file(id, out_ids[k]))
+        return Status::failure(Error::invalid_argument, named(out) + ": is the same file as " + named(outputs[k]));
+    out_ids.push_back(id);
+    const std::string dir = directory_of(out.path);
+    struct stat ds {};
+    if (::stat(dir.c_str(), &ds) != 0 || !S_ISDIR(ds.st_mode))
+      return Status::failure(Error::invalid_argument, named(out) + ": directory " + dir + " does not exist");
+    if (::access(dir.c_str(), W_OK | X_OK) != 0)
+      return Status::failure(Error::io_write, named(out) + ": directory " + dir + " is not writable: " + std::strerror(errno));
+  }
+  return Status::success();
+}
+
+}  // namespace terrain

@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# CLI safety cases of issue 11: cli_safety.sh CASE BIN_DIR SCRATCH_PARENT. Each case checks the exit
+# code, the message, and that every file present before the command is byte-identical after it.
+set -u
+case_name=$1 bin=$2 work=$3/cli-safety-$1
+dem=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
+[ -f "$dem" ] || { echo "SKIP: $dem absent"; exit 0; }
+rm -rf "$work"; mkdir -p "$work"; cd "$work" || exit 1
+cp "$dem" in.npz
+"$bin/terrain-cook" in.npz --crs EPSG:4326 -q -o keep.terrain || { echo "FAIL: setup cook"; exit 1; }
+mknod null c 1 3 2>/dev/null || { echo "SKIP: mknod needs root"; exit 0; }
+mkfifo fifo; mkdir dir; echo '{"old": 1}' > old.json
+snapshot() { find . -type f -print0 | sort -z | xargs -0 sha256sum; ls -l null fifo | cut -c1; }
+before=$(snapshot)
+expect() {  # expect RC REGEX command...
+  local rc=$1 re=$2; shift 2
+  local err; err=$(timeout 20 "$@" 2>&1 >/dev/null); local got=$?
+  [ "$got" = "$rc" ] || { echo "FAIL: exit $got, expected $rc: $*: $err"; exit 1; }
+  [[ "$err" =~ $re ]] || { echo "FAIL: message '$err' does not match '$re'"; exit 1; }
+  [ "$(snapshot)" = "$before" ] || { echo "FAIL: files changed by $*"; exit 1; }
+  ls | grep -q 'tmp-' && { echo "FAIL: temp file left"; exit 1; }
+  echo "ok: $* -> $got: $err"
+}
+cook=("$bin/terrain-cook" in.npz --crs EPSG:4326 -q)
+case $case_name in
+  output_device) expect 2 "character device" "${cook[@]}" -o null ;;
+  output_fifo) expect 2 "FIFO" "${cook[@]}" -o fifo ;;
+  output_directory) expect 2 "directory" "${cook[@]}" -o dir ;;
+  output_is_input) expect 2 "same file as input" "${cook[@]}" -o in.npz ;;
+  report_is_archive) expect 2 "same file as -o" "${cook[@]}" -o keep.terrain --report keep.terrain ;;
+  report_is_input) expect 2 "same file as input" "${cook[@]}" -o keep.terrain --report in.npz ;;
+  report_missing_dir) expect 2 "does not exist" "${cook[@]}" -o keep.terrain --report missing/r.json ;;
+  input_fifo) expect 1 "not a regular file \(FIFO\)" "$bin/terrain-cook" fifo -q -o x.terrain ;;
+  input_directory) expect 1 "not a regular file \(directory\)" "$bin/terrain-cook" dir -q -o x.terrain ;;
+  input_device) expect 1 "not a regular file \(character device\)" "$bin/terrain-cook" null -q -o x.terrain ;;
+  origin_huge) expect 2 "within \+-1e8" "${cook[@]}" -o x.terrain --origin 1e300,0 --spacing 1 ;;
+  origin_nan) expect 2 "--origin" "${cook[@]}" -o x.terrain --origin nan,0 --spacing 1 ;;
+  tolerance_short) expect 2 "must be > 0 and <= 10000, got -1" "${cook[@]}" -o x.terrain --tolerance -1 ;;
+  threads_range) expect 2 "must be an integer 0..1024" "${cook[@]}" -o x.terrain --threads 100000 ;;
+  nodata_nan) expect 2 "NaN samples are always nodata" "${cook[@]}" -o x.terrain --nodata-value nan ;;
+  inspect_fifo) expect 1 "not a regular file \(FIFO\)" "$bin/terrain-inspect" fifo ;;
+  inspect_export_file) expect 2 "not a directory" "$bin/terrain-inspect" keep.terrain --export 5/0/0 old.json ;;
+  inspect_json_one_doc)
+    out=$("$bin/terrain-inspect" keep.terrain --json --verify -q --sample 0,0) || { echo "FAIL: rc"; exit 1; }
+    echo "$out" | python3 -c 'import json,sys; d=json.load(sys.stdin); assert d["valid"] and len(d["samples"])==1' ||
+      { echo "FAIL: not one JSON document: $out"; exit 1; }
+    echo "ok: one document" ;;
+  report_committed)  # a successful cook replaces archive and report together, nothing staged left
+    "${cook[@]}" -o keep.terrain --report old.json || { echo "FAIL: cook"; exit 1; }
+    grep -q '"levels"\|"source"' old.json || { echo "FAIL: report not written"; exit 1; }
+    ls | grep -q 'tmp-' && { echo "FAIL: temp left"; exit 1; }
+    echo "ok: committed" ;;
+  signal)
+    for sig in TERM INT; do
+      "$bin/terrain-cook" in.npz --crs EPSG:4326 -q --tolerance 0.01 --finest-level 0 -o keep.terrain --report old.json &
+      pid=$!; sleep 1.5; kill -$sig $pid; wait $pid; rc=$?
+      [ "$rc" != 0 ] || { echo "FAIL: SIG$sig: cook finished before the signal (rc 0)"; exit 1; }
+      ls | grep -q 'tmp-' && { echo "FAIL: SIG$sig left $(ls | grep tmp-)"; exit 1; }
+      [ "$(snapshot)" = "$before" ] || { echo "FAIL: SIG$sig changed files"; exit 1; }
+      echo "ok: SIG$sig -> $rc, no temp files, files unchanged"
+    done ;;
+  view_flags)
+    for a in "--error 0" "--budget 0" "--threads 1000"; do
+      expect 2 "must be" "$bin/terrain-view" keep.terrain --headless --out x.png $a
+    done ;;
+  view_fifo) VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json expect 1 "not a regular file \(FIFO\)" "$bin/terrain-view" fifo --headless --out x.png ;;
+  work_bound)  # 64 x 64 samples at 100 km: 9.5 M roots, refused in well under a second
+    head -c 8192 /dev/zero > coarse.r16; before=$(snapshot)
+    expect 1 "3077 x 3077 root nodes.*--force" "$bin/terrain-cook" coarse.r16 --raw-size 64x64 --spacing 100000 --crs local -q -o x.terrain ;;
+  *) echo "unknown case $case_name"; exit 1 ;;
+esac
+cd .. && rm -rf "$work"
