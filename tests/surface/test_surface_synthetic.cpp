@@ -219,9 +219,12 @@ TEST(SurfaceSynthetic, NeighboursAgreeOnTheirOverlap) {
       sum += deg;
       ++count;
     }
-  const double bound = ca.stats.normal_err_max_deg + cb.stats.normal_err_max_deg;
-  std::printf("overlap: mean %.3f deg, max %.3f deg (bound: sum of max errors %.3f deg)\n", sum / count, worst, bound);
-  EXPECT_LE(worst, bound + 1e-9);
+  // Bound 0, not the encoder's reported error: the float normals are identical (asserted above)
+  // and 128 is a multiple of the 4-texel block, so both nodes encode the same blocks from the same
+  // texels with a deterministic encoder and decode them identically (SPEC 16.2).
+  std::printf("overlap: mean %.3f deg, max %.3f deg over %d texels\n", sum / count, worst, count);
+  // (acos of the dot product of two equal unit vectors rounds to ~1e-6 degrees, hence 1e-5.)
+  EXPECT_LE(worst, 1e-5);
 }
 
 TEST(SurfaceSynthetic, CookingIsDeterministicAcrossThreads) {
