@@ -194,3 +194,57 @@ TEST(CookFlags, MosaicOverlapFirstListedWins) {
     EXPECT_NEAR(*both, a_first ? 100.0 : 200.0, tol);
   }
 }
+
+// --materials through a cook: a rules file the test writes with two materials, "low" by default
+// and "high" from 150 m (fade 1 m). Over a ramp from -300 m to 340 m every splat sample more than
+// 2 m + the quantization step below 150 m is "low" (index 0) and every one above is "high"
+// (index 1), and the archive's palette is the file's.
+TEST(CookFlags, MaterialsRulesFileDrivesTheSplatMap) {
+  const auto dir = scratch_dir("cooker-flags-materials");
+  const std::string rules = (dir / "rules.json").string();
+  {
+    std::ofstream f(rules);
+    f << R"({"format": "terrain-material-rules", "version": 1,
+  "materials": [
+    {"name": "low",  "albedo_srgb": [10, 20, 30], "roughness": 0.5, "detail_scale_m": 2, "detail_strength": 0, "height_blend": 0},
+    {"name": "high", "albedo_srgb": [200, 210, 220], "roughness": 0.5, "detail_scale_m": 2, "detail_strength": 0, "height_blend": 0}],
+  "default_material": "low",
+  "rules": [{"material": "high", "height_m": {"min": 150, "fade": 1}}]})";
+  }
+  const std::string raw = (dir / "ramp.r32").string();
+  write_raw(raw, "f32", false, plane);
+  const std::string out = (dir / "ramp.terrain").string();
+  ASSERT_EQ(cook_cli("'" + raw + "' -o '" + out + "' " + raw_flags("f32") + " --materials '" + rules + "'"), 0);
+  CookedArchive a;
+  ASSERT_TRUE(a.open(out).ok());
+  const WorldInfo& w = a.reader.world();
+  ASSERT_EQ(w.palette.size(), 2u);
+  EXPECT_EQ(w.palette[0].name, "low");
+  EXPECT_EQ(w.palette[1].name, "high");
+  size_t low = 0, high = 0;
+  for (size_t n = 0; n < a.reader.nodes().size(); ++n) {
+    const NodeRecord& rec = a.reader.nodes()[n];
+    auto data = std::make_unique<NodeData>();
+    ASSERT_TRUE(a.reader.decode_node(n, *data, kSectionSplat).ok());
+    const int level = int(rec.key.level);
+    const double x0 = w.origin_x_m + rec.key.x * node_size_m(level), y0 = w.origin_y_m + rec.key.y * node_size_m(level);
+    const double margin = 2.0 + a.max_half_step();
+    for (int j = 0; j < kSplatSamples; ++j)
+      for (int i = 0; i < kSplatSamples; ++i) {
+        const double x = x0 + 2 * i * vertex_spacing_m(level), y = y0 + 2 * j * vertex_spacing_m(level);
+        if (x < 102 || x > 100 + 2 * (kW - 2) || y < 202 || y > 200 + 2 * (kH - 2)) continue;  // inside the data
+        const auto h = a.height(x, y);
+        if (!h) continue;
+        const uint8_t m = data->splat[size_t(j * kSplatSamples + i)];
+        if (*h < 150 - margin) {
+          EXPECT_EQ(m, 0) << "at " << x << "," << y << " height " << *h;
+          ++low;
+        } else if (*h > 150 + margin) {
+          EXPECT_EQ(m, 1) << "at " << x << "," << y << " height " << *h;
+          ++high;
+        }
+      }
+  }
+  EXPECT_GT(low, 100u);
+  EXPECT_GT(high, 100u);
+}
