@@ -41,3 +41,9 @@ if(EXISTS ${_jacksboro})
   set_tests_properties(cooker.cli.verify_flipped_real_archive cooker.cli.verify_truncated_real_archive
                        PROPERTIES FIXTURES_REQUIRED cooked_small)
 endif()
+# An unknown --bc-quality is a usage error naming the flag.
+add_test(NAME cooker.cli.bad_bc_quality
+         COMMAND ${CMAKE_COMMAND} -DCMD=$<TARGET_FILE:terrain-cook>
+                 "-DARGS=/nonexistent/dem.tif|-o|${_cli_dir}/bad.terrain|--bc-quality|ultra" -DEXPECT=2
+                 "-DSTDERR_REGEX=--bc-quality" -P ${_check})
+set_tests_properties(cooker.cli.bad_bc_quality PROPERTIES LABELS cooker)

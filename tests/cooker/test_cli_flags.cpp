@@ -248,3 +248,35 @@ TEST(CookFlags, MaterialsRulesFileDrivesTheSplatMap) {
   EXPECT_GT(low, 100u);
   EXPECT_GT(high, 100u);
 }
+
+// --bc-quality: fast and best encode the same normals and albedo differently (the encoder effort
+// reaches the bytes) while the heights are identical; each decodes to an archive that verifies.
+TEST(CookFlags, BcQualityChangesOnlyTheBlockCompressedLayers) {
+  const auto dir = scratch_dir("cooker-flags-bc");
+  const std::string raw = (dir / "hills.r32").string();
+  write_raw(raw, "f32", false,
+            [](int col, int row) { return 50.0 + 20.0 * std::sin(col * 0.37) * std::cos(row * 0.53) + 0.1 * (col * row % 7); });
+  std::unique_ptr<NodeData> nodes[2][64];
+  size_t count[2] = {0, 0};
+  const char* quality[2] = {"fast", "best"};
+  for (int q = 0; q < 2; ++q) {
+    const std::string out = (dir / (std::string(quality[q]) + ".terrain")).string();
+    ASSERT_EQ(cook_cli("'" + raw + "' -o '" + out + "' " + raw_flags("f32") + " --bc-quality " + quality[q]), 0);
+    ArchiveReader r;
+    ASSERT_TRUE(r.open(out).ok());
+    count[q] = r.nodes().size();
+    ASSERT_LE(count[q], 64u);
+    for (size_t n = 0; n < count[q]; ++n) {
+      nodes[q][n] = std::make_unique<NodeData>();
+      ASSERT_TRUE(r.decode_node(n, *nodes[q][n]).ok());
+    }
+  }
+  ASSERT_EQ(count[0], count[1]);
+  size_t normals_differ = 0, albedo_differ = 0;
+  for (size_t n = 0; n < count[0]; ++n) {
+    EXPECT_EQ(nodes[0][n]->heights, nodes[1][n]->heights) << "node " << n;
+    normals_differ += nodes[0][n]->normals_bc3 != nodes[1][n]->normals_bc3;
+    albedo_differ += nodes[0][n]->albedo_bc1 != nodes[1][n]->albedo_bc1;
+  }
+  EXPECT_GT(normals_differ + albedo_differ, 0u) << "--bc-quality fast and best wrote the same blocks";
+}
