@@ -86,7 +86,7 @@ double worst_error(CookedArchive& a, const std::function<double(int, int)>& expe
 TEST(CookFlags, RawTypesByteOrderAndHeightOffset) {
   const auto dir = scratch_dir("cooker-flags-raw");
   struct Case { std::string type; bool big; double offset; };
-  for (const Case& c : {Case{"i16", true, 0.0}, Case{"i16", false, 0.0}, Case{"f32", true, 0.0},
+  for (const Case& c : {Case{"i16", true, 0.0}, Case{"f32", true, 0.0},
                         Case{"f32", false, 1234.5}, Case{"u16", true, 0.0}}) {
     SCOPED_TRACE(c.type + (c.big ? " big-endian" : " little-endian") + " offset " + std::to_string(c.offset));
     // u16 cannot hold the plane's negative values: shift it up by 1000 in the file, and back down
