@@ -18,10 +18,11 @@ inline std::filesystem::path data_file(const std::string& name) { return data_di
 inline std::filesystem::path bin_dir() { return TERRAIN_BIN_DIR; }
 inline std::filesystem::path source_dir() { return TERRAIN_SOURCE_DIR; }
 
-// A fresh, empty scratch folder for one test (under the build tree's temp area).
+// A fresh, empty scratch folder for one test, under the build tree (<build>/test-scratch), so a
+// test run leaves nothing in /tmp and `rm -rf build` removes everything it wrote.
 inline std::filesystem::path scratch_dir(const std::string& test_name) {
-  auto dir = std::filesystem::temp_directory_path() /
-             ("terrain-test-" + test_name + "-" + std::to_string(::getpid()));
+  auto dir = std::filesystem::path(TERRAIN_TEST_SCRATCH_DIR) /
+             (test_name + "-" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

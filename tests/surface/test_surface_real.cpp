@@ -93,7 +93,7 @@ TEST(SurfaceReal, KilaueaNeighboursAgreeInTheirOverlap) {
   ASSERT_EQ(a.hole_vertices, 0);
   const Cooked ca = cook_node(a, default_rules()), ce = cook_node(east, default_rules()), cn = cook_node(north, default_rules());
   const auto da = decode_normals(ca.data), de = decode_normals(ce.data), dn = decode_normals(cn.data);
-  auto compare = [&](const std::vector<uint8_t>& other, const Cooked& co, bool east_pair) {
+  auto compare = [&](const std::vector<uint8_t>& other, bool east_pair) {
     double worst = 0, sum = 0;
     int count = 0;
     for (int u = 0; u < kTexels; ++u)
@@ -109,14 +109,17 @@ TEST(SurfaceReal, KilaueaNeighboursAgreeInTheirOverlap) {
         sum += deg;
         ++count;
       }
-    const double bound = ca.stats.normal_err_max_deg + co.stats.normal_err_max_deg;
-    std::printf("%s overlap: mean %.3f deg, max %.3f deg, bound %.3f deg\n", east_pair ? "east" : "north", sum / count,
-                worst, bound);
-    EXPECT_LE(worst, bound + 1e-9);
-    EXPECT_LT(sum / count, 1.0);
+    // Bound 0, from the layout rather than the encoder's own error statistic: the overlap texels
+    // are computed from the same DEM window, texel t of a node is texel t - 128 of its eastern
+    // (northern) neighbour and 128 is a multiple of the 4-texel block, so both nodes encode the
+    // same blocks from the same inputs with a deterministic encoder (SPEC 16.2).
+    std::printf("%s overlap: mean %.3f deg, max %.3f deg over %d texels\n", east_pair ? "east" : "north", sum / count,
+                worst, count);
+    // (acos of the dot product of two equal unit vectors rounds to ~1e-6 degrees, hence 1e-5.)
+    EXPECT_LE(worst, 1e-5);
   };
-  compare(de, ce, true);
-  compare(dn, cn, false);
+  compare(de, true);
+  compare(dn, false);
   // The splat maps share their edge samples exactly.
   for (int j = 0; j < kSplatSamples; ++j)
     EXPECT_EQ(ca.data.splat[size_t(j * kSplatSamples + 64)], ce.data.splat[size_t(j * kSplatSamples)]);

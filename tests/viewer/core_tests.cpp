@@ -383,7 +383,19 @@ TEST(ViewerReference, ResidencyKeepsParentsOfResidentNodes) {
   ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
   EXPECT_EQ(res.resident_count(), 21u);
   EXPECT_EQ(uploads.size(), 20u);
-  EXPECT_FALSE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok() && false);
+  // The same set again: nothing to upload, nothing evicted.
+  uploads.clear();
+  ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
+  EXPECT_TRUE(uploads.empty());
+  EXPECT_EQ(res.resident_count(), 21u);
+  // 21 nodes wanted in 8 slots: a clear error naming the slot count, not a partial success.
+  TerrainState small;
+  StaticResidency tight;
+  tight.init(sw.world, nodes, 8, small);
+  uploads.clear();
+  const Status full = tight.apply([](const NodeKey&) { return true; }, small, uploads);
+  EXPECT_FALSE(full.ok());
+  EXPECT_NE(full.message.find("8 atlas slots"), std::string::npos) << full.message;
 }
 
 TEST(ViewerCamera, CameraRelativePositionsStayExactAtUtmCoordinates) {
