@@ -11,6 +11,7 @@ gtest_discover_tests(cooker_cli_flag_tests DISCOVERY_MODE PRE_TEST PROPERTIES LA
 set(_check ${CMAKE_SOURCE_DIR}/tests/format/cli_check.cmake)
 set(_jacksboro /usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz)
 set(_cli_dir ${CMAKE_BINARY_DIR}/cooker-cli-flags)
+file(MAKE_DIRECTORY ${_cli_dir})
 if(EXISTS ${_jacksboro})
   # --json on stdout: the report parses, names the input and gives level 5's 256 roots, an error
   # within the 0.5 m default tolerance at the finest level cooked (4) and every sample covered.

@@ -64,6 +64,22 @@ case $case_name in
       expect 2 "must be" "$bin/terrain-view" keep.terrain --headless --out x.png $a
     done ;;
   view_fifo) VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json expect 1 "not a regular file \(FIFO\)" "$bin/terrain-view" fifo --headless --out x.png ;;
+  view_budget)  # Jacksboro cooks to 16 x 16 roots, always resident: the message names the flag and the value
+    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json \
+      expect 2 "--budget 100 is smaller than the archive's 256 roots.*use --budget 256" \
+      "$bin/terrain-view" keep.terrain --headless --out x.png --budget 100 ;;
+  view_outputs)  # --out / --stats never replace the archive, the camera path or a device
+    export VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json
+    expect 2 "same file as" "$bin/terrain-view" keep.terrain --headless --out keep.terrain
+    expect 2 "same file as" "$bin/terrain-view" keep.terrain --headless --stats old.json --out old.json
+    expect 2 "character device" "$bin/terrain-view" keep.terrain --headless --stats null ;;
+  view_too_many_roots)  # 65 x 65 samples 1500 m apart span 96 km: 47 x 47 = 2209 roots, past the traversal's 2048
+    head -c 8450 /dev/zero > wide.r16
+    "$bin/terrain-cook" wide.r16 --raw-size 65x65 --spacing 1500 --crs local --heights-only -q -o wide.terrain \
+      || { echo "FAIL: wide cook"; exit 1; }
+    before=$(snapshot)
+    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json \
+      expect 1 "2209 roots.*at most 2048 roots" "$bin/terrain-view" wide.terrain --headless --out x.png --budget 4000 ;;
   work_bound)  # 64 x 64 samples at 100 km: 9.5 M roots, refused in well under a second
     head -c 8192 /dev/zero > coarse.r16; before=$(snapshot)
     expect 1 "3077 x 3077 root nodes.*--force" "$bin/terrain-cook" coarse.r16 --raw-size 64x64 --spacing 100000 --crs local -q -o x.terrain ;;

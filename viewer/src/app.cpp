@@ -13,7 +13,8 @@ namespace {
 
 int fail(const Status& s) {
   std::fprintf(stderr, "terrain-view: %s: %s\n", error_name(s.code), s.message.c_str());
-  return is_no_device(s) ? 77 : 1;
+  // invalid_argument: a flag (or the --path file it names) the archive or device cannot take: usage.
+  return is_no_device(s) ? 77 : s.code == Error::invalid_argument ? 2 : 1;
 }
 
 double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }

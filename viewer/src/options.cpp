@@ -5,6 +5,7 @@
 
 #include "app.h"
 #include "terrain/cli_checks.h"
+#include "terrain/output_paths.h"
 
 namespace terrain::view {
 
@@ -115,6 +116,17 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   o.settings.decimate = !no_decimate;
   if (o.headless && o.out_png.empty() && o.stats_json.empty()) return usage("--headless needs --out FILE.png or --stats FILE.json");
   if (o.frames < 0) return usage("--frames must be >= 0");
+  // --out and --stats never replace the archive, the camera path, each other, a device or a FIFO.
+  std::vector<NamedPath> inputs{{"archive", o.archive}}, outputs;
+  if (!o.path_file.empty()) inputs.push_back({"--path", o.path_file});
+  if (!o.out_png.empty()) outputs.push_back({"--out", o.out_png});
+  if (!o.stats_json.empty()) outputs.push_back({"--stats", o.stats_json});
+  if (const Status st = check_output_paths(inputs, outputs); !st.ok()) {
+    if (st.code == Error::invalid_argument) return usage(st.message);
+    std::fprintf(stderr, "terrain-view: %s\n", st.to_string().c_str());
+    exit_code = 1;
+    return false;
+  }
   return true;
 }
 

@@ -61,6 +61,14 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   ctx_ = &ctx;
   world_ = world;
   config_ = config;
+  // The GPU traversal starts from a list of every root and holds TV_MAX_LIST entries: roots past it
+  // would be dropped from the picture without a word, so such an archive is refused.
+  if (uint64_t(world.roots_x) * world.roots_y > TV_MAX_LIST)
+    return Status::failure(Error::unsupported_input,
+                           "the archive has " + std::to_string(uint64_t(world.roots_x) * world.roots_y) + " roots (" +
+                               std::to_string(world.roots_x) + " x " + std::to_string(world.roots_y) +
+                               "); this viewer traverses at most " + std::to_string(TV_MAX_LIST) +
+                               " roots: cook a smaller area or view a part of it");
   if (config.slot_count == 0 || config.slot_count > TV_SLOT_INVALID)
     return Status::failure(Error::invalid_argument, "renderer: slot_count must be 1..65534");
   if (world.roots_x == 0 || world.roots_y == 0) return Status::failure(Error::invalid_argument, "renderer: empty world");

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <map>
 
+#include "terrain/archive_reader.h"
+
 namespace terrain::view {
 namespace {
 
@@ -16,6 +18,17 @@ class StreamSource final : public NodeSource {
     config.error_target_px = o.error_target_px;
     config.worker_threads = o.worker_threads;
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
+    // Every root stays resident, so the budget must hold them: say which flag to raise.
+    {
+      ArchiveReader reader;
+      if (Status st = reader.open(path); !st.ok()) return st;
+      const uint64_t roots = uint64_t(reader.world().roots_x) * reader.world().roots_y;
+      if (o.budget_nodes < roots)
+        return Status::failure(Error::invalid_argument,
+                               "--budget " + std::to_string(o.budget_nodes) + " is smaller than the archive's " +
+                                   std::to_string(roots) + " roots, which stay resident: use --budget " +
+                                   std::to_string(roots) + " or more");
+    }
     return streamer_.open(path, config);
   }
   const WorldInfo& world() const override { return streamer_.world(); }
