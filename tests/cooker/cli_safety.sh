@@ -80,6 +80,12 @@ case $case_name in
     before=$(snapshot)
     VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json \
       expect 1 "2209 roots.*at most 2048 roots" "$bin/terrain-view" wide.terrain --headless --out x.png --budget 4000 ;;
+  summary_counts)  # item 19: the summary says what its error count counts (138 632 samples, more measurements)
+    out=$("$bin/terrain-cook" in.npz --crs EPSG:4326 -o summary.terrain --threads 1)
+    [[ "$out" =~ over\ ([0-9]+)\ sample\ measurements\ \(each\ valid\ source\ sample\ against\ every\ finest\ node ]] \
+      || { echo "FAIL: summary does not say what it counts: $out"; exit 1; }
+    [[ "$out" =~ 138632\ source\ samples ]] || { echo "FAIL: source sample count missing: $out"; exit 1; }
+    echo "ok: ${BASH_REMATCH[0]}" ;;
   work_bound)  # 64 x 64 samples at 100 km: 9.5 M roots, refused in well under a second
     head -c 8192 /dev/zero > coarse.r16; before=$(snapshot)
     expect 1 "3077 x 3077 root nodes.*--force" "$bin/terrain-cook" coarse.r16 --raw-size 64x64 --spacing 100000 --crs local -q -o x.terrain ;;
