@@ -156,7 +156,10 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
         continue;
       }
       const size_t vl = size_t(std::min(int(column_level[size_t(i)]), row_level));
-      const int64_t u = quantize_units(h, scale[vl], ctx.step_log2[vl]);
+      // Range first: a height far outside the archive's (a spike of 1e30 kept by --valid-range) would
+      // overflow the integer conversion and wrap into range.
+      const bool in_range = std::fabs(h) <= double(kMaxHeightUnits) * kHeightUnitM;
+      const int64_t u = in_range ? quantize_units(h, scale[vl], ctx.step_log2[vl]) : int64_t(kMaxHeightUnits) + 1;
       if (u > kMaxHeightUnits || u < -kMaxHeightUnits)  // bad data (exit 1), not a bad flag
         return Status::failure(Error::unsupported_input,
                                fmt::format("height {:.3f} m at frame ({:.3f}, {:.3f}) is outside the archive's +-16384 m "
