@@ -54,7 +54,8 @@ Status read_file_bytes(const std::string& path, std::vector<uint8_t>& out);
 Status gunzip_file(const std::string& path, std::vector<uint8_t>& out,
                    uint64_t max_bytes = uint64_t(1) << 32);
 // First entry of a zip whose name ends with `suffix` (case-insensitive); its name in `entry`. An
-// entry larger than max_bytes (its header's size, checked before allocating) is refused.
+// entry larger than max_bytes (its header's size, checked before allocating) is refused; memory grows
+// with the bytes that really decompress, never with the header's claim.
 Status read_zip_entry(const std::string& path, const std::string& suffix, std::vector<uint8_t>& out,
                       std::string& entry, uint64_t max_bytes = uint64_t(1) << 32);
 // The file name stored in a gzip header (FNAME), or "" when there is none.

@@ -79,10 +79,19 @@ Status read_zip_entry(const std::string& path, const std::string& suffix, std::v
     std::unique_ptr<zip_file_t, int (*)(zip_file_t*)> file(zip_fopen_index(archive.get(), zip_uint64_t(i), 0),
                                                           zip_fclose);
     if (!file) return Status::failure(Error::io_read, fmt::format("{}: cannot open entry {}", path, st.name));
-    out.resize(size_t(st.size));
-    const zip_int64_t got = out.empty() ? 0 : zip_fread(file.get(), out.data(), st.size);
-    if (got != zip_int64_t(st.size))
-      return Status::failure(Error::io_read, fmt::format("{}: entry {} is corrupt or truncated", path, st.name));
+    // Grow with the bytes that really decompress: the header's size is the input's word, and a
+    // forged one (4 GB for a 100-byte entry) must not become an allocation.
+    out.clear();
+    constexpr uint64_t kChunk = uint64_t(1) << 20;
+    for (uint64_t done = 0; done < uint64_t(st.size);) {
+      const uint64_t want = std::min<uint64_t>(kChunk, uint64_t(st.size) - done);
+      out.resize(size_t(done + want));
+      const zip_int64_t got = zip_fread(file.get(), out.data() + done, want);
+      if (got <= 0)
+        return Status::failure(Error::io_read, fmt::format("{}: entry {} is corrupt or truncated", path, st.name));
+      done += uint64_t(got);
+      out.resize(size_t(done));
+    }
     entry = st.name;
     return Status::success();
   }
