@@ -53,7 +53,11 @@ case $case_name in
   signal)
     for sig in TERM INT; do
       "$bin/terrain-cook" in.npz --crs EPSG:4326 -q --tolerance 0.01 --finest-level 0 -o keep.terrain --report old.json &
-      pid=$!; sleep 1.5; kill -$sig $pid; wait $pid; rc=$?
+      # Signal once the staged archive exists: the cook is under way and its handler installed (a fixed
+      # sleep raced a loaded machine, and a background job of a script starts with SIGINT ignored).
+      pid=$!
+      for _ in $(seq 600); do ls | grep -q 'tmp-' && break; kill -0 $pid 2>/dev/null || break; sleep 0.1; done
+      kill -$sig $pid; wait $pid; rc=$?
       [ "$rc" != 0 ] || { echo "FAIL: SIG$sig: cook finished before the signal (rc 0)"; exit 1; }
       ls | grep -q 'tmp-' && { echo "FAIL: SIG$sig left $(ls | grep tmp-)"; exit 1; }
       [ "$(snapshot)" = "$before" ] || { echo "FAIL: SIG$sig changed files"; exit 1; }
