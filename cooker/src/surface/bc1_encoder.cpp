@@ -14,6 +14,7 @@
 // G-only blocks (encode_bc1_g_only): normal maps whose R and B are constant.
 #include <algorithm>
 #include <array>
+#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -22,6 +23,12 @@
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+
+// The scalar definition rounds every float operation to float (as SSE2 does); x87 excess
+// precision would give other bytes.
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD != 0
+#error "bc1_encoder.cpp needs FLT_EVAL_METHOD == 0 (e.g. -mfpmath=sse on 32-bit x86)"
 #endif
 
 namespace terrain::cook {
