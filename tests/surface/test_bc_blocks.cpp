@@ -162,14 +162,14 @@ TEST(BcBlocks, MoreEncoderEffortNeverRaisesABlocksError) {
       rgba[4 * i + 3] = 255;
     }
     uint8_t block[8], plain[8], dec[64];
-    own_encode_bc1_opaque(rgba, block, base);
-    own_encode_bc1_opaque(rgba, plain, 1, true);
+    encode_bc1_opaque(rgba, block, base);
+    encode_bc1_opaque(rgba, plain, hard_block_effort(0, 16, -1));
     ASSERT_EQ(std::memcmp(block, plain, 8), 0) << "trial " << trial;
     decode_bc1_block(block, dec);
     const double e0 = block_sq_err(rgba, dec);
     double best = e0;
     for (const Bc1OpaqueEffort& e : more) {
-      own_encode_bc1_opaque(rgba, block, e);
+      encode_bc1_opaque(rgba, block, e);
       ASSERT_EQ(bc1_transparent_mask(block), 0) << "trial " << trial;
       decode_bc1_block(block, dec);
       const double err = block_sq_err(rgba, dec);
@@ -260,7 +260,7 @@ TEST(BcBlocks, OwnBc4IsAtLeastAsGoodAsStb) {
       rgba[4 * i + 3] = v[i];
     }
     uint8_t b[16], d[16];
-    own_encode_bc4(v, b);
+    encode_bc4(v, b);
     decode_bc4_block(b, d);
     for (int i = 0; i < 16; ++i) own += (double(d[i]) - v[i]) * (double(d[i]) - v[i]);
     encode_bc3_block(rgba, Bc3Method::stb, b);  // stb's BC3 alpha block is its BC4 encoder
@@ -285,7 +285,7 @@ TEST(BcBlocks, ConservativeBc4NeverDecodesBelowItsTargets) {
       t[i] = uint8_t(v);
     }
     uint8_t b[8], d[16];
-    own_encode_bc4_upper(t, b);
+    encode_bc4_upper(t, b);
     decode_bc4_block(b, d);
     for (int i = 0; i < 16; ++i) ASSERT_GE(d[i], t[i]) << "trial " << trial << " texel " << i;
     if (mode == 3) {

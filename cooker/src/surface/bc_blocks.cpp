@@ -157,12 +157,26 @@ const char* bc3_method_name(Bc3Method m) {
   return "?";
 }
 
+namespace {
+// Effort of our opaque encoder for each of our settings (see Bc1Method).
+Bc1OpaqueEffort opaque_effort(Bc1Method method) {
+  Bc1OpaqueEffort e;
+  e.refine_hard = method != Bc1Method::own_fast;
+  if (method == Bc1Method::own_cluster) e.ordering_sweeps = 2;
+  if (method == Bc1Method::own_best) {
+    e.iterations = 2;
+    e.three_colour_threshold = kBc1ThreeColourThreshold;
+  }
+  return e;
+}
+}  // namespace
+
 void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) {
   const uint16_t holes = hole_mask_of(rgba);
   if (holes == 0 && (method == Bc1Method::own_fast || method == Bc1Method::own)) {
     // Hot path of the default setting: our opaque encoder ignores alpha and only writes
     // 4-colour blocks (or equal endpoints with index 0), so no copy and no re-check are needed.
-    own_encode_bc1_opaque(rgba, out, 1, method == Bc1Method::own);
+    encode_bc1_opaque(rgba, out, opaque_effort(method));
     return;
   }
   if (holes == 0xFFFF) {  // all holes: 3-colour black block, every index transparent
@@ -176,10 +190,10 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
     std::memcpy(tmp, rgba, 64);
     for (int i = 0; i < 16; ++i) tmp[4 * i + 3] = (holes >> i & 1) ? 0 : 255;
     if (method == Bc1Method::own || method == Bc1Method::own_fast || method == Bc1Method::own_cluster) {
-      own_encode_bc1_holes(rgba, holes, out);
+      encode_bc1_holes(rgba, holes, out);
     } else if (method == Bc1Method::own_best) {
       uint8_t a[8], b[8];
-      own_encode_bc1_holes(rgba, holes, a);
+      encode_bc1_holes(rgba, holes, a);
       squish::Compress(tmp, b, squish::kDxt1 | squish::kColourClusterFit);
       const bool b_ok = bc1_transparent_mask(b) == holes;
       std::memcpy(out, b_ok && colour_sq_err(rgba, b) < colour_sq_err(rgba, a) ? b : a, 8);
@@ -199,12 +213,12 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
   switch (method) {
     case Bc1Method::stb: stb_compress_dxt_block(out, opaque, 0, STB_DXT_NORMAL); break;
     case Bc1Method::stb_hq: stb_compress_dxt_block(out, opaque, 0, STB_DXT_HIGHQUAL); break;
-    case Bc1Method::own_fast: own_encode_bc1_opaque(opaque, out, 1); break;
-    case Bc1Method::own: own_encode_bc1_opaque(opaque, out, 1, true); break;
-    case Bc1Method::own_cluster: own_encode_bc1_opaque(opaque, out, 1, true, false, 2); break;
+    case Bc1Method::own_fast:
+    case Bc1Method::own:
+    case Bc1Method::own_cluster: encode_bc1_opaque(opaque, out, opaque_effort(method)); break;
     case Bc1Method::own_best: {
       uint8_t a[8], b[8];
-      own_encode_bc1_opaque(opaque, a, 2, true, true);
+      encode_bc1_opaque(opaque, a, opaque_effort(method));
       squish::Compress(opaque, b, squish::kDxt1 | squish::kColourClusterFit);
       const bool b_ok = bc1_transparent_mask(b) == 0;
       std::memcpy(out, b_ok && colour_sq_err(rgba, b) < colour_sq_err(rgba, a) ? b : a, 8);
@@ -218,7 +232,7 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
     if (read16(out) == read16(out + 2)) {
       write32(out + 4, 0);
     } else {
-      own_encode_bc1_opaque(opaque, out);
+      encode_bc1_opaque(opaque, out, Bc1OpaqueEffort{});
     }
   }
 }
@@ -236,10 +250,10 @@ void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16])
     case Bc3Method::own_hq: {
       uint8_t a[16];
       for (int i = 0; i < 16; ++i) a[i] = rgba[4 * i + 3];
-      own_encode_bc4(a, out);
+      encode_bc4(a, out);
       const float weights[3] = {0.25f, 1.0f, 0.05f};
       const int iterations = method == Bc3Method::own_hq ? 2 : 1;
-      if (!own_encode_bc1_g_only(rgba, out + 8, iterations)) own_encode_bc1_weighted(rgba, weights, out + 8);
+      if (!encode_bc1_g_only(rgba, out + 8, iterations)) encode_bc1_weighted(rgba, weights, out + 8);
       break;
     }
   }

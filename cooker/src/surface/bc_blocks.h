@@ -2,7 +2,7 @@
 // library's decoder (punch-through holes, cone margins, error statistics).
 //
 // Encoders: libsquish (range fit, cluster fit, iterative cluster fit; the only library encoder
-// with BC1 punch-through), stb_dxt (fast, 4-colour only) and our own (see bc_own.cpp). Every BC1
+// with BC1 punch-through), stb_dxt (fast, 4-colour only) and ours (bc1_encoder.cpp, bc4_encoder.cpp). Every BC1
 // block is verified after encoding: a texel decodes transparent exactly when it is a hole.
 #pragma once
 #include <cstdint>
@@ -20,7 +20,7 @@ enum class Bc1Method : uint8_t {
   squish_range,      // libsquish range fit (uniform RGB metric)
   squish_cluster,    // libsquish cluster fit (uniform RGB metric)
   squish_iterative,  // libsquish iterative cluster fit (uniform RGB metric)
-  own_fast,          // our encoder (bc_own.cpp), one endpoint refit; our 3-colour fit for hole blocks
+  own_fast,          // our encoder (bc1_encoder.cpp), one endpoint refit; our 3-colour fit for hole blocks
   own,               // our encoder, one refit, up to 4 on hard blocks (mean sq. error > 8 per channel)
   own_best,          // per block the better of (two refits, hard-block refits, 3-colour try) and libsquish cluster fit
   own_cluster,       // `own` plus two sweeps of our ordering search (a cheap cluster fit) on every block
@@ -40,25 +40,22 @@ enum class Bc3Method : uint8_t {
   stb,             // stb_dxt (alpha: min/max, colour: PCA + 1 refinement, uniform RGB)
   stb_hq,          // stb_dxt high quality
   squish_cluster,  // libsquish kDxt5 cluster fit, colour metric weighted toward G
-  own,             // our alpha encoder + our G fit, one refinement (bc_own.cpp)
+  own,             // our alpha encoder + our G fit, one refinement (bc1_encoder.cpp)
   own_hq,          // the same with two refinements and a wider endpoint search
 };
 const char* bc3_method_name(Bc3Method m);
 void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16]);
 
-// ---- Own encoders (bc_own.cpp) ----------------------------------------------------------
-// Opaque 4-colour BC1 (alpha ignored); never uses index 3 of a 3-colour block. `iterations`:
-// endpoint refits (1 = fast default, 2 = better).
+// ---- Block encoders of this project (bc1_encoder.cpp, bc4_encoder.cpp) -----------------
+// Effort of the opaque BC1 encoder (thresholds: squared RGB error summed over the block, i.e.
+// 48 x the mean squared error per channel). terrain-bc-bench --frontier sweeps the thresholds to
+// chart speed against PSNR.
+// `iterations`: endpoint refits (1 = fast default, 2 = better).
 // `refine_hard`: blocks whose error stays high (several colour clusters) get up to 4 refits while
-// they improve; `try_three_colour`: such blocks also try the 3-colour mode (index 3 unused).
-// `ordering_sweeps` > 0: every block with error then runs the ordering search (sorted along the
-// principal axis, partitions ranked by their rounded least-squares error, see bc_own.cpp).
-// Smooth blocks cost the same either way.
-void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iterations = 1, bool refine_hard = false,
-                           bool try_three_colour = false, int ordering_sweeps = 0);
-// The same with every effort knob explicit (thresholds: squared RGB error summed over the block,
-// i.e. 48 x the mean squared error per channel). The overload above uses the defaults below;
-// terrain-bc-bench --frontier sweeps the thresholds to chart speed against PSNR.
+// they improve. `ordering_sweeps` > 0: every block with error above `ordering_threshold` then runs
+// the ordering search (sorted along the principal axis, partitions ranked by their rounded
+// least-squares error, see bc1_encoder.cpp). `three_colour_threshold` >= 0: blocks above it also
+// try the 3-colour mode (index 3 unused). Smooth blocks cost the same either way.
 struct Bc1OpaqueEffort {
   int iterations = 1;
   bool refine_hard = false;
@@ -66,7 +63,9 @@ struct Bc1OpaqueEffort {
   float ordering_threshold = 16.0f;      // blocks above this error run the ordering search
   float three_colour_threshold = -1.0f;  // blocks above this error also try 3 colours (< 0: never)
 };
-void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
+// The 3-colour try of the `own_best` setting: from a mean squared error of 4 per channel (it gains
+// up to 0.1 dB on splat albedo but doubles the time, so only the best setting uses it).
+inline constexpr float kBc1ThreeColourThreshold = 48.0f * 4.0f;
 // The default's hard-block refits plus the given search and 3-colour settings.
 inline Bc1OpaqueEffort hard_block_effort(int ordering_sweeps, float ordering_threshold, float three_colour_threshold) {
   Bc1OpaqueEffort e;
@@ -76,17 +75,26 @@ inline Bc1OpaqueEffort hard_block_effort(int ordering_sweeps, float ordering_thr
   e.three_colour_threshold = three_colour_threshold;
   return e;
 }
+// Opaque 4-colour BC1 (alpha ignored); never uses index 3 of a 3-colour block.
+void encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
 // 3-colour punch-through block: texel i transparent iff bit i of `holes` (not all 16 set).
-void own_encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations = 2);
-// BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
-void own_encode_bc4(const uint8_t values[16], uint8_t out[8]);
-// BC4 block whose decoded values are >= the targets (and as small as possible): conservative
-// storage of cone angles. Returns false only if impossible (never: 255 always works).
-void own_encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]);
+void encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations = 2);
+// Colour block for normals: minimises w_r*dR^2 + w_g*dG^2 + w_b*dB^2 (G carries the normal).
+void encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
 // Colour block when R and B are constant and exactly representable (normal maps): exhaustive-ish
 // 1D fit of G. Returns false (nothing written) when the block does not qualify.
-bool own_encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
-// Colour block for normals: minimises w_r*dR^2 + w_g*dG^2 + w_b*dB^2 (G carries the normal).
-void own_encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
+bool encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
+// BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
+void encode_bc4(const uint8_t values[16], uint8_t out[8]);
+// BC4 block whose decoded values are >= the targets (and as small as possible): conservative
+// storage of cone angles (255 always works, so it never fails).
+void encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]);
+
+// The opaque and weighted encoders have one definition in plain scalar C++ and an SSE2
+// restatement that writes the same bytes; the functions above take the SSE2 one when it is
+// compiled in (bc1_simd_compiled()). These force the scalar one (tests, terrain-bc-bench).
+bool bc1_simd_compiled();
+void encode_bc1_opaque_scalar(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
+void encode_bc1_weighted_scalar(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
 
 }  // namespace terrain::cook

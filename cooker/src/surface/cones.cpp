@@ -500,7 +500,7 @@ bool encode_patch_cones(const PatchNormals& normals, const Cone cones[kPatchCoun
       }
       uint8_t colour_a[8];
       const float weights[3] = {1.0f, 1.0f, 0.0f};
-      own_encode_bc1_weighted(rgba, weights, colour_a);
+      encode_bc1_weighted(rgba, weights, colour_a);
 
       // Candidate B: two exact endpoint colours, indices 0/1 only (bit-exact on every GPU).
       // Endpoint pair chosen with the cheap bound theta_p + angle(axis_c, axis_p).
@@ -568,7 +568,7 @@ bool encode_patch_cones(const PatchNormals& normals, const Cone cones[kPatchCoun
                                            decoder_perturbation(dec[4 * t], dec[4 * t + 1], tol);
           targets[t] = angle_target(need);
         }
-        own_encode_bc4_upper(targets, trial);
+        encode_bc4_upper(targets, trial);
         uint8_t alpha[16];
         decode_bc4_block(trial, alpha);
         long sum = 0;

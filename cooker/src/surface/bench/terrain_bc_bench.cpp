@@ -233,8 +233,9 @@ void print_block_stats(const char* name, const std::vector<NodePayload>& payload
 // --frontier: speed against PSNR of our opaque BC1 encoder as its effort knobs are swept (hole-free
 // blocks of each albedo set; hole blocks take the same 3-colour path in every setting), next to
 // stb_dxt and libsquish cluster fit on the same blocks. All rows go through the calls the cooker
-// makes (encode_bc1_block for the libraries and the default, own_encode_bc1_opaque for the
-// variants, which is what the default's hot path calls); a row "meets" the albedo target when its
+// makes (encode_bc1_block for the libraries and the default, encode_bc1_opaque for the
+// variants, which is what the default's hot path calls; "scalar" rows force the scalar definition
+// that the SSE2 path restates byte for byte); a row "meets" the albedo target when its
 // PSNR >= max(stb, squish cluster) and its time <= stb's.
 void print_frontier(const char* name, const std::vector<NodePayload>& payloads, int reps) {
   for (int set = 0; set < 2; ++set) {
@@ -291,7 +292,13 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
     };
     for (const Variant& v : variants)
       rows.push_back(measure(std::string("own ") + v.label,
-                             [&e = v.e](const uint8_t* in, uint8_t* o) { own_encode_bc1_opaque(in, o, e); }));
+                             [&e = v.e](const uint8_t* in, uint8_t* o) { encode_bc1_opaque(in, o, e); }));
+    rows.push_back(measure("own, scalar path", [](const uint8_t* in, uint8_t* o) {
+      encode_bc1_opaque_scalar(in, o, hard_block_effort(0, 16, -1));
+    }));
+    rows.push_back(measure("own-cluster, scalar path", [](const uint8_t* in, uint8_t* o) {
+      encode_bc1_opaque_scalar(in, o, hard_block_effort(2, 16, -1));
+    }));
     const double target_db = std::max(stb.psnr, squish.psnr);
     std::printf("\n# frontier %s %s albedo: %zu hole-free blocks; target >= %.2f dB at <= %.3f us/block\n", name,
                 set == 0 ? "splat" : "relief", n, target_db, stb.us);

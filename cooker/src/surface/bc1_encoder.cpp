@@ -1,26 +1,34 @@
-// Our block encoders.
+// BC1 block encoders (colour blocks of the albedo and the normals; BC4 is bc4_encoder.cpp).
 //
-// BC1 colour (own_encode_bc1_opaque / own_encode_bc1_weighted): PCA extremes, then alternate
-//  (a) nearest-palette index assignment and (b) per-channel endpoint optimisation for the fixed
-//  indices. (b) is exact over a small window of quantised 5/6-bit endpoint pairs around the
-//  least-squares solution: for fixed indices the squared error separates by channel, and each
-//  candidate pair costs four multiply-adds from per-index sums (n_k, S_k, Q_k). This is where the
-//  quality over stb_dxt comes from (stb rounds its least-squares endpoints once).
-// BC4 (own_encode_bc4): min/max start, then the same alternation in one channel for the 8-value
-//  mode; the 6-value mode is tried when the block touches 0 or 255.
-// Ordering search (own_cluster setting): see ordering_search() below; a sorted-order partition
-//  search like libsquish's cluster fit, restricted to coordinate sweeps over the group boundaries.
-// Conservative BC4 (own_encode_bc4_upper): every decoded value >= its target, minimising the sum
-//  of excesses over one free endpoint (exhaustive, 256 candidates).
+// Colour (encode_bc1_opaque / encode_bc1_weighted / encode_bc1_holes): PCA extremes, then alternate
+//  (a) nearest-palette index assignment and (b) endpoint optimisation for the fixed indices.
+//  encode_colour (holes, 3-colour tries) does (b) exactly over a small window of quantised 5/6-bit
+//  endpoint pairs around the least-squares solution: for fixed indices the squared error separates
+//  by channel, and each candidate pair costs four multiply-adds from per-index sums (n_k, S_k, Q_k).
+//  This is where the quality over stb_dxt comes from (stb rounds its least-squares endpoints once).
+//  The opaque 4-colour path (encode_opaque_scalar, restated in SSE2 as encode_opaque_sse) ranks the
+//  candidates on moments instead; see its section below.
+// Ordering search (own_cluster setting): see ordering_search_scalar() below; a sorted-order
+//  partition search like libsquish's cluster fit, restricted to coordinate sweeps over the group
+//  boundaries.
+// G-only blocks (encode_bc1_g_only): normal maps whose R and B are constant.
 #include <algorithm>
 #include <array>
+#include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "bc_blocks.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+
+// The scalar definition rounds every float operation to float (as SSE2 does); x87 excess
+// precision would give other bytes.
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD != 0
+#error "bc1_encoder.cpp needs FLT_EVAL_METHOD == 0 (e.g. -mfpmath=sse on 32-bit x86)"
 #endif
 
 namespace terrain::cook {
@@ -381,13 +389,434 @@ void encode_colour(const uint8_t rgba[64], uint16_t active, bool four, const flo
   write32(out + 4, best_idx);
 }
 
+// ---- Opaque 4-colour blocks (the albedo hot path): one definition, two statements --------------
+// Same algorithm as encode_colour, restated on moments: for fixed per-texel weights a_i (1, 2/3,
+// 1/3, 0 for indices 0, 2, 3, 1) the least-squares endpoints and the error of any candidate
+// endpoint pair follow from sum a, sum a^2, sum x, sum x^2 and sum a*x per channel (the palette's
+// +1/3 rounding is ignored when ranking the few candidates; the final index choice uses the exact
+// decoded palette).
+//
+// The definition is the plain scalar code below (encode_opaque_scalar); the SSE2 code after it
+// (encode_opaque_sse) is a restatement that writes the same bytes, like meshoptimizer's vertex
+// codec. Float results must be bit-identical, so the scalar code keeps the vector code's
+// operation order: a texel i lives in lane i % 4 of vector i / 4, sums over texels add per lane
+// first and then across lanes as (l0 + l2) + (l1 + l3) (sum_lanes), min / max have the minps /
+// maxps semantics (a < b ? a : b) and the same reduction trees. The file is built with
+// -ffp-contract=off so no compiler fuses a multiply-add in one statement and not the other.
+// tests/surface/test_bc1_paths.cpp encodes real, random and hard blocks both ways.
+
+// Extra effort for blocks whose error stays high after the normal refits.
+struct HardBlocks {
+  int iterations = 0;     // total refits allowed for a hard block (0: no extra refits)
+  float threshold = 0;    // squared error over the block above which a block counts as hard
+  int ordering_sweeps = 0;        // coordinate sweeps of the ordering search (0: none)
+  float ordering_threshold = 16;  // squared error over the block above which the ordering search runs
+};
+
+struct Moments {
+  float sa = 0, saa = 0, sx[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, sax[3] = {0, 0, 0};
+};
+
+// minps / maxps: the second operand unless the first is strictly smaller / larger.
+inline float min_ps(float a, float b) { return a < b ? a : b; }
+inline float max_ps(float a, float b) { return a > b ? a : b; }
+// Horizontal reductions of four lanes in the SSE2 order (hsum / hmin / hmax below).
+// cvttps2dq: truncation, and INT32_MIN for NaN or out of range (a plain cast would be undefined).
+inline int32_t truncate_like_cvttps(float x) {
+  return x >= -2147483648.0f && x < 2147483648.0f ? int32_t(x) : INT32_MIN;
+}
+inline float sum_lanes(const float l[4]) { return (l[0] + l[2]) + (l[1] + l[3]); }
+inline float min_lanes(const float l[4]) { return min_ps(min_ps(l[0], l[2]), min_ps(l[1], l[3])); }
+inline float max_lanes(const float l[4]) { return max_ps(max_ps(l[0], l[2]), max_ps(l[1], l[3])); }
+// Sum over the 16 texels: per lane from 0 in texel order, then across the lanes.
+inline float sum16(const float x[16]) {
+  float l[4] = {0, 0, 0, 0};
+  for (int v = 0; v < 4; ++v)
+    for (int i = 0; i < 4; ++i) l[i] += x[4 * v + i];
+  return sum_lanes(l);
+}
+
+// Endpoints for weights with the given moments: least squares, then the best of the 4x4 nearest
+// quantised pairs per channel (floor-1 .. floor+2, clamped), ranked by the moment form of the error,
+// which separates as f0(v0) + f1(v1) + 2 ab v0 v1; the first minimum in (v0, v1) order wins.
+void fit_from_moments_scalar(const Moments& m, int q0[3], int q1[3]) {
+  const float n = 16.0f;
+  const float aa = m.saa, ab = m.sa - m.saa, bb = n - 2 * m.sa + m.saa;
+  const float det = aa * bb - ab * ab;
+  const float scale[3] = {31.0f / 255.0f, 63.0f / 255.0f, 31.0f / 255.0f};
+  for (int c = 0; c < 3; ++c) {
+    const float ax = m.sax[c], bx = m.sx[c] - ax;
+    float e0, e1;
+    if (std::fabs(det) > 1e-3f) {
+      e0 = (ax * bb - bx * ab) / det;
+      e1 = (bx * aa - ax * ab) / det;
+    } else {
+      e0 = e1 = m.sx[c] / n;
+    }
+    const int base0 = int(min_ps(max_ps(e0, 0.0f), 255.0f) * scale[c]);
+    const int base1 = int(min_ps(max_ps(e1, 0.0f), 255.0f) * scale[c]);
+    const int six = c == 1, qmax = six ? 63 : 31;
+    int qa[4], qb[4];
+    float va[4], vb[4], fa[4], fb[4], ka[4];
+    for (int i = 0; i < 4; ++i) {
+      qa[i] = std::clamp(base0 + i - 1, 0, qmax);
+      qb[i] = std::clamp(base1 + i - 1, 0, qmax);
+      va[i] = float(six ? expand6(qa[i]) : expand5(qa[i]));
+      vb[i] = float(six ? expand6(qb[i]) : expand5(qb[i]));
+      fa[i] = va[i] * (va[i] * aa - 2 * ax);
+      fb[i] = vb[i] * (vb[i] * bb - 2 * bx);
+      ka[i] = (2 * ab) * va[i];
+    }
+    float e[4][4];
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) e[i][j] = fa[i] + (fb[j] + ka[i] * vb[j]);
+    // The vector reduction: rows lane-wise, then lanes 1 and 2 apart.
+    float mn[4], m1[4], m2[4];
+    for (int j = 0; j < 4; ++j) mn[j] = min_ps(min_ps(e[0][j], e[1][j]), min_ps(e[2][j], e[3][j]));
+    for (int j = 0; j < 4; ++j) m1[j] = min_ps(mn[j], mn[j ^ 1]);
+    for (int j = 0; j < 4; ++j) m2[j] = min_ps(m1[j], m1[j ^ 2]);
+    int bq0 = qa[0], bq1 = qb[0];
+    bool found = false;
+    for (int i = 0; i < 4 && !found; ++i)
+      for (int j = 0; j < 4 && !found; ++j)
+        if (e[i][j] == m2[j]) {
+          bq0 = qa[i];
+          bq1 = qb[j];
+          found = true;
+        }
+    q0[c] = bq0;
+    q1[c] = bq1;
+  }
+}
+
+inline uint32_t pack_indices_scalar(const int sel[16]) {
+  uint32_t idx = 0;
+  for (int i = 0; i < 16; ++i) idx |= uint32_t(sel[i]) << (2 * i);
+  return idx;
+}
+
+// Nearest exact palette entry per texel (the first of equal ones) and the summed error.
+template <bool kUniform>
+float assign_scalar(const float ch[3][16], const int pal[4][3], const float w[3], int sel[16]) {
+  float best[16];
+  for (int i = 0; i < 16; ++i) {
+    for (int k = 0; k < 4; ++k) {
+      const float dr = ch[0][i] - float(pal[k][0]), dg = ch[1][i] - float(pal[k][1]), db = ch[2][i] - float(pal[k][2]);
+      float d;
+      if constexpr (kUniform) {
+        d = (dr * dr + dg * dg) + db * db;
+      } else {
+        d = (w[0] * (dr * dr) + w[1] * (dg * dg)) + w[2] * (db * db);
+      }
+      if (k == 0) {
+        best[i] = d;
+        sel[i] = 0;
+      } else {
+        if (d < best[i]) sel[i] = k;
+        best[i] = min_ps(d, best[i]);
+      }
+    }
+  }
+  return sum16(best);
+}
+
+// Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::own_cluster.
+// Texels sorted along the principal axis form four contiguous groups with c0 weights 1, 2/3, 1/3, 0
+// from the low end. With group boundaries i <= j <= k and P(r) the prefix sums of the sorted
+// colours, sum a*x = (P(i) + P(j) + P(k)) / 3, sum a = (i + j + k) / 3 and sum a^2 = (5i + 3j + k) / 9,
+// so the least-squares endpoints of a partition cost a few multiply-adds. Like libsquish, partitions
+// are ranked by the error of those endpoints rounded to the 5:6:5 grid. libsquish scores all 969
+// partitions; we run coordinate sweeps from the partition the current indices imply: each boundary
+// in turn scans its whole free range with the other two fixed (4 candidates per step), then
+// the winner is quantised exactly (4x4 window) and kept if its exact error is lower.
+// Measured on Oetztal splat albedo (terrain-bc-bench --block-stats; default own 39.76 dB, squish
+// cluster 40.08 dB): the winning partitions usually differ from the start in one boundary, by up
+// to ~7 texels, so a +-1 neighbourhood hill-climb stalls at 39.93 dB (+-3: 40.04 dB); one sweep
+// gives 40.06 dB, two 40.08 dB, the full 969-partition search 40.27 dB (at ~10x the time);
+// ranking by the unrounded error instead loses 0.06-0.08 dB. The search only helps together with
+// the hard-block refits (without them: 40.01 dB), and it is needed on nearly every block with
+// error (only above 48 x 4 per channel: 40.03 dB), since the loss is spread over all such blocks.
+struct OrderingSearchScalar {
+  float P[3][24];  // prefix sums per channel, padded with P(16)
+  float X3[3];     // 3 * sum x per channel
+
+  // Rounded-endpoint residual (minus the constant sum x^2, times 9) of the partition with
+  // boundaries fi <= fj <= fk; T: P(i) + P(j) + P(k) per channel. A singular system (all texels
+  // in one group) or `invalid` scores 3.4e38.
+  static float score(float fi, float fj, float fk, const float T[3], bool invalid, const float X3[3]) {
+    const float s3 = (fi + fj) + fk;
+    const float a9 = (fi * 5.0f + fj * 3.0f) + fk;
+    const float AA = a9, AB = s3 * 3.0f - a9;
+    const float BB = (144.0f - s3 * 6.0f) + a9;
+    const float D = AA * BB - AB * AB;
+    if (invalid || D <= 0.5f) return 3.4e38f;
+    const float inv = 3.0f / D;
+    const float AB2 = AB + AB;
+    static const float kGrid[3] = {31.0f / 255.0f, 63.0f / 255.0f, 31.0f / 255.0f};
+    static const float kGridInv[3] = {255.0f / 31.0f, 255.0f / 63.0f, 255.0f / 31.0f};
+    float e = 0.0f;
+    for (int c = 0; c < 3; ++c) {
+      const float t = T[c], u = X3[c] - t;
+      float a = (t * BB - u * AB) * inv;
+      float b = (u * AA - t * AB) * inv;
+      // Round to the grid, half to even (cvtps2dq in the default rounding mode).
+      a = float(std::lrint(min_ps(max_ps(a, 0.0f), 255.0f) * kGrid[c])) * kGridInv[c];
+      b = float(std::lrint(min_ps(max_ps(b, 0.0f), 255.0f) * kGrid[c])) * kGridInv[c];
+      // AA a^2 + BB b^2 + 2 AB a b - 6 (a T + b U)   (9 x the residual minus sum x^2)
+      const float quad = a * (a * AA + b * AB2) + (b * b) * BB;
+      e = e + (quad - (a * t + b * u) * 6.0f);
+    }
+    return e;
+  }
+
+  // Scans boundary `which` (0: i, 1: j, 2: k) over [lo, hi] with the others fixed, four candidates
+  // per step like the vector code (the step's minimum, its first lane); updates b[] and best.
+  void scan(int which, int lo, int hi, int b[3], float& best) const {
+    const int fixed0 = which == 0 ? 1 : 0, fixed1 = which == 2 ? 1 : 2;
+    float base[3];
+    for (int c = 0; c < 3; ++c) base[c] = P[c][b[fixed0]] + P[c][b[fixed1]];
+    int arg = b[which];
+    for (int x = lo; x <= hi; x += 4) {
+      float e[4];
+      for (int l = 0; l < 4; ++l) {
+        const float fx = float(x) + float(l);
+        float T[3];
+        for (int c = 0; c < 3; ++c) T[c] = base[c] + P[c][x + l];
+        const float fi = which == 0 ? fx : float(b[0]);
+        const float fj = which == 1 ? fx : float(b[1]);
+        const float fk = which == 2 ? fx : float(b[2]);
+        e[l] = score(fi, fj, fk, T, fx > float(hi), X3);
+      }
+      const float m = min_lanes(e);
+      if (m < best) {
+        best = m;
+        int l = 0;
+        while (e[l] != m) ++l;
+        arg = x + l;
+      }
+    }
+    b[which] = arg;
+  }
+};
+
+void ordering_search_scalar(const float ch[3][16], const float proj[16], const float axis[3], int sweeps,
+                            int best_q0[3], int best_q1[3], uint32_t& best_idx, float& best_err) {
+  // Rank of texel t = number of keys below its key; the keys are the projections scaled to 24 bits
+  // with the texel index in the low 4 bits, so they are distinct and the ranks a permutation.
+  int order[16];
+  {
+    float lo[4], hi[4];
+    for (int l = 0; l < 4; ++l) {
+      lo[l] = min_ps(min_ps(proj[l], proj[4 + l]), min_ps(proj[8 + l], proj[12 + l]));
+      hi[l] = max_ps(max_ps(proj[l], proj[4 + l]), max_ps(proj[8 + l], proj[12 + l]));
+    }
+    const float pmin = min_lanes(lo), pmax = max_lanes(hi);
+    const float scale = pmax > pmin ? float(1 << 20) / (pmax - pmin) : 0.0f;
+    int32_t key[16];
+    for (int t = 0; t < 16; ++t) key[t] = int32_t(uint32_t(truncate_like_cvttps((proj[t] - pmin) * scale)) << 4) | t;
+    for (int t = 0; t < 16; ++t) {
+      int rank = 0;
+      for (int s = 0; s < 16; ++s) rank += key[s] < key[t];
+      order[rank] = t;
+    }
+  }
+  OrderingSearchScalar os;
+  for (int c = 0; c < 3; ++c) {
+    float acc = 0;
+    os.P[c][0] = 0;
+    for (int r = 0; r < 16; ++r) os.P[c][r + 1] = acc += ch[c][order[r]];
+    for (int r = 17; r < 24; ++r) os.P[c][r] = acc;
+    os.X3[c] = 3 * acc;
+  }
+  // Start: the group sizes of the current indices, from the endpoint that projects lower.
+  int cnt[4] = {0, 0, 0, 0};
+  for (int t = 0; t < 16; ++t) ++cnt[(best_idx >> (2 * t)) & 3];
+  const float d0 = axis[0] * float(expand5(best_q0[0])) + axis[1] * float(expand6(best_q0[1])) + axis[2] * float(expand5(best_q0[2]));
+  const float d1 = axis[0] * float(expand5(best_q1[0])) + axis[1] * float(expand6(best_q1[1])) + axis[2] * float(expand5(best_q1[2]));
+  const bool low0 = d0 <= d1;
+  int b[3];
+  b[0] = low0 ? cnt[0] : cnt[1];
+  b[1] = b[0] + cnt[low0 ? 2 : 3];
+  b[2] = b[1] + cnt[low0 ? 3 : 2];
+  const int start[3] = {b[0], b[1], b[2]};
+  float best;
+  {
+    float T[3];
+    for (int c = 0; c < 3; ++c) T[c] = os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]];
+    best = OrderingSearchScalar::score(float(b[0]), float(b[1]), float(b[2]), T, false, os.X3);
+  }
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    const int before[3] = {b[0], b[1], b[2]};
+    os.scan(0, 0, b[1], b, best);
+    os.scan(2, b[1], 16, b, best);
+    os.scan(1, b[0], b[2], b, best);
+    if (b[0] == before[0] && b[1] == before[1] && b[2] == before[2]) break;
+  }
+  if (b[0] == start[0] && b[1] == start[1] && b[2] == start[2]) return;
+  // The winner's endpoints, quantised exactly (4x4 window), then the exact nearest indices.
+  Moments m;
+  m.sa = float(b[0] + b[1] + b[2]) / 3.0f;
+  m.saa = float(5 * b[0] + 3 * b[1] + b[2]) / 9.0f;
+  for (int c = 0; c < 3; ++c) {
+    m.sax[c] = (os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]]) / 3.0f;
+    m.sx[c] = os.P[c][16];
+  }
+  int q0[3], q1[3], pal[4][3], sel[16];
+  fit_from_moments_scalar(m, q0, q1);
+  palette_of(q0, q1, true, pal);
+  static const float kUnit[3] = {1, 1, 1};
+  const float e = assign_scalar<true>(ch, pal, kUnit, sel);
+  if (e < best_err) {
+    best_err = e;
+    best_idx = pack_indices_scalar(sel);
+    std::copy(q0, q0 + 3, best_q0);
+    std::copy(q1, q1 + 3, best_q1);
+  }
+}
+
+// Writes the 4-colour block (c0 > c1; equal endpoints: index 0 everywhere).
+void write_four_colour(int q0[3], int q1[3], uint32_t idx, uint8_t out[8]) {
+  uint16_t c0 = pack(q0), c1 = pack(q1);
+  if (c0 < c1) {
+    std::swap(c0, c1);
+    idx ^= 0x55555555u;
+  } else if (c0 == c1) {
+    idx = 0;
+  }
+  write16(out, c0);
+  write16(out + 2, c1);
+  write32(out + 4, idx);
+}
+
+// The definition of the opaque encoder (see the section comment).
+template <bool kUniform>  // all weights 1: the distance skips the weight multiplies
+void encode_opaque_scalar(const uint8_t rgba[64], const float w[3], int iterations, const HardBlocks& hard,
+                          uint8_t out[8], float* err_out) {
+  float ch[3][16];
+  for (int i = 0; i < 16; ++i)
+    for (int c = 0; c < 3; ++c) ch[c][i] = float(rgba[4 * i + c]);
+  // Sums, squares, cross products, min and max per channel.
+  float sum[3], sq[6], mn[3], mx[3];
+  {
+    static const int kPair[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    for (int k = 0; k < 6; ++k) {
+      float p[16];
+      for (int i = 0; i < 16; ++i) p[i] = ch[kPair[k][0]][i] * ch[kPair[k][1]][i];
+      sq[k] = sum16(p);
+    }
+    for (int c = 0; c < 3; ++c) {
+      sum[c] = sum16(ch[c]);
+      float lo[4], hi[4];
+      for (int l = 0; l < 4; ++l) {
+        lo[l] = hi[l] = ch[c][l];
+        for (int v = 0; v < 4; ++v) {
+          lo[l] = min_ps(lo[l], ch[c][4 * v + l]);
+          hi[l] = max_ps(hi[l], ch[c][4 * v + l]);
+        }
+      }
+      mn[c] = min_lanes(lo);
+      mx[c] = max_lanes(hi);
+    }
+  }
+  const float sqd[3] = {sq[0], sq[3], sq[5]};
+
+  // Candidate 1: one colour (single-colour tables at the mean), error from the sums.
+  const SingleColourTables& tab = single_colour_tables();
+  int best_q0[3], best_q1[3];
+  float best_err = 0;
+  for (int c = 0; c < 3; ++c) {
+    const int mean = int(sum[c] * (1.0f / 16.0f) + 0.5f);
+    const int six = kBits[c] == 6;
+    best_q0[c] = tab.q4[six][mean][0];
+    best_q1[c] = tab.q4[six][mean][1];
+    const int v0 = expand_bits(best_q0[c], kBits[c]), v1 = expand_bits(best_q1[c], kBits[c]);
+    const float p = float((2 * v0 + v1 + 1) / 3);
+    best_err += w[c] * (sqd[c] - 2 * p * sum[c] + 16 * p * p);
+  }
+  uint32_t best_idx = 0xAAAAAAAAu;  // index 2 everywhere
+
+  const bool flat = mn[0] == mx[0] && mn[1] == mx[1] && mn[2] == mx[2];
+  if (!flat && best_err > 0.5f) {
+    // Principal axis of the weighted covariance (power iteration from the bounding box).
+    const float inv16 = 1.0f / 16.0f;
+    float cov[6] = {(sq[0] - sum[0] * sum[0] * inv16) * w[0] * w[0], (sq[1] - sum[0] * sum[1] * inv16) * w[0] * w[1],
+                    (sq[2] - sum[0] * sum[2] * inv16) * w[0] * w[2], (sq[3] - sum[1] * sum[1] * inv16) * w[1] * w[1],
+                    (sq[4] - sum[1] * sum[2] * inv16) * w[1] * w[2], (sq[5] - sum[2] * sum[2] * inv16) * w[2] * w[2]};
+    float ax[3] = {(mx[0] - mn[0]) * w[0], (mx[1] - mn[1]) * w[1], (mx[2] - mn[2]) * w[2]};
+    principal_axis(cov, ax);
+    const float k0 = ax[0] * w[0], k1 = ax[1] * w[1], k2 = ax[2] * w[2];
+    float proj[16], pl[4], ph[4];
+    for (int i = 0; i < 16; ++i) proj[i] = (ch[0][i] * k0 + ch[1][i] * k1) + ch[2][i] * k2;
+    for (int l = 0; l < 4; ++l) {
+      pl[l] = ph[l] = proj[l];
+      for (int v = 1; v < 4; ++v) {
+        pl[l] = min_ps(pl[l], proj[4 * v + l]);
+        ph[l] = max_ps(ph[l], proj[4 * v + l]);
+      }
+    }
+    const float pmin = min_lanes(pl), pmax = max_lanes(ph);
+    // Moments of weights a_i = t_i / 3 and of the exact indices' weights (c0 weight per index:
+    // 1, 0, 2/3, 1/3 = k < 2 ? 1 - k : (4 - k) / 3).
+    Moments m;
+    auto set_moments = [&](const float a[16]) {
+      float aa[16], ax3[3][16];
+      for (int i = 0; i < 16; ++i) {
+        aa[i] = a[i] * a[i];
+        for (int c = 0; c < 3; ++c) ax3[c][i] = a[i] * ch[c][i];
+      }
+      m.sa = sum16(a);
+      m.saa = sum16(aa);
+      for (int c = 0; c < 3; ++c) m.sax[c] = sum16(ax3[c]);
+    };
+    {
+      const float scale = pmax > pmin ? 3.0f / (pmax - pmin) : 0.0f;
+      float a[16];
+      for (int i = 0; i < 16; ++i) a[i] = float(truncate_like_cvttps((proj[i] - pmin) * scale + 0.5f)) * (1.0f / 3.0f);
+      set_moments(a);
+      for (int c = 0; c < 3; ++c) {
+        m.sx[c] = sum[c];
+        m.sxx[c] = sqd[c];
+      }
+    }
+    int max_iter = std::max(iterations, 1);
+    for (int iter = 0; iter < max_iter; ++iter) {
+      int q0[3], q1[3];
+      fit_from_moments_scalar(m, q0, q1);
+      int pal[4][3];
+      palette_of(q0, q1, true, pal);
+      int sel[16];
+      const float e = assign_scalar<kUniform>(ch, pal, w, sel);
+      if (!(e < best_err)) break;
+      best_err = e;
+      best_idx = pack_indices_scalar(sel);
+      std::copy(q0, q0 + 3, best_q0);
+      std::copy(q1, q1 + 3, best_q1);
+      // Another refit cannot gain much once the mean squared error is below 1 per texel.
+      if (e <= 16.0f) break;
+      // Hard blocks (several colour clusters, e.g. material borders) dominate the PSNR: they get
+      // up to kHardIterations refits while each one still improves; smooth blocks stop early.
+      if (iter + 1 >= max_iter) {
+        if (hard.iterations > max_iter && e > hard.threshold) max_iter = hard.iterations;
+        else break;
+      }
+      float a[16];
+      for (int i = 0; i < 16; ++i) {
+        const float k = float(sel[i]);
+        a[i] = k >= 2.0f ? (4.0f - k) * (1.0f / 3.0f) : 1.0f - k;
+      }
+      set_moments(a);
+    }
+    if constexpr (kUniform) {
+      if (hard.ordering_sweeps > 0 && best_err > hard.ordering_threshold)
+        ordering_search_scalar(ch, proj, ax, hard.ordering_sweeps, best_q0, best_q1, best_idx, best_err);
+    }
+  }
+  write_four_colour(best_q0, best_q1, best_idx, out);
+  if (err_out) *err_out = best_err;
+}
+
 #if defined(__SSE2__)
-// ---- SSE2 path for opaque 4-colour blocks (the albedo hot path) ----------------------------
-// Same algorithm as encode_colour, restated on moments so every pass is a few vector ops:
-// for fixed per-texel weights a_i (1, 2/3, 1/3, 0 for indices 0, 2, 3, 1) the least-squares
-// endpoints and the error of any candidate endpoint pair follow from sum a, sum a^2, sum x,
-// sum x^2 and sum a*x per channel (the palette's +1/3 rounding is ignored when ranking the few
-// candidates; the final index choice uses the exact decoded palette).
+// ---- SSE2 restatement of encode_opaque_scalar (same bytes, see the section comment) ---------------
 
 inline float hsum(__m128 v) {
   __m128 t = _mm_add_ps(v, _mm_movehl_ps(v, v));
@@ -405,24 +834,12 @@ inline float hmax(__m128 v) {
   return _mm_cvtss_f32(t);
 }
 
-// Extra effort for blocks whose error stays high after the normal refits.
-struct HardBlocks {
-  int iterations = 0;     // total refits allowed for a hard block (0: no extra refits)
-  float threshold = 0;    // squared error over the block above which a block counts as hard
-  int ordering_sweeps = 0;        // coordinate sweeps of the ordering search (0: none)
-  float ordering_threshold = 16;  // squared error over the block above which the ordering search runs
-};
-
-struct Moments {
-  float sa = 0, saa = 0, sx[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, sax[3] = {0, 0, 0};
-};
-
 // Endpoints for weights with the given moments: least squares, then the best of the 4x4 nearest
 // quantised pairs per channel (floor-1 .. floor+2, clamped), ranked by the moment form of the error,
 // which separates as f0(v0) + f1(v1) + 2 ab v0 v1. The least-squares solve runs for the three
 // channels in one vector (same IEEE operations as per channel, so the same result), the candidate
 // expansion in integer lanes (5/6-bit replication by shifts), the 16 candidate errors as 4 vectors.
-void fit_from_moments(const Moments& m, int q0[3], int q1[3]) {
+void fit_from_moments_sse(const Moments& m, int q0[3], int q1[3]) {
   const float n = 16.0f;
   const float aa = m.saa, ab = m.sa - m.saa, bb = n - 2 * m.sa + m.saa;
   const float det = aa * bb - ab * ab;
@@ -522,23 +939,8 @@ inline float assign_uniform(const __m128 ch[3][4], const int pal[4][3], uint32_t
   return hsum(err);
 }
 
-// Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::own_cluster.
-// Texels sorted along the principal axis form four contiguous groups with c0 weights 1, 2/3, 1/3, 0
-// from the low end. With group boundaries i <= j <= k and P(r) the prefix sums of the sorted
-// colours, sum a*x = (P(i) + P(j) + P(k)) / 3, sum a = (i + j + k) / 3 and sum a^2 = (5i + 3j + k) / 9,
-// so the least-squares endpoints of a partition cost a few multiply-adds. Like libsquish, partitions
-// are ranked by the error of those endpoints rounded to the 5:6:5 grid. libsquish scores all 969
-// partitions; we run coordinate sweeps from the partition the current indices imply: each boundary
-// in turn scans its whole free range with the other two fixed (4 candidates per vector op), then
-// the winner is quantised exactly (4x4 window) and kept if its exact error is lower.
-// Measured on Oetztal splat albedo (terrain-bc-bench --block-stats; default own 39.76 dB, squish
-// cluster 40.08 dB): the winning partitions usually differ from the start in one boundary, by up
-// to ~7 texels, so a +-1 neighbourhood hill-climb stalls at 39.93 dB (+-3: 40.04 dB); one sweep
-// gives 40.06 dB, two 40.08 dB, the full 969-partition search 40.27 dB (at ~10x the time);
-// ranking by the unrounded error instead loses 0.06-0.08 dB. The search only helps together with
-// the hard-block refits (without them: 40.01 dB), and it is needed on nearly every block with
-// error (only above 48 x 4 per channel: 40.03 dB), since the loss is spread over all such blocks.
-struct OrderingSearch {
+// The ordering search of ordering_search_scalar, four candidates per vector op.
+struct OrderingSearchSse {
   alignas(16) float P[3][24];  // prefix sums per channel, padded with P(16)
   float X3[3];                 // 3 * sum x per channel
 
@@ -597,7 +999,7 @@ struct OrderingSearch {
   }
 };
 
-void ordering_search(const __m128 ch[3][4], const __m128 proj[4], const float axis[3], int sweeps, int best_q0[3],
+void ordering_search_sse(const __m128 ch[3][4], const __m128 proj[4], const float axis[3], int sweeps, int best_q0[3],
                      int best_q1[3], uint32_t& best_idx, float& best_err) {
   alignas(16) float col[3][16];
   for (int v = 0; v < 4; ++v)
@@ -626,7 +1028,7 @@ void ordering_search(const __m128 ch[3][4], const __m128 proj[4], const float ax
       order[-_mm_cvtsi128_si32(cnt)] = t;
     }
   }
-  OrderingSearch os;
+  OrderingSearchSse os;
   for (int c = 0; c < 3; ++c) {
     float acc = 0;
     os.P[c][0] = 0;
@@ -649,7 +1051,7 @@ void ordering_search(const __m128 ch[3][4], const __m128 proj[4], const float ax
   {
     __m128 T[3];
     for (int c = 0; c < 3; ++c) T[c] = _mm_set1_ps(os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]]);
-    const __m128 e = OrderingSearch::score(_mm_set1_ps(float(b[0])), _mm_set1_ps(float(b[1])), _mm_set1_ps(float(b[2])), T,
+    const __m128 e = OrderingSearchSse::score(_mm_set1_ps(float(b[0])), _mm_set1_ps(float(b[1])), _mm_set1_ps(float(b[2])), T,
                                            _mm_setzero_ps(), os.X3);
     best = _mm_cvtss_f32(e);
   }
@@ -670,7 +1072,7 @@ void ordering_search(const __m128 ch[3][4], const __m128 proj[4], const float ax
     m.sx[c] = os.P[c][16];
   }
   int q0[3], q1[3], pal[4][3];
-  fit_from_moments(m, q0, q1);
+  fit_from_moments_sse(m, q0, q1);
   palette_of(q0, q1, true, pal);
   uint32_t packed;
   __m128i sel[4];
@@ -773,7 +1175,7 @@ void encode_opaque_sse(const uint8_t rgba[64], const float w[3], int iterations,
     int max_iter = std::max(iterations, 1);
     for (int iter = 0; iter < max_iter; ++iter) {
       int q0[3], q1[3];
-      fit_from_moments(m, q0, q1);
+      fit_from_moments_sse(m, q0, q1);
       int pal[4][3];
       palette_of(q0, q1, true, pal);
       // Nearest exact palette entry per texel.
@@ -841,7 +1243,7 @@ void encode_opaque_sse(const uint8_t rgba[64], const float w[3], int iterations,
     }
     if constexpr (kUniform) {
       if (hard.ordering_sweeps > 0 && best_err > hard.ordering_threshold)
-        ordering_search(ch, proj, ax, hard.ordering_sweeps, best_q0, best_q1, best_idx, best_err);
+        ordering_search_sse(ch, proj, ax, hard.ordering_sweeps, best_q0, best_q1, best_idx, best_err);
     }
   }
   uint16_t c0 = pack(best_q0), c1 = pack(best_q1);
@@ -858,42 +1260,6 @@ void encode_opaque_sse(const uint8_t rgba[64], const float w[3], int iterations,
 }
 #endif
 
-void write_bc4(int a0, int a1, const uint8_t sel[16], uint8_t out[8]) {
-  out[0] = uint8_t(a0);
-  out[1] = uint8_t(a1);
-  uint64_t bits = 0;
-  for (int i = 0; i < 16; ++i) bits |= uint64_t(sel[i]) << (3 * i);
-  for (int i = 0; i < 6; ++i) out[2 + i] = uint8_t(bits >> (8 * i));
-}
-
-// Palette exactly as decode_bc4_block computes it.
-void bc4_palette(int a0, int a1, int pal[8]) {
-  pal[0] = a0;
-  pal[1] = a1;
-  if (a0 > a1) {
-    for (int i = 1; i < 7; ++i) pal[i + 1] = ((7 - i) * a0 + i * a1 + 3) / 7;
-  } else {
-    for (int i = 1; i < 5; ++i) pal[i + 1] = ((5 - i) * a0 + i * a1 + 2) / 5;
-    pal[6] = 0;
-    pal[7] = 255;
-  }
-}
-
-int64_t bc4_assign(const uint8_t v[16], int a0, int a1, uint8_t sel[16]) {
-  int pal[8];
-  bc4_palette(a0, a1, pal);
-  int64_t err = 0;
-  for (int i = 0; i < 16; ++i) {
-    int best = INT32_MAX;
-    for (int k = 0; k < 8; ++k) {
-      const int d = v[i] - pal[k];
-      if (d * d < best) { best = d * d; sel[i] = uint8_t(k); }
-    }
-    err += best;
-  }
-  return err;
-}
-
 // Exact squared RGB error of a BC1 block against 16 texels (the decoder's arithmetic).
 int block_sq_err(const uint8_t rgba[64], const uint8_t block[8]) {
   uint8_t dec[64];
@@ -907,29 +1273,31 @@ int block_sq_err(const uint8_t rgba[64], const uint8_t block[8]) {
   return e;
 }
 
-// Hard-block effort of own_encode_bc1_opaque(refine_hard): the thresholds are squared RGB error
+// Hard-block effort of encode_bc1_opaque(refine_hard): the thresholds are squared RGB error
 // summed over the block (16 texels x 3 channels), i.e. 48 x the mean squared error per channel.
 // Measured on the splat albedo of real nodes (terrain-bc-bench): up to 4 refits above a mean
 // squared error of 8 per channel gain 0.07-0.15 dB for ~10 % more time (threshold 16 lost
-// 0.04 dB on Kilauea, 4 cost 5 % more time for nothing); the 3-colour try gains up to 0.1 dB more
-// but doubles the time, so only the best setting uses it (from 4 per channel).
+// 0.04 dB on Kilauea, 4 cost 5 % more time for nothing). The 3-colour try's threshold is
+// kBc1ThreeColourThreshold (bc_blocks.h).
 constexpr int kHardIterations = 4;
 constexpr float kHardThreshold = 48.0f * 8.0f;
-constexpr float kThreeColourThreshold = 48.0f * 4.0f;
 
-}  // namespace
-
-void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], int iterations, bool refine_hard,
-                           bool try_three_colour, int ordering_sweeps) {
-  Bc1OpaqueEffort effort;
-  effort.iterations = iterations;
-  effort.refine_hard = refine_hard;
-  effort.ordering_sweeps = ordering_sweeps;
-  effort.three_colour_threshold = try_three_colour ? kThreeColourThreshold : -1.0f;
-  own_encode_bc1_opaque(rgba, out, effort);
+// The opaque encoder through the SSE2 restatement when it is compiled in and `simd` asks for it,
+// else through the scalar definition; both write the same bytes.
+template <bool kUniform>
+void encode_opaque(const uint8_t rgba[64], const float w[3], int iterations, const HardBlocks& hard, uint8_t out[8],
+                   float* err_out, bool simd) {
+#if defined(__SSE2__)
+  if (simd) {
+    encode_opaque_sse<kUniform>(rgba, w, iterations, hard, out, err_out);
+    return;
+  }
+#endif
+  (void)simd;
+  encode_opaque_scalar<kUniform>(rgba, w, iterations, hard, out, err_out);
 }
 
-void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort) {
+void encode_bc1_opaque_path(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort, bool simd) {
   static const float kUniform[3] = {1, 1, 1};
   // Constant blocks (common in smooth albedo): straight from the single-colour tables.
   uint32_t first, px;
@@ -961,7 +1329,6 @@ void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1Opaq
     write32(out + 4, idx);
     return;
   }
-#if defined(__SSE2__)
   HardBlocks hard;
   if (effort.refine_hard) {
     hard.iterations = kHardIterations;
@@ -970,32 +1337,47 @@ void own_encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1Opaq
   hard.ordering_sweeps = effort.ordering_sweeps;
   hard.ordering_threshold = effort.ordering_threshold;
   float err = 0;
-  encode_opaque_sse<true>(rgba, kUniform, effort.iterations, hard, out, &err);
+  encode_opaque<true>(rgba, kUniform, effort.iterations, hard, out, &err, simd);
   if (effort.three_colour_threshold >= 0 && err > effort.three_colour_threshold) {
     // Two clusters and their midpoint fit the 3-colour mode better (index 3 is not used).
     uint8_t three[8];
     encode_colour(rgba, 0xFFFF, false, kUniform, 2, three);
     if (block_sq_err(rgba, three) < block_sq_err(rgba, out)) std::memcpy(out, three, 8);
   }
+}
+
+}  // namespace
+
+bool bc1_simd_compiled() {
+#if defined(__SSE2__)
+  return true;
 #else
-  encode_colour(rgba, 0xFFFF, true, kUniform, effort.iterations, out);
+  return false;
 #endif
 }
 
-void own_encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations) {
+void encode_bc1_opaque(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort) {
+  encode_bc1_opaque_path(rgba, out, effort, true);
+}
+
+void encode_bc1_opaque_scalar(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort) {
+  encode_bc1_opaque_path(rgba, out, effort, false);
+}
+
+void encode_bc1_holes(const uint8_t rgba[64], uint16_t holes, uint8_t out[8], int iterations) {
   static const float kUniform[3] = {1, 1, 1};
   encode_colour(rgba, uint16_t(~holes), false, kUniform, iterations, out);
 }
 
-void own_encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t out[8]) {
-#if defined(__SSE2__)
-  encode_opaque_sse<false>(rgba, weights, 2, HardBlocks{}, out, nullptr);
-#else
-  encode_colour(rgba, 0xFFFF, true, weights, 2, out);
-#endif
+void encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t out[8]) {
+  encode_opaque<false>(rgba, weights, 2, HardBlocks{}, out, nullptr, true);
 }
 
-bool own_encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations) {
+void encode_bc1_weighted_scalar(const uint8_t rgba[64], const float weights[3], uint8_t out[8]) {
+  encode_opaque<false>(rgba, weights, 2, HardBlocks{}, out, nullptr, false);
+}
+
+bool encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations) {
   // Applies when R and B are constant over the block and exactly representable in 5 bits (the
   // normal map's layout): the colour block is then a 1D fit of G (6-bit endpoints, 4 levels).
   const int r = rgba[0], b = rgba[2];
@@ -1086,149 +1468,6 @@ bool own_encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iteration
   write16(out + 2, c1);
   write32(out + 4, best_idx);
   return true;
-}
-
-namespace {
-// 8-value mode: exact nearest entry per value (direct position plus a neighbour check). u = 0..7
-// is the position from a1 (u = 0) to a0 (u = 7); selector = 1 for u 0, 0 for u 7, else 8 - u.
-int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]) {
-  int pal[8];
-  bc4_palette(a0, a1, pal);
-  int by_u[8];
-  for (int u = 0; u < 8; ++u) by_u[u] = pal[u == 7 ? 0 : u == 0 ? 1 : 8 - u];
-  const float scale = 7.0f / float(a0 - a1);
-  int err = 0;
-  for (int i = 0; i < 16; ++i) {
-    const int x = v[i];
-    int u = std::clamp(int(float(x - a1) * scale + 0.5f), 0, 7);
-    int d = std::abs(x - by_u[u]);
-    if (u > 0 && std::abs(x - by_u[u - 1]) < d) { --u; d = std::abs(x - by_u[u]); }
-    if (u < 7 && std::abs(x - by_u[u + 1]) < d) { ++u; d = std::abs(x - by_u[u]); }
-    u_out[i] = u;
-    sel[i] = uint8_t(u == 7 ? 0 : u == 0 ? 1 : 8 - u);
-    err += d * d;
-  }
-  return err;
-}
-}  // namespace
-
-void own_encode_bc4(const uint8_t values[16], uint8_t out[8]) {
-  int lo = 255, hi = 0;
-  for (int i = 0; i < 16; ++i) {
-    lo = std::min(lo, int(values[i]));
-    hi = std::max(hi, int(values[i]));
-  }
-  uint8_t sel[16], best_sel[16];
-  if (lo == hi) {
-    std::memset(sel, 0, 16);
-    write_bc4(lo, lo, sel, out);
-    return;
-  }
-  // 8-value mode from min/max, then one least-squares refit ranked on the moments.
-  int u[16];
-  int best = bc4_assign8(values, hi, lo, best_sel, u);
-  int best_a0 = hi, best_a1 = lo;
-  if (best > 0) {
-    float su = 0, suu = 0, sv = 0, suv = 0;
-    for (int i = 0; i < 16; ++i) {
-      const float a = float(u[i]) * (1.0f / 7.0f);
-      su += a; suu += a * a; sv += float(values[i]); suv += a * float(values[i]);
-    }
-    const float aa = suu, ab = su - suu, bb = 16.0f - 2 * su + suu, ax = suv, bx = sv - suv;
-    const float det = aa * bb - ab * ab;
-    if (std::fabs(det) > 1e-3f) {
-      const int e0 = int(std::lround((ax * bb - bx * ab) / det)), e1 = int(std::lround((bx * aa - ax * ab) / det));
-      float rank = 3.4e38f;
-      int c0 = hi, c1 = lo;
-      for (int d0 = -1; d0 <= 1; ++d0)
-        for (int d1 = -1; d1 <= 1; ++d1) {
-          const int t0 = std::clamp(e0 + d0, 0, 255), t1 = std::clamp(e1 + d1, 0, 255);
-          if (t0 <= t1) continue;
-          const float v0 = float(t0), v1 = float(t1);
-          const float e = -2 * v0 * ax - 2 * v1 * bx + v0 * v0 * aa + 2 * v0 * v1 * ab + v1 * v1 * bb;
-          if (e < rank) { rank = e; c0 = t0; c1 = t1; }
-        }
-      const int err = bc4_assign8(values, c0, c1, sel, u);
-      if (err < best) {
-        best = err;
-        best_a0 = c0;
-        best_a1 = c1;
-        std::memcpy(best_sel, sel, 16);
-      }
-    }
-  }
-  // 6-value mode with explicit 0 and 255, useful when the block touches the ends of the range.
-  if (lo == 0 || hi == 255) {
-    int lo2 = 255, hi2 = 0;
-    for (int i = 0; i < 16; ++i)
-      if (values[i] != 0 && values[i] != 255) {
-        lo2 = std::min(lo2, int(values[i]));
-        hi2 = std::max(hi2, int(values[i]));
-      }
-    if (lo2 > hi2) lo2 = hi2 = lo;
-    const int64_t err = bc4_assign(values, lo2, hi2, sel);
-    if (err < best) {
-      best = int(err);
-      best_a0 = lo2;
-      best_a1 = hi2;
-      std::memcpy(best_sel, sel, 16);
-    }
-  }
-  write_bc4(best_a0, best_a1, best_sel, out);
-}
-
-void own_encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]) {
-  int hi = 0, hi_below_255 = -1;
-  for (int i = 0; i < 16; ++i) {
-    hi = std::max(hi, int(targets[i]));
-    if (targets[i] < 255) hi_below_255 = std::max(hi_below_255, int(targets[i]));
-  }
-  int64_t best = INT64_MAX;
-  int best_a0 = 255, best_a1 = 255;
-  // Sum over texels of (smallest palette entry >= target) - target; INT64_MAX if one has none.
-  auto cost = [&](int a0, int a1) {
-    int pal[8];
-    bc4_palette(a0, a1, pal);
-    std::sort(pal, pal + 8);
-    int64_t total = 0;
-    for (int i = 0; i < 16; ++i) {
-      const int t = targets[i];
-      const int* e = std::lower_bound(pal, pal + 8, t);
-      if (e == pal + 8) return INT64_MAX;
-      total += *e - t;
-    }
-    return total;
-  };
-  // 8-value mode: a0 = max target (needed exactly), a1 free below it; 6-value mode: 255 comes
-  // free, so the range only covers the targets below 255. Coarse scan (step 8), then the
-  // neighbourhood of the best coarse value.
-  const int top = hi_below_255 < 0 ? 0 : hi_below_255;
-  auto scan = [&](int from, int to, int step) {
-    for (int a1 = std::max(0, from); a1 < std::min(hi, to + 1); a1 += step) {
-      const int64_t c = cost(hi, a1);
-      if (c < best) { best = c; best_a0 = hi; best_a1 = a1; }
-    }
-    for (int a0 = std::max(0, from); a0 <= std::min(top, to); a0 += step) {
-      const int64_t c = cost(a0, top);
-      if (c < best) { best = c; best_a0 = a0; best_a1 = top; }
-    }
-  };
-  scan(0, 255, 8);
-  const int centre = best_a0 == hi && best_a0 > best_a1 ? best_a1 : best_a0;
-  scan(centre - 7, centre + 7, 1);
-  if (best == INT64_MAX) { best_a0 = 0; best_a1 = 0; }  // all targets 255: 6-value mode, index 7
-  int pal[8];
-  bc4_palette(best_a0, best_a1, pal);
-  uint8_t sel[16];
-  for (int i = 0; i < 16; ++i) {
-    int e = INT32_MAX;
-    for (int k = 0; k < 8; ++k)
-      if (pal[k] >= targets[i] && pal[k] - targets[i] < e) {
-        e = pal[k] - targets[i];
-        sel[i] = uint8_t(k);
-      }
-  }
-  write_bc4(best_a0, best_a1, sel, out);
 }
 
 }  // namespace terrain::cook
