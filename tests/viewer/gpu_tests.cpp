@@ -29,8 +29,8 @@ double box_distance(const NodeKey& k, double x, double y) {
   return std::sqrt(dx * dx + dy * dy);
 }
 
-SyntheticOptions deep_options() {
-  SyntheticOptions o;
+synthetic::Spec deep_options() {
+  synthetic::Spec o = synthetic::analytic_surface();
   o.relief_m = 700;  // smooth, steep slopes: back-facing patches with narrow cones
   o.detail = 0;
   o.flat_from_x_m = 2048;  // root column 1 is flat: drawn coarsened (level 7) next to level-0 nodes
@@ -48,9 +48,9 @@ const World& deep_world(bool bumpy = false) {
   static World* w[2] = {nullptr, nullptr};
   if (!w[bumpy]) {
     w[bumpy] = new World;
-    SyntheticOptions o = deep_options();
+    synthetic::Spec o = deep_options();
     if (bumpy) o.detail = 1.5;
-    w[bumpy]->synthetic = make_synthetic_world(o);
+    w[bumpy]->synthetic = synthetic::make_world(o);
   }
   return *w[bumpy];
 }
@@ -240,15 +240,15 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
 // and near at several targets. The GPU patch list (with each patch's decimation and the deltas of
 // edges inside a root) equals the CPU reference, no magenta shows through, and the views do
 // decimate (every e = 1..4) and stitch decimated patches inside roots.
-SyntheticWorld decimation_world() {
-  SyntheticOptions o;
+synthetic::World decimation_world() {
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 2;
   o.relief_m = 120;
   o.detail = 1.5;
   o.flat_from_x_m = 2600;
   o.keep = [](const NodeKey& k) { return k.level >= 3; };
-  return make_synthetic_world(o);
+  return synthetic::make_world(o);
 }
 
 TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
@@ -386,7 +386,7 @@ TEST(ViewerGpu, OneDrawPerMeshMatchesTheMultiDraw) {
 TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   // A 60 m hole disc seen from above; level-3 nodes (4 m spacing). The defined method (discard
   // where the interpolated hole flag is > 0) and the FC5 NaN clip position are compared.
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = o.roots_y = 1;
   o.relief_m = 100;
   o.detail = 0;
@@ -396,7 +396,7 @@ TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   o.hole_y_m = o.origin_y_m + 1000;
   o.hole_radius_m = 60;
   World world;
-  world.synthetic = make_synthetic_world(o);
+  world.synthetic = synthetic::make_world(o);
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 64, 256, 256);
   std::vector<NodeUpload> uploads;
   ASSERT_TRUE(make_all_resident(world, *gpu, 64, uploads).ok());
