@@ -12,7 +12,7 @@
 #include "camera.h"
 #include "reference.h"
 #include "residency.h"
-#include "synthetic_archive.h"
+#include "synthetic_nodes.h"
 #include "terrain/bc_decode.h"
 
 namespace terrain::view {
@@ -205,9 +205,7 @@ std::unique_ptr<ResidentScene> resident_scene(const synthetic::Spec& o) {
   auto scene = std::make_unique<ResidentScene>();
   scene->sw = synthetic::make_world(o);
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : scene->sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(scene->sw.world, nodes, 512, scene->st);
+  res.init(scene->sw.world, test::memory_nodes(scene->sw), 512, scene->st);
   std::vector<NodeUpload> uploads;
   if (!res.apply([](const NodeKey&) { return true; }, scene->st, uploads).ok()) return nullptr;
   scene->cpu.resize(512);
@@ -335,9 +333,7 @@ TEST(ViewerReference, LodMapMatchesCoverage) {
   synthetic::World sw = synthetic::make_world(o);
   TerrainState st;
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(sw.world, nodes, 2048, st);
+  res.init(sw.world, test::memory_nodes(sw), 2048, st);
   std::vector<NodeUpload> uploads;
   std::mt19937 rng(3);
   // A random streaming frontier: every node resident with probability 0.7 (parents first).
@@ -370,8 +366,7 @@ TEST(ViewerReference, ResidencyKeepsParentsOfResidentNodes) {
   synthetic::World sw = synthetic::make_world(o);
   TerrainState st;
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  const std::vector<MemoryNode> nodes = test::memory_nodes(sw);
   res.init(sw.world, nodes, 64, st);
   std::vector<NodeUpload> uploads;
   // Wants level-3 nodes but not their level-4 parents: they must stay out.

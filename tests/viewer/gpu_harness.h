@@ -9,7 +9,7 @@
 #include "device.h"
 #include "renderer.h"
 #include "residency.h"
-#include "synthetic_archive.h"
+#include "synthetic_nodes.h"
 
 namespace terrain::view::test {
 
@@ -34,7 +34,6 @@ Status render_frame(Gpu& gpu, const std::vector<NodeUpload>& uploads, const Came
 struct World {
   synthetic::World synthetic;
   StaticResidency residency;
-  std::vector<MemoryNode> memory_nodes() const;
 };
 
 // Pixels exactly equal to the sRGB colour (r, g, b).
