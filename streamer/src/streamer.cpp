@@ -280,43 +280,47 @@ struct Streamer::Impl {
 
   bool is_wanted(uint32_t node) const { return wanted_frame[node] == frame; }
 
+  // The wanted nodes of `nodes`, in order; `drop(node)` is called for each of the others.
+  template <class Drop>
+  std::vector<uint32_t> keep_wanted(const std::vector<uint32_t>& nodes, Drop&& drop) const {
+    std::vector<uint32_t> kept;
+    kept.reserve(nodes.size());
+    for (uint32_t node : nodes) {
+      if (is_wanted(node))
+        kept.push_back(node);
+      else
+        drop(node);
+    }
+    return kept;
+  }
+
+  // Gives a node's decoded data back (at the end of update()); the node becomes idle.
+  void release_data(uint32_t node) {
+    to_free.push_back(data[node]);
+    data[node] = nullptr;
+    phase[node] = Phase::idle;
+  }
+
   void evict_unwanted() {
     // Directory order is level ascending, so children go before their parents.
     std::sort(resident.begin(), resident.end());
-    std::vector<uint32_t> keep;
-    keep.reserve(resident.size());
-    for (uint32_t node : resident) {
-      if (is_wanted(node)) {
-        keep.push_back(node);
-        continue;
-      }
+    resident = keep_wanted(resident, [&](uint32_t node) {
       const uint16_t slot = slot_of[node];
       set_cell(records[node].key, kIndexNotResident);
       slot_owner[slot] = -1;
       fenced.push_back({slot, frame + config.fence_frames});
-      to_free.push_back(data[node]);
-      data[node] = nullptr;
-      phase[node] = Phase::idle;
+      release_data(node);
       evictions.push_back({records[node].key, slot});
-    }
-    resident.swap(keep);
+    });
   }
 
   void deliver() {
     // Discard what is no longer wanted, then deliver in priority order (parents first).
-    std::vector<uint32_t> waiting;
-    waiting.reserve(decoded.size());
-    for (uint32_t node : decoded) {
-      if (is_wanted(node)) {
-        waiting.push_back(node);
-        continue;
-      }
-      to_free.push_back(data[node]);
-      data[node] = nullptr;
-      phase[node] = Phase::idle;
+    std::vector<uint32_t> waiting = keep_wanted(decoded, [&](uint32_t node) {
+      release_data(node);
       ++loads_discarded;
       ++to_release;
-    }
+    });
     std::sort(waiting.begin(), waiting.end(), [&](uint32_t a, uint32_t b) { return order[a] < order[b]; });
     const uint32_t cap = frame == 1 ? std::max(config.max_deliveries_per_frame, root_count)
                                     : config.max_deliveries_per_frame;

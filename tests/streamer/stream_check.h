@@ -33,6 +33,14 @@ inline synthetic::Spec deep_sparse_spec() {
   return s;
 }
 
+// A default configuration but for the worker count, which tests pin (the default, 0, picks it
+// from the machine).
+inline StreamerConfig with_workers(uint32_t worker_threads) {
+  StreamerConfig c;
+  c.worker_threads = worker_threads;
+  return c;
+}
+
 // Path of a synthetic archive with this spec, written once per build tree and reused.
 std::string synthetic_archive(const synthetic::Spec& spec);
 

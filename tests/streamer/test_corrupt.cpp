@@ -28,27 +28,39 @@ void corrupt(const std::string& path, const ArchiveReader& reader, const std::ve
   }
 }
 
+// A scratch copy of the test archive for a test to corrupt, and a reader of the pristine archive.
+struct ArchiveCopy {
+  std::filesystem::path dir;
+  std::string path;
+  ArchiveReader reader;
+  NodeKey root;  // the last root in directory order
+};
+void copy_to_corrupt(const std::string& test_name, ArchiveCopy& out) {
+  const std::string pristine = synthetic_archive(spec());
+  out.dir = scratch_dir(test_name);
+  out.path = (out.dir / "corrupt.terrain").string();
+  copy_file(pristine, out.path);
+  ASSERT_TRUE(out.reader.open(pristine).ok());
+  out.root = out.reader.nodes()[out.reader.nodes().size() - 1].key;
+  ASSERT_EQ(out.root.level, uint32_t(kRootLevel));
+}
+
 bool is_ancestor(NodeKey a, NodeKey b) {  // a strictly above b
   while (b.level < a.level) b = parent_of(b);
   return b == a && !(a == b && false);
 }
 
 TEST(StreamerCorrupt, CorruptPayloadIsReportedOnceAndTheParentCovers) {
-  const std::string pristine = synthetic_archive(spec());
-  const auto dir = scratch_dir("streamer-corrupt");
-  const std::string path = (dir / "corrupt.terrain").string();
-  copy_file(pristine, path);
-
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(pristine).ok());
+  ArchiveCopy copy;
+  ASSERT_NO_FATAL_FAILURE(copy_to_corrupt("streamer-corrupt", copy));
+  const auto& [dir, path, reader, root] = copy;
   const synthetic::Spec s = spec();
   const double cx = s.origin_x_m + 3000, cy = s.origin_y_m + 4100;
   View here = view_at(cx, cy, synthetic::surface_height_m(s, cx, cy) + 15);
   View away = view_at(s.origin_x_m + 9000, s.origin_y_m + 500, 900);
 
   // Pick wanted non-root nodes on levels 4..1 near the camera, none above another.
-  StreamerConfig config;
-  config.worker_threads = 2;
+  const StreamerConfig config = with_workers(2);
   const auto wanted = reference_wanted(reader, config, {&here, 1}, {});
   std::vector<NodeKey> victims;
   for (uint32_t level = 4; level >= 1 && victims.size() < 6; --level) {
@@ -90,14 +102,10 @@ TEST(StreamerCorrupt, CorruptPayloadIsReportedOnceAndTheParentCovers) {
 }
 
 TEST(StreamerCorrupt, FailureStatusNamesTheNode) {
-  const std::string pristine = synthetic_archive(spec());
-  const auto dir = scratch_dir("streamer-corrupt-status");
-  const std::string path = (dir / "corrupt.terrain").string();
-  copy_file(pristine, path);
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(pristine).ok());
-  // Every level-4 child of the first root.
-  const NodeKey root = reader.nodes()[reader.nodes().size() - 1].key;
+  ArchiveCopy copy;
+  ASSERT_NO_FATAL_FAILURE(copy_to_corrupt("streamer-corrupt-status", copy));
+  const auto& [dir, path, reader, root] = copy;
+  // Every level-4 child of the root.
   std::vector<NodeKey> victims;
   for (int c = 0; c < 4; ++c)
     if (reader.find(child_of(root, c)) >= 0) victims.push_back(child_of(root, c));
@@ -126,14 +134,9 @@ TEST(StreamerCorrupt, FailureStatusNamesTheNode) {
 }
 
 TEST(StreamerCorrupt, CorruptRootFailsOpenNamingTheRoot) {
-  const std::string pristine = synthetic_archive(spec());
-  const auto dir = scratch_dir("streamer-corrupt-root");
-  const std::string path = (dir / "corrupt.terrain").string();
-  copy_file(pristine, path);
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(pristine).ok());
-  const NodeKey root = reader.nodes()[reader.nodes().size() - 1].key;
-  ASSERT_EQ(root.level, uint32_t(kRootLevel));
+  ArchiveCopy copy;
+  ASSERT_NO_FATAL_FAILURE(copy_to_corrupt("streamer-corrupt-root", copy));
+  const auto& [dir, path, reader, root] = copy;
   corrupt(path, reader, {root});
   Streamer streamer;
   const Status s = streamer.open(path);

@@ -101,9 +101,8 @@ TEST(StreamerOpen, TruncatedArchiveIsAnErrorAtEveryLength) {
 TEST(StreamerOpen, FirstUpdateDeliversEveryRootAndFullGrids) {
   const std::string path = synthetic_archive(many_roots_spec());
   Streamer streamer;
-  StreamerConfig config;
+  StreamerConfig config = with_workers(2);
   config.max_deliveries_per_frame = 4;  // fewer than the roots: the first frame still brings all 36
-  config.worker_threads = 2;
   ASSERT_TRUE(streamer.open(path, config).ok());
   EXPECT_EQ(streamer.slot_count(), 512u + 3u * 4u);  // automatic: budget + fence * deliveries
   EXPECT_EQ(streamer.config().max_in_flight, 16u);   // automatic: max(2 * workers, budget / 32)

@@ -29,11 +29,8 @@ void look_east(View& v) {
 
 TEST(StreamerPaths, RandomFlightsKeepInvariantsAndSettleToTheReference) {
   const synthetic::Spec spec = deep_sparse_spec();
-  const std::string path = synthetic_archive(spec);
   Streamer streamer;
-  StreamerConfig config;
-  config.worker_threads = 2;
-  ASSERT_TRUE(streamer.open(path, config).ok());
+  ASSERT_TRUE(streamer.open(synthetic_archive(spec), with_workers(2)).ok());
   StreamChecker checker(streamer, true);
   std::mt19937_64 rng(11);
   View v = random_view(rng, spec);
@@ -71,11 +68,8 @@ TEST(StreamerPaths, RandomFlightsKeepInvariantsAndSettleToTheReference) {
 
 TEST(StreamerPaths, TeleportDropsTheOldQueueAndSettlesToTheReference) {
   const synthetic::Spec spec = deep_sparse_spec();
-  const std::string path = synthetic_archive(spec);
   Streamer streamer;
-  StreamerConfig config;
-  config.worker_threads = 1;  // a long queue at the old position
-  ASSERT_TRUE(streamer.open(path, config).ok());
+  ASSERT_TRUE(streamer.open(synthetic_archive(spec), with_workers(1)).ok());  // a long queue at the old position
   StreamChecker checker(streamer, true);
   std::mt19937_64 rng(5);
   for (int jump = 0; jump < 5; ++jump) {
@@ -104,12 +98,11 @@ TEST(StreamerPaths, TightBudgetAndSlotsRespectTheFence) {
   const synthetic::Spec spec = deep_sparse_spec();
   const std::string path = synthetic_archive(spec);
   Streamer streamer;
-  StreamerConfig config;
+  StreamerConfig config = with_workers(2);
   config.budget_nodes = 60;  // 20 roots + 40
   config.slot_count = 60;    // no spare slots: every reuse waits for its fence
   config.fence_frames = 4;
   config.max_deliveries_per_frame = 6;
-  config.worker_threads = 2;
   ASSERT_TRUE(streamer.open(path, config).ok());
   StreamChecker checker(streamer, true);
   std::mt19937_64 rng(9);
@@ -128,12 +121,10 @@ TEST(StreamerPaths, TightBudgetAndSlotsRespectTheFence) {
 
 TEST(StreamerPaths, SeveralViewsAndAFrustum) {
   const synthetic::Spec spec = deep_sparse_spec();
-  const std::string path = synthetic_archive(spec);
   Streamer streamer;
-  StreamerConfig config;
+  StreamerConfig config = with_workers(2);
   config.prefetch_ratio = 1.0;
-  config.worker_threads = 2;
-  ASSERT_TRUE(streamer.open(path, config).ok());
+  ASSERT_TRUE(streamer.open(synthetic_archive(spec), config).ok());
   StreamChecker checker(streamer, true);
   std::mt19937_64 rng(21);
   for (int round = 0; round < 3; ++round) {

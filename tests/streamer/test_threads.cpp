@@ -42,9 +42,7 @@ TEST(StreamerThreads, TheCallersThreadNeverDecompresses) {
   g_caller = std::this_thread::get_id();
   g_watching = true;
   Streamer streamer;
-  StreamerConfig config;
-  config.worker_threads = 2;
-  ASSERT_TRUE(streamer.open(path, config).ok());
+  ASSERT_TRUE(streamer.open(path, with_workers(2)).ok());
   StreamChecker checker(streamer, true);
   std::mt19937_64 rng(8);
   std::uniform_real_distribution<double> pos(0, 5 * node_size_m(kRootLevel));

@@ -28,13 +28,19 @@ std::filesystem::path archive(const std::string& name) { return archive_dir() / 
 #define REQUIRE_ARCHIVE(path) \
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "archive not found: " << (path) << " (fixture cook_test_archives)"
 
-ViewerOptions crack_options(const std::filesystem::path& path) {
+// A quiet headless 320x180 view of the archive at `path`.
+ViewerOptions headless_options(const std::filesystem::path& path) {
   ViewerOptions o;
   o.archive = path.string();
   o.headless = true;
   o.width = 320;
   o.height = 180;
   o.quiet = true;
+  return o;
+}
+
+ViewerOptions crack_options(const std::filesystem::path& path) {
+  ViewerOptions o = headless_options(path);
   o.settings.clear[0] = 1;
   o.settings.clear[1] = 0;
   o.settings.clear[2] = 1;
@@ -236,12 +242,7 @@ TEST(ViewerArchives, RealPatchConesCullWithoutChangingTheImage) {
 TEST(ViewerArchives, KilaueaScreenshotLooksLikeTerrain) {
   const auto path = archive("kilauea");
   REQUIRE_ARCHIVE(path);
-  ViewerOptions o;
-  o.archive = path.string();
-  o.headless = true;
-  o.width = 320;
-  o.height = 180;
-  o.quiet = true;
+  const ViewerOptions o = headless_options(path);
   bool skip = false;
   auto s = open_or_skip(o, skip);
   if (skip) GTEST_SKIP() << "no Vulkan device";

@@ -12,7 +12,7 @@
 #include "camera.h"
 #include "reference.h"
 #include "residency.h"
-#include "synthetic_world.h"
+#include "synthetic_nodes.h"
 #include "terrain/bc_decode.h"
 
 namespace terrain::view {
@@ -196,18 +196,16 @@ MeshCheck check_watertight(const PatchList& patches, double world_w_hm, double w
 // A synthetic world with every node resident in 512 slots, and the slots' CPU data (the input of
 // the reference traversal); null when residency fails.
 struct ResidentScene {
-  SyntheticWorld sw;
+  synthetic::World sw;
   TerrainState st;
   std::vector<SlotCpuData> cpu;
   float cone_table[256];
 };
-std::unique_ptr<ResidentScene> resident_scene(const SyntheticOptions& o) {
+std::unique_ptr<ResidentScene> resident_scene(const synthetic::Spec& o) {
   auto scene = std::make_unique<ResidentScene>();
-  scene->sw = make_synthetic_world(o);
+  scene->sw = synthetic::make_world(o);
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : scene->sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(scene->sw.world, nodes, 512, scene->st);
+  res.init(scene->sw.world, test::memory_nodes(scene->sw), 512, scene->st);
   std::vector<NodeUpload> uploads;
   if (!res.apply([](const NodeKey&) { return true; }, scene->st, uploads).ok()) return nullptr;
   scene->cpu.resize(512);
@@ -219,7 +217,7 @@ std::unique_ptr<ResidentScene> resident_scene(const SyntheticOptions& o) {
 TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   // Root (0,0) refined to level 0 around one corner point, root (1,0) never refined: the traversal
   // produces neighbours differing by 1..5 levels. Culling off: the whole world is meshed.
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 1;
   o.cones = false;
@@ -265,7 +263,7 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
 // vertex next to full patches of the same root, finer nodes and coarsened roots stay watertight,
 // and each decimation keeps the patch's total error within the target at the patch's distance.
 TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 2;
   o.cones = false;
@@ -327,17 +325,15 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
 }
 
 TEST(ViewerReference, LodMapMatchesCoverage) {
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 2;
   o.cones = false;
   o.keep = [](const NodeKey& k) { return k.level >= 3 || (k.x % 5 == 0 && k.y % 3 == 0 && k.level >= 1); };
-  SyntheticWorld sw = make_synthetic_world(o);
+  synthetic::World sw = synthetic::make_world(o);
   TerrainState st;
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
-  res.init(sw.world, nodes, 2048, st);
+  res.init(sw.world, test::memory_nodes(sw), 2048, st);
   std::vector<NodeUpload> uploads;
   std::mt19937 rng(3);
   // A random streaming frontier: every node resident with probability 0.7 (parents first).
@@ -363,15 +359,14 @@ TEST(ViewerReference, LodMapMatchesCoverage) {
 }
 
 TEST(ViewerReference, ResidencyKeepsParentsOfResidentNodes) {
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = o.roots_y = 1;
   o.cones = false;
   o.keep = [](const NodeKey& k) { return k.level >= 3; };
-  SyntheticWorld sw = make_synthetic_world(o);
+  synthetic::World sw = synthetic::make_world(o);
   TerrainState st;
   StaticResidency res;
-  std::vector<MemoryNode> nodes;
-  for (auto& n : sw.nodes) nodes.push_back({n.record, &n.data});
+  const std::vector<MemoryNode> nodes = test::memory_nodes(sw);
   res.init(sw.world, nodes, 64, st);
   std::vector<NodeUpload> uploads;
   // Wants level-3 nodes but not their level-4 parents: they must stay out.

@@ -47,12 +47,6 @@ Status render_frame(Gpu& gpu, const std::vector<NodeUpload>& uploads, const Came
   return Status::success();
 }
 
-std::vector<MemoryNode> World::memory_nodes() const {
-  std::vector<MemoryNode> out;
-  for (const auto& n : synthetic.nodes) out.push_back({n.record, &n.data});
-  return out;
-}
-
 size_t count_color(const std::vector<uint8_t>& rgba, uint8_t r, uint8_t g, uint8_t b) {
   size_t n = 0;
   for (size_t i = 0; i + 3 < rgba.size(); i += 4) n += rgba[i] == r && rgba[i + 1] == g && rgba[i + 2] == b;

@@ -9,7 +9,7 @@
 #include "device.h"
 #include "renderer.h"
 #include "residency.h"
-#include "synthetic_world.h"
+#include "synthetic_nodes.h"
 
 namespace terrain::view::test {
 
@@ -32,9 +32,8 @@ Status render_frame(Gpu& gpu, const std::vector<NodeUpload>& uploads, const Came
 
 // Residency over a synthetic world (keeps the node data alive).
 struct World {
-  SyntheticWorld synthetic;
+  synthetic::World synthetic;
   StaticResidency residency;
-  std::vector<MemoryNode> memory_nodes() const;
 };
 
 // Pixels exactly equal to the sRGB colour (r, g, b).

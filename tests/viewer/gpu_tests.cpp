@@ -29,8 +29,8 @@ double box_distance(const NodeKey& k, double x, double y) {
   return std::sqrt(dx * dx + dy * dy);
 }
 
-SyntheticOptions deep_options() {
-  SyntheticOptions o;
+synthetic::Spec deep_options() {
+  synthetic::Spec o = synthetic::analytic_surface();
   o.relief_m = 700;  // smooth, steep slopes: back-facing patches with narrow cones
   o.detail = 0;
   o.flat_from_x_m = 2048;  // root column 1 is flat: drawn coarsened (level 7) next to level-0 nodes
@@ -48,9 +48,9 @@ const World& deep_world(bool bumpy = false) {
   static World* w[2] = {nullptr, nullptr};
   if (!w[bumpy]) {
     w[bumpy] = new World;
-    SyntheticOptions o = deep_options();
+    synthetic::Spec o = deep_options();
     if (bumpy) o.detail = 1.5;
-    w[bumpy]->synthetic = make_synthetic_world(o);
+    w[bumpy]->synthetic = synthetic::make_world(o);
   }
   return *w[bumpy];
 }
@@ -103,9 +103,18 @@ FrameSettings magenta_clear(double error_target_px) {
 
 // Every node of the world resident in `slots` slots: the uploads of the first frame.
 Status make_all_resident(World& world, Gpu& gpu, uint32_t slots, std::vector<NodeUpload>& uploads) {
-  world.residency.init(world.synthetic.world, world.memory_nodes(), slots, gpu.state);
+  world.residency.init(world.synthetic.world, memory_nodes(world.synthetic), slots, gpu.state);
   return world.residency.apply([](const NodeKey&) { return true; }, gpu.state, uploads);
 }
+
+// A GPU (or a skip) with every node of `synthetic_world` resident in `slots` slots: declares
+// `world`, `gpu` and `uploads` (the first frame's uploads), as TV_REQUIRE_GPU declares `gpu`.
+#define TV_ALL_RESIDENT(synthetic_world, slots, w, h)            \
+  World world;                                                    \
+  world.synthetic = synthetic_world;                              \
+  TV_REQUIRE_GPU(gpu, world.synthetic.world, slots, w, h);        \
+  std::vector<NodeUpload> uploads;                                \
+  ASSERT_TRUE(make_all_resident(world, *gpu, slots, uploads).ok())
 
 // The GPU's node list, LOD map and patch list of the last frame.
 struct GpuLists {
@@ -140,11 +149,7 @@ size_t cracks_only_unstitched(Gpu& gpu, std::vector<NodeUpload>& uploads, const 
 }
 
 TEST(ViewerGpu, ListsEqualCpuReference) {
-  World world;
-  world.synthetic = deep_world().synthetic;
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
+  TV_ALL_RESIDENT(deep_world().synthetic, 1024, 320, 180);
   struct View {
     double x, y, h, yaw, pitch, error;
   };
@@ -197,22 +202,13 @@ TEST(ViewerGpu, ListsEqualCpuReference) {
   EXPECT_GT(total_cone, 0u) << "the views must exercise cone culling";
 }
 
-struct Loaded {
-  World world;
-  std::vector<NodeUpload> uploads;
-};
-
 // Renders `views` over a magenta clear colour and returns the magenta pixels of each.
 struct ViewSpec {
   double x, y, h, yaw, pitch, error;
 };
 
 TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
-  World world;
-  world.synthetic = deep_world(true).synthetic;
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
+  TV_ALL_RESIDENT(deep_world(true).synthetic, 1024, 320, 180);
   // Looking down across the root edge at x = 2048 m, where level-0 nodes meet the flat root drawn
   // at level 7, and over the rough spot, where levels 0..5 meet.
   const ViewSpec views[] = {{kFocusX - 120, kFocusY, 420, 90, -55, 0.01}, {kFocusX + 30, kFocusY - 60, 430, 0, -70, 0.01},
@@ -240,23 +236,19 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
 // and near at several targets. The GPU patch list (with each patch's decimation and the deltas of
 // edges inside a root) equals the CPU reference, no magenta shows through, and the views do
 // decimate (every e = 1..4) and stitch decimated patches inside roots.
-SyntheticWorld decimation_world() {
-  SyntheticOptions o;
+synthetic::World decimation_world() {
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 2;
   o.relief_m = 120;
   o.detail = 1.5;
   o.flat_from_x_m = 2600;
   o.keep = [](const NodeKey& k) { return k.level >= 3; };
-  return make_synthetic_world(o);
+  return synthetic::make_world(o);
 }
 
 TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
-  World world;
-  world.synthetic = decimation_world();
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 512, 320, 180);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 512, uploads).ok());
+  TV_ALL_RESIDENT(decimation_world(), 512, 320, 180);
   const ViewSpec views[] = {{2600, 2048, 900, 0, -70, 1.0},   {1500, 1500, 1200, 45, -75, 0.5},
                             {3500, 2000, 1500, 0, -80, 1.0},   {2000, 1500, 600, 90, -60, 2.0},
                             {3000, 2048, 1200, 180, -65, 0.3}, {3000, 2048, 2000, 270, -85, 4.0},
@@ -294,7 +286,7 @@ TEST(ViewerGpu, NoCracksAtTheStreamingFrontier) {
   World world;
   world.synthetic = deep_world(true).synthetic;
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
-  world.residency.init(world.synthetic.world, world.memory_nodes(), 1024, gpu->state);
+  world.residency.init(world.synthetic.world, memory_nodes(world.synthetic), 1024, gpu->state);
   for (int seed = 0; seed < 4; ++seed) {
     std::vector<NodeUpload> uploads;
     uint32_t h = uint32_t(seed) * 2654435761u;
@@ -321,11 +313,7 @@ TEST(ViewerGpu, NoCracksAtTheStreamingFrontier) {
 TEST(ViewerGpu, CullingNeverChangesTheImage) {
   // Frustum and cone culling are conservative: the image is the same byte for byte without them
   // (the rasteriser culls back faces anyway), while they remove work.
-  World world;
-  world.synthetic = deep_world().synthetic;
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 1024, 320, 180);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 1024, uploads).ok());
+  TV_ALL_RESIDENT(deep_world().synthetic, 1024, 320, 180);
   uint32_t frustum = 0, cone = 0;
   for (const ViewSpec& v : {ViewSpec{kFocusX - 60, kFocusY - 80, 800, 45, -20, 0.05}, ViewSpec{3000, 3000, 700, 225, -3, 1.0},
                             ViewSpec{kFocusX - 150, kFocusY, 450, 90, -35, 0.01}}) {
@@ -357,11 +345,7 @@ TEST(ViewerGpu, OneDrawPerMeshMatchesTheMultiDraw) {
   // Devices without multiDrawIndirect get one indirect draw per decimation mesh instead of one
   // multi-draw per shading group: the same image, byte for byte. The view looks down on
   // decimating roots, so several meshes are drawn (measured: decimations 0, 1, 3 and 4).
-  World world;
-  world.synthetic = decimation_world();
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 512, 320, 180);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 512, uploads).ok());
+  TV_ALL_RESIDENT(decimation_world(), 512, 320, 180);
   const bool device_multi_draw = gpu->ctx.multi_draw_indirect;
   const Camera cam = camera_at(world.synthetic.world, 3500, 2000, 1500, 0, -80);
   FrameSettings s = magenta_clear(1.0);
@@ -386,7 +370,7 @@ TEST(ViewerGpu, OneDrawPerMeshMatchesTheMultiDraw) {
 TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   // A 60 m hole disc seen from above; level-3 nodes (4 m spacing). The defined method (discard
   // where the interpolated hole flag is > 0) and the FC5 NaN clip position are compared.
-  SyntheticOptions o;
+  synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = o.roots_y = 1;
   o.relief_m = 100;
   o.detail = 0;
@@ -395,11 +379,7 @@ TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   o.hole_x_m = o.origin_x_m + 1000;
   o.hole_y_m = o.origin_y_m + 1000;
   o.hole_radius_m = 60;
-  World world;
-  world.synthetic = make_synthetic_world(o);
-  TV_REQUIRE_GPU(gpu, world.synthetic.world, 64, 256, 256);
-  std::vector<NodeUpload> uploads;
-  ASSERT_TRUE(make_all_resident(world, *gpu, 64, uploads).ok());
+  TV_ALL_RESIDENT(synthetic::make_world(o), 64, 256, 256);
   const Camera cam = camera_at(world.synthetic.world, 1000, 1000, 900, 0, -90);
   FrameSettings s = magenta_clear(0.01);  // all the way to level 3
   size_t magenta[3];

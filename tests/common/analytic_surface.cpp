@@ -1,18 +1,17 @@
-#include "synthetic_world.h"
-
+// The analytic_surface shape of the synthetic generator (synthetic_archive.h).
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
-#include "terrain/archive_writer.h"
+#include "bc_encode.h"
+#include "synthetic_shapes.h"
 #include "terrain/bc_decode.h"
 #include "terrain/surface_contract.h"
 
-namespace terrain::view {
+namespace terrain::synthetic {
 namespace {
-
-constexpr int kStepLog2 = 4;  // every level: 1/64 m, range 1024 m per node
 
 double height_local(double lx, double ly, double relief, double detail, double flat_from) {
   const double w = std::clamp((flat_from - lx) / 300.0, 0.0, 1.0);
@@ -29,7 +28,7 @@ int32_t canonical_units(int64_t hx, int64_t hy, double relief, double detail, do
 }
 
 struct Ctx {
-  const SyntheticOptions* o;
+  const Spec* o;
   double origin_x, origin_y;
 };
 
@@ -37,148 +36,6 @@ bool is_hole(const Ctx& c, int64_t hx, int64_t hy) {
   if (c.o->hole_radius_m <= 0) return false;
   const double x = c.origin_x + double(hx) * 0.5 - c.o->hole_x_m, y = c.origin_y + double(hy) * 0.5 - c.o->hole_y_m;
   return x * x + y * y < c.o->hole_radius_m * c.o->hole_radius_m;
-}
-
-uint16_t pack565(int r, int g, int b) { return uint16_t((r >> 3) << 11 | (g >> 2) << 5 | (b >> 3)); }
-
-// BC1 with exact punch-through: a block with a hole texel uses the 3-colour mode, index 3 = hole.
-void encode_bc1(const uint8_t rgba[16][4], uint8_t out[8]) {
-  bool any_hole = false;
-  int lo = 0, hi = 0;
-  auto luma = [&](int t) { return rgba[t][0] * 2 + rgba[t][1] * 4 + rgba[t][2]; };
-  for (int t = 0; t < 16; ++t) {
-    if (rgba[t][3] < 128) {
-      any_hole = true;
-      continue;
-    }
-    if (luma(t) < luma(lo) || rgba[lo][3] < 128) lo = t;
-    if (luma(t) > luma(hi) || rgba[hi][3] < 128) hi = t;
-  }
-  uint16_t a = pack565(rgba[hi][0], rgba[hi][1], rgba[hi][2]), b = pack565(rgba[lo][0], rgba[lo][1], rgba[lo][2]);
-  uint16_t c0, c1;
-  if (any_hole) {  // 3-colour mode: c0 <= c1
-    c0 = std::min(a, b);
-    c1 = std::max(a, b);
-  } else {
-    if (a == b) {
-      if (a > 0) b = uint16_t(a - 1); else a = 1;  // keep c0 > c1 for the 4-colour mode
-    }
-    c0 = std::max(a, b);
-    c1 = std::min(a, b);
-  }
-  uint8_t block[8] = {uint8_t(c0), uint8_t(c0 >> 8), uint8_t(c1), uint8_t(c1 >> 8), 0, 0, 0, 0};
-  uint8_t pal[8][4];  // entries 4..7: the palette (decoded from probe blocks with fixed indices)
-  for (int idx = 0; idx < 4; ++idx) {
-    uint8_t probe[8], dec[64];
-    std::memcpy(probe, block, 4);
-    const uint8_t bits = uint8_t(idx | idx << 2 | idx << 4 | idx << 6);
-    probe[4] = probe[5] = probe[6] = probe[7] = bits;
-    decode_bc1_block(probe, dec, BcRounding::truncate);
-    std::memcpy(pal[idx + 4], dec, 4);
-  }
-  uint32_t indices = 0;
-  for (int t = 0; t < 16; ++t) {
-    int best = 0;
-    if (any_hole && rgba[t][3] < 128) {
-      best = 3;
-    } else {
-      int best_d = 1 << 30;
-      for (int idx = 0; idx < (any_hole ? 3 : 4); ++idx) {
-        int d = 0;
-        for (int k = 0; k < 3; ++k) d += (pal[idx + 4][k] - rgba[t][k]) * (pal[idx + 4][k] - rgba[t][k]);
-        if (d < best_d) {
-          best_d = d;
-          best = idx;
-        }
-      }
-    }
-    indices |= uint32_t(best) << (2 * t);
-  }
-  for (int k = 0; k < 4; ++k) block[4 + k] = uint8_t(indices >> (8 * k));
-  std::memcpy(out, block, 8);
-}
-
-// BC3 alpha: 8-value mode between the block's max and min; `conservative` picks, per texel, the
-// smallest decoded value >= target + 1 (or the exact max endpoint), so GPU rounding of the
-// interpolants can never lower a stored cone angle below its target.
-void encode_alpha(const uint8_t target[16], bool conservative, uint8_t out[8]) {
-  int a0 = 0, a1 = 255;
-  for (int t = 0; t < 16; ++t) {
-    a0 = std::max(a0, int(target[t]));
-    a1 = std::min(a1, int(target[t]));
-  }
-  int pal[8] = {a0, a1};
-  if (a0 > a1)
-    for (int k = 1; k < 7; ++k) pal[k + 1] = ((7 - k) * a0 + k * a1) / 7;
-  else
-    for (int k = 2; k < 8; ++k) pal[k] = a0;
-  uint64_t bits = 0;
-  for (int t = 0; t < 16; ++t) {
-    int best = 0, best_v = 1 << 30;
-    for (int idx = 0; idx < 8; ++idx) {
-      const int v = pal[idx];
-      if (conservative) {
-        const bool exact = idx < 2;
-        if (v < target[t] + (exact ? 0 : 1)) continue;
-        if (v < best_v) {
-          best_v = v;
-          best = idx;
-        }
-      } else {
-        const int d = std::abs(v - int(target[t]));
-        if (d < best_v) {
-          best_v = d;
-          best = idx;
-        }
-      }
-    }
-    bits |= uint64_t(best) << (3 * t);
-  }
-  out[0] = uint8_t(a0);
-  out[1] = uint8_t(a1);
-  for (int k = 0; k < 6; ++k) out[2 + k] = uint8_t(bits >> (8 * k));
-}
-
-// BC3 colour block (always 4-colour): endpoints = per-channel max and min.
-void encode_bc3_colour(const uint8_t rgba[16][4], uint8_t out[8]) {
-  int mx[3] = {0, 0, 0}, mn[3] = {255, 255, 255};
-  for (int t = 0; t < 16; ++t)
-    for (int k = 0; k < 3; ++k) {
-      mx[k] = std::max(mx[k], int(rgba[t][k]));
-      mn[k] = std::min(mn[k], int(rgba[t][k]));
-    }
-  const uint16_t c0 = pack565(mx[0], mx[1], mx[2]), c1 = pack565(mn[0], mn[1], mn[2]);
-  uint8_t probe[16] = {};
-  probe[8] = uint8_t(c0);
-  probe[9] = uint8_t(c0 >> 8);
-  probe[10] = uint8_t(c1);
-  probe[11] = uint8_t(c1 >> 8);
-  uint8_t pal[4][4];
-  for (int idx = 0; idx < 4; ++idx) {
-    uint8_t dec[64];
-    const uint8_t bits = uint8_t(idx | idx << 2 | idx << 4 | idx << 6);
-    probe[12] = probe[13] = probe[14] = probe[15] = bits;
-    decode_bc3_block(probe, dec, BcRounding::truncate);
-    std::memcpy(pal[idx], dec, 4);
-  }
-  uint32_t indices = 0;
-  for (int t = 0; t < 16; ++t) {
-    int best = 0, best_d = 1 << 30;
-    for (int idx = 0; idx < 4; ++idx) {
-      int d = 0;
-      for (int k = 0; k < 3; ++k) d += (pal[idx][k] - rgba[t][k]) * (pal[idx][k] - rgba[t][k]);
-      if (d < best_d) {
-        best_d = d;
-        best = idx;
-      }
-    }
-    indices |= uint32_t(best) << (2 * t);
-  }
-  out[0] = uint8_t(c0);
-  out[1] = uint8_t(c0 >> 8);
-  out[2] = uint8_t(c1);
-  out[3] = uint8_t(c1 >> 8);
-  for (int k = 0; k < 4; ++k) out[4 + k] = uint8_t(indices >> (8 * k));
 }
 
 uint8_t to_u8(double v) { return uint8_t(std::clamp(std::lround(v), 0L, 255L)); }
@@ -229,7 +86,7 @@ void for_each_patch_normal(int p, int q, Vertex&& vertex, Hole&& hole, Emit&& em
     }
 }
 
-void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
+void build_node(const Ctx& c, const NodeKey& key, Node& out) {
   const int level = int(key.level);
   const double s = vertex_spacing_m(level);
   const double relief = c.o->relief_m;
@@ -262,7 +119,7 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       }
     }
   rec.height_offset = int32_t(std::floor(all_lo / 16.0)) * 16;
-  for (int k = 0; k < kHeightCount; ++k) d.heights[size_t(k)] = uint16_t((units[size_t(k)] - rec.height_offset) >> kStepLog2);
+  for (int k = 0; k < kHeightCount; ++k) d.heights[size_t(k)] = uint16_t((units[size_t(k)] - rec.height_offset) >> kSurfaceStepLog2);
   if (lo > hi) lo = hi = rec.height_offset;
   rec.min_height = lo;
   rec.max_height = hi;
@@ -321,7 +178,7 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       uint8_t* nblock = &d.normals_bc3[(size_t(by) * kTexelBlocks + bx) * 16];
       uint8_t alpha_t[16];
       for (int t = 0; t < 16; ++t) alpha_t[t] = nb[t][3];
-      encode_alpha(alpha_t, false, nblock);
+      encode_bc3_alpha(alpha_t, false, nblock);
       encode_bc3_colour(nb, nblock + 8);
       encode_bc1(ab, &d.albedo_bc1[(size_t(by) * kTexelBlocks + bx) * 8]);
     }
@@ -404,7 +261,7 @@ void build_node(const Ctx& c, const NodeKey& key, SyntheticNode& out) {
       for (int j = 0; j < 4; ++j)
         for (int i = 0; i < 4; ++i) t16[j * 4 + i] = targets[(by * 4 + j) * 8 + bx * 4 + i];
       uint8_t* blk = &d.cones_bc3[size_t(by * 2 + bx) * 16];
-      encode_alpha(t16, true, blk);
+      encode_bc3_alpha(t16, true, blk);
       std::memcpy(blk + 8, colour_blocks[by * 2 + bx], 8);
     }
 }
@@ -420,64 +277,25 @@ void add_subtree(const Ctx& c, const NodeKey& key, std::vector<NodeKey>& order) 
 
 }  // namespace
 
-SyntheticWorld make_synthetic_world(const SyntheticOptions& o) {
-  SyntheticWorld w;
-  WorldInfo& wi = w.world;
-  wi.crs.kind = ProjectionKind::local;
-  wi.crs.name = "synthetic";
-  wi.origin_x_m = o.origin_x_m;
-  wi.origin_y_m = o.origin_y_m;
-  wi.roots_x = o.roots_x;
-  wi.roots_y = o.roots_y;
-  wi.extent_min_x_m = o.origin_x_m;
-  wi.extent_min_y_m = o.origin_y_m;
-  wi.extent_max_x_m = o.origin_x_m + o.roots_x * node_size_m(kRootLevel);
-  wi.extent_max_y_m = o.origin_y_m + o.roots_y * node_size_m(kRootLevel);
-  wi.step_log2.fill(uint8_t(kStepLog2));
-  const char* names[4] = {"sand", "grass", "rock", "snow"};
-  const uint8_t colours[4][3] = {{178, 164, 118}, {92, 116, 56}, {116, 104, 92}, {216, 220, 226}};
-  for (int m = 0; m < 4; ++m) {
-    Material mat;
-    mat.name = names[m];
-    mat.albedo_srgb = {colours[m][0], colours[m][1], colours[m][2]};
-    mat.detail_scale_m = 3.0f + float(m);
-    mat.detail_strength = 0.25f;
-    mat.height_blend = 0.6f;
-    wi.palette.push_back(mat);
-  }
-  wi.cook_info_json = "{\"synthetic\":true}";
+Status generate_analytic_surface(const Spec& o, const NodeSink& sink) {
   Ctx c{&o, o.origin_x_m, o.origin_y_m};
   std::vector<NodeKey> order;
   for (uint32_t y = 0; y < o.roots_y; ++y)
     for (uint32_t x = 0; x < o.roots_x; ++x) add_subtree(c, NodeKey{uint32_t(kRootLevel), x, y}, order);
   std::stable_sort(order.begin(), order.end(), [](const NodeKey& a, const NodeKey& b) { return a.level > b.level; });
-  w.nodes.resize(order.size());
-  for (size_t i = 0; i < order.size(); ++i) build_node(c, order[i], w.nodes[i]);
-  // Child masks.
   std::vector<NodeKey> sorted = order;
   std::sort(sorted.begin(), sorted.end(), key_less);
-  for (auto& n : w.nodes) {
-    n.record.child_mask = 0;
-    if (n.record.key.level == 0) continue;
-    for (int ch = 0; ch < 4; ++ch)
-      if (std::binary_search(sorted.begin(), sorted.end(), child_of(n.record.key, ch), key_less))
-        n.record.child_mask |= uint8_t(1u << ch);
+  auto node = std::make_unique<Node>();
+  for (const NodeKey& key : order) {
+    node->record = NodeRecord{};
+    build_node(c, key, *node);
+    if (key.level > 0)
+      for (int ch = 0; ch < 4; ++ch)
+        if (std::binary_search(sorted.begin(), sorted.end(), child_of(key, ch), key_less))
+          node->record.child_mask |= uint8_t(1u << ch);
+    if (Status s = sink(node->record, node->data); !s.ok()) return s;
   }
-  return w;
+  return Status::success();
 }
 
-Status write_synthetic_archive(const SyntheticWorld& w, const std::string& path) {
-  ArchiveWriter writer;
-  Status s = writer.open(path);
-  if (!s.ok()) return s;
-  std::vector<uint8_t> payload;
-  for (const auto& n : w.nodes) {
-    s = encode_node_payload(n.data, PayloadOptions{1, true}, payload);
-    if (!s.ok()) return s;
-    s = writer.add_node(n.record, payload);
-    if (!s.ok()) return s;
-  }
-  return writer.finish(w.world);
-}
-
-}  // namespace terrain::view
+}  // namespace terrain::synthetic

@@ -1,10 +1,10 @@
-#include "synthetic_archive.h"
+// The sparse_tree shape of the synthetic generator (synthetic_archive.h).
+#include "synthetic_shapes.h"
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
-
-#include "terrain/archive_writer.h"
 
 namespace terrain::synthetic {
 namespace {
@@ -34,7 +34,7 @@ double value_noise(uint64_t seed, double x, double y) {
 
 struct Generator {
   const Spec& spec;
-  WorldInfo world;
+  const WorldInfo& world;
 
   double height_m(double x, double y) const { return surface_height_m(spec, x, y); }
 
@@ -120,7 +120,7 @@ struct Generator {
           d.splat[size_t(j * kSplatSamples + i)] =
               uint8_t(4 + 3 * value_noise(spec.seed + 9, (x0 + 2 * i * s) / 40.0, (y0 + 2 * j * s) / 40.0));
       for (size_t k = 0; k < d.cones_bc3.size(); ++k) d.cones_bc3[k] = uint8_t(hash(node_seed, 99, k));
-    }  // fast payloads: the other sections keep the constant content write_archive() gave them
+    }  // fast payloads: the other sections keep the constant content generate_sparse_tree() gave them
     // The key marker (key_marker_matches).
     d.splat[0] = 0x5E;
     d.splat[1] = uint8_t(r.key.level);
@@ -152,25 +152,8 @@ bool key_marker_matches(const NodeData& data, const NodeKey& key) {
          (data.splat[4] | (data.splat[5] << 8)) == int(key.y & 0xFFFF);
 }
 
-Status write_archive(const std::string& path, const Spec& spec, Summary* summary) {
-  Generator gen{spec, {}};
-  WorldInfo& w = gen.world;
-  w.crs.kind = ProjectionKind::local;
-  w.crs.name = "synthetic local frame";
-  w.origin_x_m = spec.origin_x_m;
-  w.origin_y_m = spec.origin_y_m;
-  w.roots_x = spec.roots_x;
-  w.roots_y = spec.roots_y;
-  w.extent_min_x_m = spec.origin_x_m;
-  w.extent_min_y_m = spec.origin_y_m;
-  w.extent_max_x_m = spec.origin_x_m + spec.roots_x * node_size_m(kRootLevel);
-  w.extent_max_y_m = spec.origin_y_m + spec.roots_y * node_size_m(kRootLevel);
-  for (int l = 0; l < kLevelCount; ++l) w.step_log2[size_t(l)] = uint8_t(l + 2);
-  Material m;
-  m.name = "synthetic";
-  w.palette = {m};
-  w.cook_info_json = R"({"generator":"terrain::synthetic","seed":)" + std::to_string(spec.seed) + "}";
-
+Status generate_sparse_tree(const Spec& spec, const WorldInfo& world, const NodeSink& sink) {
+  const Generator gen{spec, world};
   // The tree: roots by fill ratio (at least one), children by probability.
   std::vector<NodeRecord> records;
   std::vector<NodeKey> frontier;
@@ -194,24 +177,12 @@ Status write_archive(const std::string& path, const Spec& spec, Summary* summary
   }
   std::sort(records.begin(), records.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
 
-  ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
-  PayloadOptions options;
-  options.zstd_level = spec.zstd_level;
   auto data = std::make_unique<NodeData>();
   data->albedo_bc1.fill(0x11);  // constant sections of fast payloads (normals, splat, cones stay 0)
-  std::vector<uint8_t> payload;
-  Summary sum;
   for (NodeRecord& r : records) {
     gen.make_payload(r, *data);
-    if (Status s = encode_node_payload(*data, options, payload); !s.ok()) return s;
-    if (Status s = writer.add_node(r, payload); !s.ok()) return s;
-    ++sum.nodes;
-    sum.roots += r.key.level == uint32_t(kRootLevel);
-    sum.payload_bytes += payload.size();
+    if (Status s = sink(r, *data); !s.ok()) return s;
   }
-  if (Status s = writer.finish(w); !s.ok()) return s;
-  if (summary) *summary = sum;
   return Status::success();
 }
 
