@@ -7,10 +7,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <set>
 
 #include "gpu_harness.h"
+#include "resources.h"
+#include "vk_common.h"
 
 namespace terrain::view::test {
 namespace {
@@ -405,6 +408,172 @@ TEST(ViewerGpu, HoleVerticesDropTheirTriangles) {
   EXPECT_LT(double(magenta[2]), 2.0 * disc_px);
   EXPECT_NEAR(double(magenta[2]), double(magenta[1]), 0.05 * double(magenta[1]));
   std::printf("holes: discard method %zu px, NaN method %zu px (disc ~%.0f px)\n", magenta[1], magenta[2], disc_px);
+}
+
+// The vertex shader's stitching (viewer/shaders/stitch.glsl, the function terrain.vert calls) run
+// as a compute shader on the device for every patch, decimation, mesh vertex and edge delta 0..7
+// (at each corner every pair of its two edges' deltas), compared with terrain::stitched_vertex().
+const uint32_t kStitchProbe[] =
+#include "stitch_probe.comp.inc"
+    ;
+
+// Runs the probe over `queries` (uvec4: entry x, delta word, vertex index, 0) into `results` (uvec2).
+Status run_stitch_probe(const Context& ctx, const std::vector<uint32_t>& queries, std::vector<uint32_t>& results) {
+  const uint32_t count = uint32_t(queries.size() / 4);
+  Buffer in, out;
+  OneShot os;
+  VkDescriptorSetLayout dsl = VK_NULL_HANDLE;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkShaderModule module = VK_NULL_HANDLE;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  struct Cleanup {
+    const Context& c;
+    Buffer &a, &b;
+    OneShot& o;
+    VkDescriptorSetLayout& d;
+    VkPipelineLayout& l;
+    VkShaderModule& m;
+    VkPipeline& p;
+    VkDescriptorPool& q;
+    ~Cleanup() {
+      vkDeviceWaitIdle(c.device);
+      vkDestroyDescriptorPool(c.device, q, nullptr);
+      vkDestroyPipeline(c.device, p, nullptr);
+      vkDestroyShaderModule(c.device, m, nullptr);
+      vkDestroyPipelineLayout(c.device, l, nullptr);
+      vkDestroyDescriptorSetLayout(c.device, d, nullptr);
+      destroy_one_shot(c, o);
+      destroy_buffer(c, a);
+      destroy_buffer(c, b);
+    }
+  } cleanup{ctx, in, out, os, dsl, layout, module, pipeline, pool};
+  TV_TRY(create_host_buffer(ctx, queries.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, in));
+  TV_TRY(create_host_buffer(ctx, VkDeviceSize(count) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, out));
+  std::memcpy(in.mapped, queries.data(), queries.size() * 4);
+  TV_TRY(create_one_shot(ctx, os));
+  VkDescriptorSetLayoutBinding b[2] = {};
+  for (uint32_t k = 0; k < 2; ++k) {
+    b[k].binding = k;
+    b[k].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    b[k].descriptorCount = 1;
+    b[k].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+  }
+  VkDescriptorSetLayoutCreateInfo dci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  dci.bindingCount = 2;
+  dci.pBindings = b;
+  VK_TRY(vkCreateDescriptorSetLayout(ctx.device, &dci, nullptr, &dsl));
+  const VkPushConstantRange push{VK_SHADER_STAGE_COMPUTE_BIT, 0, 4};
+  VkPipelineLayoutCreateInfo lci{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  lci.setLayoutCount = 1;
+  lci.pSetLayouts = &dsl;
+  lci.pushConstantRangeCount = 1;
+  lci.pPushConstantRanges = &push;
+  VK_TRY(vkCreatePipelineLayout(ctx.device, &lci, nullptr, &layout));
+  VkShaderModuleCreateInfo mci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  mci.codeSize = sizeof kStitchProbe;
+  mci.pCode = kStitchProbe;
+  VK_TRY(vkCreateShaderModule(ctx.device, &mci, nullptr, &module));
+  VkComputePipelineCreateInfo pci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  pci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  pci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  pci.stage.module = module;
+  pci.stage.pName = "main";
+  pci.layout = layout;
+  VK_TRY(vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &pci, nullptr, &pipeline));
+  const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2};
+  VkDescriptorPoolCreateInfo pool_ci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pool_ci.maxSets = 1;
+  pool_ci.poolSizeCount = 1;
+  pool_ci.pPoolSizes = &size;
+  VK_TRY(vkCreateDescriptorPool(ctx.device, &pool_ci, nullptr, &pool));
+  VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  ai.descriptorPool = pool;
+  ai.descriptorSetCount = 1;
+  ai.pSetLayouts = &dsl;
+  VkDescriptorSet set;
+  VK_TRY(vkAllocateDescriptorSets(ctx.device, &ai, &set));
+  const VkDescriptorBufferInfo infos[2] = {{in.buffer, 0, VK_WHOLE_SIZE}, {out.buffer, 0, VK_WHOLE_SIZE}};
+  VkWriteDescriptorSet w[2] = {};
+  for (uint32_t k = 0; k < 2; ++k) {
+    w[k] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w[k].dstSet = set;
+    w[k].dstBinding = k;
+    w[k].descriptorCount = 1;
+    w[k].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    w[k].pBufferInfo = &infos[k];
+  }
+  vkUpdateDescriptorSets(ctx.device, 2, w, 0, nullptr);
+  TV_TRY(submit_and_wait(ctx, os, [&](VkCommandBuffer cmd) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
+    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, 4, &count);
+    vkCmdDispatch(cmd, (count + 63) / 64, 1, 1);
+    memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_2_HOST_BIT,
+                   VK_ACCESS_2_HOST_READ_BIT);
+  }));
+  if (ctx.validation_errors > 0)
+    return Status::failure(Error::internal, std::to_string(ctx.validation_errors) + " Vulkan validation errors");
+  results.resize(size_t(count) * 2);
+  std::memcpy(results.data(), out.mapped, results.size() * 4);
+  return Status::success();
+}
+
+TEST(ViewerGpu, VertexShaderStitchingEqualsTheContract) {
+  Context ctx;
+  DeviceOptions o;
+  o.quiet = true;
+  o.validation = std::getenv("TERRAIN_VIEW_VALIDATION") != nullptr;
+  const Status made = create_context(o, ctx);
+  struct Guard {
+    Context& c;
+    ~Guard() { destroy_context(c); }
+  } guard{ctx};
+  if (!made.ok() && is_no_device(made)) GTEST_SKIP() << "no Vulkan device: " << made.message;
+  ASSERT_TRUE(made.ok()) << made.to_string();
+  // Every patch, decimation and mesh vertex, with deltas (south, west, north, east) =
+  // (a, b, (a + 3) % 8, (b + 5) % 8) for all a, b in 0..7: every delta on every edge and every
+  // pair of deltas at every corner. The NEAR bit rides along in half of them (the shader must
+  // mask it off).
+  std::vector<uint32_t> queries;
+  std::vector<NodeVertex> want;
+  for (uint32_t py = 0; py < 8; ++py)
+    for (uint32_t px = 0; px < 8; ++px)
+      for (int e = 0; e <= TV_MAX_DECIMATE; ++e)
+        for (int a = 0; a < 8; ++a)
+          for (int b = 0; b < 8; ++b) {
+            const EdgeDeltas d{a, b, (a + 3) % 8, (b + 5) % 8};
+            const PatchMesh mesh{int(px), int(py), e, d};
+            const uint32_t entry_x = 37u | px << TV_PATCH_PX_SHIFT | py << TV_PATCH_PY_SHIFT |
+                                     uint32_t(kRootLevel) << TV_PATCH_LEVEL_SHIFT | uint32_t(e) << TV_PATCH_DECIM_SHIFT;
+            const uint32_t deltas = uint32_t(d.south) << TV_EDGE_S | uint32_t(d.west) << TV_EDGE_W |
+                                    uint32_t(d.north) << TV_EDGE_N | uint32_t(d.east) << TV_EDGE_E |
+                                    ((a + b) % 2 ? TV_PATCH_NEAR_BIT : 0u);
+            const int n = patch_mesh_quads(e);
+            for (int j = 0; j <= n; ++j)
+              for (int i = 0; i <= n; ++i) {
+                for (uint32_t v : {entry_x, deltas, uint32_t(j * (n + 1) + i), 0u}) queries.push_back(v);
+                want.push_back(stitched_vertex(mesh, i, j));
+              }
+          }
+  std::vector<uint32_t> got;
+  const Status ran = run_stitch_probe(ctx, queries, got);
+  ASSERT_TRUE(ran.ok()) << ran.to_string();
+  ASSERT_EQ(got.size(), 2 * want.size());
+  size_t differ = 0, moved = 0;
+  for (size_t k = 0; k < want.size(); ++k) {
+    const bool same = got[2 * k] == uint32_t(want[k].i) && got[2 * k + 1] == uint32_t(want[k].j);
+    if (!same && differ++ < 5)
+      ADD_FAILURE() << "query " << k << ": GLSL (" << got[2 * k] << ", " << got[2 * k + 1] << "), C++ (" << want[k].i
+                    << ", " << want[k].j << ")";
+    const uint32_t idx = queries[4 * k + 2], n = uint32_t(TV_QUADS_PER_PATCH) >> ((queries[4 * k] >> TV_PATCH_DECIM_SHIFT) & 7u);
+    const uint32_t px = (queries[4 * k] >> TV_PATCH_PX_SHIFT) & 7u, py = (queries[4 * k] >> TV_PATCH_PY_SHIFT) & 7u;
+    const uint32_t step = uint32_t(TV_QUADS_PER_PATCH) / n;
+    moved += want[k].i != int(px * 16 + idx % (n + 1) * step) || want[k].j != int(py * 16 + idx / (n + 1) * step);
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(want.size(), size_t(64 * 64 * (289 + 81 + 25 + 9 + 4)));
+  EXPECT_GT(moved, want.size() / 10) << "the queries must exercise the collapse";
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 // hole vertices drop their triangles.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
+#include "stitch.glsl"
 
 layout(std430, set = 0, binding = 8) readonly buffer Patches { uvec4 patches[]; };
 layout(set = 0, binding = 9) uniform usampler2DArray heights_tex;
@@ -20,22 +21,13 @@ layout(location = 3) flat out uvec4 v_patch;  // the patch entry
 void main() {
   uvec4 p = patches[gl_InstanceIndex];  // includes firstInstance: the far list starts at capacity
   uint slot = p.x & 0xFFFFu;
-  uint px = (p.x >> TV_PATCH_PX_SHIFT) & 7u, py = (p.x >> TV_PATCH_PY_SHIFT) & 7u;
   uint geo = (p.x >> TV_PATCH_LEVEL_SHIFT) & 15u;  // geometric level (6, 7: a coarsened root)
   uint level = min(geo, uint(TV_ROOT_LEVEL));
   uint c = geo - level;
-  uint e = (p.x >> TV_PATCH_DECIM_SHIFT) & 7u;  // decimation: mesh of n = 16 >> e quads per side
-  uint n = uint(TV_QUADS_PER_PATCH) >> e;
-  uint i = uint(gl_VertexIndex) % (n + 1u), j = uint(gl_VertexIndex) / (n + 1u);
-  uint ni = px * uint(TV_QUADS_PER_PATCH) + (i << e), nj = py * uint(TV_QUADS_PER_PATCH) + (j << e);
-  // Stitching (stitch_vertex() in src/reference.cpp).
-  uint ds = (p.y >> TV_EDGE_S) & 15u, dw = (p.y >> TV_EDGE_W) & 15u;
-  uint dn = (p.y >> TV_EDGE_N) & 15u, de = (p.y >> TV_EDGE_E) & 15u;
-  if ((frame.misc.y & TV_FLAG_NO_STITCH) != 0u) ds = dw = dn = de = 0u;
-  if (j == 0u && ds > 0u) ni = (ni >> ds) << ds;
-  if (j == n && dn > 0u) ni = (ni >> dn) << dn;
-  if (i == 0u && dw > 0u) nj = (nj >> dw) << dw;
-  if (i == n && de > 0u) nj = (nj >> de) << de;
+  // Stitching: terrain::stitched_vertex() (format/include/terrain/surface_contract.h) in stitch.glsl.
+  uint deltas = (frame.misc.y & TV_FLAG_NO_STITCH) != 0u ? 0u : p.y;
+  uvec2 node_vertex = stitched_vertex(p.x, deltas, uint(gl_VertexIndex));
+  uint ni = node_vertex.x, nj = node_vertex.y;
 
   ni <<= c;  // coarsened roots read every (1 << c)-th vertex
   nj <<= c;

@@ -322,16 +322,20 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
   return out;
 }
 
+PatchMesh patch_mesh(const GpuPatch& p) {
+  PatchMesh m;
+  m.px = int(patch_px(p));
+  m.py = int(patch_py(p));
+  m.decimation = int(patch_decimation(p));
+  m.deltas = {int(edge_delta(p, TV_EDGE_S)), int(edge_delta(p, TV_EDGE_W)), int(edge_delta(p, TV_EDGE_N)),
+              int(edge_delta(p, TV_EDGE_E))};
+  return m;
+}
+
 void stitch_vertex(const GpuPatch& p, int i, int j, int& ni, int& nj) {
-  const int e = int(patch_decimation(p)), n = int(patch_quads(p));
-  ni = int(patch_px(p)) * TV_QUADS_PER_PATCH + (i << e);
-  nj = int(patch_py(p)) * TV_QUADS_PER_PATCH + (j << e);
-  const int ds = int(edge_delta(p, TV_EDGE_S)), dn = int(edge_delta(p, TV_EDGE_N));
-  const int dw = int(edge_delta(p, TV_EDGE_W)), de = int(edge_delta(p, TV_EDGE_E));
-  if (j == 0 && ds > 0) ni = ni >> ds << ds;
-  if (j == n && dn > 0) ni = ni >> dn << dn;
-  if (i == 0 && dw > 0) nj = nj >> dw << dw;
-  if (i == n && de > 0) nj = nj >> de << de;
+  const NodeVertex v = stitched_vertex(patch_mesh(p), i, j);
+  ni = v.i;
+  nj = v.j;
 }
 
 void patch_vertex(const GpuPatch& p, int i, int j, int64_t& hx, int64_t& hy, int& ti, int& tj) {

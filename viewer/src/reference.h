@@ -67,9 +67,13 @@ uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u
                                const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t px, uint32_t py,
                                uint32_t max_e);
 
-// Stitching: vertex indices in the patch's node grid (0..128 >> coarsening) that patch vertex
-// (i, j) (0..16 >> decimation, every 2^decimation-th node vertex) is drawn at after collapsing onto every coarser neighbour (groups of 2^d vertices
-// fall onto the group's first).
+// The patch's place, decimation and edge deltas, as the stitching rule takes them
+// (terrain/surface_contract.h).
+PatchMesh patch_mesh(const GpuPatch& patch);
+
+// Stitching (terrain::stitched_vertex): vertex indices in the patch's node grid (0..128 >> coarsening)
+// that patch vertex (i, j) (0..16 >> decimation, every 2^decimation-th node vertex) is drawn at after
+// collapsing onto every coarser neighbour (groups of 2^d vertices fall onto the group's first).
 void stitch_vertex(const GpuPatch& patch, int i, int j, int& node_i, int& node_j);
 
 // Vertex position in half metres from the world origin (exact integers).

@@ -149,10 +149,10 @@ uint8_t angle_target(double need_rad) {
   return uint8_t(std::min(255.0, std::max(0.0, steps)));
 }
 
-// Triangles of LOD stitching: on a patch edge whose neighbour is coarser by d (1..4), edge vertex
-// k (0 < k < 16) moves to (k >> d) << d; quads touching two edges (corners) combine both edges'
-// levels. Listed once per patch-local position: every distinct non-degenerate triangle that differs
-// from the unstitched one, with its original vertices (for the hole test).
+// Triangles of LOD stitching (terrain::stitched_quad_triangle, d = 0..4 on each edge), listed
+// once per patch-local position: every distinct non-degenerate triangle that differs from the
+// unstitched one, with its original vertices (for the hole test). Patch-local: for d <= 4 the
+// collapse does not depend on where the patch lies in the node.
 struct StitchedTriangle {
   uint8_t snapped[3][2];
   uint8_t orig[3][2];
@@ -171,32 +171,21 @@ std::vector<StitchedTriangle> build_stitch_table() {
         for (int dN = 0; dN <= maxN; ++dN)
           for (int dW = 0; dW <= maxW; ++dW)
             for (int dE = 0; dE <= maxE; ++dE) {
-              auto snap = [&](int a, int b, int out[2]) {
-                out[0] = a;
-                out[1] = b;
-                if (b == 0 && a > 0 && a < kQuadsPerPatch) out[0] = (a >> dS) << dS;
-                if (b == kQuadsPerPatch && a > 0 && a < kQuadsPerPatch) out[0] = (a >> dN) << dN;
-                if (a == 0 && b > 0 && b < kQuadsPerPatch) out[1] = (b >> dW) << dW;
-                if (a == kQuadsPerPatch && b > 0 && b < kQuadsPerPatch) out[1] = (b >> dE) << dE;
-              };
-              const int corner[4][2] = {{u, v}, {u + 1, v}, {u + 1, v + 1}, {u, v + 1}};
-              int sc[4][2];
-              for (int c = 0; c < 4; ++c) snap(corner[c][0], corner[c][1], sc[c]);
-              static const int kTris[2][3] = {{0, 1, 2}, {0, 2, 3}};
-              for (const auto& tri : kTris) {
-                bool moved = false, degenerate = false;
+              const PatchMesh stitched{0, 0, 0, {dS, dW, dN, dE}}, plain{};
+              for (int t = 0; t < 2; ++t) {
+                const PatchTriangle snapped = stitched_quad_triangle(stitched, u, v, t);
+                const PatchTriangle orig = stitched_quad_triangle(plain, u, v, t);
+                if (snapped.degenerate()) continue;
+                bool moved = false;
                 StitchedTriangle st;
-                for (int t = 0; t < 3; ++t) {
-                  const int c = tri[t];
-                  moved = moved || sc[c][0] != corner[c][0] || sc[c][1] != corner[c][1];
-                  for (int o = 0; o < t; ++o)
-                    degenerate = degenerate || (sc[tri[o]][0] == sc[c][0] && sc[tri[o]][1] == sc[c][1]);
-                  st.snapped[t][0] = uint8_t(sc[c][0]);
-                  st.snapped[t][1] = uint8_t(sc[c][1]);
-                  st.orig[t][0] = uint8_t(corner[c][0]);
-                  st.orig[t][1] = uint8_t(corner[c][1]);
+                for (int k = 0; k < 3; ++k) {
+                  moved = moved || snapped.v[k] != orig.v[k];
+                  st.snapped[k][0] = uint8_t(snapped.v[k].i);
+                  st.snapped[k][1] = uint8_t(snapped.v[k].j);
+                  st.orig[k][0] = uint8_t(orig.v[k].i);
+                  st.orig[k][1] = uint8_t(orig.v[k].j);
                 }
-                if (!moved || degenerate) continue;
+                if (!moved) continue;
                 bool dup = false;
                 for (size_t e = first; e < table.size() && !dup; ++e)
                   dup = std::memcmp(&table[e], &st, sizeof st) == 0;

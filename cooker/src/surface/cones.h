@@ -6,11 +6,12 @@
 #include <vector>
 
 #include "terrain/format.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::cook {
 
 inline constexpr int kPatchCount = kPatchesPerSide * kPatchesPerSide;
-inline constexpr int kMaxStitchLevels = 4;  // edge collapse d = 1..4 (16-quad patch edge)
+inline constexpr int kMaxStitchLevels = kMaxConeStitchDelta;  // edge collapse d = 1..4 (16-quad patch edge)
 
 // A run of unit normals, structure-of-arrays (so the dot-product scans vectorise).
 struct NormalSpan {
@@ -31,11 +32,10 @@ struct PatchNormals {
   }
 };
 
-// Triangulation (format/SPEC.md section 16): quad (i, j) -> (i,j),(i+1,j),(i+1,j+1) and (i,j),(i+1,j+1),(i,j+1)
-// (split along the SW->NE diagonal, counter-clockwise seen from above). A triangle is dropped when
-// a vertex is a hole. Edge vertices are also taken collapsed as in LOD stitching: on a patch edge
-// whose neighbour is coarser by d, edge vertex k moves to (k >> d) << d (d = 1..4), and every
-// resulting non-degenerate triangle is included.
+// Triangulation and LOD stitching as in terrain/surface_contract.h (format/SPEC.md section 16.5):
+// the unstitched triangles of every quad, plus every non-degenerate triangle any edge deltas
+// d = 1..4 produce. A triangle is dropped when a vertex is a hole (a stitched one only when it is
+// a hole both at its collapsed and at its original vertices).
 // heights: the node's R16 grid; holes: kWindowCount window flags (may be null).
 void collect_patch_normals(const NodeData& node, int32_t height_offset, int step_log2, double spacing_m,
                            const uint8_t* window_holes, PatchNormals& out);

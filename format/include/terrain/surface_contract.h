@@ -2,12 +2,13 @@
 // texels encode normals and patch cones, the runtime's back-face test, the slot table and index
 // grid the streamer hands to the GPU, and how a node is named in messages. One definition here;
 // the viewer's GLSL (viewer/shaders/config.h) mirrors the constants and viewer/src/gpu_types.h
-// static_asserts that the two agree. BC block decoding is terrain/bc_decode.h.
+// static_asserts that the two agree. Also the patch triangulation and LOD stitching. BC block decoding is terrain/bc_decode.h.
 #pragma once
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "terrain/format.h"
 
@@ -67,6 +68,71 @@ inline SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& w
   d.child_mask = r.child_mask;
   return d;
 }
+
+// ---- Patch triangulation and LOD stitching (format/SPEC.md section 16.5) ----------------------
+// One rule for the cooker's cones, the viewer's CPU reference and its vertex shader
+// (viewer/shaders/terrain.vert restates stitched_vertex() in GLSL; tests/viewer checks the two agree).
+// A patch (px, py) drawn with decimation e (0..4) is a mesh of n = 16 >> e quads per side; mesh
+// vertex (i, j), 0..n, is node vertex (16 px + (i << e), 16 py + (j << e)). On an edge whose
+// neighbour is coarser by d, the edge's vertices collapse in node coordinates: k -> (k >> d) << d
+// (groups of 2^d onto the group's first; for d > 4 the group reaches past the patch corner). A
+// corner vertex takes both of its edges. Mesh quad (i, j) is drawn as (i,j),(i+1,j),(i+1,j+1) and
+// (i,j),(i+1,j+1),(i,j+1) (SW->NE diagonal, counter-clockwise seen from above); a triangle whose
+// collapsed vertices coincide has no area and is not drawn.
+inline constexpr int kMaxConeStitchDelta = 4;  // the cones cover stitching with d <= 4
+
+// Levels by which each edge's neighbour is coarser (0: not coarser, nothing collapses).
+struct EdgeDeltas {
+  int south = 0, west = 0, north = 0, east = 0;
+};
+
+// What decides a patch's triangles.
+struct PatchMesh {
+  int px = 0, py = 0;   // patch in the node, 0..7
+  int decimation = 0;   // e: every 2^e-th node vertex
+  EdgeDeltas deltas;
+};
+
+// A vertex of the node grid (0..128 each way).
+struct NodeVertex {
+  int i = 0, j = 0;
+  friend bool operator==(const NodeVertex&, const NodeVertex&) = default;
+};
+
+// Corners of a patch triangle, counter-clockwise seen from above, in node vertices.
+struct PatchTriangle {
+  NodeVertex v[3];
+  bool degenerate() const { return v[0] == v[1] || v[0] == v[2] || v[1] == v[2]; }
+};
+
+inline constexpr int patch_mesh_quads(int decimation) { return kQuadsPerPatch >> decimation; }
+
+// Node vertex that mesh vertex (i, j) (0..16 >> decimation) of the patch is drawn at.
+inline NodeVertex stitched_vertex(const PatchMesh& m, int i, int j) {
+  const int n = patch_mesh_quads(m.decimation);
+  NodeVertex v{m.px * kQuadsPerPatch + (i << m.decimation), m.py * kQuadsPerPatch + (j << m.decimation)};
+  const EdgeDeltas& d = m.deltas;
+  if (j == 0) v.i = v.i >> d.south << d.south;
+  if (j == n) v.i = v.i >> d.north << d.north;
+  if (i == 0) v.j = v.j >> d.west << d.west;
+  if (i == n) v.j = v.j >> d.east << d.east;
+  return v;
+}
+
+// Corners of the two triangles of a mesh quad, as offsets from its south-west mesh vertex.
+inline constexpr int kQuadTriangleCorners[2][3][2] = {{{0, 0}, {1, 0}, {1, 1}}, {{0, 0}, {1, 1}, {0, 1}}};
+
+// Triangle t (0, 1) of mesh quad (i, j) after stitching; may be degenerate.
+inline PatchTriangle stitched_quad_triangle(const PatchMesh& m, int i, int j, int t) {
+  PatchTriangle tri;
+  for (int k = 0; k < 3; ++k)
+    tri.v[k] = stitched_vertex(m, i + kQuadTriangleCorners[t][k][0], j + kQuadTriangleCorners[t][k][1]);
+  return tri;
+}
+
+// Every triangle the patch draws, quads row by row from the south-west, triangle 0 then 1 of each
+// quad, degenerate ones left out.
+std::vector<PatchTriangle> patch_triangles(const PatchMesh& m);
 
 }  // namespace terrain
 
