@@ -14,6 +14,7 @@
 
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
+#include "terrain/cli_checks.h"
 #include "terrain/sample.h"
 
 namespace terrain::inspect {
@@ -177,10 +178,7 @@ Status read_point_file(const std::string& path, bool lonlat, std::vector<SampleP
   if (!in) return Status::failure(Error::io_open, path + ": cannot open");
   std::string line;
   int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
+  while (cli::next_line(in, line, number)) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     SamplePoint p;
     p.lonlat = lonlat;

@@ -2,11 +2,8 @@
 # the flags and outputs of terrain-cook tested from the command line.
 
 # Flags through a cook, on inputs the tests write (raw heightmaps, GeoTIFFs).
-add_executable(cooker_cli_flag_tests test_cli_flags.cpp)
-target_link_libraries(cooker_cli_flag_tests PRIVATE cooker_test_util)
-terrain_warnings(cooker_cli_flag_tests)
+terrain_test_executable(cooker_cli_flag_tests cooker SOURCES test_cli_flags.cpp LIBS cooker_test_util)
 add_dependencies(cooker_cli_flag_tests terrain-cook)
-gtest_discover_tests(cooker_cli_flag_tests DISCOVERY_MODE PRE_TEST PROPERTIES LABELS cooker)
 
 set(_check ${CMAKE_SOURCE_DIR}/tests/format/cli_check.cmake)
 set(_jacksboro /usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz)
@@ -22,21 +19,16 @@ if(EXISTS ${_jacksboro})
                    "-DJSON_CHECKS=inputs/0=jacksboro_fault_dem.npz|source/samples=^138632$|levels/5/nodes=^256$|levels/4/error_max_m=^0\\.[0-4]|levels/5/uncovered_samples=^0$"
                    -P ${_check})
   # --verify on a damaged copy of a real cooked archive (the default jacksboro cook): one byte of
-  # the first payload flipped, and the file cut short.
-  add_test(NAME cooker.cli.verify_flipped_real_archive
-           COMMAND ${CMAKE_COMMAND} -DCMD=$<TARGET_FILE:terrain-inspect>
-                   "-DARGS=--verify|-q|${_cli_dir}/jacksboro-flipped.terrain" -DEXPECT=1
-                   -DCOPY_FROM=${CMAKE_BINARY_DIR}/cooker-test-archives/jacksboro.terrain
-                   -DCOPY_TO=${_cli_dir}/jacksboro-flipped.terrain -DDAMAGE=flip:300
-                   "-DSTDERR_REGEX=payload_checksum: node [0-5]/[0-9]+/[0-9]+ at offset 128"
-                   -P ${_check})
-  add_test(NAME cooker.cli.verify_truncated_real_archive
-           COMMAND ${CMAKE_COMMAND} -DCMD=$<TARGET_FILE:terrain-inspect>
-                   "-DARGS=--verify|-q|${_cli_dir}/jacksboro-truncated.terrain" -DEXPECT=1
-                   -DCOPY_FROM=${CMAKE_BINARY_DIR}/cooker-test-archives/jacksboro.terrain
-                   -DCOPY_TO=${_cli_dir}/jacksboro-truncated.terrain -DDAMAGE=truncate:100000
-                   "-DSTDERR_REGEX=truncated:.*file is 100000 bytes"
-                   -P ${_check})
+  # the first payload flipped, and the file cut short. Exit 1 and a message matching `stderr_regex`.
+  function(cooker_verify_damaged how damage stderr_regex)
+    set(copy ${_cli_dir}/jacksboro-${how}.terrain)
+    add_test(NAME cooker.cli.verify_${how}_real_archive
+             COMMAND ${CMAKE_COMMAND} -DCMD=$<TARGET_FILE:terrain-inspect> "-DARGS=--verify|-q|${copy}" -DEXPECT=1
+                     -DCOPY_FROM=${CMAKE_BINARY_DIR}/cooker-test-archives/jacksboro.terrain -DCOPY_TO=${copy}
+                     -DDAMAGE=${damage} "-DSTDERR_REGEX=${stderr_regex}" -P ${_check})
+  endfunction()
+  cooker_verify_damaged(flipped flip:300 "payload_checksum: node [0-5]/[0-9]+/[0-9]+ at offset 128")
+  cooker_verify_damaged(truncated truncate:100000 "truncated:.*file is 100000 bytes")
   set_tests_properties(cooker.cli.json_report cooker.cli.verify_flipped_real_archive
                        cooker.cli.verify_truncated_real_archive PROPERTIES LABELS cooker)
   set_tests_properties(cooker.cli.verify_flipped_real_archive cooker.cli.verify_truncated_real_archive

@@ -1,5 +1,7 @@
 #include "cooker_test_util.h"
 
+#include <gtest/gtest.h>
+
 #include <geotiff/geo_normalize.h>
 #include <geotiff/geotiff.h>
 #include <geotiff/geovalues.h>
@@ -190,6 +192,32 @@ uint64_t count_seam_mismatches(const ArchiveReader& reader, uint64_t& compared, 
     }
   }
   return mismatches;
+}
+
+void write_cook_input(const std::filesystem::path& dir, const std::string& stem, const SyntheticDem& dem, bool tiled,
+                      cook::CookOptions& options) {
+  const std::string tif = (dir / (stem + ".tif")).string();
+  std::string error;
+  ASSERT_TRUE(write_geotiff(tif, dem, tiled, error)) << error;
+  options.inputs = {tif};
+  options.output = (dir / (stem + ".terrain")).string();
+}
+
+void expect_refusal(const Status& st, Error code, std::initializer_list<std::string_view> fragments) {
+  EXPECT_EQ(st.code, code) << st.to_string();
+  for (std::string_view f : fragments) EXPECT_NE(st.message.find(f), std::string::npos) << st.message;
+}
+
+void cook_and_verify(const cook::CookOptions& options, cook::CookReport& report, CookedArchive& archive,
+                     uint64_t& compared) {
+  const Status st = cook::cook(options, {}, report);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  ASSERT_TRUE(archive.open(options.output).ok());
+  const Status v = archive.reader.verify();
+  ASSERT_TRUE(v.ok()) << v.to_string();
+  compared = 0;
+  std::string problem;
+  EXPECT_EQ(count_seam_mismatches(archive.reader, compared, problem), 0u) << problem;
 }
 
 }  // namespace terrain::test

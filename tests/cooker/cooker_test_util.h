@@ -3,8 +3,11 @@
 #pragma once
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
+#include <initializer_list>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "terrain/archive_reader.h"
@@ -33,6 +36,15 @@ struct SyntheticDem {
 
 // Writes a tiled (deflate) or striped GeoTIFF; returns false with a message on failure.
 bool write_geotiff(const std::string& path, const SyntheticDem& dem, bool tiled, std::string& error);
+
+// Writes `dem` as <dir>/<stem>.tif (tiled or striped) and points `options` at it: that file in,
+// <dir>/<stem>.terrain out. A fatal test failure when the GeoTIFF cannot be written (callers wrap
+// the call in ASSERT_NO_FATAL_FAILURE).
+void write_cook_input(const std::filesystem::path& dir, const std::string& stem, const SyntheticDem& dem, bool tiled,
+                      cook::CookOptions& options);
+
+// A refused cook: status `code` and a message that contains each of `fragments`.
+void expect_refusal(const Status& st, Error code, std::initializer_list<std::string_view> fragments);
 
 // A reader plus sampler over a finished archive.
 struct CookedArchive {
@@ -66,5 +78,11 @@ void lonlat_to_frame(const FrameCrs& crs, double lon, double lat, double& x, dou
 // Every same-level edge and parent/child vertex of an archive compared bit for bit (dequantized
 // float32 heights and hole flags). Returns the number of mismatches; `compared` counts pairs.
 uint64_t count_seam_mismatches(const ArchiveReader& reader, uint64_t& compared, std::string& first_problem);
+
+// Cooks `options`, opens the result into `archive` and checks that it verifies and has no seam
+// mismatch; `compared` is the number of vertex pairs the seam walk compared. Fatal test failures
+// when the cook, the open or the verify fails.
+void cook_and_verify(const cook::CookOptions& options, cook::CookReport& report, CookedArchive& archive,
+                     uint64_t& compared);
 
 }  // namespace terrain::test

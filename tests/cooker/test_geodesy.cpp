@@ -108,14 +108,8 @@ void cook_dems(const std::filesystem::path& dir, const std::vector<SyntheticDem>
   o.output = (dir / "out.terrain").string();
   o.heights_only = true;
   o.threads = 2;
-  const Status st = cook::cook(o, {}, out.report);
-  ASSERT_TRUE(st.ok()) << st.to_string();
-  ASSERT_TRUE(out.archive.open(o.output).ok());
-  const Status v = out.archive.reader.verify();
-  ASSERT_TRUE(v.ok()) << v.to_string();
   uint64_t compared = 0;
-  std::string problem;
-  EXPECT_EQ(count_seam_mismatches(out.archive.reader, compared, problem), 0u) << problem;
+  ASSERT_NO_FATAL_FAILURE(cook_and_verify(o, out.report, out.archive, compared));
   EXPECT_GT(compared, 0u);
 }
 
@@ -265,18 +259,13 @@ TEST(Polar, PolarCapIsRefusedWithTheWayRoundAndTheWayRoundWorks) {
     d.values.resize(size_t(d.width) * size_t(d.height));
     for (int row = 0; row < d.height; ++row)
       for (int col = 0; col < d.width; ++col) d.at(col, row) = polar_surface(d.my(row));
-    const std::string tif = (dir / "cap.tif").string(), out = (dir / "cap.terrain").string();
-    std::string error;
-    ASSERT_TRUE(write_geotiff(tif, d, true, error)) << error;
     cook::CookOptions o;
-    o.inputs = {tif};
-    o.output = out;
+    ASSERT_NO_FATAL_FAILURE(write_cook_input(dir, "cap", d, true, o));
+    const std::string tif = o.inputs[0], out = o.output;
     o.heights_only = true;
     cook::CookReport report;
     const Status st = cook::cook(o, {}, report);
-    EXPECT_EQ(st.code, Error::unsupported_input) << st.to_string();
-    EXPECT_NE(st.message.find("up to 89 N/S"), std::string::npos) << st.message;
-    EXPECT_NE(st.message.find(sign > 0 ? "EPSG:3413" : "EPSG:3031"), std::string::npos) << st.message;
+    expect_refusal(st, Error::unsupported_input, {"up to 89 N/S", sign > 0 ? "EPSG:3413" : "EPSG:3031"});
     EXPECT_FALSE(std::filesystem::exists(out));
 
     {  // The tool: exit 1, the message, and an existing output untouched.
@@ -355,12 +344,9 @@ TEST(LonLat, Nad27CookSampledAtAWgs84PointMatchesGdaltransform) {
   d.values.resize(size_t(d.width) * size_t(d.height));
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col) d.at(col, row) = d.mx(col) - 453000.0;
-  const std::string tif = (dir / "nad27.tif").string(), out = (dir / "nad27.terrain").string();
-  std::string error;
-  ASSERT_TRUE(write_geotiff(tif, d, true, error)) << error;
   cook::CookOptions o;
-  o.inputs = {tif};
-  o.output = out;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(dir, "nad27", d, true, o));
+  const std::string out = o.output;
   o.heights_only = true;
   cook::CookReport report;
   ASSERT_TRUE(cook::cook(o, {}, report).ok());

@@ -27,23 +27,12 @@ struct Cooked {
 // that it verifies and has no seam mismatch.
 void cook_dem(const std::string& name, const SyntheticDem& dem, cook::CookOptions options, Cooked& out,
               bool tiled = true) {
-  const auto dir = scratch_dir("cooker-" + name);
-  const std::string tif = (dir / (name + ".tif")).string();
-  std::string error;
-  ASSERT_TRUE(write_geotiff(tif, dem, tiled, error)) << error;
-  out.path = (dir / (name + ".terrain")).string();
-  options.inputs = {tif};
-  options.output = out.path;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-" + name), name, dem, tiled, options));
+  out.path = options.output;
   options.heights_only = true;
   if (options.threads == 0) options.threads = 2;
-  const Status st = cook::cook(options, {}, out.report);
-  ASSERT_TRUE(st.ok()) << st.to_string();
-  ASSERT_TRUE(out.archive.open(out.path).ok());
-  const Status v = out.archive.reader.verify();
-  ASSERT_TRUE(v.ok()) << v.to_string();
   uint64_t compared = 0;
-  std::string problem;
-  EXPECT_EQ(count_seam_mismatches(out.archive.reader, compared, problem), 0u) << problem;
+  cook_and_verify(options, out.report, out.archive, compared);
 }
 
 SyntheticDem utm_dem(int w, int h, double spacing, double east, double north) {
@@ -55,6 +44,22 @@ SyntheticDem utm_dem(int w, int h, double spacing, double east, double north) {
   d.x0 = east;
   d.y0 = north;
   d.epsg_projected = 32632;
+  return d;
+}
+
+// A DEM at one height, in projected CRS `epsg` (0: a GeoTIFF without geokeys).
+SyntheticDem flat_dem(int w, int h, double spacing, double east, double north, double height, int epsg = 32632) {
+  SyntheticDem d = utm_dem(w, h, spacing, east, north);
+  d.epsg_projected = epsg;
+  std::fill(d.values.begin(), d.values.end(), height);
+  return d;
+}
+
+// A WGS 84 longitude/latitude DEM; (west, north) is the centre of its north-west sample.
+SyntheticDem geo_dem(int w, int h, double spacing_deg, double west, double north) {
+  SyntheticDem d = utm_dem(w, h, spacing_deg, west, north);
+  d.epsg_projected = 0;
+  d.epsg_geographic = 4326;
   return d;
 }
 
@@ -98,6 +103,15 @@ SourceCheck check_samples(const SyntheticDem& dem, Cooked& c, double tolerance, 
   return r;
 }
 
+// The bound at every valid sample of `dem`: none without a cooked height (away from the
+// edges), none beyond tolerance + half step + 1 mm.
+void expect_samples_within_bound(const SyntheticDem& dem, Cooked& c, double tolerance, bool geographic = false) {
+  const SourceCheck s = check_samples(dem, c, tolerance, geographic);
+  EXPECT_EQ(s.missing, 0u);
+  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  EXPECT_LE(s.worst_error, tolerance + c.archive.max_half_step() + kMm);
+}
+
 // Whether a node's box reaches within `margin` of the data footprint's boundary (nodes refined
 // only to cover the data up to its edge, where a coarse triangle would drop edge samples).
 bool near_footprint_edge(const WorldInfo& w, const NodeKey& k, double margin) {
@@ -112,8 +126,7 @@ bool near_footprint_edge(const WorldInfo& w, const NodeKey& k, double margin) {
 // Bound: every source sample within half a root step + 1 mm; finer levels only along the data's
 // edges (coverage), none inside.
 TEST(HardCase, ConstantHeight) {
-  SyntheticDem d = utm_dem(200, 200, 1.0, 500000.5, 5000099.5);
-  std::fill(d.values.begin(), d.values.end(), 1234.567);
+  const SyntheticDem d = flat_dem(200, 200, 1.0, 500000.5, 5000099.5, 1234.567);
   Cooked c;
   cook_dem("constant", d, {}, c);
   for (const NodeRecord& n : c.archive.reader.nodes()) {
@@ -140,10 +153,7 @@ TEST(HardCase, VerticalStepOf1000m) {
   o.tolerance_m = 0.5;
   Cooked c;
   cook_dem("step", d, o, c);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
-  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  expect_samples_within_bound(d, c, o.tolerance_m);
   const double cliff_x = d.mx(300) - 0.5;
   for (const NodeRecord& n : c.archive.reader.nodes()) {
     EXPECT_GE(units_to_metres(n.min_height), -62.5 - kMm);
@@ -170,10 +180,7 @@ TEST(HardCase, OneSampleSpikes) {
   cook::CookOptions o;
   Cooked c;
   cook_dem("spikes", d, o, c);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
-  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  expect_samples_within_bound(d, c, o.tolerance_m);
   for (auto [col, row] : spikes) {
     const auto h = c.archive.height(d.mx(col), d.my(row));
     ASSERT_TRUE(h);
@@ -204,10 +211,7 @@ TEST(HardCase, NineKilometresOfReliefInOneRoot) {
   EXPECT_GE(units_to_metres(root.min_height), -430.0 - apron - hs);
   EXPECT_GE(units_to_metres(root.max_height), 8848.0 - hs);
   EXPECT_LE(units_to_metres(root.max_height), 8848.0 + apron + hs);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
-  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  expect_samples_within_bound(d, c, o.tolerance_m);
 }
 
 // 1 mm of relief over 100 m, cooked with a tolerance that resolves it (0.5 mm: the step follows
@@ -251,30 +255,19 @@ TEST(HardCase, NegativeHeights) {
     EXPECT_LT(n.max_height, 0);
     EXPECT_GE(units_to_metres(n.min_height), -430.0 - c.archive.max_half_step() - kMm);
   }
-  const SourceCheck s = check_samples(d, c, o.tolerance_m);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0);
-  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  expect_samples_within_bound(d, c, o.tolerance_m);
 }
 
 // Bound: a clear no_data error naming the file, and no archive written.
 TEST(HardCase, AllNodataIsAClearError) {
-  SyntheticDem d = utm_dem(50, 50, 1.0, 506000.0, 5010000.0);
+  SyntheticDem d = flat_dem(50, 50, 1.0, 506000.0, 5010000.0, NAN);
   d.int16 = true;
   d.nodata = -32768;
-  std::fill(d.values.begin(), d.values.end(), NAN);
-  const auto dir = scratch_dir("cooker-allnodata");
-  const std::string tif = (dir / "void.tif").string();
-  std::string error;
-  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
   cook::CookOptions o;
-  o.inputs = {tif};
-  o.output = (dir / "void.terrain").string();
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-allnodata"), "void", d, false, o));
   cook::CookReport report;
   const Status st = cook::cook(o, {}, report);
-  EXPECT_EQ(st.code, Error::no_data);
-  EXPECT_NE(st.message.find("void.tif"), std::string::npos) << st.message;
-  EXPECT_NE(st.message.find("nodata"), std::string::npos) << st.message;
+  expect_refusal(st, Error::no_data, {"void.tif", "nodata"});
   EXPECT_FALSE(std::filesystem::exists(o.output));
 }
 
@@ -308,9 +301,7 @@ TEST(HardCase, NodataAlongBorders) {
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col)
       if (col < 22 || row < 22) inner.at(col, row) = NAN;
-  const SourceCheck s = check_samples(inner, c, o.tolerance_m);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0);
+  expect_samples_within_bound(inner, c, o.tolerance_m);
   // The filled void carries the plane (harmonic fill of planar surroundings).
   const auto h = c.archive.height(d.mx(100) + 0.5, d.my(100) - 0.5);
   ASSERT_TRUE(h);
@@ -328,14 +319,7 @@ double geo_surface(double lon, double lat) {
 // centre; every sample (projected with GeographicLib independently) within tolerance + half step
 // + 1 mm, so no axis flip, half-sample shift or datum slip.
 TEST(HardCase, GeographicInputAt70North) {
-  SyntheticDem d;
-  d.width = 400;
-  d.height = 300;
-  d.dx = d.dy = 0.0001;
-  d.x0 = 25.0 + 0.00005;
-  d.y0 = 70.53 - 0.00005;
-  d.epsg_geographic = 4326;
-  d.values.resize(size_t(d.width) * size_t(d.height));
+  SyntheticDem d = geo_dem(400, 300, 0.0001, 25.0 + 0.00005, 70.53 - 0.00005);
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col) d.at(col, row) = geo_surface(d.mx(col), d.my(row));
   Cooked c;
@@ -344,23 +328,13 @@ TEST(HardCase, GeographicInputAt70North) {
   const FrameCrs& f = c.archive.reader.world().crs;
   EXPECT_EQ(f.kind, ProjectionKind::transverse_mercator);
   EXPECT_NEAR(f.lon0_deg, 25.02, 1.0 / 3600);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
-  EXPECT_LE(s.worst_error, o.tolerance_m + c.archive.max_half_step() + kMm);
+  expect_samples_within_bound(d, c, o.tolerance_m, true);
 }
 
 // Geographic input across the UTM zone 31/32 boundary (6 E). Bounds: one frame centred on the
 // data (lon0 6.0), every sample on both sides within tolerance + half step + 1 mm, and no seam.
 TEST(HardCase, InputStraddlingAUtmZoneBoundary) {
-  SyntheticDem d;
-  d.width = 500;
-  d.height = 200;
-  d.dx = d.dy = 0.0004;
-  d.x0 = 5.9 + 0.0002;
-  d.y0 = 45.04 - 0.0002;
-  d.epsg_geographic = 4326;
-  d.values.resize(size_t(d.width) * size_t(d.height));
+  SyntheticDem d = geo_dem(500, 200, 0.0004, 5.9 + 0.0002, 45.04 - 0.0002);
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col)
       d.at(col, row) = 800.0 + 60.0 * std::sin(2 * M_PI * d.mx(col) / 0.05) + 900.0 * (d.my(row) - 45.0);
@@ -368,9 +342,7 @@ TEST(HardCase, InputStraddlingAUtmZoneBoundary) {
   cook::CookOptions o;
   cook_dem("utmzones", d, o, c);
   EXPECT_NEAR(c.archive.reader.world().crs.lon0_deg, 6.0, 1e-9);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  expect_samples_within_bound(d, c, o.tolerance_m, true);
 }
 
 // A 45-degree plane at northing 5000 km, 0.5 m samples. Catmull-Rom and the triangulation
@@ -502,21 +474,12 @@ TEST(Determinism, OneAndTwoThreadsGiveIdenticalBytes) {
 
 // A GeoTIFF without geokeys is refused with a message naming --crs; with --crs it cooks.
 TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
-  SyntheticDem d = utm_dem(40, 40, 2.0, 512001.0, 5022079.0);
-  d.epsg_projected = 0;
-  for (double& v : d.values) v = 77.0;
-  const auto dir = scratch_dir("cooker-nocrs");
-  const std::string tif = (dir / "nocrs.tif").string();
-  std::string error;
-  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
+  const SyntheticDem d = flat_dem(40, 40, 2.0, 512001.0, 5022079.0, 77.0, 0);
   cook::CookOptions o;
-  o.inputs = {tif};
-  o.output = (dir / "nocrs.terrain").string();
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-nocrs"), "nocrs", d, false, o));
   o.heights_only = true;
   cook::CookReport report;
-  const Status refused = cook::cook(o, {}, report);
-  EXPECT_EQ(refused.code, Error::invalid_argument);
-  EXPECT_NE(refused.message.find("--crs"), std::string::npos) << refused.message;
+  expect_refusal(cook::cook(o, {}, report), Error::invalid_argument, {"--crs"});
   o.crs = "EPSG:32632";
   ASSERT_TRUE(cook::cook(o, {}, report).ok());
   EXPECT_EQ(report.frame.epsg, 32632);
@@ -525,34 +488,18 @@ TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
 
 // A CRS the cooker cannot use (Web Mercator) is named, with a gdalwarp line to fix it.
 TEST(Inputs, UnsupportedCrsIsNamedWithAGdalwarpLine) {
-  SyntheticDem d = utm_dem(40, 40, 10.0, 1113194.9, 5780000.0);
-  d.epsg_projected = 3857;
-  for (double& v : d.values) v = 5.0;
-  const auto dir = scratch_dir("cooker-3857");
-  const std::string tif = (dir / "webmerc.tif").string();
-  std::string error;
-  ASSERT_TRUE(write_geotiff(tif, d, false, error)) << error;
+  const SyntheticDem d = flat_dem(40, 40, 10.0, 1113194.9, 5780000.0, 5.0, 3857);
   cook::CookOptions o;
-  o.inputs = {tif};
-  o.output = (dir / "webmerc.terrain").string();
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-3857"), "webmerc", d, false, o));
   cook::CookReport report;
-  const Status st = cook::cook(o, {}, report);
-  EXPECT_EQ(st.code, Error::unsupported_input);
-  EXPECT_NE(st.message.find("Pseudo-Mercator"), std::string::npos) << st.message;
-  EXPECT_NE(st.message.find("gdalwarp -t_srs EPSG:32632"), std::string::npos) << st.message;  // 10 E, 46 N
+  // 10 E, 46 N: UTM zone 32.
+  expect_refusal(cook::cook(o, {}, report), Error::unsupported_input, {"Pseudo-Mercator", "gdalwarp -t_srs EPSG:32632"});
 }
 
 // --frame puts geographic input into a given UTM zone. Bound: every sample within tolerance + half
 // step + 1 mm through that zone's projection.
 TEST(Inputs, FrameOverrideProjectsIntoTheGivenFrame) {
-  SyntheticDem d;
-  d.width = 120;
-  d.height = 100;
-  d.dx = d.dy = 0.0002;
-  d.x0 = 9.5 + 0.0001;
-  d.y0 = 46.02 - 0.0001;
-  d.epsg_geographic = 4326;
-  d.values.resize(size_t(d.width) * size_t(d.height));
+  SyntheticDem d = geo_dem(120, 100, 0.0002, 9.5 + 0.0001, 46.02 - 0.0001);
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col) d.at(col, row) = 1500.0 + 30.0 * std::sin(col * 0.05) + 0.4 * row;
   cook::CookOptions o;
@@ -563,9 +510,7 @@ TEST(Inputs, FrameOverrideProjectsIntoTheGivenFrame) {
   EXPECT_EQ(f.epsg, 32632);
   EXPECT_EQ(f.false_easting_m, 500000.0);
   EXPECT_EQ(f.scale_k0, 0.9996);
-  const SourceCheck s = check_samples(d, c, o.tolerance_m, true);
-  EXPECT_EQ(s.missing, 0u);
-  EXPECT_LE(s.worst_excess, 0.0) << "worst error " << s.worst_error;
+  expect_samples_within_bound(d, c, o.tolerance_m, true);
 }
 
 // A raw R16 heightmap (little-endian uint16) with --raw-size, --spacing, --height-scale, --crs
@@ -611,7 +556,5 @@ TEST(Inputs, RawR16HeightmapWithExplicitGeoreferencing) {
   EXPECT_LE(worst, a.max_half_step() + kMm);
   // The wrong size is a clear error naming the expected byte count.
   o.raw_size = {w + 1, h};
-  const Status bad = cook::cook(o, {}, report);
-  EXPECT_EQ(bad.code, Error::unsupported_input);
-  EXPECT_NE(bad.message.find("--raw-size"), std::string::npos) << bad.message;
+  expect_refusal(cook::cook(o, {}, report), Error::unsupported_input, {"--raw-size"});
 }

@@ -243,8 +243,6 @@ OracleResult compare(const RealDem& d, const std::filesystem::path& archive, dou
   return r;
 }
 
-class RealData : public ::testing::TestWithParam<RealDem> {};
-
 std::string dem_name(const ::testing::TestParamInfo<RealDem>& info) { return info.param.name; }
 
 }  // namespace
@@ -260,15 +258,31 @@ OracleResult oracle_on_default_cook(const RealDem& d, double shift, std::string&
   return compare(d, archive, shift, why);
 }
 
+namespace {
+
+// One test per DEM of kDems.
+class RealData : public ::testing::TestWithParam<RealDem> {
+ protected:
+  // The oracle comparison on the default cook of this test's DEM (points shifted by `shift`
+  // samples) into `r`; skips the test (IsSkipped()) when the DEM or its cooked archive is missing.
+  void oracle_or_skip(double shift, OracleResult& r) {
+    TERRAIN_REQUIRE_DATA(dem_path(GetParam()));
+    std::string why;
+    r = oracle_on_default_cook(GetParam(), shift, why);
+    if (r.points == 0) GTEST_SKIP() << why;
+  }
+};
+
+}  // namespace
+
 // The accuracy test on the default cook: >= 10 000 random source samples with data, every
 // one answered and within tolerance + half a step + 1 mm. One documented exception to the bound,
 // asserted so that it shows when it changes: tahoe_highest (see kDems).
 TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
   const RealDem& d = GetParam();
-  TERRAIN_REQUIRE_DATA(dem_path(d));
-  std::string why;
-  const OracleResult r = oracle_on_default_cook(d, 0.0, why);
-  if (r.points == 0) GTEST_SKIP() << why;
+  OracleResult r;
+  oracle_or_skip(0.0, r);
+  if (IsSkipped()) return;
   std::printf("%s: %zu points, %zu answered, worst |cooked - source| %.4f m (bound %.4f m), %zu out of bound, "
               "%zu edge points without terrain\n",
               d.name, r.points, r.answered, r.worst_error, r.bound, r.violations, r.missing_edge);
@@ -292,10 +306,9 @@ TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
 TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
   const RealDem& d = GetParam();
   if (!d.relief || d.lattice_limited) GTEST_SKIP() << d.name << ": a half-sample shift cannot show here";
-  TERRAIN_REQUIRE_DATA(dem_path(d));
-  std::string why;
-  const OracleResult r = oracle_on_default_cook(d, 0.5, why);
-  if (r.points == 0) GTEST_SKIP() << why;
+  OracleResult r;
+  oracle_or_skip(0.5, r);
+  if (IsSkipped()) return;
   std::printf("%s shifted half a sample: %zu of %zu points out of bound (worst %.3f m)\n", d.name, r.violations,
               r.answered, r.worst_error);
   EXPECT_GT(r.violations, r.answered / 100);
@@ -306,10 +319,9 @@ TEST_P(RealData, HalfSampleShiftBreaksTheBound) {
 // DEM including tahoe_highest.
 TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
   const RealDem& d = GetParam();
-  TERRAIN_REQUIRE_DATA(dem_path(d));
-  std::string why;
-  const OracleResult r = oracle_on_default_cook(d, 0.0, why);
-  if (r.points == 0) GTEST_SKIP() << why;
+  OracleResult r;
+  oracle_or_skip(0.0, r);
+  if (IsSkipped()) return;
   std::printf("%s: worst |cooked - source| - recorded node error %.4f m over %zu points\n", d.name,
               r.worst_excess_recorded, r.answered);
   EXPECT_GT(r.answered, 0u);
@@ -333,9 +345,9 @@ TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
   std::ifstream f(report_path);
   const auto report = nlohmann::json::parse(f, nullptr, false);
   ASSERT_TRUE(report.is_object()) << report_path << " is not JSON";
-  std::string why;
-  const OracleResult r = oracle_on_default_cook(d, 0.0, why);
-  if (r.points == 0) GTEST_SKIP() << why;
+  OracleResult r;
+  oracle_or_skip(0.0, r);
+  if (IsSkipped()) return;
   int levels_checked = 0, finest = kLevelCount;
   for (const auto& level : report["levels"])
     if (level["nodes"].get<int>() > 0) finest = std::min(finest, level["level"].get<int>());

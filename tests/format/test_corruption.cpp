@@ -149,26 +149,23 @@ void report(const char* name, const Outcome& o) {
               o.rejected_at_open, o.rejected_at_decode, o.unchanged_ok, codes.c_str());
 }
 
+// `trials` damaged copies (seeded) of the archive at `path`, the outcome printed under `name`.
+Outcome attack_archive(const char* name, const std::string& path, int trials, uint32_t seed) {
+  Outcome o;
+  attack(slurp(path), trials, seed, o);
+  report(name, o);
+  return o;
+}
+
 TEST(Corruption, SyntheticArchiveNeverCrashesAndNeverLies) {
   const auto dir = test::scratch_dir("corruption-synthetic");
   const auto path = (dir / "a.terrain").string();
   WorldInfo w = test::make_world();
   // Compressible surface layers keep the file small, so many trials stay fast under ASan.
-  ArchiveWriter writer;
-  ASSERT_TRUE(writer.open(path).ok());
-  const auto keys = test::sparse_keys();
-  std::vector<uint8_t> payload;
-  for (const NodeKey& k : keys) {
-    test::BuiltNode n = test::make_seed_node(w, k);
-    n.record.child_mask = test::child_mask_of(keys, k);
-    ASSERT_TRUE(encode_node_payload(*n.data, PayloadOptions{}, payload).ok());
-    ASSERT_TRUE(writer.add_node(n.record, payload).ok());
-  }
-  ASSERT_TRUE(writer.finish(w).ok());
-  const auto bytes = slurp(path);
-  Outcome o;
-  attack(bytes, 1500, 42, o);
-  report("synthetic", o);
+  ASSERT_TRUE(test::write_archive_of(path, w, test::sparse_keys(), PayloadOptions{},
+                                     [&](const NodeKey& k) { return test::make_seed_node(w, k); })
+                  .ok());
+  const Outcome o = attack_archive("synthetic", path, 1500, 42);
   EXPECT_EQ(o.trials, 1500);
   EXPECT_GT(o.rejected_at_open, 300);
   EXPECT_GT(o.rejected_at_decode, 100);
@@ -184,10 +181,7 @@ TEST(Corruption, RealKilaueaArchiveNeverCrashesAndNeverLies) {
   const auto path = (dir / "kilauea.terrain").string();
   WorldInfo w;
   ASSERT_TRUE(test::write_dem_archive(path, dem, w).ok());
-  const auto bytes = slurp(path);
-  Outcome o;
-  attack(bytes, 1200, 7, o);
-  report("kilauea", o);
+  const Outcome o = attack_archive("kilauea", path, 1200, 7);
   EXPECT_EQ(o.trials, 1200);
   EXPECT_GT(o.rejected_at_decode, 100);
   std::filesystem::remove_all(dir);

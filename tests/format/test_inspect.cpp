@@ -9,12 +9,15 @@
 
 #include "archive_fixture.h"
 #include "inspect.h"
+#include "scratch_archive_test.h"
 #include "test_data.h"
 
 namespace terrain {
 namespace {
 
-TEST(Inspect, TransverseMercatorMatchesUtmZone5) {
+using Inspect = test::ScratchArchiveTest;
+
+TEST_F(Inspect, TransverseMercatorMatchesUtmZone5) {
   FrameCrs c = test::make_world().crs;  // UTM 5N as explicit parameters
   for (auto [lon, lat] : {std::pair{-155.28, 19.41}, {-153.0, 0.5}, {-156.9, 22.1}}) {
     double x = 0, y = 0;
@@ -34,14 +37,14 @@ TEST(Inspect, TransverseMercatorMatchesUtmZone5) {
   EXPECT_NEAR(y, 0, 1e-6);
 }
 
-TEST(Inspect, LonLatIsRefusedForALocalFrame) {
+TEST_F(Inspect, LonLatIsRefusedForALocalFrame) {
   double x = 0, y = 0;
   const Status s = inspect::lonlat_to_frame(FrameCrs{}, 1, 2, x, y);
   EXPECT_EQ(s.code, Error::invalid_argument);
   EXPECT_NE(s.message.find("local"), std::string::npos);
 }
 
-TEST(Inspect, ParsesPairsKeysAndPointFiles) {
+TEST_F(Inspect, ParsesPairsKeysAndPointFiles) {
   double a = 0, b = 0;
   EXPECT_TRUE(inspect::parse_pair("12.5,-3", a, b));
   EXPECT_EQ(a, 12.5);
@@ -54,39 +57,33 @@ TEST(Inspect, ParsesPairsKeysAndPointFiles) {
   EXPECT_EQ(k, (NodeKey{2, 10, 7}));
   EXPECT_FALSE(inspect::parse_key("6/0/0", k));
   EXPECT_FALSE(inspect::parse_key("1/2", k));
-  const auto dir = test::scratch_dir("inspect-points");
   {
-    std::ofstream f(dir / "p.txt");
+    std::ofstream f(dir_ / "p.txt");
     f << "# x y\n1 2\n\n3.5, 4  # comment\n";
   }
   std::vector<inspect::SamplePoint> pts;
-  ASSERT_TRUE(inspect::read_point_file((dir / "p.txt").string(), false, pts).ok());
+  ASSERT_TRUE(inspect::read_point_file((dir_ / "p.txt").string(), false, pts).ok());
   ASSERT_EQ(pts.size(), 2u);
   EXPECT_EQ(pts[1].x, 3.5);
   {
-    std::ofstream f(dir / "bad.txt");
+    std::ofstream f(dir_ / "bad.txt");
     f << "1 2\noops\n";
   }
   pts.clear();
-  const Status s = inspect::read_point_file((dir / "bad.txt").string(), false, pts);
+  const Status s = inspect::read_point_file((dir_ / "bad.txt").string(), false, pts);
   EXPECT_EQ(s.code, Error::invalid_argument);
   EXPECT_NE(s.message.find(":2:"), std::string::npos) << s.message;
-  std::filesystem::remove_all(dir);
 }
 
-TEST(Inspect, ExportWritesEveryLayerNorthUp) {
-  const auto dir = test::scratch_dir("inspect-export");
-  const auto path = (dir / "a.terrain").string();
-  ASSERT_TRUE(test::write_seed_archive(path, true).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path).ok());
+TEST_F(Inspect, ExportWritesEveryLayerNorthUp) {
+  ASSERT_NO_FATAL_FAILURE(open_seed_chain());
   std::vector<std::string> written;
-  ASSERT_TRUE(inspect::export_node(reader, {0, 4, 3}, (dir / "out").string(), written).ok());
+  ASSERT_TRUE(inspect::export_node(reader_, {0, 4, 3}, (dir_ / "out").string(), written).ok());
   EXPECT_EQ(written.size(), 8u);
   for (const auto& f : written) EXPECT_TRUE(std::filesystem::exists(f)) << f;
   NodeData d;
-  ASSERT_TRUE(reader.decode_node(size_t(reader.find({0, 4, 3})), d).ok());
-  auto in = OIIO::ImageInput::open((dir / "out/heights.png").string());
+  ASSERT_TRUE(reader_.decode_node(size_t(reader_.find({0, 4, 3})), d).ok());
+  auto in = OIIO::ImageInput::open((dir_ / "out/heights.png").string());
   ASSERT_TRUE(in);
   ASSERT_EQ(in->spec().width, kHeightSamples);
   std::vector<uint16_t> png(static_cast<size_t>(kHeightCount));
@@ -95,7 +92,7 @@ TEST(Inspect, ExportWritesEveryLayerNorthUp) {
   for (int j = 0; j < kHeightSamples; ++j)
     for (int i = 0; i < kHeightSamples; ++i)
       ASSERT_EQ(png[size_t((kHeightSamples - 1 - j) * kHeightSamples + i)], d.heights[size_t(j * kHeightSamples + i)]);
-  auto exr = OIIO::ImageInput::open((dir / "out/heights.exr").string());
+  auto exr = OIIO::ImageInput::open((dir_ / "out/heights.exr").string());
   ASSERT_TRUE(exr);
   std::vector<float> m(static_cast<size_t>(kHeightCount));
   ASSERT_TRUE(exr->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, m.data()));
@@ -104,22 +101,16 @@ TEST(Inspect, ExportWritesEveryLayerNorthUp) {
   // The hole centre (300, 200) = vertex (88, 16) is NaN.
   EXPECT_TRUE(std::isnan(m[size_t((128 - 16) * kHeightSamples + 88)]));
   std::vector<std::string> none;
-  EXPECT_EQ(inspect::export_node(reader, {0, 9, 9}, (dir / "x").string(), none).code, Error::node_not_found);
-  std::filesystem::remove_all(dir);
+  EXPECT_EQ(inspect::export_node(reader_, {0, 9, 9}, (dir_ / "x").string(), none).code, Error::node_not_found);
 }
 
-TEST(Inspect, SummaryJsonCarriesTheFacts) {
-  const auto dir = test::scratch_dir("inspect-json");
-  const auto path = (dir / "a.terrain").string();
-  ASSERT_TRUE(test::write_seed_archive(path, true).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path).ok());
+TEST_F(Inspect, SummaryJsonCarriesTheFacts) {
+  ASSERT_NO_FATAL_FAILURE(open_seed_chain());
   std::string text;
-  ASSERT_TRUE(inspect::summary_json(reader, path, text).ok());
+  ASSERT_TRUE(inspect::summary_json(reader_, path_, text).ok());
   EXPECT_NE(text.find("\"epsg\": 32605"), std::string::npos);
   EXPECT_NE(text.find("\"nodes\": 6"), std::string::npos);
   EXPECT_NE(text.find("\"tool\": \"test\""), std::string::npos);
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <functional>
 
 #include "archive_fixture.h"
+#include "scratch_archive_test.h"
 #include "terrain/bc_decode.h"
 #include "terrain/progress.h"
 #include "test_data.h"
@@ -115,13 +116,8 @@ TEST(Status, NamesAreStableAndMessagesCarryThem) {
 }
 
 // verify() reads everything and names the first node that breaks a promise of the directory.
-class Verify : public ::testing::Test {
+class Verify : public test::ScratchArchiveTest {
  protected:
-  void SetUp() override {
-    dir_ = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-    path_ = (dir_ / "a.terrain").string();
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
   // Writes the seed chain with `mutate` applied to node `victim` before encoding.
   Status write_with(const NodeKey& victim, const std::function<void(test::BuiltNode&)>& mutate) {
     WorldInfo w = test::make_world(1, 1);
@@ -143,8 +139,6 @@ class Verify : public ::testing::Test {
     if (Status s = reader.open(path_); !s.ok()) return s;
     return reader.verify();
   }
-  std::filesystem::path dir_;
-  std::string path_;
 };
 
 TEST_F(Verify, HeightOutsideMinMax) {

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "archive_fixture.h"
+#include "scratch_archive_test.h"
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
 #include "terrain/height_codec.h"
@@ -55,15 +56,16 @@ void expect_world_equal(const WorldInfo& a, const WorldInfo& b) {
   EXPECT_EQ(a.cook_info_json, b.cook_info_json);
 }
 
-class ArchiveRoundTrip : public ::testing::Test {
+class ArchiveRoundTrip : public test::ScratchArchiveTest {
  protected:
-  void SetUp() override {
-    dir_ = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-    path_ = (dir_ / "world.terrain").string();
+  ArchiveRoundTrip() : ScratchArchiveTest("world.terrain") {}
+  // Writes the synthetic world over the sparse tree (make_world(), sparse_keys()) to path_ and
+  // opens it in `reader`.
+  void open_sparse_world(ArchiveReader& reader) {
+    ASSERT_TRUE(test::write_synthetic_archive(path_, world_, test::sparse_keys()).ok());
+    ASSERT_TRUE(reader.open(path_).ok());
   }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::filesystem::path dir_;
-  std::string path_;
+  const WorldInfo world_ = make_world();
 };
 
 TEST_F(ArchiveRoundTrip, EverySectionAndRecordFieldSurvives) {
@@ -102,16 +104,13 @@ TEST_F(ArchiveRoundTrip, EverySectionAndRecordFieldSurvives) {
 }
 
 TEST_F(ArchiveRoundTrip, DecodeOnlyRequestedSections) {
-  const WorldInfo w = make_world();
-  const auto keys = test::sparse_keys();
-  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
   ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
+  ASSERT_NO_FATAL_FAILURE(open_sparse_world(reader));
   auto got = std::make_unique<NodeData>();
   got->normals_bc3.fill(0xAB);
   got->cones_bc3.fill(0xCD);
   ASSERT_TRUE(reader.decode_node(0, *got, kSectionHeights | kSectionSplat).ok());
-  const auto want = test::make_synthetic_node(w, reader.nodes()[0].key, 1);
+  const auto want = test::make_synthetic_node(world_, reader.nodes()[0].key, 1);
   EXPECT_EQ(got->heights, want.data->heights);
   EXPECT_EQ(got->splat, want.data->splat);
   EXPECT_TRUE(std::all_of(got->normals_bc3.begin(), got->normals_bc3.end(), [](uint8_t b) { return b == 0xAB; }));
@@ -353,11 +352,8 @@ TEST_F(ArchiveRoundTrip, OpenFromMemoryMatchesOpenFromFile) {
 }
 
 TEST_F(ArchiveRoundTrip, ConcurrentDecodesFromManyThreadsAgree) {
-  const WorldInfo w = make_world();
-  const auto keys = test::sparse_keys();
-  ASSERT_TRUE(test::write_synthetic_archive(path_, w, keys).ok());
   ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
+  ASSERT_NO_FATAL_FAILURE(open_sparse_world(reader));
   std::vector<std::unique_ptr<NodeData>> want;
   for (size_t i = 0; i < reader.nodes().size(); ++i) {
     want.push_back(std::make_unique<NodeData>());

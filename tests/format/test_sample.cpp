@@ -5,31 +5,33 @@
 #include <random>
 
 #include "archive_fixture.h"
+#include "scratch_archive_test.h"
 #include "terrain/sample.h"
 #include "test_data.h"
 
 namespace terrain {
 namespace {
 
-class Sampler : public ::testing::Test {
+class Sampler : public test::ScratchArchiveTest {
  protected:
-  void SetUp() override {
-    dir_ = test::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-    path_ = (dir_ / "a.terrain").string();
+  // Writes an archive of the one root `rec` with `node`'s sections and opens it in reader_.
+  void open_one_root(const WorldInfo& w, const NodeRecord& rec, const NodeData& node) {
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open(path_).ok());
+    std::vector<uint8_t> payload;
+    ASSERT_TRUE(encode_node_payload(node, {}, payload).ok());
+    ASSERT_TRUE(writer.add_node(rec, payload).ok());
+    ASSERT_TRUE(writer.finish(w).ok());
+    ASSERT_TRUE(reader_.open(path_).ok());
   }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::filesystem::path dir_;
-  std::string path_;
 };
 
 // The seed chain is the plane h = (2x + 4y) / 32 m (x, y from the origin) with a round hole of
 // radius 20 m at (300, 200); its finest node is 0/4/3.
 TEST_F(Sampler, PlaneIsReproducedExactlyFromTheFinestNode) {
-  ASSERT_TRUE(test::write_seed_archive(path_, true).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
-  const WorldInfo& w = reader.world();
-  SurfaceSampler sampler(reader);
+  ASSERT_NO_FATAL_FAILURE(open_seed_chain());
+  const WorldInfo& w = reader_.world();
+  SurfaceSampler sampler(reader_);
   std::mt19937 rng(3);
   int checked = 0, holes = 0;
   for (int t = 0; t < 2000; ++t) {
@@ -56,11 +58,9 @@ TEST_F(Sampler, PlaneIsReproducedExactlyFromTheFinestNode) {
 }
 
 TEST_F(Sampler, OutsideTheFrameIsNodata) {
-  ASSERT_TRUE(test::write_seed_archive(path_, true).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
-  const WorldInfo& w = reader.world();
-  SurfaceSampler sampler(reader);
+  ASSERT_NO_FATAL_FAILURE(open_seed_chain());
+  const WorldInfo& w = reader_.world();
+  SurfaceSampler sampler(reader_);
   std::optional<SurfaceSample> got;
   for (auto [dx, dy] : {std::pair{-1.0, 10.0}, {10.0, -0.001}, {2048.5, 10.0}, {10.0, 3000.0}}) {
     ASSERT_TRUE(sampler.sample(w.origin_x_m + dx, w.origin_y_m + dy, got).ok());
@@ -78,8 +78,6 @@ TEST_F(Sampler, OutsideTheFrameIsNodata) {
 TEST_F(Sampler, QuadsSplitAlongTheSouthWestToNorthEastDiagonal) {
   WorldInfo w = test::make_world(1, 1);
   w.step_log2 = {0, 0, 0, 0, 0, 0};
-  ArchiveWriter writer;
-  ASSERT_TRUE(writer.open(path_).ok());
   auto node = std::make_unique<NodeData>();
   std::fill(node->albedo_bc1.begin(), node->albedo_bc1.end(), 0);
   for (size_t b = 0; b < node->albedo_bc1.size(); b += 8) node->albedo_bc1[b] = 1;  // c0 = 1 > c1 = 0: opaque
@@ -87,13 +85,8 @@ TEST_F(Sampler, QuadsSplitAlongTheSouthWestToNorthEastDiagonal) {
   NodeRecord rec;
   rec.key = {5, 0, 0};
   rec.max_height = 1024;
-  std::vector<uint8_t> payload;
-  ASSERT_TRUE(encode_node_payload(*node, {}, payload).ok());
-  ASSERT_TRUE(writer.add_node(rec, payload).ok());
-  ASSERT_TRUE(writer.finish(w).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
-  SurfaceSampler sampler(reader);
+  ASSERT_NO_FATAL_FAILURE(open_one_root(w, rec, *node));
+  SurfaceSampler sampler(reader_);
   const double s = vertex_spacing_m(5);
   auto at = [&](double fu, double fv) {
     std::optional<SurfaceSample> got;
@@ -107,9 +100,7 @@ TEST_F(Sampler, QuadsSplitAlongTheSouthWestToNorthEastDiagonal) {
 }
 
 TEST_F(Sampler, TrianglesTouchingAHoleAreDropped) {
-  WorldInfo w = test::make_world(1, 1);
-  ArchiveWriter writer;
-  ASSERT_TRUE(writer.open(path_).ok());
+  const WorldInfo w = test::make_world(1, 1);
   auto node = std::make_unique<NodeData>();
   // Opaque everywhere except vertex (40, 50): texel (42, 52) -> block (10, 13), pixel (2, 0).
   for (size_t b = 0; b < node->albedo_bc1.size(); b += 8) node->albedo_bc1[b] = 1;
@@ -120,14 +111,9 @@ TEST_F(Sampler, TrianglesTouchingAHoleAreDropped) {
   NodeRecord rec;
   rec.key = {5, 0, 0};
   rec.flags = kNodeFlagHasHoles;
-  std::vector<uint8_t> payload;
-  ASSERT_TRUE(encode_node_payload(*node, {}, payload).ok());
-  ASSERT_TRUE(writer.add_node(rec, payload).ok());
-  ASSERT_TRUE(writer.finish(w).ok());
-  ArchiveReader reader;
-  ASSERT_TRUE(reader.open(path_).ok());
-  ASSERT_TRUE(reader.verify().ok());
-  SurfaceSampler sampler(reader);
+  ASSERT_NO_FATAL_FAILURE(open_one_root(w, rec, *node));
+  ASSERT_TRUE(reader_.verify().ok());
+  SurfaceSampler sampler(reader_);
   const double s = vertex_spacing_m(5);
   auto has = [&](double u, double v) {
     std::optional<SurfaceSample> got;

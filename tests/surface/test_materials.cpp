@@ -11,6 +11,19 @@
 using namespace terrain;
 using namespace terrain::cook;
 
+namespace {
+// An active mask range lo .. hi with a `fade`-wide ramp, inv_fade set as the parser sets it.
+MaskRange active_range(double lo, double hi, double fade) {
+  MaskRange m;
+  m.active = true;
+  m.lo = lo;
+  m.hi = hi;
+  m.fade = fade;
+  m.inv_fade = fade > 0 ? 1.0 / fade : 0.0;
+  return m;
+}
+}  // namespace
+
 TEST(Materials, BuiltInPaletteCoversRealLandscapes) {
   const MaterialRules r = default_material_rules();
   std::set<std::string> names;
@@ -88,12 +101,7 @@ TEST(Materials, ParseErrorsNameTheProblem) {
 }
 
 TEST(Materials, MaskIsOneHalfAtTheBoundsAndLinearInTheFade) {
-  MaskRange m;
-  m.active = true;
-  m.lo = 10;
-  m.hi = 20;
-  m.fade = 4;
-  m.inv_fade = 0.25;
+  MaskRange m = active_range(10, 20, 4);
   EXPECT_DOUBLE_EQ(mask_value(m, 10), 0.5);
   EXPECT_DOUBLE_EQ(mask_value(m, 20), 0.5);
   EXPECT_DOUBLE_EQ(mask_value(m, 15), 1.0);
@@ -105,16 +113,12 @@ TEST(Materials, MaskIsOneHalfAtTheBoundsAndLinearInTheFade) {
 }
 
 TEST(Materials, AspectRangesWrapAroundNorth) {
-  MaskRange m;
-  m.active = true;
-  m.lo = 300;  // north-facing: 300 .. 60 through 0
-  m.hi = 60;
+  MaskRange m = active_range(300, 60, 0);  // north-facing: 300 .. 60 through 0
   EXPECT_EQ(aspect_mask_value(m, 0), 1.0);
   EXPECT_EQ(aspect_mask_value(m, 359), 1.0);
   EXPECT_EQ(aspect_mask_value(m, 59), 1.0);
   EXPECT_EQ(aspect_mask_value(m, 180), 0.0);
-  m.fade = 20;
-  m.inv_fade = 0.05;
+  m = active_range(300, 60, 20);
   EXPECT_DOUBLE_EQ(aspect_mask_value(m, 300), 0.5);
   EXPECT_DOUBLE_EQ(aspect_mask_value(m, 290), 0.0);
   EXPECT_DOUBLE_EQ(aspect_mask_value(m, 70), 0.0);

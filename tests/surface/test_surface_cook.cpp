@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "materials.h"
@@ -111,6 +112,17 @@ void make_mask(const fs::path& dir) {
   std::ofstream(dir / "mask.txt") << "0 0 0 0\n1099.99 0 0 0\n1100 255 255 255\n3000 255 255 255\n";
   run("gdaldem color-relief -q -nearest_color_entry " + dem + " " + q(dir / "mask.txt") + " " + q(dir / "mask_utm.tif"));
   run("gdalwarp -q -overwrite -t_srs EPSG:4326 -r near " + q(dir / "mask_utm.tif") + " " + q(dir / "mask_4326.tif"));
+}
+
+// The nodes of `level` in `a`, each with its index in `b` (a cook of the same DEM without an
+// overlay): (index in a, index in b). A node `b` lacks is a fatal test failure.
+void nodes_in_both(const ArchiveReader& a, const ArchiveReader& b, int level, std::vector<std::pair<size_t, size_t>>& out) {
+  for (size_t i = 0; i < a.nodes().size(); ++i) {
+    if (a.nodes()[i].key.level != uint32_t(level)) continue;
+    const int64_t j = b.find(a.nodes()[i].key);
+    ASSERT_GE(j, 0);
+    out.emplace_back(i, size_t(j));
+  }
 }
 
 }  // namespace
@@ -245,13 +257,12 @@ TEST(SurfaceCook, HoleMaskInAnotherCrsPunchesExactHolesAndDropsTriangles) {
 
   uint64_t dem_holes = 0, dem_hole_lost = 0, interior = 0, interior_missed = 0, border = 0, border_wrong = 0, extra = 0;
   uint64_t tri_plain = 0, tri_masked = 0;
-  for (size_t i = 0; i < masked.nodes().size(); ++i) {
+  std::vector<std::pair<size_t, size_t>> nodes;
+  ASSERT_NO_FATAL_FAILURE(nodes_in_both(masked, plain, level, nodes));
+  for (const auto& [i, j] : nodes) {
     const NodeRecord& rec = masked.nodes()[i];
-    if (rec.key.level != uint32_t(level)) continue;
-    const int64_t j = plain.find(rec.key);
-    ASSERT_GE(j, 0);
     NodeData dp, dm;
-    ASSERT_TRUE(plain.decode_node(size_t(j), dp, kSectionAlbedo).ok());
+    ASSERT_TRUE(plain.decode_node(j, dp, kSectionAlbedo).ok());
     ASSERT_TRUE(masked.decode_node(i, dm, kSectionAlbedo).ok());
     const auto ap = terrain::cook::test::decode_albedo(dp), am = terrain::cook::test::decode_albedo(dm);
     auto hole = [](const std::vector<uint8_t>& a, int vi, int vj) {
@@ -397,14 +408,13 @@ TEST(SurfaceCook, LandcoverClassesDriveTheSplatMaterials) {
   const Grid g = warp_to_grid(dir / "lc_4326.tif", dir, "lc_oracle", w.origin_x_m, w.origin_y_m, s, n, "near");
   ASSERT_GE(g.bands, 1);
   uint64_t checked = 0, wrong = 0, plain_same = 0, by_class[3] = {0, 0, 0};
-  for (size_t i = 0; i < lc.nodes().size(); ++i) {
+  std::vector<std::pair<size_t, size_t>> nodes;
+  ASSERT_NO_FATAL_FAILURE(nodes_in_both(lc, plain, level, nodes));
+  for (const auto& [i, j] : nodes) {
     const NodeRecord& rec = lc.nodes()[i];
-    if (rec.key.level != uint32_t(level)) continue;
-    const int64_t j = plain.find(rec.key);
-    ASSERT_GE(j, 0);
     NodeData d, dp;
     ASSERT_TRUE(lc.decode_node(i, d, kSectionAlbedo | kSectionSplat).ok());
-    ASSERT_TRUE(plain.decode_node(size_t(j), dp, kSectionSplat).ok());
+    ASSERT_TRUE(plain.decode_node(j, dp, kSectionSplat).ok());
     const auto alb = terrain::cook::test::decode_albedo(d);
     for (int sj = 0; sj < kSplatSamples; ++sj)
       for (int si = 0; si < kSplatSamples; ++si) {

@@ -54,10 +54,8 @@ void expect_exact_punch_through(const bench::DemNode& node, const NodeData& d) {
 }  // namespace
 
 TEST(SurfaceReal, KilaueaSeaHolesSurviveCompressionExactly) {
-  const auto path = terrain::test::data_file("kilauea_utm5n.tif");
-  TERRAIN_REQUIRE_DATA(path);
-  const auto dem = load("kilauea_utm5n.tif");
-  const auto nodes = nodes_with_holes(dem, 4, 6, 6);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("kilauea_utm5n.tif"));
+  const auto nodes = nodes_with_holes(load("kilauea_utm5n.tif"), 4, 6, 6);
   ASSERT_GE(nodes.size(), 3u);
   for (const auto& n : nodes)
     for (BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
@@ -68,10 +66,8 @@ TEST(SurfaceReal, KilaueaSeaHolesSurviveCompressionExactly) {
 }
 
 TEST(SurfaceReal, N22W160VoidsSurviveCompressionExactly) {
-  const auto path = terrain::test::data_file("N22W160.hgt.zip");
-  TERRAIN_REQUIRE_DATA(path);
-  const auto dem = load("N22W160.hgt.zip");
-  const auto nodes = nodes_with_holes(dem, 5, 6, 6);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("N22W160.hgt.zip"));
+  const auto nodes = nodes_with_holes(load("N22W160.hgt.zip"), 5, 6, 6);
   ASSERT_GE(nodes.size(), 3u);
   for (const auto& n : nodes) {
     const Cooked c = cook_node(n, default_rules(), BcQuality::balanced);
@@ -82,8 +78,7 @@ TEST(SurfaceReal, N22W160VoidsSurviveCompressionExactly) {
 }
 
 TEST(SurfaceReal, KilaueaNeighboursAgreeInTheirOverlap) {
-  const auto path = terrain::test::data_file("kilauea_utm5n.tif");
-  TERRAIN_REQUIRE_DATA(path);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("kilauea_utm5n.tif"));
   const auto dem = load("kilauea_utm5n.tif");
   // Caldera area, level 3 (4 m vertices on 30 m data), an east-west and a south-north pair.
   bench::DemNode a, east, north;
@@ -128,8 +123,7 @@ TEST(SurfaceReal, KilaueaNeighboursAgreeInTheirOverlap) {
 }
 
 TEST(SurfaceReal, TahoeHighestHitSpikyNormalsAndCones) {
-  const auto path = terrain::test::data_file("tahoe_lidar_highesthit.tif");
-  TERRAIN_REQUIRE_DATA(path);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("tahoe_lidar_highesthit.tif"));
   const auto dem = load("tahoe_lidar_highesthit.tif");
   bench::DemNode n;
   bench::make_dem_node(dem, 0, 1, 1, 2, n);
@@ -214,8 +208,7 @@ AlbedoPsnr albedo_psnr(const std::vector<bench::DemNode>& nodes) {
 }  // namespace
 
 TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
-  const auto path = terrain::test::data_file("kilauea_utm5n.tif");
-  TERRAIN_REQUIRE_DATA(path);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("kilauea_utm5n.tif"));
   const auto dem = load("kilauea_utm5n.tif");
   std::vector<bench::DemNode> nodes;
   for (uint32_t k = 0; k < 6; ++k) {
@@ -240,8 +233,7 @@ TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
 // within the measured gap of squish (bound 0.4 dB; 0.26 dB on these nodes), and own-cluster (ordering
 // search) is at least libsquish cluster fit's PSNR (+0.03 dB on these nodes, a tie on the bench's).
 TEST(SurfaceReal, AlbedoEncodersAgainstTheLibrariesOnOetztal) {
-  const auto path = terrain::test::data_file("srtm_oetztal.tif");
-  TERRAIN_REQUIRE_DATA(path);
+  TERRAIN_REQUIRE_DATA(terrain::test::data_file("srtm_oetztal.tif"));
   const auto dem = load("srtm_oetztal.tif");
   // Six level-5 nodes with data, spread over the raster like terrain-bc-bench picks them.
   const uint32_t nx = bench::nodes_across(dem, 5, false), ny = bench::nodes_across(dem, 5, true);

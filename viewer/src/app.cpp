@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "session.h"
+#include "terrain/cli_checks.h"
 #include "window.h"
 
 namespace terrain::view {
@@ -26,10 +27,7 @@ Status load_camera_path(const std::string& path, double fovy, std::vector<PathKe
   if (!in) return Status::failure(Error::io_open, "cannot open camera path " + path);
   std::string line;
   int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
+  while (cli::next_line(in, line, number)) {
     std::istringstream ls(line);
     std::vector<double> v;
     double x;

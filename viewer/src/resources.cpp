@@ -16,6 +16,16 @@ Status find_memory(const Context& ctx, uint32_t type_bits, VkMemoryPropertyFlags
   return Status::failure(Error::internal, "vulkan: no memory type fits");
 }
 
+// Allocates memory for `req` (of a type with `want`, else `fallback`) for a buffer or image to bind.
+Status allocate_memory(const Context& ctx, const VkMemoryRequirements& req, VkMemoryPropertyFlags want,
+                       VkMemoryPropertyFlags fallback, VkDeviceMemory& out) {
+  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  ai.allocationSize = req.size;
+  TV_TRY(find_memory(ctx, req.memoryTypeBits, want, fallback, ai.memoryTypeIndex));
+  VK_TRY(vkAllocateMemory(ctx.device, &ai, nullptr, &out));
+  return Status::success();
+}
+
 Status create_buffer(const Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, VkMemoryPropertyFlags want,
                      VkMemoryPropertyFlags fallback, bool map, Buffer& out) {
   VkBufferCreateInfo bci{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
@@ -24,10 +34,7 @@ Status create_buffer(const Context& ctx, VkDeviceSize size, VkBufferUsageFlags u
   VK_TRY(vkCreateBuffer(ctx.device, &bci, nullptr, &out.buffer));
   VkMemoryRequirements req;
   vkGetBufferMemoryRequirements(ctx.device, out.buffer, &req);
-  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  ai.allocationSize = req.size;
-  TV_TRY(find_memory(ctx, req.memoryTypeBits, want, fallback, ai.memoryTypeIndex));
-  VK_TRY(vkAllocateMemory(ctx.device, &ai, nullptr, &out.memory));
+  TV_TRY(allocate_memory(ctx, req, want, fallback, out.memory));
   VK_TRY(vkBindBufferMemory(ctx.device, out.buffer, out.memory, 0));
   out.size = size;
   if (map) VK_TRY(vkMapMemory(ctx.device, out.memory, 0, VK_WHOLE_SIZE, 0, &out.mapped));
@@ -53,23 +60,20 @@ void destroy_buffer(const Context& ctx, Buffer& b) {
 
 Status create_image(const Context& ctx, VkFormat format, uint32_t width, uint32_t height, uint32_t layers, uint32_t mips,
                     VkImageUsageFlags usage, VkImageAspectFlags aspect, bool array_view, Image& out) {
-  VkImageCreateInfo ici{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  ici.imageType = VK_IMAGE_TYPE_2D;
-  ici.format = format;
-  ici.extent = {width, height, 1};
-  ici.mipLevels = mips;
-  ici.arrayLayers = layers;
-  ici.samples = VK_SAMPLE_COUNT_1_BIT;
-  ici.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ici.usage = usage;
-  ici.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  const VkImageCreateInfo ici{.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
+                              .imageType = VK_IMAGE_TYPE_2D,
+                              .format = format,
+                              .extent = {width, height, 1},
+                              .mipLevels = mips,
+                              .arrayLayers = layers,
+                              .samples = VK_SAMPLE_COUNT_1_BIT,
+                              .tiling = VK_IMAGE_TILING_OPTIMAL,
+                              .usage = usage,
+                              .initialLayout = VK_IMAGE_LAYOUT_UNDEFINED};
   VK_TRY(vkCreateImage(ctx.device, &ici, nullptr, &out.image));
   VkMemoryRequirements req;
   vkGetImageMemoryRequirements(ctx.device, out.image, &req);
-  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  ai.allocationSize = req.size;
-  TV_TRY(find_memory(ctx, req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, ai.memoryTypeIndex));
-  VK_TRY(vkAllocateMemory(ctx.device, &ai, nullptr, &out.memory));
+  TV_TRY(allocate_memory(ctx, req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, out.memory));
   VK_TRY(vkBindImageMemory(ctx.device, out.image, out.memory, 0));
   VkImageViewCreateInfo vci{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vci.image = out.image;

@@ -1,7 +1,7 @@
 // Shared by the command-line tools only (terrain-cook, terrain-inspect, terrain-view; needs CLI11):
 // numeric flag checks with short messages ("--tolerance: must be > 0, got -1" instead of CLI11's
-// "not in range 0.000000 to 1797693134862315..."), the exit-code footer of every --help, and the
-// last-resort guard that keeps exceptions from escaping main().
+// "not in range 0.000000 to 1797693134862315..."), the exit-code footer of every --help, the line
+// reader of the text files the tools take, and the last-resort guard that keeps exceptions from escaping main().
 #pragma once
 #include <CLI/CLI.hpp>
 
@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <istream>
 #include <new>
 #include <string>
 
@@ -55,6 +56,15 @@ inline CLI::Validator in_range(double lo, double hi) {
 inline CLI::Validator int_range(long long lo, long long hi) {
   const std::string rule = "an integer " + std::to_string(lo) + ".." + std::to_string(hi);
   return number_check(rule, [lo, hi](double v) { return v >= double(lo) && v <= double(hi) && v == std::floor(v); });
+}
+
+// Reads the next line of a text input the tools take (point files, camera paths) with its '#'
+// comment cut off; `number` counts the lines read, for messages. False at the end of `in`.
+inline bool next_line(std::istream& in, std::string& line, int& number) {
+  if (!std::getline(in, line)) return false;
+  ++number;
+  if (const auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
+  return true;
 }
 
 // Runs `body` and turns anything it throws into a message and exit 1: nothing escapes main()
