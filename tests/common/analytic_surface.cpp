@@ -61,16 +61,11 @@ void for_each_patch_normal(int p, int q, Vertex&& vertex, Hole&& hole, Emit&& em
     emit(n);
   };
   auto quad = [&](int i, int j, const int dl[4]) {  // dl: south, west, north, east
-    int vi[4] = {i, i + 1, i + 1, i}, vj[4] = {j, j, j + 1, j + 1};
-    for (int k = 0; k < 4; ++k) {
-      const int li = vi[k] - p * 16, lj = vj[k] - q * 16;
-      if (lj == 0 && dl[0]) vi[k] = vi[k] >> dl[0] << dl[0];
-      if (lj == 16 && dl[2]) vi[k] = vi[k] >> dl[2] << dl[2];
-      if (li == 0 && dl[1]) vj[k] = vj[k] >> dl[1] << dl[1];
-      if (li == 16 && dl[3]) vj[k] = vj[k] >> dl[3] << dl[3];
+    const PatchMesh mesh{p, q, 0, {dl[0], dl[1], dl[2], dl[3]}};
+    for (int t = 0; t < 2; ++t) {
+      const PatchTriangle tr = stitched_quad_triangle(mesh, i - p * kQuadsPerPatch, j - q * kQuadsPerPatch, t);
+      tri(tr.v[0].i, tr.v[0].j, tr.v[1].i, tr.v[1].j, tr.v[2].i, tr.v[2].j);
     }
-    tri(vi[0], vj[0], vi[1], vj[1], vi[2], vj[2]);
-    tri(vi[0], vj[0], vi[2], vj[2], vi[3], vj[3]);
   };
   const int zero[4] = {0, 0, 0, 0};
   for (int j = q * 16; j < q * 16 + 16; ++j)

@@ -6,6 +6,7 @@
 
 #include "gpu_types.h"
 #include "terrain/format.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::view {
 
@@ -43,6 +44,6 @@ Cone decode_cone(const std::array<uint8_t, 4>& texel, const float* sin2_table);
 // sin^2(half angle(a) + margin) per alpha value a, or -1 where the patch must never be culled.
 void cone_sin2_table(double margin_deg, float out[256]);
 // Largest edge LOD delta whose stitched triangles the cooked cones include.
-inline constexpr uint32_t kConeMaxStitchDelta = 4;
+inline constexpr uint32_t kConeMaxStitchDelta = uint32_t(terrain::kMaxConeStitchDelta);
 
 }  // namespace terrain::view
