@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <tuple>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -99,18 +100,12 @@ std::string unmet_tolerance_warning(const CookReport& r) {
                      r.tolerance_m, r.leaf_error_max_m, why);
 }
 
-// The root grid and the data footprint: the report states what the archive's metadata holds
-// (WorldInfo and CookReport name these members the same).
-template <class From, class To>
-void copy_grid(const From& from, To& to) {
-  to.origin_x_m = from.origin_x_m;
-  to.origin_y_m = from.origin_y_m;
-  to.roots_x = from.roots_x;
-  to.roots_y = from.roots_y;
-  to.extent_min_x_m = from.extent_min_x_m;
-  to.extent_min_y_m = from.extent_min_y_m;
-  to.extent_max_x_m = from.extent_max_x_m;
-  to.extent_max_y_m = from.extent_max_y_m;
+// The root grid and the data footprint, which the report states as the archive's metadata holds
+// them (WorldInfo and CookReport name these members the same): grid_of(report) = grid_of(world).
+template <class T>
+auto grid_of(T& t) {
+  return std::tie(t.origin_x_m, t.origin_y_m, t.roots_x, t.roots_y, t.extent_min_x_m, t.extent_min_y_m,
+                  t.extent_max_x_m, t.extent_max_y_m);
 }
 
 uint64_t peak_rss_bytes() {
@@ -206,7 +201,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
                   .extent_min_y_m = fy0,
                   .extent_max_x_m = fx1,
                   .extent_max_y_m = fy1};
-  copy_grid(world, report);
+  grid_of(report) = grid_of(world);
   const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
   mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin,
                            ctx.origin_x + report.roots_x * kRootSizeM + margin,

@@ -87,6 +87,16 @@ std::filesystem::path default_archive(const RealDem& d) {
   return bin_dir().parent_path() / "cooker-test-archives" / (std::string(d.name) + ".terrain");
 }
 
+// The default cook's --report file: skips the calling test when the fixture has not made it,
+// fails it when the file is not a JSON object (the caller checks IsSkipped() || HasFatalFailure()).
+void load_default_report(const RealDem& d, nlohmann::json& out) {
+  const std::filesystem::path path = std::filesystem::path(default_archive(d)).replace_extension(".json");
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " missing (the cooker.cook fixture makes it)";
+  std::ifstream f(path);
+  out = nlohmann::json::parse(f, nullptr, false);
+  ASSERT_TRUE(out.is_object()) << path << " is not JSON";
+}
+
 bool run(const std::string& cmd, std::string& out) {
   out.clear();
   FILE* p = popen(cmd.c_str(), "r");
@@ -327,12 +337,9 @@ TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
 TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  auto report_path = default_archive(d);
-  report_path.replace_extension(".json");
-  if (!std::filesystem::exists(report_path)) GTEST_SKIP() << report_path << " missing (the cooker.cook fixture makes it)";
-  std::ifstream f(report_path);
-  const auto report = nlohmann::json::parse(f, nullptr, false);
-  ASSERT_TRUE(report.is_object()) << report_path << " is not JSON";
+  nlohmann::json report;
+  load_default_report(d, report);
+  if (IsSkipped() || HasFatalFailure()) return;
   std::string why;
   const OracleResult r = oracle_on_default_cook(d, 0.0, why);
   if (r.points == 0) GTEST_SKIP() << why;
@@ -371,14 +378,11 @@ TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
 TEST_P(RealData, ReportStatesTheSurfaceStatistics) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  auto report_path = default_archive(d);
-  report_path.replace_extension(".json");
-  if (!std::filesystem::exists(report_path)) GTEST_SKIP() << report_path << " missing (the cooker.cook fixture makes it)";
-  std::ifstream f(report_path);
-  const auto report = nlohmann::json::parse(f, nullptr, false);
-  ASSERT_TRUE(report.is_object()) << report_path << " is not JSON";
+  nlohmann::json report;
+  load_default_report(d, report);
+  if (IsSkipped() || HasFatalFailure()) return;
   if (!report["output"]["surface_layers"].get<bool>()) GTEST_SKIP() << d.name << " is cooked heights-only";
-  ASSERT_TRUE(report.contains("surface") && report["surface"].contains("cones")) << report_path;
+  ASSERT_TRUE(report.contains("surface") && report["surface"].contains("cones")) << d.name << ": no cone statistics";
   const auto& surface = report["surface"];
   const auto& cones = surface["cones"];
   const double nodes = report["output"]["nodes"].get<double>();
