@@ -13,7 +13,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <fmt/format.h>
+#include <iterator>
 #include <memory>
+#include <utility>
 
 namespace terrain::cook {
 namespace {
@@ -199,25 +201,17 @@ Status parse_tm(const std::string& spec, SourceCrs& out) {
     double v = 0;
     if (!parse_double(value, v))
       return Status::failure(Error::invalid_argument, fmt::format("--crs {}: {}={} is not a number", spec, key, value));
-    if (key == "lon0") {
-      crs.tm.lon0_deg = v;
-      have_lon0 = true;
-    } else if (key == "lat0") {
-      crs.tm.lat0_deg = v;
-    } else if (key == "k0") {
-      crs.tm.scale_k0 = v;
-    } else if (key == "x0") {
-      crs.tm.false_easting_m = v;
-    } else if (key == "y0") {
-      crs.tm.false_northing_m = v;
-    } else if (key == "a") {
-      crs.tm.semi_major_m = v;
-    } else if (key == "rf") {
-      crs.tm.inverse_flattening = v;
-    } else {
+    const std::pair<const char*, double*> numeric_keys[] = {
+        {"lon0", &crs.tm.lon0_deg},        {"lat0", &crs.tm.lat0_deg},          {"k0", &crs.tm.scale_k0},
+        {"x0", &crs.tm.false_easting_m},   {"y0", &crs.tm.false_northing_m},    {"a", &crs.tm.semi_major_m},
+        {"rf", &crs.tm.inverse_flattening}};
+    const auto it = std::find_if(std::begin(numeric_keys), std::end(numeric_keys),
+                                 [&](const auto& k) { return key == k.first; });
+    if (it == std::end(numeric_keys))
       return Status::failure(Error::invalid_argument,
                              fmt::format("--crs {}: unknown key '{}' (lon0, lat0, k0, x0, y0, ellps, a, rf)", spec, key));
-    }
+    *it->second = v;
+    have_lon0 = have_lon0 || key == "lon0";
   }
   if (!have_lon0) return Status::failure(Error::invalid_argument, fmt::format("--crs {}: lon0= is required", spec));
   if (std::fabs(crs.tm.lon0_deg) > 180 || std::fabs(crs.tm.lat0_deg) >= 90 || !(crs.tm.scale_k0 > 0) ||

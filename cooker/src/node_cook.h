@@ -29,7 +29,7 @@ struct CookContext {
   bool heights_only = false;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
-  const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes rasters (cook.cpp), or null
+  const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes / --landcover rasters (overlays.cpp), or null
   PayloadOptions payload;
 
   explicit CookContext(const Raster& r) : source(&r), surface(r) {}

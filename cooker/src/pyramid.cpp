@@ -20,11 +20,31 @@ double node_range_bound(const CookContext& ctx, const RangeIndex& index, const N
                                    int(std::floor(rmax)) + 3);
 }
 
+// One node's surface statistics into the cook's totals (every field of SurfaceStats).
+void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
+  t.cpu_normals += n.seconds_normals;
+  t.cpu_albedo += n.seconds_albedo;
+  t.cpu_splat += n.seconds_splat;
+  t.cpu_cones += n.seconds_cones;
+  t.normal_err_max_deg = std::max(t.normal_err_max_deg, n.normal_err_max_deg);
+  t.normal_err_sum_deg += n.normal_err_sum_deg;
+  t.normal_samples += n.normal_samples;
+  t.albedo_sq_err_sum += n.albedo_sq_err_sum;
+  t.albedo_samples += n.albedo_samples;
+  t.cone_exact_deg_sum += n.cone_exact_deg_sum;
+  t.cone_encoded_deg_sum += n.cone_encoded_deg_sum;
+  t.cone_patches += n.cone_patches;
+  t.cone_patches_never_cull += n.cone_patches_never_cull;
+}
+
+double rms_of(const ErrorStats& e) { return e.samples ? std::sqrt(e.sum_sq / double(e.samples)) : 0.0; }
+
 }  // namespace
 
 Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x, uint32_t roots_y, int threads, ArchiveWriter& writer,
-                     const ProgressFn& progress, PyramidStats& out) {
-  out = PyramidStats{};
+                     const ProgressFn& progress, CookReport& report) {
+  std::array<ErrorStats, kLevelCount> level_error{};
+  ErrorStats leaf;  // each source sample against the finest node covering it
   const int nthreads = resolve_threads(threads);
   const int level_count = kRootLevel - ctx.finest_level + 1;
   // Where even the finest level's vertices are further apart than half a source sample, widen the
@@ -53,7 +73,7 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
   const size_t batch = size_t(16) * size_t(nthreads);
   std::vector<NodeResult> results;
   for (int level = kRootLevel; level >= ctx.finest_level && !keys.empty(); --level) {
-    LevelStats& ls = out.levels[size_t(level)];
+    LevelStats& ls = report.levels[size_t(level)];
     {
       std::vector<double> bound(keys.size(), 0.0);
       parallel_for(keys.size(), nthreads, [&](size_t i) { bound[i] = node_range_bound(ctx, index, keys[i]); });
@@ -67,7 +87,7 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
                                       int(ctx.step_log2[size_t(level + 1)]));
       for (int l = level; l >= 0; --l) ctx.step_log2[size_t(l)] = uint8_t(step);  // finer levels: until cooked
     }
-    ErrorStats& le = out.level_error[size_t(level)];
+    ErrorStats& le = level_error[size_t(level)];
     std::vector<NodeKey> next;
     for (size_t start = 0; start < keys.size(); start += batch) {
       const size_t n = std::min(batch, keys.size() - start);
@@ -82,23 +102,13 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
         le.add(r.error.total);
         for (int c = 0; c < 4; ++c) {
           if (r.record.child_mask & (1u << c)) next.push_back(child_of(r.record.key, c));
-          else out.leaf.add(r.error.quadrant[size_t(c)]);
+          else leaf.add(r.error.quadrant[size_t(c)]);
         }
-        out.vertices += r.vertices;
-        out.cpu_heights += r.cpu_heights;
-        out.cpu_error += r.cpu_error;
-        out.cpu_surface += r.cpu_surface;
-        out.cpu_encode += r.cpu_encode;
-        SurfaceStats& s = out.surface;
-        s.seconds_normals += r.surface.seconds_normals;
-        s.seconds_albedo += r.surface.seconds_albedo;
-        s.seconds_splat += r.surface.seconds_splat;
-        s.seconds_cones += r.surface.seconds_cones;
-        s.normal_err_max_deg = std::max(s.normal_err_max_deg, r.surface.normal_err_max_deg);
-        s.normal_err_sum_deg += r.surface.normal_err_sum_deg;
-        s.normal_samples += r.surface.normal_samples;
-        s.albedo_sq_err_sum += r.surface.albedo_sq_err_sum;
-        s.albedo_samples += r.surface.albedo_samples;
+        report.cpu_heights += r.cpu_heights;
+        report.cpu_error += r.cpu_error;
+        report.cpu_surface += r.cpu_surface;
+        report.cpu_encode += r.cpu_encode;
+        add_surface_stats(report.surface, r.surface);
         r.payload = {};
       }
       if (progress) {
@@ -107,16 +117,20 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
           return Status::failure(Error::cancelled, "cancelled");
       }
     }
-    out.nodes += ls.nodes;
+    report.nodes += ls.nodes;
     ls.error_samples = le.samples;
     ls.error_max_m = le.max_m;
-    ls.error_rms_m = le.samples ? std::sqrt(le.sum_sq / double(le.samples)) : 0.0;
+    ls.error_rms_m = rms_of(le);
     ls.uncovered_samples = le.uncovered;
     std::sort(next.begin(), next.end(), key_less);
     keys = std::move(next);
   }
-  out.output_vertices = out.nodes * uint64_t(kHeightCount);
-  for (int l = 0; l < kLevelCount; ++l) out.levels[size_t(l)].step_log2 = ctx.step_log2[size_t(l)];
+  report.output_vertices = report.nodes * uint64_t(kHeightCount);
+  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].step_log2 = ctx.step_log2[size_t(l)];
+  report.leaf_error_samples = leaf.samples;
+  report.leaf_error_max_m = leaf.max_m;
+  report.leaf_error_rms_m = rms_of(leaf);
+  report.leaf_uncovered_samples = leaf.uncovered;
   return Status::success();
 }
 

@@ -13,16 +13,10 @@
 
 namespace terrain::cook {
 
-struct PyramidStats {
-  std::array<LevelStats, kLevelCount> levels{};
-  std::array<ErrorStats, kLevelCount> level_error{};
-  ErrorStats leaf;  // each source sample against the finest node covering it
-  uint64_t nodes = 0, vertices = 0, output_vertices = 0;
-  double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
-  SurfaceStats surface;
-};
-
+// Fills the pyramid's part of `report` (levels, nodes, full-detail error, output vertices, the CPU
+// seconds per node stage and the surface totals), summed in key order onto the zeros cook() starts
+// the report with.
 Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x, uint32_t roots_y, int threads, ArchiveWriter& writer,
-                     const ProgressFn& progress, PyramidStats& out);
+                     const ProgressFn& progress, CookReport& report);
 
 }  // namespace terrain::cook

@@ -18,13 +18,7 @@ void merge(float& lo, float& hi, float vlo, float vhi) {
 
 void RangeIndex::build(const Raster& r) {
   levels_.clear();
-  Level base;
-  base.w = (r.width + kBase - 1) / kBase;
-  base.h = (r.height + kBase - 1) / kBase;
-  const size_t n = size_t(base.w) * size_t(base.h);
-  base.lo.assign(n, NAN);
-  base.hi.assign(n, NAN);
-  base.local.assign(n, 0.0f);
+  Level base = Level::empty((r.width + kBase - 1) / kBase, (r.height + kBase - 1) / kBase);
   for (int by = 0; by < base.h; ++by)
     for (int bx = 0; bx < base.w; ++bx) {
       const size_t b = size_t(by) * size_t(base.w) + size_t(bx);
@@ -46,13 +40,7 @@ void RangeIndex::build(const Raster& r) {
   levels_.push_back(std::move(base));
   while (levels_.back().w > 1 || levels_.back().h > 1) {
     const Level& f = levels_.back();
-    Level c;
-    c.w = (f.w + 1) / 2;
-    c.h = (f.h + 1) / 2;
-    const size_t m = size_t(c.w) * size_t(c.h);
-    c.lo.assign(m, NAN);
-    c.hi.assign(m, NAN);
-    c.local.assign(m, 0.0f);
+    Level c = Level::empty((f.w + 1) / 2, (f.h + 1) / 2);
     for (int y = 0; y < f.h; ++y)
       for (int x = 0; x < f.w; ++x) {
         const size_t s = size_t(y) * size_t(f.w) + size_t(x), d = size_t(y / 2) * size_t(c.w) + size_t(x / 2);

@@ -6,6 +6,7 @@
 // fallback within [min, max]. So over a rectangle the surface range is at most
 //   (max - min of its samples) + 0.5625 * (largest 4x4 tap range inside it).
 #pragma once
+#include <cmath>
 #include <vector>
 
 #include "raster.h"
@@ -23,6 +24,10 @@ class RangeIndex {
   struct Level {
     int w = 0, h = 0;
     std::vector<float> lo, hi, local;  // per block; NaN lo/hi = no data
+    static Level empty(int w, int h) {  // w x h blocks without data
+      const size_t n = size_t(w) * size_t(h);
+      return {w, h, std::vector<float>(n, NAN), std::vector<float>(n, NAN), std::vector<float>(n, 0.0f)};
+    }
   };
   std::vector<Level> levels_;  // levels_[k]: blocks of 4 << k samples
 };

@@ -1,4 +1,5 @@
 // The cook report: JSON for --report / --json, and the closing summary lines.
+#include <cmath>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -12,6 +13,11 @@ constexpr const char* kSectionNames[5] = {"heights", "normals", "albedo", "splat
 
 }  // namespace
 
+double SurfaceTotals::albedo_psnr_db() const {
+  if (!albedo_samples || !(albedo_sq_err_sum > 0)) return 0.0;
+  return 10.0 * std::log10(255.0 * 255.0 / (albedo_sq_err_sum / double(albedo_samples)));
+}
+
 std::string report_json(const CookReport& r) {
   nlohmann::ordered_json j;
   j["inputs"] = r.input_descriptions;
@@ -22,6 +28,7 @@ std::string report_json(const CookReport& r) {
                  {"voids_filled_regions", r.voids_filled_regions},
                  {"hole_samples", r.hole_samples},
                  {"hole_regions", r.hole_regions},
+                 {"void_fill_residual_m", r.void_fill_residual_m},
                  {"implausible_samples", r.implausible_samples}};
   j["frame"] = {{"description", describe_frame(r.frame)},
                 {"reason", r.frame_reason},
@@ -54,7 +61,10 @@ std::string report_json(const CookReport& r) {
                       {"uncovered_samples", s.uncovered_samples}});
   }
   j["levels"] = levels;
-  j["full_detail_error"] = {{"samples", r.leaf_error_samples}, {"max_m", r.leaf_error_max_m}, {"rms_m", r.leaf_error_rms_m}};
+  j["full_detail_error"] = {{"samples", r.leaf_error_samples},
+                            {"max_m", r.leaf_error_max_m},
+                            {"rms_m", r.leaf_error_rms_m},
+                            {"uncovered_samples", r.leaf_uncovered_samples}};
   nlohmann::ordered_json sections;
   for (int s = 0; s < 5; ++s)
     sections[kSectionNames[s]] = {{"stored_bytes", r.section_stored_bytes[size_t(s)]},
@@ -70,10 +80,22 @@ std::string report_json(const CookReport& r) {
                 {"height_samples_per_cpu_s", r.height_samples_per_cpu_second}};
   j["peak_rss_bytes"] = r.peak_rss_bytes;
   j["memory_limit_bytes"] = r.memory_limit_bytes;
-  if (r.surface_layers)
-    j["surface"] = {{"normal_err_max_deg", r.normal_err_max_deg},
-                    {"normal_err_mean_deg", r.normal_err_mean_deg},
-                    {"albedo_psnr_db", r.albedo_psnr_db}};
+  if (r.surface_layers) {
+    const SurfaceTotals& t = r.surface;
+    j["surface"] = {{"normal_err_max_deg", t.normal_err_max_deg},
+                    {"normal_err_mean_deg", t.normal_err_mean_deg()},
+                    {"normal_samples", t.normal_samples},
+                    {"albedo_psnr_db", t.albedo_psnr_db()},
+                    {"albedo_samples", t.albedo_samples},
+                    {"cones", {{"patches", t.cone_patches},
+                               {"patches_never_cull", t.cone_patches_never_cull},
+                               {"exact_mean_deg", t.cone_exact_mean_deg()},
+                               {"encoded_mean_deg", t.cone_encoded_mean_deg()}}},
+                    {"cpu_s", {{"normals", t.cpu_normals},
+                               {"albedo", t.cpu_albedo},
+                               {"splat", t.cpu_splat},
+                               {"cones", t.cpu_cones}}}};
+  }
   j["warnings"] = r.warnings;
   return j.dump(2);
 }
@@ -99,6 +121,18 @@ std::string report_summary(const CookReport& r) {
   s += fmt::format("full detail: error max {:.3f} m, rms {:.3f} m over {} sample measurements (each valid source "
                    "sample against every finest node touching it)\n", r.leaf_error_max_m,
                    r.leaf_error_rms_m, r.leaf_error_samples);
+  if (r.leaf_uncovered_samples)
+    s += fmt::format("full detail: {} valid source sample measurements lie under dropped (hole) triangles\n",
+                     r.leaf_uncovered_samples);
+  if (r.surface_layers) {
+    const SurfaceTotals& t = r.surface;
+    s += fmt::format("surface: normals err max {:.2f} deg, mean {:.2f} deg; albedo PSNR {:.1f} dB; cones over {} "
+                     "patches: mean half-angle {:.1f} deg exact, {:.1f} deg encoded, {} never cull (cpu: normals {:.2f}, "
+                     "albedo {:.2f}, splat {:.2f}, cones {:.2f})\n",
+                     t.normal_err_max_deg, t.normal_err_mean_deg(), t.albedo_psnr_db(), t.cone_patches,
+                     t.cone_exact_mean_deg(), t.cone_encoded_mean_deg(), t.cone_patches_never_cull, t.cpu_normals,
+                     t.cpu_albedo, t.cpu_splat, t.cpu_cones);
+  }
   s += "bytes:";
   for (int k = 0; k < 5; ++k) s += fmt::format(" {} {}", kSectionNames[k], r.section_stored_bytes[size_t(k)]);
   s += "\n";

@@ -18,6 +18,98 @@ bool all_zero(const uint8_t* p, size_t n) {
 }
 bool finite(double v) { return std::isfinite(v); }
 
+// Little-endian fixed-width fields, by the member's type.
+void store_le(uint8_t* p, uint8_t v) { *p = v; }
+void store_le(uint8_t* p, uint32_t v) { store_u32(p, v); }
+void store_le(uint8_t* p, uint64_t v) { store_u64(p, v); }
+void store_le(uint8_t* p, int32_t v) { store_i32(p, v); }
+void store_le(uint8_t* p, float v) { store_f32(p, v); }
+void store_le(uint8_t* p, double v) { store_f64(p, v); }
+void load_le(const uint8_t* p, uint8_t& v) { v = *p; }
+void load_le(const uint8_t* p, uint32_t& v) { v = load_u32(p); }
+void load_le(const uint8_t* p, uint64_t& v) { v = load_u64(p); }
+void load_le(const uint8_t* p, int32_t& v) { v = load_i32(p); }
+void load_le(const uint8_t* p, float& v) { v = load_f32(p); }
+void load_le(const uint8_t* p, double& v) { v = load_f64(p); }
+
+// Each structure's fields as (offset, member), listed once: the encoder stores and the decoder loads
+// the same list (`S` is the structure, const or not). Fields that are constants, enums or reserved
+// are written and checked by hand.
+template <class S, class F>
+void header_fields(S& h, F&& f) {
+  namespace o = layout::header;
+  f(o::format_version, h.format_version);
+  f(o::node_count, h.node_count);
+  f(o::file_size, h.file_size);
+  f(o::payload_offset, h.payload_offset);
+  f(o::payload_size, h.payload_size);
+  f(o::directory_offset, h.directory_offset);
+  f(o::directory_size, h.directory_size);
+  f(o::metadata_offset, h.metadata_offset);
+  f(o::metadata_size, h.metadata_size);
+  f(o::directory_crc32, h.directory_crc32);
+  f(o::metadata_crc32, h.metadata_crc32);
+}
+
+template <class S, class F>
+void world_fields(S& w, F&& f) {
+  namespace o = layout::metadata;
+  f(o::roots_x, w.roots_x);
+  f(o::roots_y, w.roots_y);
+  f(o::origin_x_m, w.origin_x_m);
+  f(o::origin_y_m, w.origin_y_m);
+  f(o::extent_min_x_m, w.extent_min_x_m);
+  f(o::extent_min_y_m, w.extent_min_y_m);
+  f(o::extent_max_x_m, w.extent_max_x_m);
+  f(o::extent_max_y_m, w.extent_max_y_m);
+  f(o::epsg, w.crs.epsg);
+  f(o::semi_major_m, w.crs.semi_major_m);
+  f(o::inverse_flattening, w.crs.inverse_flattening);
+  f(o::lat0_deg, w.crs.lat0_deg);
+  f(o::lon0_deg, w.crs.lon0_deg);
+  f(o::scale_k0, w.crs.scale_k0);
+  f(o::false_easting_m, w.crs.false_easting_m);
+  f(o::false_northing_m, w.crs.false_northing_m);
+}
+
+// A palette record after its 32-byte name (SPEC "Metadata").
+template <class S, class F>
+void material_fields(S& m, F&& f) {
+  f(32u, m.albedo_srgb[0]);
+  f(33u, m.albedo_srgb[1]);
+  f(34u, m.albedo_srgb[2]);
+  f(35u, m.flags);
+  f(36u, m.roughness);
+  f(40u, m.detail_scale_m);
+  f(44u, m.detail_strength);
+  f(48u, m.height_blend);
+}
+
+// key.level is a u32 member stored in one byte: by hand.
+template <class S, class F>
+void entry_fields(S& r, F&& f) {
+  namespace o = layout::entry;
+  f(o::child_mask, r.child_mask);
+  f(o::flags, r.flags);
+  f(o::x, r.key.x);
+  f(o::y, r.key.y);
+  f(o::height_offset, r.height_offset);
+  f(o::min_height, r.min_height);
+  f(o::max_height, r.max_height);
+  f(o::geometric_error_m, r.geometric_error_m);
+  f(o::payload_crc32, r.payload_crc32);
+  f(o::payload_offset, r.payload_offset);
+  f(o::payload_size, r.payload_size);
+}
+
+// Field visitors that store into / load from the bytes at `p`.
+auto storer(uint8_t* p) {
+  return [p](uint32_t at, const auto& v) { store_le(p + at, v); };
+}
+auto loader(const uint8_t* p) {
+  return [p](uint32_t at, auto& v) { load_le(p + at, v); };
+}
+
 }  // namespace
 
 // ---- header ---------------------------------------------------------------------------------------
@@ -25,19 +117,9 @@ void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]) {
   namespace f = layout::header;
   std::memset(out, 0, layout::kHeaderSize);
   std::memcpy(out + f::magic, layout::kMagic.data(), layout::kMagic.size());
-  store_u32(out + f::format_version, h.format_version);
   store_u32(out + f::header_size, layout::kHeaderSize);
   store_u32(out + f::header_flags, 0);
-  store_u32(out + f::node_count, h.node_count);
-  store_u64(out + f::file_size, h.file_size);
-  store_u64(out + f::payload_offset, h.payload_offset);
-  store_u64(out + f::payload_size, h.payload_size);
-  store_u64(out + f::directory_offset, h.directory_offset);
-  store_u64(out + f::directory_size, h.directory_size);
-  store_u64(out + f::metadata_offset, h.metadata_offset);
-  store_u64(out + f::metadata_size, h.metadata_size);
-  store_u32(out + f::directory_crc32, h.directory_crc32);
-  store_u32(out + f::metadata_crc32, h.metadata_crc32);
+  header_fields(h, storer(out));
   store_u32(out + f::header_crc32, crc32_of({out, f::header_crc32}));
 }
 
@@ -61,16 +143,7 @@ Status decode_header(std::span<const uint8_t> file, Header& h) {
   if (load_u32(p + f::header_flags) != 0) return fail(Error::header_invalid, "reserved header_flags bits are set");
   if (!all_zero(p + f::reserved, f::header_crc32 - f::reserved))
     return fail(Error::header_invalid, "reserved header bytes 88..123 are not zero");
-  h.node_count = load_u32(p + f::node_count);
-  h.file_size = load_u64(p + f::file_size);
-  h.payload_offset = load_u64(p + f::payload_offset);
-  h.payload_size = load_u64(p + f::payload_size);
-  h.directory_offset = load_u64(p + f::directory_offset);
-  h.directory_size = load_u64(p + f::directory_size);
-  h.metadata_offset = load_u64(p + f::metadata_offset);
-  h.metadata_size = load_u64(p + f::metadata_size);
-  h.directory_crc32 = load_u32(p + f::directory_crc32);
-  h.metadata_crc32 = load_u32(p + f::metadata_crc32);
+  header_fields(h, loader(p));
 
   if (h.file_size > file.size())
     return fail(Error::truncated, "file is " + std::to_string(file.size()) + " bytes, the header says " +
@@ -152,24 +225,9 @@ void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
   store_u32(p + f::height_samples, kHeightSamples);
   store_f64(p + f::level0_node_size_m, kLevel0NodeSizeM);
   store_i32(p + f::height_unit_log2, kHeightUnitLog2);
-  store_u32(p + f::roots_x, w.roots_x);
-  store_u32(p + f::roots_y, w.roots_y);
+  world_fields(w, storer(p));
   for (int l = 0; l < kLevelCount; ++l) p[f::step_log2 + l] = w.step_log2[l];
-  store_f64(p + f::origin_x_m, w.origin_x_m);
-  store_f64(p + f::origin_y_m, w.origin_y_m);
-  store_f64(p + f::extent_min_x_m, w.extent_min_x_m);
-  store_f64(p + f::extent_min_y_m, w.extent_min_y_m);
-  store_f64(p + f::extent_max_x_m, w.extent_max_x_m);
-  store_f64(p + f::extent_max_y_m, w.extent_max_y_m);
   p[f::projection_kind] = uint8_t(w.crs.kind);
-  store_i32(p + f::epsg, w.crs.epsg);
-  store_f64(p + f::semi_major_m, w.crs.semi_major_m);
-  store_f64(p + f::inverse_flattening, w.crs.inverse_flattening);
-  store_f64(p + f::lat0_deg, w.crs.lat0_deg);
-  store_f64(p + f::lon0_deg, w.crs.lon0_deg);
-  store_f64(p + f::scale_k0, w.crs.scale_k0);
-  store_f64(p + f::false_easting_m, w.crs.false_easting_m);
-  store_f64(p + f::false_northing_m, w.crs.false_northing_m);
   store_u32(p + f::crs_name_size, uint32_t(w.crs.name.size()));
   store_u32(p + f::palette_count, uint32_t(w.palette.size()));
   store_u32(p + f::cook_info_size, uint32_t(w.cook_info_json.size()));
@@ -179,14 +237,7 @@ void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
   for (const Material& m : w.palette) {
     uint8_t* r = p + at;
     std::memcpy(r, m.name.data(), std::min<size_t>(m.name.size(), layout::kMaterialNameBytes - 1));
-    r[32] = m.albedo_srgb[0];
-    r[33] = m.albedo_srgb[1];
-    r[34] = m.albedo_srgb[2];
-    r[35] = m.flags;
-    store_f32(r + 36, m.roughness);
-    store_f32(r + 40, m.detail_scale_m);
-    store_f32(r + 44, m.detail_strength);
-    store_f32(r + 48, m.height_blend);
+    material_fields(m, storer(r));
     at += layout::kMaterialRecordSize;
   }
   std::memcpy(p + at, w.cook_info_json.data(), w.cook_info_json.size());
@@ -206,24 +257,9 @@ Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
       load_u32(p + f::reserved3) != 0)
     return bad("reserved metadata bytes are not zero");
   w = WorldInfo{};
-  w.roots_x = load_u32(p + f::roots_x);
-  w.roots_y = load_u32(p + f::roots_y);
+  world_fields(w, loader(p));
   for (int l = 0; l < kLevelCount; ++l) w.step_log2[l] = p[f::step_log2 + l];
-  w.origin_x_m = load_f64(p + f::origin_x_m);
-  w.origin_y_m = load_f64(p + f::origin_y_m);
-  w.extent_min_x_m = load_f64(p + f::extent_min_x_m);
-  w.extent_min_y_m = load_f64(p + f::extent_min_y_m);
-  w.extent_max_x_m = load_f64(p + f::extent_max_x_m);
-  w.extent_max_y_m = load_f64(p + f::extent_max_y_m);
   w.crs.kind = ProjectionKind(p[f::projection_kind]);
-  w.crs.epsg = load_i32(p + f::epsg);
-  w.crs.semi_major_m = load_f64(p + f::semi_major_m);
-  w.crs.inverse_flattening = load_f64(p + f::inverse_flattening);
-  w.crs.lat0_deg = load_f64(p + f::lat0_deg);
-  w.crs.lon0_deg = load_f64(p + f::lon0_deg);
-  w.crs.scale_k0 = load_f64(p + f::scale_k0);
-  w.crs.false_easting_m = load_f64(p + f::false_easting_m);
-  w.crs.false_northing_m = load_f64(p + f::false_northing_m);
   const uint64_t name_size = load_u32(p + f::crs_name_size);
   const uint64_t palette_count = load_u32(p + f::palette_count);
   const uint64_t cook_size = load_u32(p + f::cook_info_size);
@@ -244,12 +280,7 @@ Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
     if (len >= layout::kMaterialNameBytes || !all_zero(r + len, layout::kMaterialNameBytes - len))
       return bad("material " + std::to_string(i) + " name is not NUL-terminated and zero-padded");
     m.name.assign(reinterpret_cast<const char*>(r), len);
-    m.albedo_srgb = {r[32], r[33], r[34]};
-    m.flags = r[35];
-    m.roughness = load_f32(r + 36);
-    m.detail_scale_m = load_f32(r + 40);
-    m.detail_strength = load_f32(r + 44);
-    m.height_blend = load_f32(r + 48);
+    material_fields(m, loader(r));
     at += layout::kMaterialRecordSize;
   }
   w.cook_info_json.assign(reinterpret_cast<const char*>(p + at), cook_size);
@@ -261,17 +292,7 @@ void encode_entry(const NodeRecord& r, uint8_t out[layout::kEntrySize]) {
   namespace f = layout::entry;
   std::memset(out, 0, layout::kEntrySize);
   out[f::level] = uint8_t(r.key.level);
-  out[f::child_mask] = r.child_mask;
-  out[f::flags] = r.flags;
-  store_u32(out + f::x, r.key.x);
-  store_u32(out + f::y, r.key.y);
-  store_i32(out + f::height_offset, r.height_offset);
-  store_i32(out + f::min_height, r.min_height);
-  store_i32(out + f::max_height, r.max_height);
-  store_f32(out + f::geometric_error_m, r.geometric_error_m);
-  store_u32(out + f::payload_crc32, r.payload_crc32);
-  store_u64(out + f::payload_offset, r.payload_offset);
-  store_u32(out + f::payload_size, r.payload_size);
+  entry_fields(r, storer(out));
 }
 
 Status validate_record(const NodeRecord& r, const WorldInfo* world) {
@@ -305,16 +326,8 @@ Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, con
   for (uint32_t n = 0; n < node_count; ++n) {
     const uint8_t* e = bytes.data() + size_t(n) * layout::kEntrySize;
     NodeRecord& r = out[n];
-    r.key = {e[f::level], load_u32(e + f::x), load_u32(e + f::y)};
-    r.child_mask = e[f::child_mask];
-    r.flags = e[f::flags];
-    r.height_offset = load_i32(e + f::height_offset);
-    r.min_height = load_i32(e + f::min_height);
-    r.max_height = load_i32(e + f::max_height);
-    r.geometric_error_m = load_f32(e + f::geometric_error_m);
-    r.payload_crc32 = load_u32(e + f::payload_crc32);
-    r.payload_offset = load_u64(e + f::payload_offset);
-    r.payload_size = load_u32(e + f::payload_size);
+    r.key.level = e[f::level];
+    entry_fields(r, loader(e));
     if (e[f::reserved0] != 0 || load_u32(e + f::reserved1) != 0)
       return fail(Error::directory_invalid, "entry " + std::to_string(n) + " (node " + node_name(r.key) + "): reserved bytes are not zero");
     if (Status s = validate_record(r, &world); !s.ok()) return s;

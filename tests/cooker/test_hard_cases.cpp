@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <nlohmann/json.hpp>
 
 #include "cooker_test_util.h"
 #include "test_data.h"
@@ -23,13 +24,13 @@ struct Cooked {
   std::string path;
 };
 
-// Writes `dem`, cooks it with `options` (inputs/output filled in), opens the result and checks
-// that it verifies and has no seam mismatch.
+// Writes `dem`, cooks it with `options` (inputs/output filled in; heights only unless
+// `surface_layers`), opens the result and checks that it verifies and has no seam mismatch.
 void cook_dem(const std::string& name, const SyntheticDem& dem, cook::CookOptions options, Cooked& out,
-              bool tiled = true) {
+              bool tiled = true, bool surface_layers = false) {
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-" + name), name, dem, tiled, options));
   out.path = options.output;
-  options.heights_only = true;
+  options.heights_only = !surface_layers;
   if (options.threads == 0) options.threads = 2;
   uint64_t compared = 0;
   cook_and_verify(options, out.report, out.archive, compared);
@@ -139,6 +140,33 @@ TEST(HardCase, ConstantHeight) {
   const SourceCheck s = check_samples(d, c, 0.0);
   EXPECT_EQ(s.missing, 0u);
   EXPECT_LE(s.worst_error, c.archive.half_step(5) + kMm);
+}
+
+// Flat ground cooked with the surface layers: every triangle's normal is straight up, so every patch
+// cone is exactly 0 degrees (format/SPEC.md section 16.5: "Flat patches get angle 0"), and the encoded
+// cone is its alpha target ceil(0) + 1 step (90/255 degrees) or more, never the never-cull 255. The
+// --report JSON states the same numbers as the report it serialises.
+TEST(HardCase, FlatGroundReportsZeroDegreeCones) {
+  SyntheticDem d = utm_dem(200, 200, 1.0, 500000.5, 5000099.5);
+  std::fill(d.values.begin(), d.values.end(), 1234.567);
+  Cooked c;
+  cook_dem("flat-cones", d, {}, c, true, /*surface_layers=*/true);
+  if (HasFatalFailure()) return;
+  const cook::CookReport& report = c.report;
+  ASSERT_TRUE(report.surface_layers);
+  const cook::SurfaceTotals& t = report.surface;
+  EXPECT_GT(t.cone_patches, 0u);
+  EXPECT_LE(t.cone_patches, report.nodes * uint64_t(kPatchesPerSide * kPatchesPerSide));
+  EXPECT_EQ(t.cone_exact_mean_deg(), 0.0);
+  EXPECT_EQ(t.cone_patches_never_cull, 0u);
+  EXPECT_GE(t.cone_encoded_mean_deg(), 90.0 / 255.0 - 1e-12);
+  EXPECT_LT(t.cone_encoded_mean_deg(), 90.0);
+  const auto j = nlohmann::json::parse(cook::report_json(report));
+  const auto& cones = j["surface"]["cones"];
+  EXPECT_EQ(cones["patches"].get<uint64_t>(), t.cone_patches);
+  EXPECT_EQ(cones["patches_never_cull"].get<uint64_t>(), 0u);
+  EXPECT_EQ(cones["exact_mean_deg"].get<double>(), 0.0);
+  EXPECT_EQ(cones["encoded_mean_deg"].get<double>(), t.cone_encoded_mean_deg());
 }
 
 // A 1000 m cliff between two samples. Samples sit on the 1 m lattice, so refinement down to

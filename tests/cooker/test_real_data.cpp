@@ -87,6 +87,16 @@ std::filesystem::path default_archive(const RealDem& d) {
   return bin_dir().parent_path() / "cooker-test-archives" / (std::string(d.name) + ".terrain");
 }
 
+// The default cook's --report file: skips the calling test when the fixture has not made it,
+// fails it when the file is not a JSON object (the caller checks IsSkipped() || HasFatalFailure()).
+void load_default_report(const RealDem& d, nlohmann::json& out) {
+  const std::filesystem::path path = std::filesystem::path(default_archive(d)).replace_extension(".json");
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " missing (the cooker.cook fixture makes it)";
+  std::ifstream f(path);
+  out = nlohmann::json::parse(f, nullptr, false);
+  ASSERT_TRUE(out.is_object()) << path << " is not JSON";
+}
+
 bool run(const std::string& cmd, std::string& out) {
   out.clear();
   FILE* p = popen(cmd.c_str(), "r");
@@ -339,12 +349,9 @@ TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
 TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
-  auto report_path = default_archive(d);
-  report_path.replace_extension(".json");
-  if (!std::filesystem::exists(report_path)) GTEST_SKIP() << report_path << " missing (the cooker.cook fixture makes it)";
-  std::ifstream f(report_path);
-  const auto report = nlohmann::json::parse(f, nullptr, false);
-  ASSERT_TRUE(report.is_object()) << report_path << " is not JSON";
+  nlohmann::json report;
+  load_default_report(d, report);
+  if (IsSkipped() || HasFatalFailure()) return;
   OracleResult r;
   oracle_or_skip(0.0, r);
   if (IsSkipped()) return;
@@ -365,6 +372,64 @@ TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
     ++levels_checked;
   }
   EXPECT_GT(levels_checked, 0);
+}
+
+// The surface statistics of the fixture's --report file, against bounds that follow from the format
+// (format/SPEC.md section 16) rather than from the cooker:
+// - cones: 8 x 8 patches per node, so 0 < patches <= 64 nodes; every patch is at most a root
+//   patch (2048 m / 8 = 256 m on a side) and the valid source samples under drawn triangles lie in
+//   patches with triangles, so patches * 256^2 m^2 >= their area, each at least spacing_m^2 (halved
+//   for geographic spacing varying over the DEM and the data's ragged edge);
+// - a cone holds unit normals with z > 0, so its exact (smallest) half-angle is below 90 degrees;
+//   the encoded cone also holds every normal, so it is no narrower than the exact one, and it is
+//   stored as 255 steps of 90 degrees: a never-culling patch counts 90, so the encoded mean is at
+//   least 90 * never_cull / patches, and at most 90; real relief is not a plane, so the exact
+//   mean is positive;
+// - normals are measured on every texel (132 x 132 per node), albedo per channel of opaque texels;
+// - the per-layer CPU times are parts of the per-node surface time.
+TEST_P(RealData, ReportStatesTheSurfaceStatistics) {
+  const RealDem& d = GetParam();
+  TERRAIN_REQUIRE_DATA(dem_path(d));
+  nlohmann::json report;
+  load_default_report(d, report);
+  if (IsSkipped() || HasFatalFailure()) return;
+  if (!report["output"]["surface_layers"].get<bool>()) GTEST_SKIP() << d.name << " is cooked heights-only";
+  ASSERT_TRUE(report.contains("surface") && report["surface"].contains("cones")) << d.name << ": no cone statistics";
+  const auto& surface = report["surface"];
+  const auto& cones = surface["cones"];
+  const double nodes = report["output"]["nodes"].get<double>();
+  const double patches = cones["patches"].get<double>(), never = cones["patches_never_cull"].get<double>();
+  const double exact = cones["exact_mean_deg"].get<double>(), encoded = cones["encoded_mean_deg"].get<double>();
+  std::printf("%s: %.0f nodes, %.0f patches with triangles, %.0f never cull, mean half-angle %.2f exact, %.2f encoded\n",
+              d.name, nodes, patches, never, exact, encoded);
+  EXPECT_GT(patches, 0);
+  EXPECT_LE(patches, nodes * kPatchesPerSide * kPatchesPerSide);
+  const auto& source = report["source"];
+  const double spacing = source["spacing_m"].get<double>();
+  const double covered = source["valid_samples"].get<double>() - report["full_detail_error"]["uncovered_samples"].get<double>();
+  const double root_patch_m = node_size_m(kRootLevel) / kPatchesPerSide;
+  EXPECT_GE(patches * root_patch_m * root_patch_m, 0.5 * covered * spacing * spacing);
+  EXPECT_GE(never, 0);
+  EXPECT_LE(never, patches);
+  EXPECT_GT(exact, 0.0);
+  EXPECT_LT(exact, 90.0);
+  EXPECT_GE(encoded, exact);
+  EXPECT_LE(encoded, 90.0);
+  EXPECT_GE(encoded, 90.0 * never / patches - 1e-9);
+
+  EXPECT_EQ(surface["normal_samples"].get<double>(), nodes * kTexels * kTexels);
+  const double max_deg = surface["normal_err_max_deg"].get<double>(), mean_deg = surface["normal_err_mean_deg"].get<double>();
+  EXPECT_GT(max_deg, 0.0);  // 8-bit BC3 normals cannot be exact everywhere on real relief
+  EXPECT_LE(mean_deg, max_deg);
+  EXPECT_GT(surface["albedo_samples"].get<double>(), 0);
+  EXPECT_LE(surface["albedo_samples"].get<double>(), 3 * nodes * kTexels * kTexels);
+  double layer_cpu = 0;
+  for (const char* layer : {"normals", "albedo", "splat", "cones"}) {
+    const double s = surface["cpu_s"][layer].get<double>();
+    EXPECT_GT(s, 0.0) << layer;
+    layer_cpu += s;
+  }
+  EXPECT_LE(layer_cpu, report["time_s"]["cpu_surface"].get<double>() + 1e-3);
 }
 
 // Every shared edge and parent/child vertex of the archive: bit-identical float heights and

@@ -96,6 +96,29 @@ struct LevelStats {
   uint64_t uncovered_samples = 0;    // valid source samples under a dropped (hole) triangle
 };
 
+// The surface layers' statistics over every node (cooker/src/surface measures them per node; the
+// pyramid sums them in key order, so they do not depend on the thread count).
+struct SurfaceTotals {
+  // CPU seconds per layer, compression included, summed over threads (parts of cpu_surface).
+  double cpu_normals = 0, cpu_albedo = 0, cpu_splat = 0, cpu_cones = 0;
+  // Decoded BC3 normals against the float normals, per texel.
+  double normal_err_max_deg = 0, normal_err_sum_deg = 0;
+  uint64_t normal_samples = 0;
+  // Decoded BC1 albedo against the uncompressed bake, per colour channel of the opaque texels.
+  double albedo_sq_err_sum = 0;
+  uint64_t albedo_samples = 0;
+  // Patch cones (8 x 8 per node) over the patches holding triangles: half-angles of the exact
+  // cones and of the encoded ones (with the margins the viewer culls with), and the patches whose
+  // encoded cone can never cull (90 degrees or more).
+  double cone_exact_deg_sum = 0, cone_encoded_deg_sum = 0;
+  uint64_t cone_patches = 0, cone_patches_never_cull = 0;
+
+  double normal_err_mean_deg() const { return normal_samples ? normal_err_sum_deg / double(normal_samples) : 0.0; }
+  double albedo_psnr_db() const;  // 0 when nothing was measured or the albedo is exact
+  double cone_exact_mean_deg() const { return cone_patches ? cone_exact_deg_sum / double(cone_patches) : 0.0; }
+  double cone_encoded_mean_deg() const { return cone_patches ? cone_encoded_deg_sum / double(cone_patches) : 0.0; }
+};
+
 struct CookReport {
   // Inputs
   std::vector<std::string> input_descriptions;
@@ -103,6 +126,7 @@ struct CookReport {
   uint64_t source_valid_samples = 0;
   uint64_t voids_filled_samples = 0, voids_filled_regions = 0;
   uint64_t hole_samples = 0, hole_regions = 0;
+  double void_fill_residual_m = 0;   // largest change of the last relaxation sweep of a filled void
   uint64_t implausible_samples = 0;  // outside valid_range_m or undeclared -9999 voids: made nodata
   double source_spacing_m = 0;       // finest source sample spacing, frame metres
   // Frame and grid
@@ -118,6 +142,7 @@ struct CookReport {
   // node covering it).
   double leaf_error_max_m = 0, leaf_error_rms_m = 0;
   uint64_t leaf_error_samples = 0;
+  uint64_t leaf_uncovered_samples = 0;  // valid source samples under a dropped (hole) triangle of a finest node
   // Output
   uint64_t nodes = 0;
   uint64_t archive_bytes = 0;
@@ -137,7 +162,7 @@ struct CookReport {
   // tolerance): printed on stderr by terrain-cook and listed in the JSON report.
   std::vector<std::string> warnings;
   // Surface layers (when present)
-  double normal_err_max_deg = 0, normal_err_mean_deg = 0, albedo_psnr_db = 0;
+  SurfaceTotals surface;
 };
 
 // Progress: fraction 0..1 and a short stage name; return false to cancel (cook returns `cancelled`).

@@ -123,21 +123,16 @@ void encode_bc3_image(const uint8_t* rgba, Bc3Method method, uint8_t* out_blocks
 
 AngleStats normal_error(const NormalTexels& ref, const uint8_t* bc3_blocks) {
   AngleStats st;
-  for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      uint8_t dec[64];
-      decode_bc3_block(bc3_blocks + size_t(by * kTexelBlocks + bx) * 16, dec);
-      for (int i = 0; i < 16; ++i) {
-        const size_t k = size_t((by * 4 + i / 4) * kTexels + bx * 4 + i % 4);
-        float n[3];
-        unpack_normal(dec + 4 * i, n);
-        const double a[3] = {ref.n[k * 3], ref.n[k * 3 + 1], ref.n[k * 3 + 2]}, b[3] = {n[0], n[1], n[2]};
-        const double deg = fast_angle(a, b) * kRadToDeg;  // statistics: 1e-3 degree is plenty
-        st.sum_deg += deg;
-        st.max_deg = std::max(st.max_deg, deg);
-        ++st.count;
-      }
-    }
+  const auto decode = [](const uint8_t* block, uint8_t* out) { decode_bc3_block(block, out); };
+  for_each_decoded_texel(bc3_blocks, 16, decode, [&](size_t k, const uint8_t* texel) {
+    float n[3];
+    unpack_normal(texel, n);
+    const double a[3] = {ref.n[k * 3], ref.n[k * 3 + 1], ref.n[k * 3 + 2]}, b[3] = {n[0], n[1], n[2]};
+    const double deg = fast_angle(a, b) * kRadToDeg;  // statistics: 1e-3 degree is plenty
+    st.sum_deg += deg;
+    st.max_deg = std::max(st.max_deg, deg);
+    ++st.count;
+  });
   return st;
 }
 

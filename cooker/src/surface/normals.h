@@ -33,6 +33,19 @@ void unpack_normal(const uint8_t rgba[4], float n[3]);
 
 void encode_bc3_image(const uint8_t* rgba, Bc3Method method, uint8_t* out_blocks);
 
+// Decodes each BC block of a kTexels x kTexels image (`decode(block, rgba64)`, blocks of
+// `block_bytes`) and calls visit(k, rgba4) for its 16 texels, k being the texel's image index.
+// The error checks of the normals (BC3) and the albedo (BC1) walk their images this way.
+template <class Decode, class Visit>
+void for_each_decoded_texel(const uint8_t* blocks, size_t block_bytes, Decode&& decode, Visit&& visit) {
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint8_t dec[64];
+      decode(blocks + size_t(by * kTexelBlocks + bx) * block_bytes, dec);
+      for (int i = 0; i < 16; ++i) visit(size_t((by * 4 + i / 4) * kTexels + bx * 4 + i % 4), dec + 4 * i);
+    }
+}
+
 struct AngleStats {
   double sum_deg = 0, max_deg = 0;
   uint64_t count = 0;

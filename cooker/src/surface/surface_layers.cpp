@@ -58,25 +58,20 @@ void encode_bc1_image(const uint8_t* rgba, Bc1Method method, uint8_t* out_blocks
 
 AlbedoCheck check_albedo(const uint8_t* rgba, const uint8_t* bc1_blocks) {
   AlbedoCheck c;
-  for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      uint8_t dec[64];
-      decode_bc1_block(bc1_blocks + size_t(by * kTexelBlocks + bx) * 8, dec);
-      for (int i = 0; i < 16; ++i) {
-        const size_t k = size_t((by * 4 + i / 4) * kTexels + bx * 4 + i % 4);
-        const bool hole = rgba[k * 4 + 3] < 128, transparent = dec[i * 4 + 3] == 0;
-        if (hole != transparent) ++c.alpha_mismatches;
-        if (hole) {
-          ++c.holes;
-          continue;
-        }
-        for (int ch = 0; ch < 3; ++ch) {
-          const double d = double(rgba[k * 4 + size_t(ch)]) - dec[i * 4 + ch];
-          c.sq_err += d * d;
-        }
-        c.samples += 3;
-      }
+  const auto decode = [](const uint8_t* block, uint8_t* out) { decode_bc1_block(block, out); };
+  for_each_decoded_texel(bc1_blocks, 8, decode, [&](size_t k, const uint8_t* texel) {
+    const bool hole = rgba[k * 4 + 3] < 128, transparent = texel[3] == 0;
+    if (hole != transparent) ++c.alpha_mismatches;
+    if (hole) {
+      ++c.holes;
+      return;
     }
+    for (int ch = 0; ch < 3; ++ch) {
+      const double d = double(rgba[k * 4 + size_t(ch)]) - texel[ch];
+      c.sq_err += d * d;
+    }
+    c.samples += 3;
+  });
   return c;
 }
 
