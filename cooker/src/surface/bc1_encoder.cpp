@@ -689,6 +689,39 @@ void write_four_colour(int q0[3], int q1[3], uint32_t idx, uint8_t out[8]) {
 }
 
 // The definition of the opaque encoder (see the section comment).
+// ---- Shared by the scalar definition and its SSE2 restatement (same float operations) ----------
+
+// Candidate 1: one colour for every texel, the single-colour tables' endpoints at the mean; its
+// weighted squared error from the block's sums (sum) and sums of squares (sqd) per channel.
+inline float single_colour_candidate(const float sum[3], const float sqd[3], const float w[3], int q0[3], int q1[3]) {
+  const SingleColourTables& tab = single_colour_tables();
+  float err = 0;
+  for (int c = 0; c < 3; ++c) {
+    const int mean = int(sum[c] * (1.0f / 16.0f) + 0.5f);
+    const int six = kBits[c] == 6;
+    q0[c] = tab.q4[six][mean][0];
+    q1[c] = tab.q4[six][mean][1];
+    const int v0 = expand_bits(q0[c], kBits[c]), v1 = expand_bits(q1[c], kBits[c]);
+    const float p = float((2 * v0 + v1 + 1) / 3);
+    err += w[c] * (sqd[c] - 2 * p * sum[c] + 16 * p * p);
+  }
+  return err;
+}
+
+// Principal axis of the weighted covariance (sq: xx, xy, xz, yy, yz, zz sums), by power iteration
+// started from the weighted bounding box diagonal.
+inline void weighted_principal_axis(const float sum[3], const float sq[6], const float mn[3], const float mx[3],
+                                    const float w[3], float ax[3]) {
+  const float inv16 = 1.0f / 16.0f;
+  float cov[6] = {(sq[0] - sum[0] * sum[0] * inv16) * w[0] * w[0], (sq[1] - sum[0] * sum[1] * inv16) * w[0] * w[1],
+                  (sq[2] - sum[0] * sum[2] * inv16) * w[0] * w[2], (sq[3] - sum[1] * sum[1] * inv16) * w[1] * w[1],
+                  (sq[4] - sum[1] * sum[2] * inv16) * w[1] * w[2], (sq[5] - sum[2] * sum[2] * inv16) * w[2] * w[2]};
+  ax[0] = (mx[0] - mn[0]) * w[0];
+  ax[1] = (mx[1] - mn[1]) * w[1];
+  ax[2] = (mx[2] - mn[2]) * w[2];
+  principal_axis(cov, ax);
+}
+
 template <bool kUniform>  // all weights 1: the distance skips the weight multiplies
 void encode_opaque_scalar(const uint8_t rgba[64], const float w[3], int iterations, const HardBlocks& hard,
                           uint8_t out[8], float* err_out) {
@@ -721,29 +754,15 @@ void encode_opaque_scalar(const uint8_t rgba[64], const float w[3], int iteratio
   const float sqd[3] = {sq[0], sq[3], sq[5]};
 
   // Candidate 1: one colour (single-colour tables at the mean), error from the sums.
-  const SingleColourTables& tab = single_colour_tables();
   int best_q0[3], best_q1[3];
-  float best_err = 0;
-  for (int c = 0; c < 3; ++c) {
-    const int mean = int(sum[c] * (1.0f / 16.0f) + 0.5f);
-    const int six = kBits[c] == 6;
-    best_q0[c] = tab.q4[six][mean][0];
-    best_q1[c] = tab.q4[six][mean][1];
-    const int v0 = expand_bits(best_q0[c], kBits[c]), v1 = expand_bits(best_q1[c], kBits[c]);
-    const float p = float((2 * v0 + v1 + 1) / 3);
-    best_err += w[c] * (sqd[c] - 2 * p * sum[c] + 16 * p * p);
-  }
+  float best_err = single_colour_candidate(sum, sqd, w, best_q0, best_q1);
   uint32_t best_idx = 0xAAAAAAAAu;  // index 2 everywhere
 
   const bool flat = mn[0] == mx[0] && mn[1] == mx[1] && mn[2] == mx[2];
   if (!flat && best_err > 0.5f) {
     // Principal axis of the weighted covariance (power iteration from the bounding box).
-    const float inv16 = 1.0f / 16.0f;
-    float cov[6] = {(sq[0] - sum[0] * sum[0] * inv16) * w[0] * w[0], (sq[1] - sum[0] * sum[1] * inv16) * w[0] * w[1],
-                    (sq[2] - sum[0] * sum[2] * inv16) * w[0] * w[2], (sq[3] - sum[1] * sum[1] * inv16) * w[1] * w[1],
-                    (sq[4] - sum[1] * sum[2] * inv16) * w[1] * w[2], (sq[5] - sum[2] * sum[2] * inv16) * w[2] * w[2]};
-    float ax[3] = {(mx[0] - mn[0]) * w[0], (mx[1] - mn[1]) * w[1], (mx[2] - mn[2]) * w[2]};
-    principal_axis(cov, ax);
+    float ax[3];
+    weighted_principal_axis(sum, sq, mn, mx, w, ax);
     const float k0 = ax[0] * w[0], k1 = ax[1] * w[1], k2 = ax[2] * w[2];
     float proj[16], pl[4], ph[4];
     for (int i = 0; i < 16; ++i) proj[i] = (ch[0][i] * k0 + ch[1][i] * k1) + ch[2][i] * k2;
@@ -1120,29 +1139,15 @@ void encode_opaque_sse(const uint8_t rgba[64], const float w[3], int iterations,
   const float sqd[3] = {sq[0], sq[3], sq[5]};
 
   // Candidate 1: one colour (single-colour tables at the mean), error from the sums.
-  const SingleColourTables& tab = single_colour_tables();
   int best_q0[3], best_q1[3];
-  float best_err = 0;
-  for (int c = 0; c < 3; ++c) {
-    const int mean = int(sum[c] * (1.0f / 16.0f) + 0.5f);
-    const int six = kBits[c] == 6;
-    best_q0[c] = tab.q4[six][mean][0];
-    best_q1[c] = tab.q4[six][mean][1];
-    const int v0 = expand_bits(best_q0[c], kBits[c]), v1 = expand_bits(best_q1[c], kBits[c]);
-    const float p = float((2 * v0 + v1 + 1) / 3);
-    best_err += w[c] * (sqd[c] - 2 * p * sum[c] + 16 * p * p);
-  }
+  float best_err = single_colour_candidate(sum, sqd, w, best_q0, best_q1);
   uint32_t best_idx = 0xAAAAAAAAu;  // index 2 everywhere
 
   const bool flat = mn[0] == mx[0] && mn[1] == mx[1] && mn[2] == mx[2];
   if (!flat && best_err > 0.5f) {
     // Principal axis of the weighted covariance (power iteration from the bounding box).
-    const float inv16 = 1.0f / 16.0f;
-    float cov[6] = {(sq[0] - sum[0] * sum[0] * inv16) * w[0] * w[0], (sq[1] - sum[0] * sum[1] * inv16) * w[0] * w[1],
-                    (sq[2] - sum[0] * sum[2] * inv16) * w[0] * w[2], (sq[3] - sum[1] * sum[1] * inv16) * w[1] * w[1],
-                    (sq[4] - sum[1] * sum[2] * inv16) * w[1] * w[2], (sq[5] - sum[2] * sum[2] * inv16) * w[2] * w[2]};
-    float ax[3] = {(mx[0] - mn[0]) * w[0], (mx[1] - mn[1]) * w[1], (mx[2] - mn[2]) * w[2]};
-    principal_axis(cov, ax);
+    float ax[3];
+    weighted_principal_axis(sum, sq, mn, mx, w, ax);
     const __m128 k0 = _mm_set1_ps(ax[0] * w[0]), k1 = _mm_set1_ps(ax[1] * w[1]), k2 = _mm_set1_ps(ax[2] * w[2]);
     __m128 proj[4], pl, ph;
     for (int v = 0; v < 4; ++v) {
