@@ -67,6 +67,8 @@ export PKG_CONFIG_PATH="$(dirname "$pcfile")${PKG_CONFIG_PATH:+:$PKG_CONFIG_PATH
 echo '#include <terrain/streamer.h>
 int main(int argc, char** argv) { terrain::Streamer s; return argc > 1 && s.open(argv[1]).ok() ? 0 : 1; }' >"$work/pc_check.cpp"
 # shellcheck disable=SC2046  # pkg-config's output is a list of flags
-${CXX:-c++} -std=c++20 "$work/pc_check.cpp" -o "$work/pc_check" $(pkg-config --cflags --libs terrain-streamer)
+# (the rpath matters only for a BUILD_SHARED_LIBS=ON build)
+${CXX:-c++} -std=c++20 "$work/pc_check.cpp" -o "$work/pc_check" $(pkg-config --cflags --libs terrain-streamer) \
+  -Wl,-rpath,"$(pkg-config --variable=libdir terrain-streamer)"
 "$work/pc_check" "$archive" || fail "the pkg-config program could not open $archive"
 echo "check_package: ok"
