@@ -1,0 +1,313 @@
+// A stand-in for a game engine that uses the installed terrain package (find_package(terrain)):
+// it opens an archive, drives terrain::Streamer along a camera path, "uploads" every delivery into
+// a CPU copy of the GPU atlas (one NodeData per slot), mirrors the index grids and the slot table
+// from the dirty regions the way a renderer would, and checks every frame that what it holds is
+// consistent: every index cell that names a slot names a slot this program filled with that very
+// node, the mirrors equal the streamer's state, and no slot is reused before its fence passed.
+// Any violation prints what and where and exits 1. Per frame it prints one summary line.
+//
+// Usage: terrain-engine-sample <archive.terrain> <camera_path.txt> [--frames-per-segment N]
+//                              [--error-px E] [--budget N] [--slots N]
+// The camera flies the path there and back.
+// Camera paths: one waypoint per line, "X Y Z LX LY LZ" in frame metres (samples/paths/).
+// A small --budget and --error-px make even a small archive split and evict along the path;
+// --slots equal to --budget (the smallest atlas) reuses evicted slots as soon as their fence allows.
+#include <terrain/format.h>
+#include <terrain/streamer.h>
+#include <terrain/surface_contract.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+struct Waypoint {
+  double x = 0, y = 0, z = 0;     // eye
+  double lx = 0, ly = 0, lz = 0;  // look-at (unused here: the sample's views carry no frustum)
+};
+
+std::vector<Waypoint> read_path(const std::string& file) {
+  std::vector<Waypoint> path;
+  std::ifstream in(file);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+    std::istringstream fields(line);
+    Waypoint w;
+    if (fields >> w.x >> w.y >> w.z >> w.lx >> w.ly >> w.lz) path.push_back(w);
+  }
+  return path;
+}
+
+// The engine's copy of what the GPU holds: atlas layers, the slot table and the index grids.
+struct CpuAtlas {
+  std::vector<terrain::NodeData> layers;         // slot -> uploaded node data
+  std::vector<bool> filled;                      // slot holds a node (delivered, not evicted)
+  std::vector<terrain::NodeKey> holder;          // the node in a filled slot
+  std::vector<uint64_t> evicted_in;              // update() number that last freed the slot (0 = never)
+  std::vector<terrain::SlotDescriptor> descriptors;
+  std::array<std::vector<uint16_t>, terrain::kLevelCount> grids;
+  std::array<terrain::GridSize, terrain::kLevelCount> grid_size{};
+};
+
+CpuAtlas make_atlas(const terrain::Streamer& s) {
+  CpuAtlas a;
+  const uint32_t n = s.slot_count();
+  a.layers.resize(n);
+  a.filled.assign(n, false);
+  a.holder.resize(n);
+  a.evicted_in.assign(n, 0);
+  a.descriptors.resize(n);
+  for (int level = 0; level < terrain::kLevelCount; ++level) {
+    a.grid_size[size_t(level)] = s.index_grid_size(level);
+    // Garbage until the first update() uploads every grid in full.
+    a.grids[size_t(level)].assign(size_t(a.grid_size[size_t(level)].width) * a.grid_size[size_t(level)].height, 0x7777);
+  }
+  return a;
+}
+
+// A failed check: what went wrong, in which frame. The program exits 1 after printing them.
+struct Checks {
+  uint64_t frame = 0;
+  int failures = 0;
+  void fail(const std::string& what) {
+    if (failures++ < 20) std::fprintf(stderr, "engine-sample: frame %llu: %s\n", (unsigned long long)frame, what.c_str());
+  }
+};
+
+std::string name(const terrain::NodeKey& k) { return terrain::node_name(k); }
+
+// What a renderer does with one FrameUpdate: free evicted slots, copy deliveries into their slots,
+// then upload dirty descriptors and dirty index rectangles.
+void upload(const terrain::FrameUpdate& u, const terrain::Streamer& s, CpuAtlas& a, Checks& checks) {
+  for (const terrain::NodeEviction& e : u.evicted) {
+    if (e.slot >= a.filled.size() || !a.filled[e.slot] || !(a.holder[e.slot] == e.key)) {
+      checks.fail("eviction of " + name(e.key) + " from slot " + std::to_string(e.slot) + ", which does not hold it");
+      continue;
+    }
+    a.filled[e.slot] = false;
+    a.evicted_in[e.slot] = u.frame;
+  }
+  const uint32_t fence = s.config().fence_frames;
+  for (const terrain::NodeDelivery& d : u.delivered) {
+    if (d.slot >= a.filled.size() || d.data == nullptr) {
+      checks.fail("delivery of " + name(d.key) + " with slot " + std::to_string(d.slot) + " or no data");
+      continue;
+    }
+    if (a.filled[d.slot])
+      checks.fail("delivery of " + name(d.key) + " into slot " + std::to_string(d.slot) + ", still holding " +
+                  name(a.holder[d.slot]));
+    if (a.evicted_in[d.slot] != 0 && u.frame < a.evicted_in[d.slot] + fence)
+      checks.fail("slot " + std::to_string(d.slot) + " reused in frame " + std::to_string(u.frame) +
+                  ", evicted in frame " + std::to_string(a.evicted_in[d.slot]) + " (fence " + std::to_string(fence) + ")");
+    a.layers[d.slot] = *d.data;  // the "GPU upload"
+    a.filled[d.slot] = true;
+    a.holder[d.slot] = d.key;
+  }
+  const auto table = s.slots();
+  for (const uint16_t slot : u.dirty_slots) a.descriptors[slot] = table[slot];
+  for (int level = 0; level < terrain::kLevelCount; ++level) {
+    const terrain::DirtyRect& r = u.dirty_index[size_t(level)];
+    if (r.empty()) continue;
+    const auto src = s.index_grid(level);
+    const uint32_t width = a.grid_size[size_t(level)].width;
+    for (uint32_t y = r.y0; y < r.y1; ++y)
+      for (uint32_t x = r.x0; x < r.x1; ++x) a.grids[size_t(level)][size_t(y) * width + x] = src[size_t(y) * width + x];
+  }
+}
+
+// Every frame: the engine's mirrors point only at slots it filled, with the right node in them.
+// Returns the number of index cells that name a slot (the resident nodes as the GPU sees them).
+uint32_t check_atlas(const terrain::Streamer& s, const CpuAtlas& a, Checks& checks) {
+  uint32_t resident_cells = 0;
+  for (int level = 0; level < terrain::kLevelCount; ++level) {
+    const auto truth = s.index_grid(level);
+    const auto& mirror = a.grids[size_t(level)];
+    const terrain::GridSize g = a.grid_size[size_t(level)];
+    for (uint32_t y = 0; y < g.height; ++y) {
+      for (uint32_t x = 0; x < g.width; ++x) {
+        const size_t i = size_t(y) * g.width + x;
+        const uint16_t v = mirror[i];
+        const terrain::NodeKey key{uint32_t(level), x, y};
+        if (v != truth[i]) {
+          checks.fail("index cell " + name(key) + ": uploaded " + std::to_string(v) + ", streamer has " +
+                      std::to_string(truth[i]) + " (a dirty rectangle missed it)");
+          continue;
+        }
+        if (v == terrain::kIndexNotResident || v == terrain::kIndexNoNode) continue;
+        ++resident_cells;
+        if (v >= a.filled.size() || !a.filled[v]) {
+          checks.fail("index cell " + name(key) + " points at slot " + std::to_string(v) + ", which holds nothing");
+          continue;
+        }
+        if (!(a.holder[v] == key)) {
+          checks.fail("index cell " + name(key) + " points at slot " + std::to_string(v) + ", which holds " +
+                      name(a.holder[v]));
+          continue;
+        }
+        const terrain::SlotDescriptor& d = a.descriptors[v];
+        if (d.level != level || d.x != x || d.y != y)
+          checks.fail("slot " + std::to_string(v) + " descriptor names node " + std::to_string(d.level) + "/" +
+                      std::to_string(d.x) + "/" + std::to_string(d.y) + ", index cell says " + name(key));
+        if (level < terrain::kRootLevel) {  // a resident node's parent is resident (coverage)
+          const terrain::NodeKey p = terrain::parent_of(key);
+          const uint16_t pv = a.grids[size_t(p.level)][size_t(p.y) * a.grid_size[size_t(p.level)].width + p.x];
+          if (pv >= a.filled.size()) checks.fail("node " + name(key) + " resident, its parent " + name(p) + " is not");
+        }
+        // The uploaded copy is the streamer's data for that node, byte for byte.
+        const terrain::NodeData* data = s.resident_data(key);
+        const terrain::NodeData& layer = a.layers[v];
+        if (data == nullptr || layer.heights != data->heights || layer.normals_bc3 != data->normals_bc3 ||
+            layer.albedo_bc1 != data->albedo_bc1 || layer.splat != data->splat || layer.cones_bc3 != data->cones_bc3)
+          checks.fail("slot " + std::to_string(v) + " does not hold the resident data of " + name(key));
+      }
+    }
+  }
+  uint32_t filled = 0;
+  for (const bool f : a.filled) filled += f ? 1 : 0;
+  const terrain::StreamerStats st = s.stats();
+  if (filled != resident_cells || filled != st.resident)
+    checks.fail("slots filled " + std::to_string(filled) + ", index cells resident " + std::to_string(resident_cells) +
+                ", streamer resident " + std::to_string(st.resident));
+  return resident_cells;
+}
+
+// The finest level whose node under (x, y) is in the atlas, read from the mirrored index grids the
+// way a shader would; -1 outside the archive.
+int finest_resident_level(const terrain::Streamer& s, const CpuAtlas& a, double x, double y) {
+  const terrain::WorldInfo& w = s.world();
+  for (int level = 0; level < terrain::kLevelCount; ++level) {
+    const double size = terrain::kLevel0NodeSizeM * double(1u << level);
+    const double fx = std::floor((x - w.origin_x_m) / size), fy = std::floor((y - w.origin_y_m) / size);
+    const terrain::GridSize g = a.grid_size[size_t(level)];
+    if (fx < 0 || fy < 0 || fx >= double(g.width) || fy >= double(g.height)) return -1;
+    const uint16_t v = a.grids[size_t(level)][size_t(fy) * g.width + size_t(fx)];
+    if (v < a.filled.size()) return level;
+  }
+  return -1;
+}
+
+// ---- Gameplay queries ---------------------------------------------------------------------------
+// QUERIES GO HERE (issue 16, "Queries"): once terrain/queries.h is in the streamer, this function
+// asks it, every frame, for the ground height and normal under a character walking below the camera
+// (resident data and finest level), and casts a few rays from the character's eyes; the results go
+// into the summary line. Until then it reports nothing.
+struct QueryReport {
+  bool ran = false;
+};
+
+QueryReport run_gameplay_queries(const terrain::Streamer& streamer, const terrain::View& camera) {
+  (void)streamer;
+  (void)camera;
+  return {};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const char* usage = "usage: %s <archive.terrain> <camera_path.txt> [--frames-per-segment N] [--error-px E] "
+                      "[--budget N] [--slots N]\n";
+  std::vector<std::string> positional;
+  int frames_per_segment = 30;
+  terrain::StreamerConfig config;
+  config.max_deliveries_per_frame = 32;  // the per-frame upload budget
+  config.worker_threads = 2;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool has_value = i + 1 < argc;
+    if (arg == "--frames-per-segment" && has_value) {
+      frames_per_segment = std::atoi(argv[++i]);
+    } else if (arg == "--error-px" && has_value) {
+      config.error_target_px = std::atof(argv[++i]);
+    } else if (arg == "--budget" && has_value) {
+      config.budget_nodes = uint32_t(std::strtoul(argv[++i], nullptr, 10));
+    } else if (arg == "--slots" && has_value) {
+      config.slot_count = uint32_t(std::strtoul(argv[++i], nullptr, 10));
+    } else if (!arg.empty() && arg[0] != '-') {
+      positional.push_back(arg);
+    } else {
+      std::fprintf(stderr, usage, argv[0]);
+      return 2;
+    }
+  }
+  if (positional.size() != 2) {
+    std::fprintf(stderr, usage, argv[0]);
+    return 2;
+  }
+  const std::vector<Waypoint> path = read_path(positional[1]);
+  if (path.size() < 2 || frames_per_segment < 1) {
+    std::fprintf(stderr, "engine-sample: %s: need at least 2 waypoints and --frames-per-segment >= 1\n",
+                 positional[1].c_str());
+    return 2;
+  }
+
+  terrain::Streamer streamer;
+  if (const terrain::Status st = streamer.open(positional[0], config); !st.ok()) {
+    std::fprintf(stderr, "engine-sample: %s\n", st.to_string().c_str());
+    return 1;
+  }
+  CpuAtlas atlas = make_atlas(streamer);
+  std::printf("engine-sample: %s: %u x %u roots, atlas of %u slots (%.1f MB), budget %u nodes\n", positional[0].c_str(),
+              streamer.world().roots_x, streamer.world().roots_y, streamer.slot_count(),
+              double(atlas.layers.size() * sizeof(terrain::NodeData)) / 1e6, streamer.config().budget_nodes);
+
+  Checks checks;
+  uint64_t delivered = 0, evicted = 0;
+  auto frame = [&](const terrain::View& view) {
+    const terrain::FrameUpdate& u = streamer.update({&view, 1});
+    checks.frame = u.frame;
+    upload(u, streamer, atlas, checks);
+    const uint32_t resident = check_atlas(streamer, atlas, checks);
+    const QueryReport q = run_gameplay_queries(streamer, view);
+    (void)q;
+    delivered += u.delivered.size();
+    evicted += u.evicted.size();
+    const terrain::StreamerStats st = streamer.stats();
+    std::printf("frame %3llu  eye %9.0f %10.0f %6.0f  +%-3zu -%-3zu resident %3u  required missing %3u  pending %3u  "
+                "finest level under eye %d\n",
+                (unsigned long long)u.frame, view.x, view.y, view.z, u.delivered.size(), u.evicted.size(), resident,
+                st.required_missing, st.pending, finest_resident_level(streamer, atlas, view.x, view.y));
+    std::this_thread::sleep_for(std::chrono::milliseconds(8));  // the rest of the engine's frame
+    return st;
+  };
+
+  terrain::View view;
+  view.pixels_per_radian = terrain::pixels_per_radian(1080.0, 60.0 * 3.14159265358979 / 180.0);
+  // Along the path and back to its start (so nodes evicted on the way out are streamed in again).
+  std::vector<Waypoint> there_and_back = path;
+  there_and_back.insert(there_and_back.end(), path.rbegin() + 1, path.rend());
+  for (size_t seg = 0; seg + 1 < there_and_back.size(); ++seg) {
+    for (int f = 0; f < frames_per_segment; ++f) {
+      const double t = double(f) / frames_per_segment;
+      const Waypoint &a = there_and_back[seg], &b = there_and_back[seg + 1];
+      view.x = a.x + t * (b.x - a.x);
+      view.y = a.y + t * (b.y - a.y);
+      view.z = a.z + t * (b.z - a.z);
+      frame(view);
+    }
+  }
+  // Stay at the end until the streamer has everything the error target requires.
+  view.x = there_and_back.back().x;
+  view.y = there_and_back.back().y;
+  view.z = there_and_back.back().z;
+  const auto settle_until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  bool settled = false;
+  while (!settled && std::chrono::steady_clock::now() < settle_until) {
+    const terrain::StreamerStats st = frame(view);
+    settled = st.required_missing == 0 && st.pending == 0;
+  }
+  if (!settled) checks.fail("the streamer did not settle at the last waypoint within 30 s");
+  const terrain::StreamerStats st = streamer.stats();
+  std::printf("engine-sample: %llu frames, %llu deliveries, %llu evictions, %u resident, %u failed loads: %s\n",
+              (unsigned long long)st.frame, (unsigned long long)delivered, (unsigned long long)evicted, st.resident,
+              st.failed, checks.failures == 0 ? "all checks passed" : "CHECKS FAILED");
+  return checks.failures == 0 ? 0 : 1;
+}
