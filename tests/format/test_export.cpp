@@ -236,7 +236,7 @@ TEST_F(Jacksboro, UnrealHeightmapMatchesTheSurfaceWithinHalfAStep) {
   ASSERT_FALSE(weights.empty());
   SurfaceSampler sampler(reader);
   double worst = 0;
-  size_t holes = 0;
+  size_t holes = 0, on_splat_samples = 0;
   for (int row = 0; row < 505; ++row)
     for (int col = 0; col < 505; ++col) {
       const size_t k = size_t(row) * 505 + col;
@@ -252,9 +252,26 @@ TEST_F(Jacksboro, UnrealHeightmapMatchesTheSurfaceWithinHalfAStep) {
       worst = std::max(worst, std::fabs(ex::unreal_decode(z, hm[k]) - s->height_m));
       int sum = 0;
       for (const auto& wm : weights) sum += wm[k];
-      ASSERT_GE(sum, 253) << row << "," << col;  // four rounded weights: at most 2 off
-      ASSERT_LE(sum, 257) << row << "," << col;
+      ASSERT_EQ(sum, 255) << row << "," << col;
+      // On a splat sample of the answering node (every other vertex), the layer of its material id
+      // has all the weight: read the id from the node's payload here.
+      const terrain::NodeKey key = s->node;
+      const double size = terrain::node_size_m(int(key.level)), sp = terrain::vertex_spacing_m(int(key.level));
+      const double u = (p.west_x_m + col * 8.0 - reader.world().origin_x_m - key.x * size) / (2 * sp);
+      const double v = (p.north_y_m - row * 8.0 - reader.world().origin_y_m - key.y * size) / (2 * sp);
+      if (u == std::floor(u) && v == std::floor(v)) {
+        terrain::NodeData d;
+        ASSERT_TRUE(reader.decode_node(size_t(reader.find(key)), d, terrain::kSectionSplat).ok());
+        const uint8_t id = d.splat[size_t(v) * terrain::kSplatSamples + size_t(u)];
+        const std::string name = reader.world().palette.at(id).name;
+        size_t layer = 0;
+        while (layer < j["layers"].size() && j["layers"][layer] != name) ++layer;
+        ASSERT_LT(layer, weights.size()) << name;
+        ASSERT_EQ(weights[layer][k], 255) << name << " at " << row << "," << col;
+        ++on_splat_samples;
+      }
     }
+  EXPECT_GT(on_splat_samples, 10000u);
   EXPECT_EQ(holes, r.hole_samples);
   EXPECT_LE(worst, z.step_m / 2 + 1e-9);
   // The scale is tight: the 16-bit range is used (not a default 100 that wastes precision).

@@ -426,11 +426,15 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
               row16[size_t(c)] = hole ? uint16_t(0) : unreal_encode(result.unreal, h);
               row8[size_t(c)] = hole ? 255 : 0;  // Unreal's visibility layer: painted (255) = hole
               for (auto& rw : roww) rw[size_t(c)] = 0;
+              // Rounded weights that sum to exactly 255 (Unreal's weight-blended layers): the
+              // rounding remainder (at most +-2) goes to the heaviest, which is >= 64.
+              int v[4] = {}, sum = 0;
+              for (int q = 0; q < n; ++q) sum += v[q] = int(std::lround(std::clamp(wt[q], 0.0f, 1.0f) * 255.0f));
+              if (n > 0) v[0] += 255 - sum;
               for (int q = 0; q < n; ++q)
                 if (id[q] < n_layers) {
-                  const uint8_t v = uint8_t(std::lround(std::clamp(wt[q], 0.0f, 1.0f) * 255.0f));
-                  roww[id[q]][size_t(c)] = v;
-                  if (v > 0) ++layer_samples[id[q]];
+                  roww[id[q]][size_t(c)] = uint8_t(v[q]);
+                  if (v[q] > 0) ++layer_samples[id[q]];
                 }
             } else {
               rowf[size_t(c)] = hole ? NAN : float(h);
