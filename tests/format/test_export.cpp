@@ -437,3 +437,50 @@ TEST_F(Jacksboro, GodotRegionsAndCollisionMatchTheSurface) {
   EXPECT_EQ(holes, r.hole_samples);
   EXPECT_GT(rect_holes, 0u);
 }
+
+// A Godot region's EXR cooked back by terrain-cook (--crs local, the printed spacing and origin):
+// the new surface at the lattice points is the original's within float32 rounding of the EXR plus
+// the new cook's stated geometric error of the answering node.
+TEST_F(Jacksboro, GodotHeightsCookBackWithinTheStatedBound) {
+  ex::Options o;
+  o.target = ex::Target::godot;
+  o.out_dir = kScratch + "/godot_cook";
+  o.level = 4;
+  o.tile_size = 256;
+  o.rect = ex::Rect{cx() - 8.0 * 100, cy() - 8.0 * 100, cx() + 8.0 * 100, cy() + 8.0 * 100};
+  const ex::Plan p = plan_for(o);
+  ASSERT_EQ(p.tiles_x, 1);
+  ASSERT_EQ(p.tiles_y, 1);
+  const ex::Result r = run(p);
+  const nlohmann::json j = read_json(o.out_dir + "/terrain.json");
+  const std::string cooked = o.out_dir + "/back.terrain";
+  char cmd[2048];
+  std::snprintf(cmd, sizeof(cmd),
+                "%s/terrain-cook %s/terrain_x0_y0_height.exr -o %s --crs local --spacing %.17g --origin %.17g,%.17g "
+                "--finest-level 4 --tolerance 0.02 --heights-only -q",
+                TERRAIN_BIN_DIR, o.out_dir.c_str(), cooked.c_str(), j["cook_back"]["spacing"].get<double>(),
+                j["cook_back"]["origin"][0].get<double>(), j["cook_back"]["origin"][1].get<double>());
+  ASSERT_EQ(std::system(cmd), 0) << cmd;
+  ArchiveReader again;
+  ASSERT_TRUE(again.open(cooked).ok());
+  SurfaceSampler a(reader), b(again);
+  double worst_excess = -1e9, max_node_error = 0;
+  size_t compared = 0;
+  for (int row = 0; row < p.height; ++row)
+    for (int col = 0; col < p.width; ++col) {
+      const double x = p.west_x_m + col * 8.0, y = p.north_y_m - row * 8.0;
+      std::optional<terrain::SurfaceSample> sa, sb;
+      ASSERT_TRUE(a.sample(x, y, sa).ok());
+      ASSERT_TRUE(b.sample(x, y, sb).ok());
+      ASSERT_TRUE(sa && sb) << row << "," << col;
+      const double f32 = std::fabs(sa->height_m) * std::ldexp(1.0, -24);  // half an ulp of the EXR float
+      const double node_error = again.nodes()[size_t(again.find(sb->node))].geometric_error_m;
+      max_node_error = std::max(max_node_error, node_error);
+      const double bound = f32 + node_error + 1e-6;
+      worst_excess = std::max(worst_excess, std::fabs(sa->height_m - sb->height_m) - bound);
+      ++compared;
+    }
+  EXPECT_EQ(compared, size_t(201 * 201));
+  EXPECT_LE(worst_excess, 0.0);
+  EXPECT_LE(max_node_error, 0.02);  // the cook met its tolerance: the bound is float rounding + 0.02 m
+}
