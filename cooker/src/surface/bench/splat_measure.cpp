@@ -68,8 +68,20 @@ Status measure_splat(const ArchiveReader& a, SplatMeasure& out) {
           if (fine) out.fine_isolated += alone, ++out.fine_isolated_tested;
         }
       }
-    // Level agreement against the 4 children.
     const NodeKey k = nodes[n].key;
+    // Shared edges with the east and north neighbours.
+    for (int dir = 0; dir < 2; ++dir) {
+      const int64_t ni = a.find(NodeKey{k.level, k.x + (dir == 0), k.y + (dir == 1)});
+      if (ni < 0) continue;
+      if (Status s = load_map(a, size_t(ni), c); !s.ok()) return s;
+      for (int t = 0; t < kN; ++t) {
+        const size_t mine = dir == 0 ? size_t(t * kN + kN - 1) : size_t((kN - 1) * kN + t);
+        const size_t theirs = dir == 0 ? size_t(t * kN) : size_t(t);
+        ++out.seam_samples;
+        out.seam_mismatches += m.id[mine] != c.id[theirs];
+      }
+    }
+    // Level agreement against the 4 children.
     if (k.level == 0) continue;
     for (uint32_t cy = 0; cy < 2; ++cy)
       for (uint32_t cx = 0; cx < 2; ++cx) {

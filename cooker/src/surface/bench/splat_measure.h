@@ -25,6 +25,9 @@ struct SplatMeasure {
   // The same restricted to the finest level present (where lidar noise shows).
   uint64_t fine_isolated = 0, fine_isolated_tested = 0, fine_changes = 0, fine_pairs = 0;
   uint32_t finest_level = 0;
+  // Shared edges: a node's east column / north row against its neighbour's west column / south
+  // row (SPEC 16.4: must be equal).
+  uint64_t seam_samples = 0, seam_mismatches = 0;
 
   double isolated_pct() const { return isolated_tested ? 100.0 * double(isolated) / double(isolated_tested) : 0; }
   double changes_pct() const { return pairs ? 100.0 * double(changes) / double(pairs) : 0; }
