@@ -37,9 +37,12 @@ constexpr const char* kDefaultRulesJson = R"JSON({
     {"name": "water",         "albedo_srgb": [ 46,  64,  74], "roughness": 0.05, "detail_scale_m": 8.0, "detail_strength": 0.05, "height_blend": 0.00}
   ],
   "default_material": "grass",
+  "scale_m": 16,
+  "despeckle": true,
+  "band_limit_noise": true,
   "rules": [
     {"material": "water",  "height_m": {"max": 0.3, "fade": 0.4}, "slope_deg": {"max": 3, "fade": 2}},
-    {"material": "cliff",  "slope_deg": {"min": 52, "fade": 6}, "noise": {"amplitude": 0.2, "scale_m": 16, "octaves": 2, "seed": 1}},
+    {"material": "cliff",  "scale_m": 1, "slope_deg": {"min": 52, "fade": 6}, "noise": {"amplitude": 0.2, "scale_m": 16, "octaves": 2, "seed": 1}},
     {"material": "snow",   "height_m": {"min": 2900, "fade": 250}, "slope_deg": {"max": 42, "fade": 8},
                            "noise": {"amplitude": 0.35, "scale_m": 80, "octaves": 3, "seed": 2}},
     {"material": "rock",   "slope_deg": {"min": 38, "fade": 8}, "noise": {"amplitude": 0.3, "scale_m": 24, "octaves": 3, "seed": 3}},
@@ -131,19 +134,31 @@ double aspect_mask_value(const MaskRange& m, double aspect_deg) {
   return std::clamp(inside_depth * m.inv_fade + 0.5, 0.0, 1.0);
 }
 
-uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s) {
-  for (const MaterialRule& r : rules.rules) {
+namespace {
+// Score of one rule on one sample: true when it claims the sample.
+bool rule_matches(const MaterialRule& r, const SurfaceSample& s) {
     double mask = mask_value(r.height_m, s.height_m);
     if (mask > 0) mask *= mask_value(r.slope_deg, s.slope_deg);
     if (mask > 0) mask *= mask_value(r.curvature, s.curvature);
     if (mask > 0 && s.slope_deg >= 1.0) mask *= aspect_mask_value(r.aspect_deg, s.aspect_deg);
     const double amp = r.noise.amplitude;
     // The noise only matters inside the transition band, so it is evaluated lazily there.
-    if (mask - amp >= 0.5) return r.material;
-    if (mask + amp < 0.5) continue;
-    const double n = fbm_noise(s.x_m, s.y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed);
-    if (mask + amp * n >= 0.5) return r.material;
-  }
+    if (mask - amp >= 0.5) return true;
+    if (mask + amp < 0.5) return false;
+    const double n = fbm_noise(s.x_m, s.y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed, s.min_noise_wavelength_m);
+    return mask + amp * n >= 0.5;
+}
+}  // namespace
+
+uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s) {
+  for (const MaterialRule& r : rules.rules)
+    if (rule_matches(r, s)) return r.material;
+  return rules.default_material;
+}
+
+uint8_t choose_material_scaled(const MaterialRules& rules, const SurfaceSample* per_scale) {
+  for (const MaterialRule& r : rules.rules)
+    if (rule_matches(r, per_scale[r.scale_index])) return r.material;
   return rules.default_material;
 }
 
@@ -155,7 +170,8 @@ Status parse_material_rules(const std::string& json_text, const std::string& ori
     return bad(origin, std::string("not valid JSON: ") + e.what());
   }
   if (!doc.is_object()) return bad(origin, "the document must be a JSON object");
-  if (Status s = check_keys(doc, {"format", "version", "materials", "default_material", "rules"}, origin, "top level");
+  if (Status s = check_keys(doc, {"format", "version", "materials", "default_material", "scale_m", "despeckle", "band_limit_noise",
+                               "rules"}, origin, "top level");
       !s.ok())
     return s;
   if (!doc.contains("format") || doc["format"] != "terrain-material-rules")
@@ -215,18 +231,38 @@ Status parse_material_rules(const std::string& json_text, const std::string& ori
   };
   if (!doc.contains("default_material") || !index_of(doc["default_material"], rules.default_material))
     return bad(origin, "\"default_material\" must name one of the materials");
+  if (Status s = read_number(doc, "scale_m", 0, 1000, rules.scale_m, origin, "top level"); !s.ok()) return s;
+  if (doc.contains("despeckle")) {
+    if (!doc["despeckle"].is_boolean()) return bad(origin, "top level: \"despeckle\" must be true or false");
+    rules.despeckle = doc["despeckle"].get<bool>();
+  }
+  if (doc.contains("band_limit_noise")) {
+    if (!doc["band_limit_noise"].is_boolean())
+      return bad(origin, "top level: \"band_limit_noise\" must be true or false");
+    rules.band_limit_noise = doc["band_limit_noise"].get<bool>();
+  }
   if (doc.contains("rules")) {
     if (!doc["rules"].is_array()) return bad(origin, "\"rules\" must be an array");
     for (size_t i = 0; i < doc["rules"].size(); ++i) {
       const json& r = doc["rules"][i];
       const std::string w = "rules[" + std::to_string(i) + "]";
       if (!r.is_object()) return bad(origin, w + " must be an object");
-      if (Status s = check_keys(r, {"material", "height_m", "slope_deg", "curvature", "aspect_deg", "noise"}, origin, w);
+      if (Status s = check_keys(r, {"material", "scale_m", "height_m", "slope_deg", "curvature", "aspect_deg", "noise"},
+                                origin, w);
           !s.ok())
         return s;
       MaterialRule rule;
       if (!r.contains("material") || !index_of(r["material"], rule.material))
         return bad(origin, w + ": \"material\" must name one of the materials");
+      rule.scale_m = rules.scale_m;
+      if (Status s = read_number(r, "scale_m", 0, 1000, rule.scale_m, origin, w); !s.ok()) return s;
+      const auto known = std::find(rules.scales.begin(), rules.scales.end(), rule.scale_m);
+      if (known == rules.scales.end()) {
+        if (rules.scales.size() == kMaxRuleScales)
+          return bad(origin, w + ": more than " + std::to_string(kMaxRuleScales) + " distinct \"scale_m\" values");
+        rules.scales.push_back(rule.scale_m);
+      }
+      rule.scale_index = uint8_t(std::find(rules.scales.begin(), rules.scales.end(), rule.scale_m) - rules.scales.begin());
       if (Status s = read_range(r, "height_m", -20000, 20000, rule.height_m, origin, w); !s.ok()) return s;
       if (Status s = read_range(r, "slope_deg", 0, 90, rule.slope_deg, origin, w); !s.ok()) return s;
       if (Status s = read_range(r, "curvature", -1e3, 1e3, rule.curvature, origin, w); !s.ok()) return s;

@@ -33,6 +33,10 @@ struct MaterialRule {
   MaskRange curvature;    // Laplacian of height, 1/m: > 0 concave (hollows), < 0 convex (ridges)
   MaskRange aspect_deg;   // compass direction the slope faces: 0 north, 90 east; ignored below 1 degree of slope
   NoiseTerm noise;
+  // Scale (metres) over which height, slope, curvature and aspect are Gaussian-filtered before the
+  // masks read them (sigma of the filter); 0 = per sample. See splat.cpp and SPEC section 16.4.
+  double scale_m = 0;
+  uint8_t scale_index = 0;  // index into MaterialRules::scales (set by the parser)
 };
 
 // Terrain attributes at one splat sample (see splat.cpp for how they are measured).
@@ -42,12 +46,27 @@ struct SurfaceSample {
   double slope_deg = 0;
   double curvature = 0;
   double aspect_deg = 0;
+  double min_noise_wavelength_m = 0;  // noise octaves shorter than this are left out (0 = all)
 };
+
+// Each distinct rule scale costs one filtered height field per node.
+inline constexpr size_t kMaxRuleScales = 4;
 
 struct MaterialRules {
   std::vector<Material> palette;      // at most 256
   std::vector<MaterialRule> rules;    // priority order: the first rule whose score >= 0.5 wins
   uint8_t default_material = 0;       // when no rule matches, and for samples without data
+  // Document-level "scale_m": the default of rules without one, and the scale of the class
+  // raster's mode filter (--landcover). 0 = per sample (the behaviour of files without the key).
+  double scale_m = 0;
+  // Distinct rule scales (metres), in first-use order; rules index it with scale_index.
+  std::vector<double> scales;
+  // Document-level "despeckle": a sample whose id differs from all 4 lattice neighbours takes
+  // their most common id (thin lines, 2 samples wide or 1 sample wide and connected, survive).
+  bool despeckle = false;
+  // Document-level "band_limit_noise": rule noise octaves shorter than 2 splat spacings (4 vertex
+  // spacings) are left out at that level, so the noise cannot alias into per-sample speckle.
+  bool band_limit_noise = false;
   std::string source;                 // file path, or "built-in"
 };
 
@@ -63,5 +82,7 @@ double mask_value(const MaskRange& m, double v);
 double aspect_mask_value(const MaskRange& m, double aspect_deg);
 // Palette index chosen for one sample. Deterministic; pure function of the sample and the rules.
 uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s);
+// Same with one sample per entry of rules.scales (rule r reads per_scale[r.scale_index]).
+uint8_t choose_material_scaled(const MaterialRules& rules, const SurfaceSample* per_scale);
 
 }  // namespace terrain::cook

@@ -41,10 +41,14 @@ inline double value_noise(double u, double v, uint32_t seed) {
 
 // Fractal sum of `octaves` value-noise layers (lacunarity 2, gain 0.5), normalised to [-1, 1].
 // x, y in metres (frame coordinates); scale_m is the wavelength of the first octave.
-inline double fbm_noise(double x_m, double y_m, double scale_m, int octaves, uint32_t seed) {
+// Octaves whose wavelength is under min_wavelength_m are left out but still count in the
+// normalisation: the result is the same field low-passed (a sampling lattice too coarse for an
+// octave would only alias it into per-sample speckle).
+inline double fbm_noise(double x_m, double y_m, double scale_m, int octaves, uint32_t seed,
+                        double min_wavelength_m = 0) {
   double sum = 0, amp = 1, norm = 0, f = 1.0 / scale_m;
   for (int o = 0; o < octaves; ++o) {
-    sum += amp * value_noise(x_m * f, y_m * f, seed + uint32_t(o) * 0x9E37u);
+    if (f * min_wavelength_m <= 1.0) sum += amp * value_noise(x_m * f, y_m * f, seed + uint32_t(o) * 0x9E37u);
     norm += amp;
     amp *= 0.5;
     f *= 2.0;

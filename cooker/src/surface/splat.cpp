@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "fast_math.h"
 #include "noise.h"
@@ -56,8 +57,10 @@ constexpr uint32_t kAlbedoNoiseSeed = 0xA1BED0u;
 
 }  // namespace
 
-bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
-  const float* h = in.heights_m;
+namespace {
+
+// Attributes of vertex (i, j) read from a window-shaped field h (raw or filtered heights).
+bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out) {
   const double s = in.spacing_m;
   out.x_m = in.x0_m + i * s;
   out.y_m = in.y0_m + j * s;
@@ -98,17 +101,171 @@ bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
   return true;
 }
 
+// The ids are first computed on the lattice with two more rings (vertices -6 .. 134, element
+// (k, l) = vertex (2k - 6, 2l - 6)) so the two despeckle passes see every neighbour they read.
+constexpr int kWide = kSplatLattice + 4;  // 71
+constexpr int kFirstVertex = -6;
+// Measuring a lattice vertex reads the field 2 vertices out (curvature), the field reads the raw
+// heights kMaxFilterRadius out: -6 - 2 - kMaxFilterRadius >= -kWindowMargin.
+constexpr int kFieldReach = 2 - kFirstVertex;  // 8
+constexpr int kMaxFilterRadius = kWindowMargin - kFieldReach;  // 10
+static_assert(kMaxFilterRadius >= 2, "the window margin leaves no room for the splat filters");
+
+// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:
+// a normalized convolution (missing taps drop out; a vertex without data stays NaN), separable,
+// fixed summation order, so the bits are the same on every thread and in every node that shares
+// the vertex. The radius is 2 sigma, capped by the window margin (sigma is then radius / 2), so at
+// fine levels the largest scale is kMaxFilterRadius / 2 spacings. Returns false (use the raw
+// heights) when sigma is under half a spacing.
+bool filter_heights(const float* h, double scale_m, double spacing_m, std::vector<float>& out) {
+  double sigma = scale_m / spacing_m;
+  if (sigma < 0.5) return false;
+  int radius = int(std::ceil(2.0 * sigma));
+  if (radius > kMaxFilterRadius) {
+    radius = kMaxFilterRadius;
+    sigma = radius / 2.0;
+  }
+  float w[2 * kMaxFilterRadius + 1];
+  for (int d = -radius; d <= radius; ++d) w[d + radius] = float(std::exp(-0.5 * d * d / (sigma * sigma)));
+  const int lo = -kFieldReach, hi = kHeightSamples - 1 + kFieldReach;  // vertices -8 .. 136
+  out.assign(size_t(kWindowCount), NAN);
+  static thread_local std::vector<float> sum, weight;  // horizontal pass, rows lo - radius .. hi + radius
+  sum.assign(size_t(kWindowCount), 0.0f);
+  weight.assign(size_t(kWindowCount), 0.0f);
+  for (int j = lo - radius; j <= hi + radius; ++j)
+    for (int i = lo; i <= hi; ++i) {
+      float sv = 0, sw = 0;
+      for (int d = -radius; d <= radius; ++d) {
+        const float v = wh(h, i + d, j);
+        if (!std::isnan(v)) { sv += w[d + radius] * v; sw += w[d + radius]; }
+      }
+      const size_t k = size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin);
+      sum[k] = sv;
+      weight[k] = sw;
+    }
+  for (int j = lo; j <= hi; ++j)
+    for (int i = lo; i <= hi; ++i) {
+      if (std::isnan(wh(h, i, j))) continue;
+      float sv = 0, sw = 0;
+      for (int d = -radius; d <= radius; ++d) {
+        const size_t k = size_t((j + d + kWindowMargin) * kWindowSize + i + kWindowMargin);
+        sv += w[d + radius] * sum[k];
+        sw += w[d + radius] * weight[k];
+      }
+      out[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] = sv / sw;
+    }
+  return true;
+}
+
+// Most common class material in the (2r+1)^2 box around window vertex (i, j); ties keep the
+// centre's value when it is among the most common, else the lowest index. Shared boundaries of
+// two classes become smooth curves at the rule scale instead of following the raster's pixels.
+uint8_t mode_class(const uint8_t* classes, int i, int j, int r) {
+  uint16_t count[256] = {};
+  for (int b = -r; b <= r; ++b) {
+    const uint8_t* row = classes + size_t((j + b + kWindowMargin) * kWindowSize + kWindowMargin);
+    for (int a = -r; a <= r; ++a) ++count[row[i + a]];
+  }
+  const uint8_t centre = classes[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)];
+  uint8_t best = centre;
+  for (int v = 0; v < 256; ++v)
+    if (count[v] > count[best]) best = uint8_t(v);
+  return best;
+}
+
+// Despeckle rule for lattice element e: with fewer than `keep` neighbours (of the `n` in nb, those
+// with data, at least `min_data` of them) holding its id, it takes the neighbours' most common id
+// (ties: the first in nb's order), unless none is more common than its own.
+uint8_t despeckled(const std::array<uint8_t, kWide * kWide>& ids, const std::array<uint8_t, kWide * kWide>& has,
+                   size_t e, const size_t* nb, int n, int keep, int min_data) {
+  const uint8_t own = ids[e];
+  int same = 0, with_data = 0;
+  for (int q = 0; q < n; ++q)
+    if (has[nb[q]]) {
+      ++with_data;
+      same += ids[nb[q]] == own;
+    }
+  if (same >= keep || with_data < min_data) return own;
+  uint8_t best = own;
+  int best_count = same;
+  for (int q = 0; q < n; ++q) {
+    if (!has[nb[q]]) continue;
+    int c = 0;
+    for (int p = 0; p < n; ++p) c += has[nb[p]] && ids[nb[p]] == ids[nb[q]];
+    if (c > best_count) best_count = c, best = ids[nb[q]];
+  }
+  return best;
+}
+
+}  // namespace
+
+bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
+  return measure_field(in, in.heights_m, i, j, out);
+}
+
 void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out) {
+  // One height field per distinct rule scale (index 0.. of rules.scales).
+  static thread_local std::vector<float> fields[kMaxRuleScales];
+  const float* field[kMaxRuleScales] = {};
+  const size_t scales = rules.scales.size();
+  for (size_t k = 0; k < scales; ++k)
+    field[k] = filter_heights(in.heights_m, rules.scales[k], in.spacing_m, fields[k]) ? fields[k].data() : in.heights_m;
+  // Class raster (--landcover): mode filter over the document scale (one radius per level).
+  const int class_radius = std::min(kWindowMargin + kFirstVertex,
+                                    int(std::lround(rules.scale_m / in.spacing_m)));
+  std::array<uint8_t, kWide * kWide> wide;
+  std::array<uint8_t, kWide * kWide> has{};
+  for (int l = 0; l < kWide; ++l)
+    for (int k = 0; k < kWide; ++k) {
+      const int i = 2 * k + kFirstVertex, j = 2 * l + kFirstVertex;
+      const size_t e = size_t(l * kWide + k);
+      SurfaceSample per_scale[kMaxRuleScales];
+      bool data = !std::isnan(wh(in.heights_m, i, j));
+      for (size_t s = 0; s < scales && data; ++s) {
+        data = measure_field(in, field[s], i, j, per_scale[s]);
+        if (rules.band_limit_noise) per_scale[s].min_noise_wavelength_m = 4.0 * in.spacing_m;
+      }
+      has[e] = data;
+      if (!data) {
+        wide[e] = rules.default_material;
+        continue;
+      }
+      // A class raster's material (--landcover) wins over the rules where it has one.
+      uint8_t cls = kNoClassMaterial;
+      if (in.class_materials)
+        cls = class_radius > 0 ? mode_class(in.class_materials, i, j, class_radius)
+                               : in.class_materials[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)];
+      if (cls != kNoClassMaterial && cls < rules.palette.size()) {
+        wide[e] = cls;
+      } else if (scales == 0) {
+        wide[e] = rules.default_material;
+      } else {
+        wide[e] = choose_material_scaled(rules, per_scale);
+      }
+    }
+  if (!rules.despeckle) {
+    for (int l = 0; l < kSplatLattice; ++l)
+      for (int k = 0; k < kSplatLattice; ++k) out.ids[size_t(l * kSplatLattice + k)] = wide[size_t((l + 2) * kWide + k + 2)];
+    return;
+  }
+  // Pass 1 (lattice elements 1 .. 69): a sample with fewer than 2 of its own id among its 8
+  // neighbours with data (a speck, a pair, a line's loose end) takes their most common id (ties: the
+  // first in the order N, E, S, W, NE, NW, SE, SW). Along a line one sample wide each sample has 2.
+  std::array<uint8_t, kWide * kWide> pass = wide;
+  for (int l = 1; l + 1 < kWide; ++l)
+    for (int k = 1; k + 1 < kWide; ++k) {
+      const size_t e = size_t(l * kWide + k);
+      if (!has[e]) continue;
+      const size_t nb[8] = {e + kWide, e + 1, e - kWide, e - 1, e + kWide + 1, e + kWide - 1, e - kWide + 1, e - kWide - 1};
+      pass[e] = despeckled(wide, has, e, nb, 8, 2, 4);
+    }
+  // Pass 2 (the 67x67 lattice): a sample unlike each of its 4 neighbours with data (at least 2)
+  // takes their most common id (ties: N, E, S, W).
   for (int l = 0; l < kSplatLattice; ++l)
     for (int k = 0; k < kSplatLattice; ++k) {
-      SurfaceSample s;
-      const bool has = measure_sample(in, 2 * k - 2, 2 * l - 2, s);
-      // A class raster's material (--landcover) wins over the rules where it has one.
-      const uint8_t cls = in.class_materials
-                              ? in.class_materials[size_t((2 * l - 2 + kWindowMargin) * kWindowSize + 2 * k - 2 + kWindowMargin)]
-                              : kNoClassMaterial;
-      out.ids[size_t(l * kSplatLattice + k)] =
-          !has ? rules.default_material : cls != kNoClassMaterial && cls < rules.palette.size() ? cls : choose_material(rules, s);
+      const size_t e = size_t((l + 2) * kWide + k + 2);
+      const size_t nb[4] = {e + kWide, e + 1, e - kWide, e - 1};
+      out.ids[size_t(l * kSplatLattice + k)] = has[e] ? despeckled(pass, has, e, nb, 4, 1, 2) : pass[e];
     }
 }
 

@@ -15,8 +15,8 @@ namespace terrain::cook {
 // Vertex (i, j) of the node (0..128) is window element (i + kWindowMargin, j + kWindowMargin);
 // the margin holds the neighbours' vertices (same canonical values they store), so aprons and
 // normals are computed from real neighbour data and agree across node edges.
-inline constexpr int kWindowMargin = 4;
-inline constexpr int kWindowSize = kHeightSamples + 2 * kWindowMargin;  // 137
+inline constexpr int kWindowMargin = 18;  // 4 for normals and AO; the splat filters need the rest
+inline constexpr int kWindowSize = kHeightSamples + 2 * kWindowMargin;  // 165
 inline constexpr int kWindowCount = kWindowSize * kWindowSize;
 
 enum class BcQuality : uint8_t { fast, balanced, best };
