@@ -132,13 +132,27 @@ using detail::NodeSurface;
 using detail::SnapshotNode;
 using detail::SurfaceSnapshot;
 
+// Node sizes and vertex spacings are powers of two, so x / size == x * (1 / size) exactly: the
+// multiplications below give SurfaceSampler's divisions bit for bit, at a fraction of the cost.
+struct LevelScales {
+  std::array<double, kLevelCount> inv_size{}, inv_spacing{};
+  constexpr LevelScales() {
+    for (int l = 0; l < kLevelCount; ++l) {
+      inv_size[size_t(l)] = 1.0 / node_size_m(l);
+      inv_spacing[size_t(l)] = 1.0 / vertex_spacing_m(l);
+    }
+  }
+};
+constexpr LevelScales kScales;
+static_assert(node_size_m(0) == 64.0 && vertex_spacing_m(0) == 0.5, "sizes must stay powers of two");
+
 // SurfaceSampler's evaluation of one node at (rx, ry) (frame point minus origin); (cx, cy) the
 // node's coordinates. False when the node draws no triangle at the point.
 bool node_height(const NodeSurface& n, double rx, double ry, double cx, double cy, SurfacePoint& out) {
   const int level = int(n.key.level);
   const double size = node_size_m(level);
-  const double s = vertex_spacing_m(level);
-  const double u = (rx - cx * size) / s, v = (ry - cy * size) / s;  // 0..128
+  const double inv_s = kScales.inv_spacing[size_t(level)];
+  const double u = (rx - cx * size) * inv_s, v = (ry - cy * size) * inv_s;  // 0..128
   const int i0 = std::clamp(int(std::floor(u)), 0, kQuadsPerSide - 1);
   const int j0 = std::clamp(int(std::floor(v)), 0, kQuadsPerSide - 1);
   const float* H = n.h.data();
@@ -148,8 +162,8 @@ bool node_height(const NodeSurface& n, double rx, double ry, double cx, double c
   auto set = [&](double h, double gx, double gy) {  // gx, gy: height change per quad along x, y
     out.hit = true;
     out.height_m = h;
-    const double nx = -gx / s, ny = -gy / s, len = std::sqrt(nx * nx + ny * ny + 1.0);
-    out.normal = {nx / len, ny / len, 1.0 / len};
+    const double nx = -gx * inv_s, ny = -gy * inv_s, inv_len = 1.0 / std::sqrt(nx * nx + ny * ny + 1.0);
+    out.normal = {nx * inv_len, ny * inv_len, inv_len};
     out.node = n.key;
   };
   for (int q = 0; q < 4; ++q) {
@@ -283,7 +297,8 @@ struct RayWalk {
     const size_t A = at(i, j), B = at(i + 1, j), C = at(i, j + 1), D = at(i + 1, j + 1);
     const float* H = n.h.data();
     const double hA = H[A], hB = H[B], hC = H[C], hD = H[D];
-    const double u0 = (ox - (x0 + i * s)) / s, v0 = (oy - (y0 + j * s)) / s, du = dx / s, dv = dy / s;
+    const double inv_s = kScales.inv_spacing[n.key.level];
+    const double u0 = (ox - (x0 + i * s)) * inv_s, v0 = (oy - (y0 + j * s)) * inv_s, du = dx * inv_s, dv = dy * inv_s;
     constexpr double kEps = 1e-9;  // quad units: rays along a shared edge hit one side
     // Plane z = hA + u * a + v * b; returns whether it took the hit.
     auto plane = [&](double a, double b, bool south_east) {
@@ -298,9 +313,9 @@ struct RayWalk {
       best_t = t;
       hit.hit = true;
       hit.node = n.key;
-      const double gx = -(south_east ? a : hD - hC) / s, gy = -(south_east ? b : hC - hA) / s;
-      const double len = std::sqrt(gx * gx + gy * gy + 1.0);
-      hit.normal = {gx / len, gy / len, 1.0 / len};
+      const double gx = -(south_east ? a : hD - hC) * inv_s, gy = -(south_east ? b : hC - hA) * inv_s;
+      const double inv_len = 1.0 / std::sqrt(gx * gx + gy * gy + 1.0);
+      hit.normal = {gx * inv_len, gy * inv_len, inv_len};
     };
     const uint8_t* holes = n.holes.empty() ? nullptr : n.holes.data();
     if (!holes || !(holes[A] || holes[B] || holes[D])) plane(hB - hA, hD - hB, true);
@@ -403,7 +418,7 @@ SurfacePoint ResidentSurface::height_at(double x, double y) const {
   const double rx = x - S.origin_x, ry = y - S.origin_y;
   // Fast path: descend from the root holding the point through resident children. A point on a
   // node edge at any level is shared by several nodes: the level loop decides as SurfaceSampler.
-  const double fx = rx / node_size_m(kRootLevel), fy = ry / node_size_m(kRootLevel);
+  const double fx = rx * kScales.inv_size[kRootLevel], fy = ry * kScales.inv_size[kRootLevel];
   if (!(fx >= 0 && fy >= 0 && fx <= S.roots_x && fy <= S.roots_y)) return out;
   double nx = std::floor(fx), ny = std::floor(fy);
   if (nx == fx || ny == fy) return resident_height_on_edge(S, rx, ry);
@@ -411,8 +426,8 @@ SurfacePoint ResidentSurface::height_at(double x, double y) const {
   if (index < 0) return out;
   for (int level = kRootLevel; level > 0; --level) {
     const SnapshotNode& N = S.nodes[size_t(index)];
-    const double size = node_size_m(level - 1);
-    const double gx = rx / size, gy = ry / size;
+    const double inv = kScales.inv_size[size_t(level - 1)];
+    const double gx = rx * inv, gy = ry * inv;
     const double kx = std::floor(gx), ky = std::floor(gy);
     if (kx == gx || ky == gy) return resident_height_on_edge(S, rx, ry);
     const double bx = kx - 2.0 * N.s->key.x, by = ky - 2.0 * N.s->key.y;
