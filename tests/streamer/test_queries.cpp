@@ -301,13 +301,13 @@ void check_rays_against_brute_force(const std::string& path, int ray_count) {
 TEST(Queries, RaysEqualBruteForceOnJacksboro) {
   const std::string path = real_archive("jacksboro");
   if (path.empty()) GTEST_SKIP() << "jacksboro archive not cooked (cook_test_archives fixture)";
-  check_rays_against_brute_force(path, kSanitized ? 400 : 2000);
+  check_rays_against_brute_force(path, 2000);
 }
 
 TEST(Queries, RaysEqualBruteForceOnKilauea) {
   const std::string path = real_archive("kilauea");
   if (path.empty()) GTEST_SKIP() << "kilauea archive not cooked (needs the shared DEMs)";
-  check_rays_against_brute_force(path, kSanitized ? 400 : 2000);
+  check_rays_against_brute_force(path, 2000);
 }
 
 // ---- Holes --------------------------------------------------------------------------------------

@@ -73,7 +73,7 @@ struct SurfacePoint {
 struct Ray {
   std::array<double, 3> origin{};     // frame metres
   std::array<double, 3> direction{};  // any length > 0 (normalized internally)
-  double max_distance_m = 0;          // along the direction, metres
+  double max_distance_m = 0;          // along the direction, metres (finite)
 };
 
 struct RayHit {
@@ -100,7 +100,7 @@ class ResidentSurface {
   SurfacePoint height_at(double x, double y) const;
   // First hit of the segment origin + t * unit(direction), t in [0, max_distance_m], with the
   // resident surface's triangles (either side: a ray from below hits too). Misses through holes.
-  // A zero or non-finite direction, or a negative max distance: a miss.
+  // A zero or non-finite direction, or a negative or non-finite max distance: a miss.
   RayHit raycast(const Ray& ray) const;
 
   // Batched: out[i] = height_at(points[i]) / raycast(rays[i]); out must be at least as long.
