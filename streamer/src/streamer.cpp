@@ -8,6 +8,8 @@
 #include <thread>
 
 #include "load_queue.h"
+#include "resident_surface.h"
+#include "terrain/queries.h"
 #include "wanted_set.h"
 
 namespace terrain {
@@ -96,6 +98,7 @@ struct Streamer::Impl {
   std::vector<uint32_t> resident;  // directory indices
   std::vector<uint32_t> decoded;   // nodes in Phase::decoded
   uint32_t root_count = 0;
+  detail::SurfacePublisher surfaces;  // terrain/queries.h: snapshots of the resident surface
 
   // Per-frame output.
   uint64_t frame = 0;
@@ -310,6 +313,7 @@ struct Streamer::Impl {
       slot_owner[slot] = -1;
       fenced.push_back({slot, frame + config.fence_frames});
       release_data(node);
+      surfaces.remove(node);
       evictions.push_back({records[node].key, slot});
     });
   }
@@ -343,6 +347,8 @@ struct Streamer::Impl {
       set_cell(r.key, slot);
       dirty_slots.push_back(slot);
       deliveries.push_back({r.key, slot, &records[node], data[node]});
+      if (config.sections & kSectionHeights)
+        surfaces.add(node, detail::make_node_surface(reader, node, *data[node], (config.sections & kSectionAlbedo) != 0));
       ++loads_delivered;
       ++to_release;
     }
@@ -421,6 +427,7 @@ struct Streamer::Impl {
     loader->release(to_release);
     to_release = 0;
     fill_stats();
+    surfaces.publish(frame, reader);
 
     update.delivered = deliveries;
     update.evicted = evictions;
@@ -474,6 +481,9 @@ std::span<const SlotDescriptor> Streamer::slots() const {
   return impl_->slot_table;
 }
 StreamerStats Streamer::stats() const { return impl_ ? impl_->stats : StreamerStats{}; }
+ResidentSurface Streamer::resident_surface() const {
+  return impl_ ? ResidentSurface(impl_->surfaces.latest()) : ResidentSurface{};
+}
 
 NodeState Streamer::node_state(const NodeKey& key) const {
   if (!impl_) return NodeState::absent;

@@ -65,6 +65,8 @@
 
 namespace terrain {
 
+class ResidentSurface;  // terrain/queries.h
+
 // ---- Configuration ----------------------------------------------------------------------------
 
 struct StreamerConfig {
@@ -261,6 +263,13 @@ class Streamer {
   std::vector<NodeKey> resident_nodes() const;
   std::vector<NodeKey> wanted_nodes() const;
   std::vector<NodeKey> required_nodes() const;
+
+  // Snapshot of the resident surface at the end of the last update() that delivered or evicted
+  // (terrain/queries.h: height, normal and ray queries). The one exception to the threading rule
+  // above: callable from any thread while the streamer is open, also during update(); not during
+  // open(), close() or destruction. Empty before the first update(), or when config.sections
+  // lacks kSectionHeights.
+  ResidentSurface resident_surface() const;
 
  private:
   struct Impl;
