@@ -136,6 +136,10 @@ int run(int argc, char** argv) {
   app.add_option("--raw-size", raw_size, "Raw heightmaps: WIDTHxHEIGHT");
   app.add_option("--raw-type", o.raw_type, "Raw heightmaps: u16 (default for .r16/.raw), i16, f32 (.r32/.f32)")
       ->check(CLI::IsMember({"u16", "i16", "f32"}));
+  app.add_option("--tile-encoding", o.tile_encoding,
+                 "Web elevation tiles given as z/x/y paths (.png, .webp) whose path does not say: terrarium "
+                 "(Mapzen / AWS Terrain Tiles) or mapbox (Mapbox / MapTiler terrain-RGB)")
+      ->check(CLI::IsMember({"terrarium", "mapbox"}));
   app.add_flag("--raw-big-endian", o.raw_big_endian, "Raw heightmaps are big-endian");
   app.add_option("--materials", o.materials_path, "Material rules JSON for the splat map (default: built-in)");
   app.add_option("--albedo", o.albedo_path,
