@@ -328,8 +328,11 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   if (driver == "GTiff" || driver == "COG") {
     int bw = 0, bh = 0;
     band->GetBlockSize(&bw, &bh);
+    // Strips span the width; tiles are narrower or wider (a 256 tile over 37 columns), or square
+    // multiples of 16 (a strip as tall as the image is wide, and 16-aligned, reads as tiled here).
+    const bool tiled = bw != width || (bw == bh && bw % 16 == 0 && bw >= 64 && bh < height);
     info.description = fmt::format("GeoTIFF {} {}x{} {} {}{}{}, {}", info.sample_type, width, height,
-                                   bw < width ? "tiled" : "strips", compression_name(ds.get()), nodata_text, scale_text,
+                                   tiled ? "tiled" : "strips", compression_name(ds.get()), nodata_text, scale_text,
                                    point ? "PixelIsPoint" : "PixelIsArea");
   } else {
     info.description = fmt::format("{} ({}) {} {}x{}{}{}, {}", driver, ds->GetDriver()->GetMetadataItem(GDAL_DMD_LONGNAME),

@@ -147,6 +147,10 @@ Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding
   info.sample_type = "RGB8";
   info.geo = web_tile_geo(t, w);
   info.crs = web_mercator_crs();
+  // Where the tile is (for the gdalwarp hint while 3857 cannot be a frame).
+  const double n = double(int64_t(1) << t.z);
+  info.crs.center_lon = (t.x + 0.5) / n * 360.0 - 180.0;
+  info.crs.center_lat = std::atan(std::sinh(M_PI * (1.0 - 2.0 * (t.y + 0.5) / n))) * 180.0 / M_PI;
   info.description = fmt::format("{} web tile z{} x{} y{} {}x{} ({})", driver, t.z, t.x, t.y, w, h,
                                  enc == TileEncoding::terrarium ? "terrarium" : "Mapbox terrain-RGB");
   out = std::move(src);

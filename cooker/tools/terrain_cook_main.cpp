@@ -2,6 +2,7 @@
 // Safety of the files it names (output_paths.h): outputs that are inputs, devices, FIFOs or
 // directories are refused before any work; the archive and the report are staged beside their
 // targets and committed together at the end; SIGINT/SIGTERM remove the staged files.
+#include <filesystem>
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -224,8 +225,11 @@ int run(int argc, char** argv) {
                                 {"--materials", o.materials_path}})
     if (!p.empty()) inputs.push_back({flag, p});
   if (!report_path.empty()) outputs.push_back({"--report", report_path});
-  for (const terrain::NamedPath& in : inputs)
+  for (const terrain::NamedPath& in : inputs) {
+    // A directory input stands for the rasters under it: load_inputs lists and checks each of them.
+    if (std::error_code ec; in.flag == "input" && std::filesystem::is_directory(in.path, ec)) continue;
     if (terrain::Status st = terrain::check_input_file(in.flag == "input" ? "" : in.flag, in.path); !st.ok()) return fail(st);
+  }
   if (terrain::Status st = terrain::check_output_paths(inputs, outputs); !st.ok()) return fail(st);
 
   // ---- cook into staged files beside the targets ----
