@@ -75,12 +75,9 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
   crs.tm.semi_major_m = a;
   crs.tm.inverse_flattening = inverse_flattening(a, b);
   const char* pcs_name = srs.GetName();
-  if (srs.IsLocal()) {
-    crs.kind = CrsKind::unsupported;
-    crs.projection = "local (engineering) CRS without a geodetic meaning";
-    crs.name = pcs_name ? pcs_name : "";
-    return crs;
-  }
+  // GDAL's LOCAL_CS["unnamed"] for a GeoTIFF without geokeys: no CRS, as the libgeotiff reader
+  // said (the user names it with --crs, e.g. local).
+  if (srs.IsLocal()) return SourceCrs{};
   if (srs.IsGeocentric()) {
     crs.kind = CrsKind::unsupported;
     crs.projection = "geocentric";
@@ -174,46 +171,90 @@ std::string compression_name(GDALDataset* ds) {
 
 class GdalSource final : public SourceRaster {
  public:
-  GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float)
-      : ds_(std::move(ds)), band_(band), is_float_(is_float) {}
+  GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte)
+      : ds_(std::move(ds)), band_(band), is_float_(is_float), signed_byte_(signed_byte) {}
   SourceInfo& info_mut() { return info_; }
 
-  uint64_t scratch_bytes(int w) const override { return std::max<uint64_t>(kScratchBytes, uint64_t(w) * 8); }
+  // Types of 4 bytes or fewer are decoded in place in `out` (no scratch); wider ones (Float64,
+  // 64-bit integers) through a band of rows of doubles. GDAL holds at least one decoded block.
+  uint64_t scratch_bytes(int w, int h) const override {
+    int bw = 0, bh = 0;
+    band_->GetBlockSize(&bw, &bh);
+    const uint64_t block = uint64_t(std::max(bw, 1)) * uint64_t(std::max(bh, 1)) * uint64_t(type_bytes());
+    const uint64_t rows = in_place() ? 0 : std::min<uint64_t>(rows_per_call(w, h), uint64_t(h));
+    return rows * uint64_t(w) * 8 + block;
+  }
 
   Status read_window(int x0, int y0, int w, int h, float* out) override {
     if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > info_.width || y0 + h > info_.height)
       return Status::failure(Error::invalid_argument,
                              fmt::format("{}: window {}x{} at ({}, {}) outside the {}x{} raster", info_.path, w, h, x0,
                                          y0, info_.width, info_.height));
-    // Doubles: Int32 / UInt32 nodata compares exactly, as the libgeotiff reader did.
-    const int rows_per_call = int(std::clamp<uint64_t>(kScratchBytes / (uint64_t(w) * 8), 1, uint64_t(h)));
-    buf_.resize(size_t(w) * size_t(rows_per_call));
-    const std::optional<double> nd = info_.nodata;
-    const float nd_f = nd ? float(*nd) : 0.0f;
-    const bool affine = info_.scale != 1.0 || info_.offset != 0.0;
-    for (int r = 0; r < h; r += rows_per_call) {
-      const int rows = std::min(rows_per_call, h - r);
+    const GDALDataType type = band_->GetRasterDataType();
+    if (in_place()) {
+      // Native samples into out's 4-byte slots, then each slot converted where it lies.
+      QuietErrors quiet;
+      if (band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
+        return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
+                                                           y0 + h - 1, QuietErrors::last()));
+      info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
+      const size_t n = size_t(w) * size_t(h);
+      uint8_t* slots = reinterpret_cast<uint8_t*>(out);
+      for (size_t i = 0; i < n; ++i) out[i] = convert(native(slots + i * 4, type));
+      return Status::success();
+    }
+    // Doubles: 64-bit values and their nodata compare exactly.
+    const int rows_per = rows_per_call(w, h);
+    buf_.resize(size_t(w) * size_t(rows_per));
+    for (int r = 0; r < h; r += rows_per) {
+      const int rows = std::min(rows_per, h - r);
       QuietErrors quiet;
       if (band_->RasterIO(GF_Read, x0, y0 + r, w, rows, buf_.data(), w, rows, GDT_Float64, 0, 0, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0 + r,
                                                            y0 + r + rows - 1, QuietErrors::last()));
-      info_.bytes_read += uint64_t(w) * uint64_t(rows) * uint64_t(GDALGetDataTypeSizeBytes(band_->GetRasterDataType()));
+      info_.bytes_read += uint64_t(w) * uint64_t(rows) * uint64_t(type_bytes());
       float* dst = out + size_t(r) * size_t(w);
       const size_t n = size_t(w) * size_t(rows);
-      for (size_t i = 0; i < n; ++i) {
-        const double v = buf_[i];
-        bool missing = std::isnan(v);
-        if (nd) missing = missing || (is_float_ ? float(v) == nd_f : v == *nd);
-        dst[i] = missing ? NAN : float(affine ? v * info_.scale + info_.offset : v);
-      }
+      for (size_t i = 0; i < n; ++i) dst[i] = convert(buf_[i]);
     }
     return Status::success();
   }
 
  private:
+  int type_bytes() const { return GDALGetDataTypeSizeBytes(band_->GetRasterDataType()); }
+  bool in_place() const {
+    switch (band_->GetRasterDataType()) {
+      case GDT_Byte: case GDT_UInt16: case GDT_Int16: case GDT_UInt32: case GDT_Int32: case GDT_Float32: return true;
+      default: return false;
+    }
+  }
+  // One native sample (Byte as Int8 when the band says SIGNEDBYTE) as a double.
+  double native(const uint8_t* p, GDALDataType type) const {
+    switch (type) {
+      case GDT_Byte: return signed_byte_ ? double(int8_t(p[0])) : double(p[0]);
+      case GDT_UInt16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
+      case GDT_Int16: { int16_t v; std::memcpy(&v, p, 2); return v; }
+      case GDT_UInt32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+      case GDT_Int32: { int32_t v; std::memcpy(&v, p, 4); return v; }
+      case GDT_Float32: { float v; std::memcpy(&v, p, 4); return v; }
+      default: return NAN;
+    }
+  }
+  // The file's value to a height: nodata (declared, NaN) to NaN, then scale and offset. Floats
+  // compare with the nodata value in float, integers exactly (as the libgeotiff reader did).
+  float convert(double v) const {
+    bool missing = std::isnan(v);
+    if (info_.nodata) missing = missing || (is_float_ ? float(v) == float(*info_.nodata) : v == *info_.nodata);
+    if (missing) return NAN;
+    return float(info_.scale != 1.0 || info_.offset != 0.0 ? v * info_.scale + info_.offset : v);
+  }
+  static int rows_per_call(int w, int h) {
+    return int(std::clamp<uint64_t>(kScratchBytes / (uint64_t(w) * 8), 1, uint64_t(h)));
+  }
   std::unique_ptr<GDALDataset> ds_;
   GDALRasterBand* band_;
   bool is_float_;
+  bool signed_byte_;
   std::vector<double> buf_;
 };
 
@@ -340,7 +381,8 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
                                    point ? "pixel is point" : "pixel is area");
   }
   // The source owns the dataset from here on (the band pointer stays valid with it).
-  auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0);
+  auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
+                                           info.sample_type == "Int8");
   src->info_mut() = std::move(info);
   out = std::move(src);
   return Status::success();

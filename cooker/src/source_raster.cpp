@@ -11,7 +11,7 @@ namespace terrain::cook {
 Status read_whole_source(SourceRaster& src, const ReadOptions& options, Raster& out) {
   const SourceInfo& info = src.info();
   if (Status st = check_raster_memory(info.path, uint64_t(info.width), uint64_t(info.height), info.sample_type, options,
-                                      src.scratch_bytes(info.width));
+                                      src.scratch_bytes(info.width, info.height));
       !st.ok())
     return st;
   out = Raster{};

@@ -35,8 +35,9 @@ class SourceRaster {
   // scale plus its offset; nodata (the declared value, NaN, +-Inf) as NaN. Reads nothing outside the
   // window but the driver's blocks that cover it.
   virtual Status read_window(int x0, int y0, int w, int h, float* out) = 0;
-  // Bytes of scratch a read_window of `w` columns needs beyond `out` (for the memory budget).
-  virtual uint64_t scratch_bytes(int w) const = 0;
+  // Bytes a read_window of w x h samples needs beyond `out` (its scratch and, for GDAL, the block
+  // cache it may fill), for the memory budget.
+  virtual uint64_t scratch_bytes(int w, int h) const = 0;
 
  protected:
   SourceInfo info_;

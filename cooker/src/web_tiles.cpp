@@ -33,7 +33,7 @@ class WebTileSource final : public SourceRaster {
  public:
   WebTileSource(std::unique_ptr<GDALDataset> ds, TileEncoding enc) : ds_(std::move(ds)), enc_(enc) {}
   SourceInfo& info_mut() { return info_; }
-  uint64_t scratch_bytes(int w) const override { return uint64_t(w) * uint64_t(info_.height) * 4; }
+  uint64_t scratch_bytes(int w, int h) const override { return uint64_t(w) * uint64_t(h) * 4; }
 
   Status read_window(int x0, int y0, int w, int h, float* out) override {
     if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > info_.width || y0 + h > info_.height)

@@ -306,6 +306,17 @@ TEST(GdalInputs, WindowsScaleAndOffset) {
     }
   EXPECT_TRUE(std::isnan(wa[size_t(5 - y0) * w + size_t(5 - x0)]));
   expect_refusal(a->read_window(30, 0, 11, 2, wa.data()), Error::invalid_argument, {"outside"});
+  // Float64 (read through a band of doubles, not in place): the same heights and nodata.
+  const std::string f64 = (dir / "f64.tif").string();
+  ASSERT_EQ(std::system(fmt::format("gdal_translate -q -ot Float64 '{}' '{}'", plain, f64).c_str()), 0);
+  std::unique_ptr<cook::SourceRaster> c;
+  ASSERT_TRUE(cook::open_gdal_source(f64, ro, c).ok());
+  EXPECT_EQ(c->info().sample_type, "Float64");
+  cook::Raster whole64;
+  ASSERT_TRUE(cook::read_whole_source(*c, ro, whole64).ok());
+  ASSERT_EQ(whole64.values.size(), whole.values.size());
+  EXPECT_EQ(std::memcmp(whole64.values.data(), whole.values.data(), whole.values.size() * sizeof(float)), 0);
+  EXPECT_TRUE(std::isnan(whole64.at(5, 5)));
 }
 
 TEST(GdalInputs, DirectoryInputIsEveryRasterInPathOrder) {

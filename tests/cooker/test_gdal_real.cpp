@@ -51,8 +51,8 @@ TEST_P(SharedGeoTiff, GdalReaderEqualsTheLibgeotiffReader) {
 INSTANTIATE_TEST_SUITE_P(SharedData, SharedGeoTiff,
                          ::testing::Values("kilauea_utm5n.tif", "srtm_oetztal.tif", "slovenia_TM1_564_146.tif",
                                            "tahoe_lidar_bareearth.tif", "tahoe_lidar_highesthit.tif"),
-                         [](const auto& info) {
-                           std::string n = info.param;
+                         [](const auto& p) {
+                           std::string n = p.param;
                            return n.substr(0, n.find('.'));
                          });
 
