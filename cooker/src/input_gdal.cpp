@@ -270,12 +270,6 @@ SourceCrs gdal_crs_of_epsg(int code) {
   return crs_from_srs(&srs, NAN, NAN);
 }
 
-bool gdal_identifies(const std::string& path) {
-  init_gdal_once();
-  QuietErrors quiet;
-  return GDALIdentifyDriverEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr) != nullptr;
-}
-
 Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out) {
   init_gdal_once();
   QuietErrors quiet;
@@ -293,7 +287,8 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   if (ds->GetRasterCount() < 1)
     return Status::failure(Error::unsupported_input, fmt::format("{}: has no raster band", path));
   const std::string driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
-  // A VRT (or any multi-file dataset) whose parts are missing would read them as nodata: refuse it.
+  // A multi-file dataset (e.g. a raster and its .hdr) missing a listed part is named before reading.
+  // (GDAL lists only the VRT sources that exist: a missing tile fails the read, "No such file".)
   if (char** files = ds->GetFileList()) {
     for (char** f = files; *f; ++f) {
       VSIStatBufL st;

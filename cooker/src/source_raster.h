@@ -55,9 +55,6 @@ void init_gdal();
 // EPSG `code` as the GDAL reader maps a file in that CRS (kind none when GDAL does not know it).
 SourceCrs gdal_crs_of_epsg(int code);
 
-// True when GDAL can identify `path` as a raster it reads (no error printed).
-bool gdal_identifies(const std::string& path);
-
 // Reads the whole source into `out` (values, geo, crs, description, nodata_declared), band of rows
 // by band of rows, after checking width x height (plus the scratch) against options' budget.
 Status read_whole_source(SourceRaster& src, const ReadOptions& options, Raster& out);
