@@ -32,6 +32,9 @@ add_library(terrain_geotiff INTERFACE)
 target_include_directories(terrain_geotiff SYSTEM INTERFACE ${GEOTIFF_INCLUDE_DIR} ${GEOTIFF_INCLUDE_DIR}/geotiff)
 target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
 
+# GDAL (libgdal-dev): every raster input it reads (cooker/src/input_gdal.cpp, web_tiles.cpp).
+find_package(GDAL CONFIG REQUIRED)
+
 # PROJ (libproj-dev): terrain-inspect's lon/lat datum conversion (format/tools/inspect_lonlat.cpp).
 pkg_check_modules(proj REQUIRED IMPORTED_TARGET proj)
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <memory>
 #include <tuple>
+#include <utility>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -51,13 +52,15 @@ int finest_level_for(double source_spacing_m) {
   return kRootLevel;
 }
 
-std::string cook_info(const CookOptions& o, const CookReport& r, const std::vector<std::string>& descriptions) {
+// `inputs`: (path, description) of every raster read (a directory input stands for several).
+std::string cook_info(const CookOptions& o, const CookReport& r,
+                      const std::vector<std::pair<std::string, std::string>>& descriptions) {
   nlohmann::ordered_json j;
   j["tool"] = "terrain-cook";
   j["version"] = "0.1.0";
   nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
-  for (size_t i = 0; i < o.inputs.size(); ++i)
-    inputs.push_back({{"path", o.inputs[i]}, {"description", i < descriptions.size() ? descriptions[i] : ""}});
+  for (const auto& [path, description] : descriptions)
+    inputs.push_back({{"path", path}, {"description", description}});
   j["inputs"] = inputs;
   j["options"] = {{"tolerance_m", o.tolerance_m},
                   {"finest_level", o.finest_level},
@@ -133,9 +136,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   // ---- read ----
   std::vector<Raster> rasters;
   if (Status st = load_inputs(options, rasters); !st.ok()) return st;
-  std::vector<std::string> descriptions;
+  std::vector<std::pair<std::string, std::string>> descriptions;
   for (const Raster& r : rasters) {
-    descriptions.push_back(r.description);
+    descriptions.emplace_back(r.path, r.description);
     report.input_descriptions.push_back(fmt::format("{}: {}; {}", r.path, r.description, describe_crs(r.crs)));
     if (const uint64_t n = r.implausible.out_of_range + r.implausible.sentinel; n) {
       report.implausible_samples += n;

@@ -1,21 +1,31 @@
 // Picks a reader by file name and applies the georeferencing and height flags.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fmt/format.h>
+#include <system_error>
 
 #include "crs.h"
 #include "inputs.h"
 #include "memory_budget.h"
+#include "source_raster.h"
 #include "terrain/output_paths.h"
+#include "web_tiles.h"
 
 namespace terrain::cook {
 namespace {
 
-enum class Format { geotiff, hgt, image, raw, npz, unknown };
+// GDAL reads everything it can; our own readers stay where GDAL cannot do the job or does it
+// differently on purpose: .npz (no GDAL driver), raw game heightmaps (size and type from flags),
+// SRTM HGT (zip / gz names checked against the tile, positions exact from the name), and PNG / EXR
+// heightmap images (OpenImageIO; vertex grids placed by --origin / --spacing). PNG / WebP tiles
+// under a z/x/y path are web elevation tiles.
+enum class Format { gdal, hgt, image, raw, npz, web_tile };
 
 Format format_of(const std::string& path) {
   const std::string base = std::filesystem::path(path).filename().string();
-  if (ends_with(base, ".tif") || ends_with(base, ".tiff")) return Format::geotiff;
+  TileAddress tile;
+  if (parse_tile_address(path, tile)) return Format::web_tile;
   if (ends_with(base, ".hgt") || ends_with(base, ".hgt.zip") || ends_with(base, ".hgt.gz")) return Format::hgt;
   if (ends_with(base, ".png") || ends_with(base, ".exr")) return Format::image;
   if (ends_with(base, ".r16") || ends_with(base, ".raw") || ends_with(base, ".r32") || ends_with(base, ".f32"))
@@ -25,7 +35,54 @@ Format format_of(const std::string& path) {
   if ((ends_with(base, ".zip") || ends_with(base, ".gz")) && base.size() >= 7 &&
       (base[0] == 'N' || base[0] == 'S' || base[0] == 'n' || base[0] == 's'))
     return Format::hgt;
-  return Format::unknown;
+  return Format::gdal;
+}
+
+// Extensions a directory input contributes (others, e.g. .aux.xml or README, are skipped).
+bool is_raster_name(const std::string& base) {
+  static const char* const kExts[] = {".tif", ".tiff", ".vrt", ".hgt", ".hgt.zip", ".hgt.gz", ".dt0", ".dt1", ".dt2",
+                                      ".nc", ".img", ".asc", ".bil", ".flt", ".png", ".webp", ".exr", ".npz",
+                                      ".r16", ".r32", ".f32", ".raw", ".jp2", ".bt", ".ter", ".xyz"};
+  return std::any_of(std::begin(kExts), std::end(kExts), [&](const char* e) { return ends_with(base, e); });
+}
+
+// Inputs with every directory replaced by the rasters under it, in path order (so "first listed
+// wins" is the sorted order within a directory).
+Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out) {
+  out.clear();
+  for (const std::string& in : inputs) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(in, ec)) {
+      out.push_back(in);
+      continue;
+    }
+    std::vector<std::string> found;
+    for (auto it = std::filesystem::recursive_directory_iterator(in, ec); !ec && it != std::filesystem::end(it);
+         it.increment(ec))
+      if (it->is_regular_file(ec) && is_raster_name(it->path().filename().string())) found.push_back(it->path().string());
+    if (ec) return Status::failure(Error::io_open, fmt::format("{}: cannot list the directory: {}", in, ec.message()));
+    if (found.empty())
+      return Status::failure(Error::unsupported_input, fmt::format("{}: a directory with no raster files in it", in));
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  return Status::success();
+}
+
+Status read_gdal(const std::string& path, const ReadOptions& ro, Raster& r) {
+  std::unique_ptr<SourceRaster> src;
+  if (Status st = open_gdal_source(path, ro, src); !st.ok()) return st;
+  return read_whole_source(*src, ro, r);
+}
+
+Status read_web_tile(const std::string& path, const std::string& encoding_flag, const ReadOptions& ro, Raster& r) {
+  TileAddress t;
+  parse_tile_address(path, t);
+  TileEncoding enc = TileEncoding::none;
+  if (Status st = tile_encoding_of(path, encoding_flag, enc); !st.ok()) return st;
+  std::unique_ptr<SourceRaster> src;
+  if (Status st = open_web_tile(path, t, enc, src); !st.ok()) return st;
+  return read_whole_source(*src, ro, r);
 }
 
 // An undeclared -9999 (the most common nodata value written without a tag) is a void when no
@@ -134,22 +191,20 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
   uint64_t reserved = 0;
   ro.bytes_per_sample = kCookBytesPerSample;
 
-  for (const std::string& path : options.inputs) {
+  std::vector<std::string> paths;
+  if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  for (const std::string& path : paths) {
     if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
     Raster r;
     Status st;
     ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;
     switch (format_of(path)) {
-      case Format::geotiff: st = read_geotiff(path, ro, r); break;
+      case Format::gdal: st = read_gdal(path, ro, r); break;
+      case Format::web_tile: st = read_web_tile(path, options.tile_encoding, ro, r); break;
       case Format::hgt: st = read_hgt(path, ro, r); break;
       case Format::image: st = read_image(path, ro, r); break;
       case Format::raw: st = read_raw(path, ro, r); break;
       case Format::npz: st = read_npz(path, ro, r); break;
-      case Format::unknown:
-        return Status::failure(Error::unsupported_input,
-                               fmt::format("{}: unknown input format; supported: GeoTIFF (.tif, .tiff), SRTM HGT (.hgt, "
-                                           ".hgt.zip, .hgt.gz), PNG16 / EXR heightmaps (.png, .exr), raw (.r16, .raw, "
-                                           ".r32, .f32), NumPy (.npz)", path));
     }
     if (!st.ok()) return st;
     if (r.width < 2 || r.height < 2)

@@ -2,6 +2,7 @@
 // Safety of the files it names (output_paths.h): outputs that are inputs, devices, FIFOs or
 // directories are refused before any work; the archive and the report are staged beside their
 // targets and committed together at the end; SIGINT/SIGTERM remove the staged files.
+#include <filesystem>
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -136,6 +137,10 @@ int run(int argc, char** argv) {
   app.add_option("--raw-size", raw_size, "Raw heightmaps: WIDTHxHEIGHT");
   app.add_option("--raw-type", o.raw_type, "Raw heightmaps: u16 (default for .r16/.raw), i16, f32 (.r32/.f32)")
       ->check(CLI::IsMember({"u16", "i16", "f32"}));
+  app.add_option("--tile-encoding", o.tile_encoding,
+                 "Web elevation tiles given as z/x/y paths (.png, .webp) whose path does not say: terrarium "
+                 "(Mapzen / AWS Terrain Tiles) or mapbox (Mapbox / MapTiler terrain-RGB)")
+      ->check(CLI::IsMember({"terrarium", "mapbox"}));
   app.add_flag("--raw-big-endian", o.raw_big_endian, "Raw heightmaps are big-endian");
   app.add_option("--materials", o.materials_path, "Material rules JSON for the splat map (default: built-in)");
   app.add_option("--albedo", o.albedo_path,
@@ -220,8 +225,11 @@ int run(int argc, char** argv) {
                                 {"--materials", o.materials_path}})
     if (!p.empty()) inputs.push_back({flag, p});
   if (!report_path.empty()) outputs.push_back({"--report", report_path});
-  for (const terrain::NamedPath& in : inputs)
+  for (const terrain::NamedPath& in : inputs) {
+    // A directory input stands for the rasters under it: load_inputs lists and checks each of them.
+    if (std::error_code ec; in.flag == "input" && std::filesystem::is_directory(in.path, ec)) continue;
     if (terrain::Status st = terrain::check_input_file(in.flag == "input" ? "" : in.flag, in.path); !st.ok()) return fail(st);
+  }
   if (terrain::Status st = terrain::check_output_paths(inputs, outputs); !st.ok()) return fail(st);
 
   // ---- cook into staged files beside the targets ----

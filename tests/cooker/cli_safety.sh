@@ -31,7 +31,7 @@ case $case_name in
   report_is_input) expect 2 "same file as input" "${cook[@]}" -o keep.terrain --report in.npz ;;
   report_missing_dir) expect 2 "does not exist" "${cook[@]}" -o keep.terrain --report missing/r.json ;;
   input_fifo) expect 1 "not a regular file \(FIFO\)" "$bin/terrain-cook" fifo -q -o x.terrain ;;
-  input_directory) expect 1 "not a regular file \(directory\)" "$bin/terrain-cook" dir -q -o x.terrain ;;
+  input_directory) expect 1 "a directory with no raster files in it" "$bin/terrain-cook" dir -q -o x.terrain ;;
   input_device) expect 1 "not a regular file \(character device\)" "$bin/terrain-cook" null -q -o x.terrain ;;
   origin_huge) expect 2 "within \+-1e8" "${cook[@]}" -o x.terrain --origin 1e300,0 --spacing 1 ;;
   origin_nan) expect 2 "--origin" "${cook[@]}" -o x.terrain --origin nan,0 --spacing 1 ;;

@@ -51,6 +51,7 @@ struct CookOptions {
   std::array<int, 2> raw_size{0, 0};  // width, height (required for raw input)
   std::string raw_type;               // "u16", "i16", "f32" (empty: from the extension)
   bool raw_big_endian = false;
+  std::string tile_encoding;          // z/x/y web tiles: "terrarium" or "mapbox" (empty: from the path)
 
   NodataPolicy nodata = NodataPolicy::automatic;
   int64_t fill_max_samples = 4096;  // automatic policy: largest enclosed void (in samples) to fill

@@ -1,0 +1,386 @@
+// Inputs read through GDAL: any raster GDAL opens (GeoTIFF, COG, VRT, DTED, netCDF, ...), band 1,
+// by windows with RasterIO. The geotransform gives the sample positions, the spatial reference the
+// CRS (mapped to what the cooker understands: geographic, Transverse Mercator, or a named
+// unsupported CRS for the gdalwarp hint).
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fmt/format.h>
+#include <mutex>
+#include <vector>
+
+#include "crs.h"
+#include "inputs.h"
+#include "source_raster.h"
+
+namespace terrain::cook {
+namespace {
+
+// GDAL's block cache defaults to 5 % of RAM; a cook reads each block about once, so a small cache
+// costs nothing and keeps the budget honest. An explicit GDAL_CACHEMAX wins.
+constexpr int64_t kGdalCacheBytes = int64_t(64) << 20;
+// Rows of scratch (doubles) per RasterIO call when a window is read band by band.
+constexpr uint64_t kScratchBytes = uint64_t(8) << 20;
+
+void init_gdal_once() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    // PixelIsPoint GeoTIFFs: keep the tie point on the sample (as libgeotiff reports it) instead
+    // of GDAL's half-pixel shift, so positions stay bit-identical to the libgeotiff reader's.
+    CPLSetConfigOption("GTIFF_POINT_GEO_IGNORE", "TRUE");
+    if (!CPLGetConfigOption("GDAL_CACHEMAX", nullptr)) GDALSetCacheMax64(kGdalCacheBytes);
+  });
+}
+
+// Collects GDAL's last error instead of printing it.
+struct QuietErrors {
+  QuietErrors() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
+  ~QuietErrors() { CPLPopErrorHandler(); }
+  QuietErrors(const QuietErrors&) = delete;
+  QuietErrors& operator=(const QuietErrors&) = delete;
+  static std::string last() {
+    const char* m = CPLGetLastErrorMsg();
+    return m && *m ? m : "no reason given";
+  }
+};
+
+double inverse_flattening(double a, double b) { return a == b ? 0.0 : a / (a - b); }
+
+int authority_code(const OGRSpatialReference& srs, const char* node) {
+  const char* auth = srs.GetAuthorityName(node);
+  const char* code = srs.GetAuthorityCode(node);
+  if (!auth || !code || !EQUAL(auth, "EPSG")) return 0;
+  return std::atoi(code);
+}
+
+// The CRS as the libgeotiff reader (crs.cpp) would state it.
+SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, double center_y) {
+  SourceCrs crs;
+  if (!srs_in || srs_in->IsEmpty()) return crs;  // kind none
+  OGRSpatialReference srs(*srs_in);
+  if (srs.IsCompound()) srs.StripVertical();
+  OGRErr err = OGRERR_NONE;
+  const double a = srs.GetSemiMajor(&err);
+  const double b = srs.GetSemiMinor(&err);
+  crs.tm.semi_major_m = a;
+  crs.tm.inverse_flattening = inverse_flattening(a, b);
+  const char* pcs_name = srs.GetName();
+  // GDAL's LOCAL_CS["unnamed"] for a GeoTIFF without geokeys: no CRS, as the libgeotiff reader
+  // said (the user names it with --crs, e.g. local).
+  if (srs.IsLocal()) return SourceCrs{};
+  if (srs.IsGeocentric()) {
+    crs.kind = CrsKind::unsupported;
+    crs.projection = "geocentric";
+    crs.name = pcs_name ? pcs_name : "";
+    return crs;
+  }
+  if (const double pm = srs.GetPrimeMeridian(); pm != 0.0) {
+    crs.kind = CrsKind::unsupported;
+    crs.projection = fmt::format("prime meridian {} deg from Greenwich", pm);
+    crs.name = pcs_name ? pcs_name : "";
+    return crs;
+  }
+  if (srs.IsGeographic()) {
+    crs.kind = CrsKind::geographic;
+    crs.epsg = authority_code(srs, srs.IsProjected() ? "GEOGCS" : nullptr);
+    crs.name = crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "geographic (lon/lat)";
+    if (crs.epsg == 4326) crs.name = "WGS 84 (EPSG:4326)";
+    crs.model_unit = srs.GetAngularUnits() * 180.0 / M_PI;
+    if (!(a > 0)) {
+      crs.kind = CrsKind::unsupported;
+      crs.projection = "geographic CRS without a known ellipsoid";
+    }
+    return crs;
+  }
+  if (!srs.IsProjected()) return SourceCrs{};
+  crs.epsg = authority_code(srs, "PROJCS");
+  crs.name = pcs_name && *pcs_name && !EQUAL(pcs_name, "unknown") ? pcs_name
+                                                                  : (crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "");
+  crs.model_unit = srs.GetLinearUnits();
+  const char* method = srs.GetAttrValue("PROJECTION");
+  if (!method || !EQUAL(method, SRS_PT_TRANSVERSE_MERCATOR) || !(a > 0)) {
+    crs.kind = CrsKind::unsupported;
+    crs.projection = method ? method : "unknown projection";
+    // Where the data is, for the gdalwarp hint.
+    OGRSpatialReference geo;
+    geo.CopyGeogCSFrom(&srs);
+    geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&srs, &geo));
+    double x = center_x, y = center_y;
+    if (ct && ct->Transform(1, &x, &y)) {
+      crs.center_lon = x;
+      crs.center_lat = y;
+    }
+    return crs;
+  }
+  // An EPSG-coded TM expands exactly as --crs / --frame EPSG:<code> does (crs.cpp), so a file and a
+  // flag naming the same code agree to the bit (libgeotiff turns EPSG:3794's lon0 15 into
+  // 14.999999999999998 through radians; GDAL keeps 15).
+  if (SourceCrs by_code; crs.epsg && parse_crs_spec(fmt::format("EPSG:{}", crs.epsg), by_code).ok() &&
+                         by_code.kind == CrsKind::transverse_mercator) {
+    by_code.model_unit = crs.model_unit;
+    return by_code;
+  }
+  crs.kind = CrsKind::transverse_mercator;
+  crs.tm.kind = ProjectionKind::transverse_mercator;
+  crs.tm.epsg = crs.epsg;
+  crs.tm.lat0_deg = srs.GetNormProjParm(SRS_PP_LATITUDE_OF_ORIGIN, 0.0);
+  crs.tm.lon0_deg = srs.GetNormProjParm(SRS_PP_CENTRAL_MERIDIAN, 0.0);
+  crs.tm.scale_k0 = srs.GetNormProjParm(SRS_PP_SCALE_FACTOR, 1.0);
+  crs.tm.false_easting_m = srs.GetNormProjParm(SRS_PP_FALSE_EASTING, 0.0);
+  crs.tm.false_northing_m = srs.GetNormProjParm(SRS_PP_FALSE_NORTHING, 0.0);
+  if (crs.name.empty()) {
+    const std::string utm = utm_zone_name(crs.tm);
+    crs.name = utm.empty() ? "Transverse Mercator (explicit parameters)" : utm + " (explicit parameters)";
+  }
+  crs.tm.name = crs.name;
+  return crs;
+}
+
+std::string type_name(GDALDataType t, GDALRasterBand* band) {
+  if (t == GDT_Byte) {
+    const char* pt = band->GetMetadataItem("PIXELTYPE", "IMAGE_STRUCTURE");
+    return pt && EQUAL(pt, "SIGNEDBYTE") ? "Int8" : "UInt8";
+  }
+  return GDALGetDataTypeName(t);
+}
+
+std::string compression_name(GDALDataset* ds) {
+  const char* c = ds->GetMetadataItem("COMPRESSION", "IMAGE_STRUCTURE");
+  if (!c) return "uncompressed";
+  const std::string s = c;
+  if (s == "DEFLATE") return "deflate";
+  if (s == "PACKBITS") return "PackBits";
+  if (s == "ZSTD") return "zstd";
+  if (s == "LZMA") return "LZMA";
+  if (s == "WEBP") return "WebP";
+  if (s == "JPEG" || s == "LZW" || s == "LERC") return s;
+  return "compressed";
+}
+
+class GdalSource final : public SourceRaster {
+ public:
+  GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte)
+      : ds_(std::move(ds)), band_(band), is_float_(is_float), signed_byte_(signed_byte) {}
+  SourceInfo& info_mut() { return info_; }
+
+  // Types of 4 bytes or fewer are decoded in place in `out` (no scratch); wider ones (Float64,
+  // 64-bit integers) through a band of rows of doubles. GDAL holds at least one decoded block.
+  uint64_t scratch_bytes(int w, int h) const override {
+    int bw = 0, bh = 0;
+    band_->GetBlockSize(&bw, &bh);
+    const uint64_t block = uint64_t(std::max(bw, 1)) * uint64_t(std::max(bh, 1)) * uint64_t(type_bytes());
+    const uint64_t rows = in_place() ? 0 : std::min<uint64_t>(rows_per_call(w, h), uint64_t(h));
+    return rows * uint64_t(w) * 8 + block;
+  }
+
+  Status read_window(int x0, int y0, int w, int h, float* out) override {
+    if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > info_.width || y0 + h > info_.height)
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("{}: window {}x{} at ({}, {}) outside the {}x{} raster", info_.path, w, h, x0,
+                                         y0, info_.width, info_.height));
+    const GDALDataType type = band_->GetRasterDataType();
+    if (in_place()) {
+      // Native samples into out's 4-byte slots, then each slot converted where it lies.
+      QuietErrors quiet;
+      if (band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
+        return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
+                                                           y0 + h - 1, QuietErrors::last()));
+      info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
+      const size_t n = size_t(w) * size_t(h);
+      uint8_t* slots = reinterpret_cast<uint8_t*>(out);
+      for (size_t i = 0; i < n; ++i) out[i] = convert(native(slots + i * 4, type));
+      return Status::success();
+    }
+    // Doubles: 64-bit values and their nodata compare exactly.
+    const int rows_per = rows_per_call(w, h);
+    buf_.resize(size_t(w) * size_t(rows_per));
+    for (int r = 0; r < h; r += rows_per) {
+      const int rows = std::min(rows_per, h - r);
+      QuietErrors quiet;
+      if (band_->RasterIO(GF_Read, x0, y0 + r, w, rows, buf_.data(), w, rows, GDT_Float64, 0, 0, nullptr) != CE_None)
+        return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0 + r,
+                                                           y0 + r + rows - 1, QuietErrors::last()));
+      info_.bytes_read += uint64_t(w) * uint64_t(rows) * uint64_t(type_bytes());
+      float* dst = out + size_t(r) * size_t(w);
+      const size_t n = size_t(w) * size_t(rows);
+      for (size_t i = 0; i < n; ++i) dst[i] = convert(buf_[i]);
+    }
+    return Status::success();
+  }
+
+ private:
+  int type_bytes() const { return GDALGetDataTypeSizeBytes(band_->GetRasterDataType()); }
+  bool in_place() const {
+    switch (band_->GetRasterDataType()) {
+      case GDT_Byte: case GDT_UInt16: case GDT_Int16: case GDT_UInt32: case GDT_Int32: case GDT_Float32: return true;
+      default: return false;
+    }
+  }
+  // One native sample (Byte as Int8 when the band says SIGNEDBYTE) as a double.
+  double native(const uint8_t* p, GDALDataType type) const {
+    switch (type) {
+      case GDT_Byte: return signed_byte_ ? double(int8_t(p[0])) : double(p[0]);
+      case GDT_UInt16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
+      case GDT_Int16: { int16_t v; std::memcpy(&v, p, 2); return v; }
+      case GDT_UInt32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+      case GDT_Int32: { int32_t v; std::memcpy(&v, p, 4); return v; }
+      case GDT_Float32: { float v; std::memcpy(&v, p, 4); return v; }
+      default: return NAN;
+    }
+  }
+  // The file's value to a height: nodata (declared, NaN) to NaN, then scale and offset. Floats
+  // compare with the nodata value in float, integers exactly (as the libgeotiff reader did).
+  float convert(double v) const {
+    bool missing = std::isnan(v);
+    if (info_.nodata) missing = missing || (is_float_ ? float(v) == float(*info_.nodata) : v == *info_.nodata);
+    if (missing) return NAN;
+    return float(info_.scale != 1.0 || info_.offset != 0.0 ? v * info_.scale + info_.offset : v);
+  }
+  static int rows_per_call(int w, int h) {
+    return int(std::clamp<uint64_t>(kScratchBytes / (uint64_t(w) * 8), 1, uint64_t(h)));
+  }
+  std::unique_ptr<GDALDataset> ds_;
+  GDALRasterBand* band_;
+  bool is_float_;
+  bool signed_byte_;
+  std::vector<double> buf_;
+};
+
+}  // namespace
+
+void init_gdal() { init_gdal_once(); }
+
+SourceCrs gdal_crs_of_epsg(int code) {
+  init_gdal_once();
+  QuietErrors quiet;
+  OGRSpatialReference srs;
+  if (srs.importFromEPSG(code) != OGRERR_NONE) return SourceCrs{};
+  return crs_from_srs(&srs, NAN, NAN);
+}
+
+Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out) {
+  init_gdal_once();
+  QuietErrors quiet;
+  std::unique_ptr<GDALDataset> ds(
+      GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+  if (!ds) {
+    const std::string reason = QuietErrors::last();
+    if (!GDALIdentifyDriverEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr))
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{}: unknown input format: no GDAL raster driver recognises it ({}), and it is "
+                                         "none of terrain-cook's own (.npz, raw .r16/.raw/.r32/.f32, SRTM .hgt/.hgt.zip/"
+                                         ".hgt.gz, PNG/EXR heightmaps, z/x/y web tiles)", path, reason));
+    return Status::failure(Error::io_open, fmt::format("{}: GDAL cannot open it as a raster: {}", path, reason));
+  }
+  if (ds->GetRasterCount() < 1)
+    return Status::failure(Error::unsupported_input, fmt::format("{}: has no raster band", path));
+  const std::string driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
+  // A multi-file dataset (e.g. a raster and its .hdr) missing a listed part is named before reading.
+  // (GDAL lists only the VRT sources that exist: a missing tile fails the read, "No such file".)
+  if (char** files = ds->GetFileList()) {
+    for (char** f = files; *f; ++f) {
+      VSIStatBufL st;
+      if (VSIStatL(*f, &st) != 0) {
+        const std::string missing = *f;
+        CSLDestroy(files);
+        return Status::failure(Error::io_open, fmt::format("{}: names a file that does not exist: {}", path, missing));
+      }
+    }
+    CSLDestroy(files);
+  }
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  const int width = ds->GetRasterXSize(), height = ds->GetRasterYSize();
+  if (width <= 0 || height <= 0 || width > 200000 || height > 200000 || uint64_t(width) * uint64_t(height) > (uint64_t(1) << 32))
+    return Status::failure(Error::unsupported_input, fmt::format("{}: raster size {}x{} not supported", path, width, height));
+  const GDALDataType type = band->GetRasterDataType();
+  if (GDALDataTypeIsComplex(type))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("{}: complex samples ({}) are not elevations", path, GDALGetDataTypeName(type)));
+
+  SourceInfo info;
+  info.path = path;
+  info.width = width;
+  info.height = height;
+  info.sample_type = type_name(type, band);
+  info.nodata = options.nodata_value;
+  if (!info.nodata) {
+    int has = 0;
+    const double v = band->GetNoDataValue(&has);
+    if (has) info.nodata = v;
+  }
+  int has_scale = 0, has_offset = 0;
+  const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
+  if (has_scale && std::isfinite(scale) && scale != 0.0) info.scale = scale;
+  if (has_offset && std::isfinite(offset)) info.offset = offset;
+
+  const char* aop = ds->GetMetadataItem(GDALMD_AREA_OR_POINT);
+  const bool point = aop && EQUAL(aop, GDALMD_AOP_POINT);
+  double gt[6];
+  if (ds->GetGeoTransform(gt) == CE_None) {
+    // Sample centre (col, row) is raster point (col + 0.5, row + 0.5), except in a PixelIsPoint
+    // GeoTIFF read with GTIFF_POINT_GEO_IGNORE, whose geotransform already puts (0, 0) on the sample.
+    const double shift = point && (driver == "GTiff" || driver == "COG") ? 0.0 : 0.5;
+    auto model = [&](double px, double py, double& x, double& y) {
+      x = gt[0] + px * gt[1] + py * gt[2];
+      y = gt[3] + px * gt[4] + py * gt[5];
+    };
+    double x0, y0, x1, y1, x2, y2;
+    model(shift, shift, x0, y0);
+    model(1 + shift, shift, x1, y1);
+    model(shift, 1 + shift, x2, y2);
+    info.geo.c[0] = x0;
+    info.geo.c[1] = x1 - x0;
+    info.geo.c[2] = x2 - x0;
+    info.geo.c[3] = y0;
+    info.geo.c[4] = y1 - y0;
+    info.geo.c[5] = y2 - y0;
+    info.geo.valid = info.geo.c[1] * info.geo.c[5] - info.geo.c[2] * info.geo.c[4] != 0.0;
+    info.geo.point_samples = point;
+  }
+  if (info.geo.valid) {
+    double cx = 0, cy = 0;
+    AffineMap::from(info.geo).to_model(0.5 * (width - 1), 0.5 * (height - 1), cx, cy);
+    info.crs = crs_from_srs(ds->GetSpatialRef(), cx, cy);
+    // File units (e.g. US feet, grads) to metres / degrees.
+    if (info.crs.kind != CrsKind::none && info.crs.model_unit != 1.0)
+      for (double& c : info.geo.c) c *= info.crs.model_unit;
+  }
+
+  const std::string nodata_text = info.nodata ? fmt::format(", nodata {}", *info.nodata) : "";
+  const std::string scale_text =
+      info.scale != 1.0 || info.offset != 0.0 ? fmt::format(", scale {} offset {}", info.scale, info.offset) : "";
+  if (driver == "GTiff" || driver == "COG") {
+    int bw = 0, bh = 0;
+    band->GetBlockSize(&bw, &bh);
+    // Strips span the width; tiles are narrower or wider (a 256 tile over 37 columns), or square
+    // multiples of 16 (a strip as tall as the image is wide, and 16-aligned, reads as tiled here).
+    const bool tiled = bw != width || (bw == bh && bw % 16 == 0 && bw >= 64 && bh < height);
+    info.description = fmt::format("GeoTIFF {} {}x{} {} {}{}{}, {}", info.sample_type, width, height,
+                                   tiled ? "tiled" : "strips", compression_name(ds.get()), nodata_text, scale_text,
+                                   point ? "PixelIsPoint" : "PixelIsArea");
+  } else {
+    info.description = fmt::format("{} ({}) {} {}x{}{}{}, {}", driver, ds->GetDriver()->GetMetadataItem(GDAL_DMD_LONGNAME),
+                                   info.sample_type, width, height, nodata_text, scale_text,
+                                   point ? "pixel is point" : "pixel is area");
+  }
+  // The source owns the dataset from here on (the band pointer stays valid with it).
+  auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
+                                           info.sample_type == "Int8");
+  src->info_mut() = std::move(info);
+  out = std::move(src);
+  return Status::success();
+}
+
+}  // namespace terrain::cook

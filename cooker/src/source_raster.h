@@ -1,0 +1,62 @@
+// A source elevation raster opened for reading by windows: what it is (size, georeferencing, CRS,
+// nodata, the file's own scale/offset) and a window reader. A whole-raster read is one window (or
+// many, row band by row band); a block-wise cook reads only the windows it needs. No GDAL here:
+// the GDAL-backed sources live in input_gdal.cpp and web_tiles.cpp.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "raster.h"
+#include "terrain/status.h"
+
+namespace terrain::cook {
+
+struct ReadOptions;
+
+struct SourceInfo {
+  std::string path;
+  std::string description;  // format, type, size, compression: for the report
+  int width = 0, height = 0;
+  SampleGeo geo;            // sample centres, in metres / degrees (file units already converted)
+  SourceCrs crs;
+  std::optional<double> nodata;  // the file's (or --nodata-value's) nodata value, as stored
+  double scale = 1.0, offset = 0.0;  // the file's own value -> height (GDAL GetScale / GetOffset)
+  std::string sample_type;  // "Int16", "Float32", ...
+  uint64_t bytes_read = 0;  // grows with every window read (decoded bytes asked of the driver)
+};
+
+class SourceRaster {
+ public:
+  virtual ~SourceRaster() = default;
+  const SourceInfo& info() const { return info_; }
+  // Columns x0 .. x0+w-1 of rows y0 .. y0+h-1 into out[w*h] (row-major): the file's value times its
+  // scale plus its offset; nodata (the declared value, NaN, +-Inf) as NaN. Reads nothing outside the
+  // window but the driver's blocks that cover it.
+  virtual Status read_window(int x0, int y0, int w, int h, float* out) = 0;
+  // Bytes a read_window of w x h samples needs beyond `out` (its scratch and, for GDAL, the block
+  // cache it may fill), for the memory budget.
+  virtual uint64_t scratch_bytes(int w, int h) const = 0;
+
+ protected:
+  SourceInfo info_;
+};
+
+// Opens `path` through GDAL (any raster format GDAL reads: GeoTIFF, COG, VRT, DTED, netCDF, ...).
+// Band 1; georeferencing from the geotransform (AREA_OR_POINT honoured as the libgeotiff reader
+// did), the CRS mapped to what the cooker understands. A VRT whose tiles are missing or a file GDAL
+// cannot read is a named error.
+Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out);
+
+// Registers GDAL's drivers and sets its cache once (called by every GDAL-backed source).
+void init_gdal();
+
+// EPSG `code` as the GDAL reader maps a file in that CRS (kind none when GDAL does not know it).
+SourceCrs gdal_crs_of_epsg(int code);
+
+// Reads the whole source into `out` (values, geo, crs, description, nodata_declared), band of rows
+// by band of rows, after checking width x height (plus the scratch) against options' budget.
+Status read_whole_source(SourceRaster& src, const ReadOptions& options, Raster& out);
+
+}  // namespace terrain::cook

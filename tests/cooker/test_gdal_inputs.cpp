@@ -1,0 +1,367 @@
+// Inputs read through GDAL (issue 13): windows, scale/offset, nodata, PixelIsPoint parity with the
+// libgeotiff reader, directories, broken VRTs, and web elevation tiles (terrarium, Mapbox
+// terrain-RGB) written at test time with known heights.
+#include <gtest/gtest.h>
+
+#include <gdal_priv.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <fmt/format.h>
+
+#include "cooker_test_util.h"
+#include "inputs.h"
+#include "source_raster.h"
+#include "test_data.h"
+#include "web_tiles.h"
+
+using namespace terrain;
+using namespace terrain::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kR = 6378137.0;  // EPSG:3857 sphere radius
+
+// Writes a 3-band byte PNG through GDAL (MEM, then CreateCopy), rgb[band][row * size + col].
+void write_rgb_png(const fs::path& path, int size, const std::vector<std::vector<uint8_t>>& rgb) {
+  GDALAllRegister();
+  fs::create_directories(path.parent_path());
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDriver* png = GetGDALDriverManager()->GetDriverByName("PNG");
+  ASSERT_TRUE(mem && png);
+  std::unique_ptr<GDALDataset> ds(mem->Create("", size, size, 3, GDT_Byte, nullptr));
+  for (int b = 0; b < 3; ++b)
+    ASSERT_EQ(ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, size, size, const_cast<uint8_t*>(rgb[size_t(b)].data()),
+                                                size, size, GDT_Byte, 0, 0, nullptr),
+              CE_None);
+  std::unique_ptr<GDALDataset> out(png->CreateCopy(path.c_str(), ds.get(), FALSE, nullptr, nullptr, nullptr));
+  ASSERT_TRUE(out);
+}
+
+cook::CookOptions options_for(const std::vector<std::string>& inputs) {
+  cook::CookOptions o;
+  o.inputs = inputs;
+  return o;
+}
+
+void expect_same_raster(const cook::Raster& a, const cook::Raster& b) {
+  ASSERT_EQ(a.width, b.width);
+  ASSERT_EQ(a.height, b.height);
+  ASSERT_EQ(a.values.size(), b.values.size());
+  EXPECT_EQ(std::memcmp(a.values.data(), b.values.data(), a.values.size() * sizeof(float)), 0) << "values differ";
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(a.geo.c[i], b.geo.c[i]) << "geo.c[" << i << "]";
+  EXPECT_EQ(a.geo.valid, b.geo.valid);
+  EXPECT_EQ(a.geo.point_samples, b.geo.point_samples);
+  EXPECT_EQ(a.nodata_declared, b.nodata_declared);
+  EXPECT_EQ(a.description, b.description);
+  EXPECT_EQ(a.crs.kind, b.crs.kind);
+  EXPECT_EQ(a.crs.epsg, b.crs.epsg);
+  EXPECT_EQ(a.crs.name, b.crs.name);
+  EXPECT_EQ(a.crs.model_unit, b.crs.model_unit);
+  EXPECT_EQ(a.crs.tm.lon0_deg, b.crs.tm.lon0_deg);
+  EXPECT_EQ(a.crs.tm.lat0_deg, b.crs.tm.lat0_deg);
+  EXPECT_EQ(a.crs.tm.scale_k0, b.crs.tm.scale_k0);
+  EXPECT_EQ(a.crs.tm.false_easting_m, b.crs.tm.false_easting_m);
+  EXPECT_EQ(a.crs.tm.false_northing_m, b.crs.tm.false_northing_m);
+  EXPECT_EQ(a.crs.tm.semi_major_m, b.crs.tm.semi_major_m);
+  EXPECT_EQ(a.crs.tm.inverse_flattening, b.crs.tm.inverse_flattening);
+}
+
+Status read_through_gdal(const std::string& path, cook::Raster& r) {
+  std::unique_ptr<cook::SourceRaster> src;
+  cook::ReadOptions ro;
+  if (Status st = cook::open_gdal_source(path, ro, src); !st.ok()) return st;
+  return cook::read_whole_source(*src, ro, r);
+}
+
+// A web tile through its reader (load_inputs refuses EPSG:3857 until the "any CRS" work lands).
+Status read_tile(const std::string& path, const std::string& flag, cook::Raster& r) {
+  cook::TileAddress t;
+  if (!cook::parse_tile_address(path, t)) return Status::failure(Error::invalid_argument, "not a z/x/y path");
+  cook::TileEncoding enc = cook::TileEncoding::none;
+  if (Status st = cook::tile_encoding_of(path, flag, enc); !st.ok()) return st;
+  std::unique_ptr<cook::SourceRaster> src;
+  if (Status st = cook::open_web_tile(path, t, enc, src); !st.ok()) return st;
+  return cook::read_whole_source(*src, {}, r);
+}
+
+SyntheticDem small_dem(bool point, bool int16) {
+  SyntheticDem d;
+  d.width = 37;
+  d.height = 23;
+  d.values.resize(size_t(d.width) * d.height);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) d.at(col, row) = 100.0 + 3.0 * col - 2.0 * row + (col * row % 7);
+  d.at(5, 5) = NAN;
+  d.nodata = -32768;
+  d.int16 = int16;
+  d.point = point;
+  d.x0 = 500012.5;
+  d.y0 = 5000987.5;
+  d.dx = d.dy = 25;
+  d.epsg_projected = 32633;
+  return d;
+}
+
+}  // namespace
+
+TEST(WebTiles, DecodingFormulas) {
+  EXPECT_EQ(cook::terrarium_height(128, 0, 0), 0.0);
+  EXPECT_EQ(cook::terrarium_height(0, 0, 0), -32768.0);
+  EXPECT_EQ(cook::terrarium_height(127, 255, 128), -0.5);  // 32512 + 255 + 0.5 - 32768
+  EXPECT_EQ(cook::terrarium_height(139, 34, 64), 2850.25);  // 35584 + 34 + 0.25 - 32768
+  EXPECT_EQ(cook::mapbox_height(0, 0, 0), -10000.0);
+  EXPECT_NEAR(cook::mapbox_height(1, 134, 160), 0.0, 1e-9);  // 100000 * 0.1 - 10000
+  EXPECT_NEAR(cook::mapbox_height(1, 251, 208), 3000.0, 1e-9);  // 65536 + 64256 + 208 = 130000
+}
+
+TEST(WebTiles, AddressAndEncodingFromThePath) {
+  cook::TileAddress t;
+  ASSERT_TRUE(cook::parse_tile_address("/data/terrarium/12/654/1583.png", t));
+  EXPECT_EQ(t.z, 12);
+  EXPECT_EQ(t.x, 654);
+  EXPECT_EQ(t.y, 1583);
+  EXPECT_TRUE(cook::parse_tile_address("tiles/0/0/0.webp", t));
+  EXPECT_FALSE(cook::parse_tile_address("tiles/12/4096/1.png", t));  // x beyond 2^12 - 1
+  EXPECT_FALSE(cook::parse_tile_address("maps/heightmap.png", t));
+  EXPECT_FALSE(cook::parse_tile_address("tiles/12/654/1583.tif", t));
+  cook::TileEncoding e = cook::TileEncoding::none;
+  EXPECT_TRUE(cook::tile_encoding_of("/d/terrarium/1/0/0.png", "", e).ok());
+  EXPECT_EQ(e, cook::TileEncoding::terrarium);
+  EXPECT_TRUE(cook::tile_encoding_of("/d/mapbox.terrain-rgb/1/0/0.png", "", e).ok());
+  EXPECT_EQ(e, cook::TileEncoding::mapbox);
+  EXPECT_TRUE(cook::tile_encoding_of("/d/terrarium/1/0/0.png", "mapbox", e).ok());  // the flag wins
+  EXPECT_EQ(e, cook::TileEncoding::mapbox);
+  expect_refusal(cook::tile_encoding_of("/d/tiles/1/0/0.png", "", e), Error::invalid_argument, {"--tile-encoding"});
+}
+
+TEST(WebTiles, GeoreferencingFromTheAddress) {
+  // z0: the whole EPSG:3857 square, pi * R either side of 0.
+  const cook::SampleGeo g0 = cook::web_tile_geo({0, 0, 0}, 256);
+  const double half = M_PI * kR;
+  EXPECT_NEAR(g0.c[0] - 0.5 * g0.c[1], -half, 1e-6);
+  EXPECT_NEAR(g0.c[3] - 0.5 * g0.c[5], half, 1e-6);
+  EXPECT_NEAR(g0.c[1] * 256, 2 * half, 1e-6);
+  EXPECT_EQ(g0.c[2], 0.0);
+  EXPECT_EQ(g0.c[4], 0.0);
+  EXPECT_FALSE(g0.point_samples);
+  // z12/654/1583: west edge at longitude 654/4096*360-180 = -122.51953125 deg; north edge at the
+  // latitude of y = 1583 (the slippy-map formula), both to metres on the sphere.
+  const cook::SampleGeo g = cook::web_tile_geo({12, 654, 1583}, 512);
+  const double west_lon = 654.0 / 4096.0 * 360.0 - 180.0;
+  const double north_lat = std::atan(std::sinh(M_PI * (1 - 2.0 * 1583 / 4096.0)));
+  EXPECT_NEAR(g.c[0] - 0.5 * g.c[1], west_lon * M_PI / 180.0 * kR, 1e-6);
+  EXPECT_NEAR(g.c[3] - 0.5 * g.c[5], kR * std::log(std::tan(M_PI / 4 + north_lat / 2)), 1e-6);
+  EXPECT_NEAR(g.c[1], 2 * half / 4096.0 / 512.0, 1e-9);
+  EXPECT_NEAR(g.c[5], -2 * half / 4096.0 / 512.0, 1e-9);
+  // The CRS a 3857 GeoTIFF gets from the GDAL reader.
+  const cook::SourceCrs crs = cook::web_mercator_crs();
+  EXPECT_EQ(crs.epsg, 3857);
+  EXPECT_EQ(crs.kind, cook::CrsKind::unsupported);
+  EXPECT_NE(crs.name.find("Pseudo-Mercator"), std::string::npos) << crs.name;
+}
+
+// Terrarium and Mapbox tiles with known heights, read through load_inputs like any other input.
+TEST(WebTiles, GeneratedTilesDecodeToTheirHeights) {
+  const fs::path dir = scratch_dir("gdal_web_tiles");
+  const int n = 256;
+  std::vector<std::vector<uint8_t>> terr(3, std::vector<uint8_t>(size_t(n) * n)), mb = terr;
+  std::vector<double> h_terr(size_t(n) * n), h_mb(size_t(n) * n);
+  for (int row = 0; row < n; ++row)
+    for (int col = 0; col < n; ++col) {
+      const size_t i = size_t(row) * n + size_t(col);
+      // Terrarium: multiples of 1/256 m from -420.5 to about 4400 m (exactly representable).
+      const double h = -420.5 + col * 12.25 + row * 6.5 + (col % 5) / 256.0;
+      const double v = h + 32768.0;
+      terr[0][i] = uint8_t(int(v) / 256);
+      terr[1][i] = uint8_t(int(v) % 256);
+      terr[2][i] = uint8_t((v - std::floor(v)) * 256.0);
+      h_terr[i] = h;
+      // Mapbox: integer decimetres from -11 m.
+      const uint32_t code = uint32_t(99890 + col * 97 + row * 41);
+      mb[0][i] = uint8_t(code >> 16);
+      mb[1][i] = uint8_t((code >> 8) & 255);
+      mb[2][i] = uint8_t(code & 255);
+      h_mb[i] = -10000.0 + code * 0.1;
+    }
+  const fs::path terr_path = dir / "terrarium" / "12" / "654" / "1583.png";
+  const fs::path mb_path = dir / "tiles" / "12" / "655" / "1583.png";
+  ASSERT_NO_FATAL_FAILURE(write_rgb_png(terr_path, n, terr));
+  ASSERT_NO_FATAL_FAILURE(write_rgb_png(mb_path, n, mb));
+
+  std::vector<cook::Raster> rasters;
+  // The Mapbox tile's path does not name its encoding: refused before anything is read.
+  expect_refusal(cook::load_inputs(options_for({mb_path.string()}), rasters), Error::invalid_argument,
+                 {"--tile-encoding"});
+  cook::Raster r;
+  ASSERT_TRUE(read_tile(terr_path.string(), "", r).ok());
+  for (size_t i = 0; i < h_terr.size(); ++i) ASSERT_EQ(r.values[i], float(h_terr[i])) << i;
+  ASSERT_TRUE(read_tile(terr_path.string(), "mapbox", r).ok());  // the flag wins over the path
+  EXPECT_NE(r.values[0], float(h_terr[0]));
+  ASSERT_TRUE(read_tile(mb_path.string(), "mapbox", r).ok());
+  for (size_t i = 0; i < h_mb.size(); ++i) ASSERT_EQ(r.values[i], float(h_mb[i])) << i;
+  const cook::SampleGeo g = cook::web_tile_geo({12, 655, 1583}, n);
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(r.geo.c[i], g.c[i]);
+  EXPECT_EQ(r.crs.epsg, 3857);
+  EXPECT_NE(r.description.find("Mapbox"), std::string::npos) << r.description;
+}
+
+// A tile and a GeoTIFF in EPSG:3857 over the same pixels are the same input to the cooker; the
+// cook runs once a 3857 frame is possible (the "any CRS" part of issue 13).
+TEST(WebTiles, SameAsA3857GeoTiffAndCooksOnceTheFrameAllowsIt) {
+  const fs::path dir = scratch_dir("gdal_web_tile_3857");
+  const int n = 256;
+  std::vector<std::vector<uint8_t>> rgb(3, std::vector<uint8_t>(size_t(n) * n));
+  for (int row = 0; row < n; ++row)
+    for (int col = 0; col < n; ++col) {
+      const int v = 32768 + 1000 + 3 * col + 2 * row;  // 1000 .. 1765 m
+      rgb[0][size_t(row) * n + size_t(col)] = uint8_t(v / 256);
+      rgb[1][size_t(row) * n + size_t(col)] = uint8_t(v % 256);
+    }
+  const fs::path tile = dir / "terrarium" / "12" / "654" / "1583.png";
+  ASSERT_NO_FATAL_FAILURE(write_rgb_png(tile, n, rgb));
+  const fs::path tif = dir / "same.tif";
+  const cook::SampleGeo g = cook::web_tile_geo({12, 654, 1583}, n);
+  const std::string cmd =
+      fmt::format("gdal_translate -q -of GTiff -b 1 -a_srs EPSG:3857 -a_ullr {:.17g} {:.17g} {:.17g} {:.17g} '{}' '{}'",
+                  g.c[0] - 0.5 * g.c[1], g.c[3] - 0.5 * g.c[5], g.c[0] + (n - 0.5) * g.c[1], g.c[3] + (n - 0.5) * g.c[5],
+                  tile.string(), tif.string());
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  cook::Raster t, r;
+  ASSERT_TRUE(read_tile(tile.string(), "", t).ok());
+  ASSERT_TRUE(read_through_gdal(tif.string(), r).ok());
+  EXPECT_EQ(t.width, r.width);
+  EXPECT_EQ(t.height, r.height);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(t.geo.c[i], r.geo.c[i], 1e-6 * std::max(1.0, std::fabs(r.geo.c[i])));
+  EXPECT_EQ(t.crs.kind, r.crs.kind);
+  EXPECT_EQ(t.crs.epsg, r.crs.epsg);
+  EXPECT_EQ(t.crs.name, r.crs.name);
+  EXPECT_EQ(t.crs.projection, r.crs.projection);
+  // The tile's centre, for the gdalwarp hint: lon -122.475 (tile 654.5 of 4096), lat 37.77.
+  EXPECT_NEAR(t.crs.center_lon, 654.5 / 4096 * 360 - 180, 1e-9);
+  EXPECT_NEAR(t.crs.center_lat, std::atan(std::sinh(M_PI * (1 - 2.0 * 1583.5 / 4096.0))) * 180 / M_PI, 1e-9);
+
+  cook::CookOptions o = options_for({tile.string()});
+  o.output = (dir / "tile.terrain").string();
+  cook::CookReport report;
+  const Status st = cook::cook(o, {}, report);
+  if (!st.ok() && st.code == Error::unsupported_input && st.message.find("Pseudo-Mercator") != std::string::npos)
+    GTEST_SKIP() << "the cooker cannot use an EPSG:3857 input yet (issue 13, 'any CRS that PROJ knows'): "
+                 << st.message;
+  ASSERT_TRUE(st.ok()) << st.message;
+  CookedArchive a;
+  ASSERT_TRUE(a.open(o.output).ok());
+  EXPECT_TRUE(a.reader.verify().ok());
+}
+
+TEST(GdalInputs, PixelIsPointAndAreaMatchTheLibgeotiffReader) {
+  const fs::path dir = scratch_dir("gdal_parity");
+  for (bool point : {false, true})
+    for (bool int16 : {false, true})
+      for (bool tiled : {false, true}) {
+        SCOPED_TRACE(fmt::format("point {} int16 {} tiled {}", point, int16, tiled));
+        const std::string path = (dir / fmt::format("d{}{}{}.tif", point, int16, tiled)).string();
+        std::string err;
+        ASSERT_TRUE(write_geotiff(path, small_dem(point, int16), tiled, err)) << err;
+        cook::Raster old_r, new_r;
+        ASSERT_TRUE(cook::read_geotiff(path, {}, old_r).ok());
+        ASSERT_TRUE(read_through_gdal(path, new_r).ok());
+        expect_same_raster(old_r, new_r);
+        EXPECT_TRUE(std::isnan(new_r.at(5, 5)));
+        EXPECT_EQ(new_r.at(0, 0), 100.0f);
+      }
+}
+
+TEST(GdalInputs, WindowsScaleAndOffset) {
+  const fs::path dir = scratch_dir("gdal_windows");
+  const std::string plain = (dir / "plain.tif").string(), scaled = (dir / "scaled.tif").string();
+  std::string err;
+  ASSERT_TRUE(write_geotiff(plain, small_dem(false, true), true, err)) << err;
+  ASSERT_EQ(std::system(fmt::format("gdal_translate -q -a_scale 0.5 -a_offset 100 '{}' '{}'", plain, scaled).c_str()), 0);
+  cook::ReadOptions ro;
+  std::unique_ptr<cook::SourceRaster> a, b;
+  ASSERT_TRUE(cook::open_gdal_source(plain, ro, a).ok());
+  ASSERT_TRUE(cook::open_gdal_source(scaled, ro, b).ok());
+  EXPECT_EQ(b->info().scale, 0.5);
+  EXPECT_EQ(b->info().offset, 100.0);
+  cook::Raster whole;
+  ASSERT_TRUE(cook::read_whole_source(*a, ro, whole).ok());
+  // A window inside the raster, the nodata sample (5, 5) included.
+  const int x0 = 3, y0 = 4, w = 11, h = 7;
+  std::vector<float> wa(size_t(w) * h), wb(size_t(w) * h);
+  ASSERT_TRUE(a->read_window(x0, y0, w, h, wa.data()).ok());
+  ASSERT_TRUE(b->read_window(x0, y0, w, h, wb.data()).ok());
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const float v = whole.at(x0 + c, y0 + r), va = wa[size_t(r) * w + size_t(c)], vb = wb[size_t(r) * w + size_t(c)];
+      if (std::isnan(v)) {
+        EXPECT_TRUE(std::isnan(va) && std::isnan(vb)) << c << "," << r;
+        continue;
+      }
+      EXPECT_EQ(va, v);
+      EXPECT_EQ(vb, float(v * 0.5 + 100.0));
+    }
+  EXPECT_TRUE(std::isnan(wa[size_t(5 - y0) * w + size_t(5 - x0)]));
+  expect_refusal(a->read_window(30, 0, 11, 2, wa.data()), Error::invalid_argument, {"outside"});
+  // Float64 (read through a band of doubles, not in place): the same heights and nodata.
+  const std::string f64 = (dir / "f64.tif").string();
+  ASSERT_EQ(std::system(fmt::format("gdal_translate -q -ot Float64 '{}' '{}'", plain, f64).c_str()), 0);
+  std::unique_ptr<cook::SourceRaster> c;
+  ASSERT_TRUE(cook::open_gdal_source(f64, ro, c).ok());
+  EXPECT_EQ(c->info().sample_type, "Float64");
+  cook::Raster whole64;
+  ASSERT_TRUE(cook::read_whole_source(*c, ro, whole64).ok());
+  ASSERT_EQ(whole64.values.size(), whole.values.size());
+  EXPECT_EQ(std::memcmp(whole64.values.data(), whole.values.data(), whole.values.size() * sizeof(float)), 0);
+  EXPECT_TRUE(std::isnan(whole64.at(5, 5)));
+}
+
+TEST(GdalInputs, DirectoryInputIsEveryRasterInPathOrder) {
+  const fs::path dir = scratch_dir("gdal_directory");
+  SyntheticDem west = small_dem(false, false), east = small_dem(false, false);
+  east.x0 += east.width * east.dx;
+  for (double& v : east.values) v += 1000;
+  std::string err;
+  fs::create_directories(dir / "in" / "sub");
+  ASSERT_TRUE(write_geotiff((dir / "in" / "b_west.tif").string(), west, false, err)) << err;
+  ASSERT_TRUE(write_geotiff((dir / "in" / "sub" / "a_east.tif").string(), east, false, err)) << err;
+  std::ofstream(dir / "in" / "README.txt") << "not a raster\n";
+  std::vector<cook::Raster> rasters;
+  ASSERT_TRUE(cook::load_inputs(options_for({(dir / "in").string()}), rasters).ok());
+  ASSERT_EQ(rasters.size(), 2u);
+  EXPECT_EQ(rasters[0].path, (dir / "in" / "b_west.tif").string());  // "b_west.tif" < "sub/..."
+  EXPECT_EQ(rasters[1].path, (dir / "in" / "sub" / "a_east.tif").string());
+  EXPECT_EQ(rasters[1].at(0, 0), 1100.0f);
+  fs::create_directories(dir / "empty");
+  expect_refusal(cook::load_inputs(options_for({(dir / "empty").string()}), rasters), Error::unsupported_input,
+                 {"no raster files"});
+}
+
+TEST(GdalInputs, BrokenVrtsAreNamedErrors) {
+  const fs::path dir = scratch_dir("gdal_bad_vrt");
+  SyntheticDem west = small_dem(false, false), east = small_dem(false, false);
+  east.x0 += east.width * east.dx;
+  std::string err;
+  const std::string a = (dir / "a.tif").string(), b = (dir / "b.tif").string(), vrt = (dir / "m.vrt").string();
+  ASSERT_TRUE(write_geotiff(a, west, false, err)) << err;
+  ASSERT_TRUE(write_geotiff(b, east, false, err)) << err;
+  ASSERT_EQ(std::system(fmt::format("gdalbuildvrt -q '{}' '{}' '{}'", vrt, a, b).c_str()), 0);
+  std::vector<cook::Raster> rasters;
+  ASSERT_TRUE(cook::load_inputs(options_for({vrt}), rasters).ok());
+  EXPECT_EQ(rasters[0].width, 2 * west.width);
+  EXPECT_EQ(rasters[0].at(west.width, 0), 100.0f);
+  // A tile GDAL cannot read: garbage where the TIFF was.
+  std::ofstream(b, std::ios::binary | std::ios::trunc) << std::string(4096, 'x');
+  expect_refusal(cook::load_inputs(options_for({vrt}), rasters), Error::io_read, {"m.vrt", "cannot read rows"});
+  // A missing tile.
+  fs::remove(b);
+  expect_refusal(cook::load_inputs(options_for({vrt}), rasters), Error::io_read,
+                 {"m.vrt", "cannot read rows", "b.tif", "No such file or directory"});
+  // Not a raster at all.
+  const std::string text = (dir / "notes.dat").string();
+  std::ofstream(text) << "hello\n";
+  expect_refusal(cook::load_inputs(options_for({text}), rasters), Error::unsupported_input, {"unknown input format"});
+}
