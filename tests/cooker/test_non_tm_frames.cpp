@@ -241,6 +241,22 @@ TEST(NonTmFrameChoice, FrameFlagPicksLambertForGeographicInput) {
   EXPECT_EQ(r.violations, 0u) << r.first_violation;
 }
 
+// The PROJ chain (geographic input, LCC frame, anchors built on threads) gives the same bytes for
+// any thread count: every vertex maps through the same anchors, and PROJ answers the same bits.
+TEST(NonTmFrameChoice, ProjChainIsByteIdenticalAcrossThreadCounts) {
+  TERRAIN_REQUIRE_DATA(data_file(kSource));
+  std::filesystem::path a1, a2;
+  std::string out;
+  const std::string flags = std::string("--heights-only --frame '") + kLccFrame + "' --threads ";
+  ASSERT_TRUE(cook_input(data_file(kSource), "threads1", flags + "1", a1, out)) << out;
+  ASSERT_TRUE(cook_input(data_file(kSource), "threads2", flags + "2", a2, out)) << out;
+  std::ifstream f1(a1, std::ios::binary), f2(a2, std::ios::binary);
+  const std::string b1((std::istreambuf_iterator<char>(f1)), {}), b2((std::istreambuf_iterator<char>(f2)), {});
+  ASSERT_GT(b1.size(), 1000u);
+  EXPECT_EQ(b1.size(), b2.size());
+  EXPECT_TRUE(b1 == b2) << "thread count changed the archive's bytes";
+}
+
 // terrain-inspect --sample-lonlat on the Lambert-93 archive lands where gdaltransform puts the point.
 TEST(NonTmFrameChoice, InspectSampleLonLatAgreesWithGdaltransform) {
   TERRAIN_REQUIRE_DATA(data_file(kSource));
