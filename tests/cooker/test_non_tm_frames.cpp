@@ -90,10 +90,10 @@ struct OracleResult {
 // The RealData oracle (tests/cooker/test_real_data.cpp) on a projected or geographic `tif`: 10 000
 // random valid samples from GDAL, their heights from terrain-inspect --sample-file.
 bool oracle(const std::filesystem::path& tif, const std::filesystem::path& archive, bool lonlat, OracleResult& r,
-            std::string& why) {
+            std::string& why, double shift = 0.0) {
   std::string pts_text;
   const std::string script = (source_dir() / "tests" / "cooker" / "oracle_points.py").string();
-  if (!run("/usr/bin/python3 '" + script + "' " + q(tif) + " --count 10000 --seed 1 2>&1", pts_text)) {
+  if (!run("/usr/bin/python3 '" + script + "' " + q(tif) + " --count 10000 --seed 1 --shift " + std::to_string(shift) + " 2>&1", pts_text)) {
     why = "the GDAL oracle failed: " + pts_text.substr(0, 300);
     return false;
   }
@@ -195,6 +195,20 @@ TEST_P(NonTmFrame, InputCrsIsTheFrameAndTheOracleHolds) {
   EXPECT_GE(r.points, 10000u);
   EXPECT_EQ(r.answered, r.points);
   EXPECT_EQ(r.violations, 0u) << r.first_violation;
+}
+
+// Negative control: the same oracle with every point moved half a sample (30 m) east fails, so the
+// bound does see a misplaced frame.
+TEST(NonTmFrameChoice, HalfSampleShiftBreaksTheBoundOnLambert93) {
+  TERRAIN_REQUIRE_DATA(data_file(kSource));
+  std::filesystem::path tif, archive;
+  std::string why, out;
+  if (!warped("lambert93_shift", "EPSG:2154", tif, why)) GTEST_SKIP() << why;
+  ASSERT_TRUE(cook_input(tif, "lambert93_shift", "--heights-only", archive, out)) << out;
+  OracleResult r;
+  ASSERT_TRUE(oracle(tif, archive, false, r, why, 0.5)) << why;
+  std::printf("lambert93 shifted half a sample: %zu of %zu answered points out of bound\n", r.violations, r.answered);
+  EXPECT_GT(r.violations, r.answered / 100);
 }
 
 INSTANTIATE_TEST_SUITE_P(Oetztal, NonTmFrame, ::testing::ValuesIn(kCases),
