@@ -46,6 +46,68 @@ struct ProjContext {
 
 double inverse_flattening(double a, double b) { return a == b ? 0.0 : a / (a - b); }
 
+struct PjPtr {
+  PJ* p = nullptr;
+  explicit PjPtr(PJ* q) : p(q) {}
+  ~PjPtr() { proj_destroy(p); }
+  PjPtr(const PjPtr&) = delete;
+  PjPtr& operator=(const PjPtr&) = delete;
+};
+
+// A CRS PROJ resolves from `definition` (EPSG:n, ESRI:n, a PROJ string, WKT): projected -> kind
+// projected with its WKT2:2019 as the definition; geographic -> kind geographic. Anything else
+// PROJ cannot identify, or without a metric meaning here (geocentric, vertical, ...), fails.
+Status resolve_with_proj(const std::string& definition, SourceCrs& out) {
+  ProjContext proj;
+  // A bare PROJ string defines a conversion; "+type=crs" makes it the CRS it implies.
+  std::string text = definition;
+  if (text.rfind("+proj=", 0) == 0 && text.find("+type=crs") == std::string::npos) text += " +type=crs";
+  PjPtr crs(proj.ctx ? proj_create(proj.ctx, text.c_str()) : nullptr);
+  if (!crs.p)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("PROJ cannot resolve the CRS '{}' (give EPSG:<code>, a PROJ string or WKT)", definition));
+  PJ_TYPE type = proj_get_type(crs.p);
+  if (type == PJ_TYPE_BOUND_CRS) {  // +towgs84 and the like: the datum shift is not ours to apply
+    PjPtr base(proj_get_source_crs(proj.ctx, crs.p));
+    if (base.p) std::swap(crs.p, base.p);
+    type = proj_get_type(crs.p);
+  }
+  const bool geographic = type == PJ_TYPE_GEOGRAPHIC_2D_CRS || type == PJ_TYPE_GEOGRAPHIC_3D_CRS;
+  if (type != PJ_TYPE_PROJECTED_CRS && !geographic)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("'{}' ({}) is neither a projected nor a geographic CRS: it has no metric frame "
+                                       "meaning here", definition, proj_get_name(crs.p) ? proj_get_name(crs.p) : "?"));
+  PjPtr ell(proj_get_ellipsoid(proj.ctx, crs.p));
+  double a = 0, b = 0, rf = 0;
+  int computed = 0;
+  if (!ell.p || !proj_ellipsoid_get_parameters(proj.ctx, ell.p, &a, &b, &computed, &rf) || !(a > 0))
+    return Status::failure(Error::unsupported_input, fmt::format("'{}': PROJ finds no ellipsoid for it", definition));
+  SourceCrs c;
+  c.tm.semi_major_m = a;
+  c.tm.inverse_flattening = inverse_flattening(a, b);
+  const char* auth = proj_get_id_auth_name(crs.p, 0);
+  const char* code = proj_get_id_code(crs.p, 0);
+  if (auth && code && std::string(auth) == "EPSG") c.epsg = std::atoi(code);
+  const char* name = proj_get_name(crs.p);
+  c.name = name ? name : definition;
+  if (geographic) {
+    c.kind = CrsKind::geographic;
+    out = c;
+    return Status::success();
+  }
+  const char* wkt = proj_as_wkt(proj.ctx, crs.p, PJ_WKT2_2019, nullptr);
+  if (!wkt) return Status::failure(Error::unsupported_input, fmt::format("'{}': PROJ cannot write it as WKT2", definition));
+  c.kind = CrsKind::projected;
+  c.tm.kind = ProjectionKind::proj;
+  c.tm.epsg = c.epsg;
+  c.tm.definition = wkt;
+  c.tm.lat0_deg = c.tm.lon0_deg = c.tm.false_easting_m = c.tm.false_northing_m = 0;
+  c.tm.scale_k0 = 1;
+  c.tm.name = c.name;
+  out = c;
+  return Status::success();
+}
+
 std::string take_name(char* name) {
   std::string s = name ? name : "";
   if (name) GTIFFreeMemory(name);
@@ -85,6 +147,22 @@ SourceCrs crs_from_defn(const GTIFDefn& d, const std::string& pcs_name) {
   crs.epsg = d.PCS != kUserDefined ? d.PCS : 0;
   crs.name = !pcs_name.empty() ? pcs_name : (crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "");
   if (d.CTProjection != CT_TransverseMercator || d.SemiMajor <= 0) {
+    // Any other projection: through PROJ, by its EPSG code when the file names one, else by the
+    // PROJ string libgeotiff writes from the keys.
+    std::string definition = crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "";
+    if (definition.empty()) {
+      char* p4 = GTIFGetProj4Defn(const_cast<GTIFDefn*>(&d));
+      if (p4) {
+        definition = std::string(p4) + " +type=crs";
+        GTIFFreeMemory(p4);
+      }
+    }
+    SourceCrs resolved;
+    if (!definition.empty() && resolve_with_proj(definition, resolved).ok() && resolved.kind == CrsKind::projected) {
+      if (!pcs_name.empty()) resolved.name = resolved.tm.name = pcs_name;
+      if (crs.epsg) resolved.epsg = resolved.tm.epsg = crs.epsg;
+      return resolved;
+    }
     crs.kind = CrsKind::unsupported;
     const char* method = GTIFValueName(ProjCoordTransGeoKey, d.CTProjection);
     crs.projection = d.CTProjection == kUserDefined ? "unknown projection"
@@ -129,9 +207,12 @@ Status crs_from_epsg(int code, SourceCrs& out) {
     geographic = GTIFGetGCSInfoEx(proj.ctx, code, &name, &datum, &pm, &angle) != 0;
     pcs_name = take_name(name);
   }
-  if (!projected && !geographic)
+  if (!projected && !geographic) {
+    // Codes libgeotiff's tables do not expand (e.g. compound or newer CRSs): ask PROJ itself.
+    if (resolve_with_proj(fmt::format("EPSG:{}", code), out).ok()) return Status::success();
     return Status::failure(Error::invalid_argument,
                            fmt::format("EPSG:{} is not a projected or geographic CRS in PROJ's database", code));
+  }
 
   TIFFMethod methods;
   GTIFSetSimpleTagsMethods(&methods);
@@ -150,6 +231,7 @@ Status crs_from_epsg(int code, SourceCrs& out) {
   if (!GTIFGetDefn(gtif.get(), &defn))
     return Status::failure(Error::invalid_argument, fmt::format("EPSG:{}: libgeotiff cannot expand this code", code));
   out = crs_from_defn(defn, pcs_name);
+  if (out.kind == CrsKind::projected) return Status::success();
   if (geographic && out.kind == CrsKind::geographic) out.name = pcs_name + fmt::format(" (EPSG:{})", code);
   out.epsg = code;
   out.tm.epsg = out.kind == CrsKind::transverse_mercator ? code : 0;
@@ -248,9 +330,12 @@ Status parse_crs_spec(const std::string& spec_in, SourceCrs& out) {
       return Status::failure(Error::invalid_argument, fmt::format("'{}': expected EPSG:<number>", spec_in));
     return crs_from_epsg(code, out);
   }
+  // Anything else PROJ resolves: a PROJ string, WKT, ESRI:/IGNF: codes.
+  if (Status st = resolve_with_proj(spec_in, out); st.ok()) return st;
   return Status::failure(Error::invalid_argument,
-                         fmt::format("'{}' is not a CRS this tool reads: use EPSG:<code> (e.g. EPSG:4326, EPSG:32633, "
-                                     "EPSG:3794), tm:lon0=..,lat0=..,k0=..,x0=..,y0=..,ellps=WGS84|GRS80, or local",
+                         fmt::format("'{}' is not a CRS this tool reads (PROJ cannot resolve it): use EPSG:<code> (e.g. "
+                                     "EPSG:4326, EPSG:32633, EPSG:2154), a PROJ string (+proj=lcc ...) or WKT, "
+                                     "tm:lon0=..,lat0=..,k0=..,x0=..,y0=..,ellps=WGS84|GRS80, or local",
                                      spec_in));
 }
 
@@ -303,6 +388,10 @@ std::string utm_zone_name(const FrameCrs& tm) {
 
 std::string describe_frame(const FrameCrs& f) {
   if (f.kind == ProjectionKind::local) return "local metric frame";
+  if (f.kind == ProjectionKind::proj)
+    return fmt::format("{}{}: projected CRS (PROJ WKT2, {} bytes) a={:.3f} rf={:.9f}", f.name.empty() ? "CRS" : f.name,
+                       f.epsg && f.name.find("EPSG") == std::string::npos ? fmt::format(" (EPSG:{})", f.epsg) : "",
+                       f.definition.size(), f.semi_major_m, f.inverse_flattening);
   return fmt::format("{}{}: Transverse Mercator lon0={:.9g} lat0={:.9g} k0={:.9g} x0={:.9g} y0={:.9g} a={:.3f} rf={:.9f}",
                      f.name.empty() ? std::string("TM") : f.name, f.epsg ? fmt::format(" (EPSG:{})", f.epsg) : "",
                      f.lon0_deg, f.lat0_deg, f.scale_k0, f.false_easting_m, f.false_northing_m, f.semi_major_m,
@@ -316,7 +405,8 @@ std::string describe_crs(const SourceCrs& c) {
     case CrsKind::geographic:
       return fmt::format("{}: geographic lon/lat, a={:.3f} rf={:.9f}", c.name, c.tm.semi_major_m,
                          c.tm.inverse_flattening);
-    case CrsKind::transverse_mercator: return describe_frame(c.tm);
+    case CrsKind::transverse_mercator:
+    case CrsKind::projected: return describe_frame(c.tm);
     case CrsKind::unsupported:
       return fmt::format("{}{} ({})", c.name.empty() ? std::string("unnamed CRS") : c.name,
                          c.epsg && c.name.find("EPSG") == std::string::npos ? fmt::format(" (EPSG:{})", c.epsg) : "",
@@ -340,6 +430,7 @@ bool same_crs(const SourceCrs& a, const SourceCrs& b) {
       return same_ellipsoid(a.tm, b.tm) && a.tm.lon0_deg == b.tm.lon0_deg && a.tm.lat0_deg == b.tm.lat0_deg &&
              a.tm.scale_k0 == b.tm.scale_k0 && a.tm.false_easting_m == b.tm.false_easting_m &&
              a.tm.false_northing_m == b.tm.false_northing_m;
+    case CrsKind::projected: return a.tm.definition == b.tm.definition;
     case CrsKind::unsupported: return false;
   }
   return false;

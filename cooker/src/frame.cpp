@@ -1,10 +1,12 @@
 #include "frame.h"
 
 #include <GeographicLib/TransverseMercatorExact.hpp>
+#include <proj.h>
 
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <mutex>
 
 #include "crs.h"
 
@@ -56,6 +58,80 @@ Status check_polar_reach(const Raster& r) {
                   reach > 0 ? 3413 : 3031));
 }
 
+// A frame from a projection: TM through GeographicLib (exact, as in format v1), other projected
+// CRSs through PROJ.
+Status make_projection(const FrameCrs& crs, std::shared_ptr<const Projection>& out) {
+  if (crs.kind == ProjectionKind::transverse_mercator) {
+    out = std::make_shared<TmProjection>(crs);
+    return Status::success();
+  }
+  std::shared_ptr<const ProjProjection> p;
+  if (Status st = ProjProjection::create(crs.definition, p); !st.ok()) return st;
+  out = p;
+  return Status::success();
+}
+
+// Transverse Mercator centred on the data (lon0 the centre longitude rounded to an arc-second).
+FrameCrs centred_tm(const SourceCrs& src, double lon, double lat, std::string& reason, const std::string& why) {
+  FrameCrs out;
+  out.kind = ProjectionKind::transverse_mercator;
+  out.semi_major_m = src.tm.semi_major_m;
+  out.inverse_flattening = src.tm.inverse_flattening;
+  // In [-180, 180] (format/SPEC.md 6.2) also for data east of the antimeridian (lon > 180).
+  out.lon0_deg = std::remainder(std::round(lon * 3600.0) / 3600.0, 360.0);
+  out.lat0_deg = 0;
+  out.scale_k0 = 1.0;
+  out.name = fmt::format("Transverse Mercator centred on the data (lon0 {:.6f}, {})", out.lon0_deg, src.name);
+  reason = fmt::format("{} projected to a Transverse Mercator whose central meridian is the data's "
+                       "centre longitude ({:.6f}, centre latitude {:.6f})", why, out.lon0_deg, lat);
+  return out;
+}
+
+// Keeps a projected input's own CRS as the frame when it is metric east/north and its scale error
+// over the data (a 9 x 9 grid of the valid samples' footprint) is within kMaxFrameScaleError;
+// else the centred Transverse Mercator.
+Status frame_for_projected(const Raster& r, FrameCrs& out, std::string& reason) {
+  const SourceCrs& src = r.crs;
+  std::shared_ptr<const ProjProjection> proj;
+  if (Status st = ProjProjection::create(src.tm.definition, proj); !st.ok()) return st;
+  int c0 = 0, r0 = 0, c1 = r.width - 1, r1 = r.height - 1;
+  uint64_t valid = 0;
+  if (!valid_bounds(r, c0, r0, c1, r1, valid)) {
+    c0 = r0 = 0;
+    c1 = r.width - 1;
+    r1 = r.height - 1;
+  }
+  const AffineMap map = AffineMap::from(r.geo);
+  constexpr int kGrid = 9;
+  std::vector<double> lat, lon;
+  for (int j = 0; j < kGrid; ++j)
+    for (int i = 0; i < kGrid; ++i) {
+      double x = 0, y = 0, la = 0, lo = 0;
+      map.to_model(c0 - 0.5 + (c1 - c0 + 1.0) * i / (kGrid - 1), r0 - 0.5 + (r1 - r0 + 1.0) * j / (kGrid - 1), x, y);
+      proj->reverse(x, y, la, lo);
+      if (!std::isfinite(la) || !std::isfinite(lo))
+        return Status::failure(Error::unsupported_input,
+                               fmt::format("{}: PROJ cannot take ({:.3f}, {:.3f}) of {} back to latitude/longitude",
+                                           r.path, x, y, describe_crs(src)));
+      lat.push_back(la);
+      lon.push_back(lo);
+    }
+  const double err = proj->max_scale_error(lat.data(), lon.data(), int(lat.size()));
+  if (proj->metric_east_north() && err <= kMaxFrameScaleError) {
+    out = src.tm;
+    reason = fmt::format("the input's own projected CRS is kept (scale error at most {:.3f} % over the data, bound {:.1f} %)",
+                         100 * err, 100 * kMaxFrameScaleError);
+    return Status::success();
+  }
+  const std::string why =
+      !proj->metric_east_north()
+          ? fmt::format("input in {} (axes not metres east/north)", src.name)
+          : fmt::format("input in {} (scale error {:.3f} % over the data, above the {:.1f} % bound)", src.name, 100 * err,
+                        100 * kMaxFrameScaleError);
+  out = centred_tm(src, lon[kGrid * kGrid / 2], lat[kGrid * kGrid / 2], reason, why);
+  return Status::success();
+}
+
 }  // namespace
 
 Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason) {
@@ -68,7 +144,15 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
         return Status::failure(Error::invalid_argument,
                                fmt::format("--frame local: the input is in {}, a geodetic CRS; a local frame only takes "
                                            "local input", describe_crs(src)));
-    } else if (f.kind == CrsKind::transverse_mercator) {
+    } else if (f.kind == CrsKind::transverse_mercator || f.kind == CrsKind::projected) {
+      if (f.kind == CrsKind::projected) {
+        std::shared_ptr<const ProjProjection> p;
+        if (Status st = ProjProjection::create(f.tm.definition, p); !st.ok()) return st;
+        if (!p->metric_east_north())
+          return Status::failure(Error::invalid_argument,
+                                 fmt::format("--frame {}: {} does not have metre easting/northing axes; a frame is "
+                                             "metric", frame_spec, describe_crs(f)));
+      }
       if (src.kind == CrsKind::local)
         return Status::failure(Error::invalid_argument,
                                "--frame: the input has local coordinates (no geodetic meaning) and cannot be projected; "
@@ -79,11 +163,11 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
                                            "done here: reproject with gdalwarp -t_srs instead", frame_spec, describe_crs(src)));
     } else {
       return Status::failure(Error::invalid_argument,
-                             fmt::format("--frame {}: {} is not a Transverse Mercator or local frame", frame_spec,
-                                         describe_crs(f)));
+                             fmt::format("--frame {}: {} is not a projected CRS or local: a geographic or geocentric "
+                                         "frame has no metric meaning", frame_spec, describe_crs(f)));
     }
     out = f.tm;
-    out.epsg = f.kind == CrsKind::transverse_mercator ? f.epsg : 0;
+    out.epsg = f.kind == CrsKind::transverse_mercator || f.kind == CrsKind::projected ? f.epsg : 0;
     out.name = f.name;
     reason = "given by --frame";
     return Status::success();
@@ -104,19 +188,10 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
     case CrsKind::geographic: {
       double lon = 0, lat = 0;
       data_centre(source, lon, lat);
-      out = FrameCrs{};
-      out.kind = ProjectionKind::transverse_mercator;
-      out.semi_major_m = src.tm.semi_major_m;
-      out.inverse_flattening = src.tm.inverse_flattening;
-      // In [-180, 180] (format/SPEC.md 6.2) also for data east of the antimeridian (lon > 180).
-      out.lon0_deg = std::remainder(std::round(lon * 3600.0) / 3600.0, 360.0);
-      out.lat0_deg = 0;
-      out.scale_k0 = 1.0;
-      out.name = fmt::format("Transverse Mercator centred on the data (lon0 {:.6f}, {})", out.lon0_deg, src.name);
-      reason = fmt::format("geographic input projected to a Transverse Mercator whose central meridian is the data's "
-                           "centre longitude ({:.6f}, centre latitude {:.6f})", out.lon0_deg, lat);
+      out = centred_tm(src, lon, lat, reason, "geographic input");
       return Status::success();
     }
+    case CrsKind::projected: return frame_for_projected(source, out, reason);
     default:
       return Status::failure(Error::unsupported_input, fmt::format("no frame for an input in {}", describe_crs(src)));
   }
@@ -151,6 +226,88 @@ void TmProjection::reverse(double x, double y, double& lat, double& lon) const {
   impl_->tm.Reverse(impl_->lon0, x - impl_->fe, y - impl_->fn + impl_->y_lat0, lat, lon);
 }
 
+struct ProjProjection::Impl {
+  PJ_CONTEXT* ctx = nullptr;
+  PJ* crs = nullptr;
+  PJ* op = nullptr;  // base geographic (lon, lat degrees) -> (east, north) CRS units
+  double unit = 1.0;
+  bool east_north = false;
+  mutable std::mutex mutex;
+  ~Impl() {
+    proj_destroy(op);
+    proj_destroy(crs);
+    if (ctx) proj_context_destroy(ctx);
+  }
+};
+
+ProjProjection::ProjProjection() : impl_(std::make_unique<Impl>()) {}
+ProjProjection::~ProjProjection() = default;
+
+Status ProjProjection::create(const std::string& definition, std::shared_ptr<const ProjProjection>& out) {
+  std::shared_ptr<ProjProjection> p(new ProjProjection());
+  Impl& m = *p->impl_;
+  m.ctx = proj_context_create();
+  if (!m.ctx) return Status::failure(Error::internal, "PROJ: cannot create a context");
+  proj_log_func(m.ctx, nullptr, [](void*, int, const char*) {});
+  m.crs = proj_create(m.ctx, definition.c_str());
+  if (!m.crs || proj_get_type(m.crs) != PJ_TYPE_PROJECTED_CRS)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("PROJ cannot resolve '{}' as a projected CRS", definition.substr(0, 200)));
+  PJ* base = proj_crs_get_geodetic_crs(m.ctx, m.crs);
+  PJ* op = base ? proj_create_crs_to_crs_from_pj(m.ctx, base, m.crs, nullptr, nullptr) : nullptr;
+  if (op) m.op = proj_normalize_for_visualization(m.ctx, op);  // lon, lat in; easting, northing out
+  proj_destroy(op);
+  proj_destroy(base);
+  if (!m.op) return Status::failure(Error::unsupported_input, "PROJ finds no projection for " + definition.substr(0, 200));
+  PJ* cs = proj_crs_get_coordinate_system(m.ctx, m.crs);
+  bool east = false, north = false, metres = cs != nullptr;
+  for (int i = 0; cs && i < proj_cs_get_axis_count(m.ctx, cs); ++i) {
+    const char* dir = nullptr;
+    double factor = 0;
+    proj_cs_get_axis_info(m.ctx, cs, i, nullptr, nullptr, &dir, &factor, nullptr, nullptr, nullptr);
+    const std::string d = dir ? dir : "";
+    east = east || d == "east";
+    north = north || d == "north";
+    if (i == 0) m.unit = factor > 0 ? factor : 1.0;
+    metres = metres && factor == 1.0;
+  }
+  proj_destroy(cs);
+  m.east_north = east && north && metres;
+  out = p;
+  return Status::success();
+}
+
+void ProjProjection::forward(double lat, double lon, double& x, double& y) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PJ_COORD c = proj_trans(impl_->op, PJ_FWD, proj_coord(lon, lat, 0, 0));
+  const bool ok = c.xy.x != HUGE_VAL && std::isfinite(c.xy.x);
+  x = ok ? c.xy.x * impl_->unit : NAN;
+  y = ok ? c.xy.y * impl_->unit : NAN;
+}
+
+void ProjProjection::reverse(double x, double y, double& lat, double& lon) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const PJ_COORD c = proj_trans(impl_->op, PJ_INV, proj_coord(x / impl_->unit, y / impl_->unit, 0, 0));
+  const bool ok = c.lp.lam != HUGE_VAL && std::isfinite(c.lp.lam);
+  lon = ok ? c.lp.lam : NAN;
+  lat = ok ? c.lp.phi : NAN;
+}
+
+double ProjProjection::max_scale_error(const double* lat, const double* lon, int n) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  constexpr double kDeg = 0.017453292519943295;
+  double worst = 0;
+  for (int i = 0; i < n; ++i) {
+    const PJ_FACTORS f = proj_factors(impl_->crs, proj_coord(lon[i] * kDeg, lat[i] * kDeg, 0, 0));
+    for (double k : {f.meridional_scale, f.parallel_scale, f.tissot_semimajor, f.tissot_semiminor})
+      worst = std::isfinite(k) && k > 0 ? std::max(worst, std::fabs(k - 1)) : INFINITY;
+  }
+  return worst;
+}
+
+bool ProjProjection::metric_east_north() const { return impl_->east_north; }
+double ProjProjection::unit_m() const { return impl_->unit; }
+
 Status SourceMapping::init(const Raster& source, const FrameCrs& frame, int threads) {
   affine_map_ = AffineMap::from(source.geo);
   width_ = source.width;
@@ -158,11 +315,11 @@ Status SourceMapping::init(const Raster& source, const FrameCrs& frame, int thre
   const SourceCrs& src = source.crs;
   if (frame.kind == ProjectionKind::local || src.kind == CrsKind::local) {
     chain_ = Chain::affine;
-  } else if (src.kind == CrsKind::transverse_mercator) {
+  } else if (src.kind == CrsKind::transverse_mercator || src.kind == CrsKind::projected) {
     SourceCrs frame_as_source;
-    frame_as_source.kind = CrsKind::transverse_mercator;
+    frame_as_source.kind = frame.kind == ProjectionKind::proj ? CrsKind::projected : CrsKind::transverse_mercator;
     frame_as_source.tm = frame;
-    chain_ = same_crs(src, frame_as_source) ? Chain::affine : Chain::other_tm;
+    chain_ = same_crs(src, frame_as_source) ? Chain::affine : Chain::projected;
   } else if (src.kind == CrsKind::geographic) {
     chain_ = Chain::geographic;
     double lat = 0;
@@ -173,8 +330,9 @@ Status SourceMapping::init(const Raster& source, const FrameCrs& frame, int thre
   }
   affine_ = chain_ == Chain::affine;
   if (affine_) return Status::success();
-  frame_tm_ = std::make_shared<TmProjection>(frame);
-  if (chain_ == Chain::other_tm) source_tm_ = std::make_shared<TmProjection>(src.tm);
+  if (Status st = make_projection(frame, frame_tm_); !st.ok()) return st;
+  if (chain_ == Chain::projected)
+    if (Status st = make_projection(src.tm, source_tm_); !st.ok()) return st;
   const int margin = 4;
   const int nx = (width_ + 2 * margin) / kSampleAnchorStep + 5;
   const int ny = (height_ + 2 * margin) / kSampleAnchorStep + 5;
@@ -198,7 +356,7 @@ void SourceMapping::exact_sample_to_frame(double col, double row, double& x, dou
   switch (chain_) {
     case Chain::affine: x = mx; y = my; return;
     case Chain::geographic: frame_tm_->forward(my, mx, x, y); return;
-    case Chain::other_tm: {
+    case Chain::projected: {
       double lat = 0, lon = 0;
       source_tm_->reverse(mx, my, lat, lon);
       frame_tm_->forward(lat, lon, x, y);
@@ -218,7 +376,7 @@ void SourceMapping::exact_frame_to_sample(double x, double y, double& col, doubl
       // turn of the raster's centre.
       mx = lon_centre_ + std::remainder(mx - lon_centre_, 360.0);
       break;
-    case Chain::other_tm: {
+    case Chain::projected: {
       double lat = 0, lon = 0;
       frame_tm_->reverse(x, y, lat, lon);
       source_tm_->forward(lat, lon, mx, my);

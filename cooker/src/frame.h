@@ -1,10 +1,15 @@
-// The archive's frame (a metric Transverse Mercator or local plane) and the mapping between frame
-// metres and source sample coordinates.
+// The archive's frame (a metric Transverse Mercator, any projected CRS PROJ knows, or a local
+// plane) and the mapping between frame metres and source sample coordinates.
 //
 // Frame choice: geographic input -> Transverse Mercator on the input's ellipsoid, central meridian
 // at the data's centre longitude (rounded to a whole arc-second), lat0 0, k0 1, no false
 // easting/northing. UTM and any other TM input keep their CRS as the frame (so separately cooked
-// neighbouring areas share one). Local input keeps a local frame. --frame overrides (TM or local).
+// neighbouring areas share one). Any other projected input (Lambert-93, RD, LV95, Albers, State
+// Plane, ...) keeps its CRS as the frame (kind proj, format v2) when its axes are metres east/north
+// and its scale error over the data stays within kMaxFrameScaleError; otherwise (Web Mercator away
+// from the equator, feet) it gets the centred Transverse Mercator of geographic input. Local input
+// keeps a local frame. --frame overrides (TM, any projected CRS, or local); a geographic or
+// geocentric --frame has no metric meaning and is refused.
 // Geographic longitudes are taken within half a turn of the raster's centre, so a raster crossing
 // the antimeridian (179.9 .. 180.1 or -180.1 .. -179.9) maps whole; lon0 is kept in [-180, 180].
 // Geographic data reaching beyond 89 N/S are refused (frame.cpp: longitude's pole singularity
@@ -20,20 +25,53 @@
 
 namespace terrain::cook {
 
+// The largest |scale - 1| (Tissot's semi-axes over the data) for which a projected input's own
+// CRS is kept as the frame: 0.5 %, so a frame metre is a ground metre within 5 mm per metre.
+inline constexpr double kMaxFrameScaleError = 0.005;
+
 Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason);
+
+// Latitude/longitude on a CRS's own ellipsoid <-> its projected metres.
+class Projection {
+ public:
+  virtual ~Projection() = default;
+  virtual void forward(double lat, double lon, double& x, double& y) const = 0;
+  virtual void reverse(double x, double y, double& lat, double& lon) const = 0;
+};
 
 // Transverse Mercator of a FrameCrs (GeographicLib TransverseMercatorExact), with lat0, false
 // easting and false northing applied: y = FN + k0 (M(lat) - M(lat0)) on the central meridian.
-class TmProjection {
+class TmProjection final : public Projection {
  public:
   explicit TmProjection(const FrameCrs& crs);
-  ~TmProjection();
+  ~TmProjection() override;
   TmProjection(TmProjection&&) noexcept;
   TmProjection& operator=(TmProjection&&) noexcept;
-  void forward(double lat, double lon, double& x, double& y) const;
-  void reverse(double x, double y, double& lat, double& lon) const;
+  void forward(double lat, double lon, double& x, double& y) const override;
+  void reverse(double x, double y, double& lat, double& lon) const override;
 
  private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Any projected CRS through PROJ (the conversion from its base geographic CRS only: no datum
+// shift), x east and y north in metres (CRS units times unit_m()). Calls are serialised (a PJ is
+// not thread-safe); PROJ answers the same bits for the same input, so mappings stay deterministic.
+class ProjProjection final : public Projection {
+ public:
+  static Status create(const std::string& definition, std::shared_ptr<const ProjProjection>& out);
+  ~ProjProjection() override;
+  void forward(double lat, double lon, double& x, double& y) const override;
+  void reverse(double x, double y, double& lat, double& lon) const override;
+  // Largest |scale - 1| over the points (Tissot semi-axes, meridional and parallel scale).
+  double max_scale_error(const double* lat, const double* lon, int n) const;
+  // True when the CRS's axes are easting and northing (either order) in metres.
+  bool metric_east_north() const;
+  double unit_m() const;
+
+ private:
+  ProjProjection();
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
@@ -73,9 +111,11 @@ class SourceMapping {
   AffineMap affine_map_{};
   bool affine_ = true;
   int width_ = 0, height_ = 0;
-  enum class Chain { affine, geographic, other_tm } chain_ = Chain::affine;
+  // projected: source projection reversed to lat/lon, then the frame's forward (TM through
+  // GeographicLib, other projected CRSs through PROJ).
+  enum class Chain { affine, geographic, projected } chain_ = Chain::affine;
   double lon_centre_ = 0;  // geographic: the raster centre's longitude (model units)
-  std::shared_ptr<const TmProjection> frame_tm_, source_tm_;
+  std::shared_ptr<const Projection> frame_tm_, source_tm_;
   AnchorGrid to_frame_, to_sample_;
 };
 

@@ -18,6 +18,7 @@ enum class CrsKind : uint8_t {
   transverse_mercator,  // projected TM (UTM included), metres
   local,                // metric coordinates without geodetic meaning
   unsupported,          // some other CRS: `name` says which
+  projected,            // any other projected CRS PROJ resolves: `tm` has kind proj, its WKT2 and ellipsoid
 };
 
 struct SourceCrs {

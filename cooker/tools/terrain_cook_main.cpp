@@ -105,9 +105,9 @@ int run(int argc, char** argv) {
       ->check(cli::int_range(0, 5));
   app.add_option("--threads", o.threads, "Worker threads (default 0: all cores)")->check(cli::int_range(0, 1024));
   app.add_option("--crs", o.crs,
-                 "CRS of inputs that lack one (or override): EPSG:4326, EPSG:326xx, any Transverse Mercator EPSG code, "
+                 "CRS of inputs that lack one (or override): EPSG:<code> (geographic or projected), a PROJ string or WKT, "
                  "tm:lon0=..,lat0=..,k0=..,x0=..,y0=..,ellps=WGS84|GRS80, or local");
-  app.add_option("--frame", o.frame, "Archive frame instead of the automatic choice (same forms; TM or local)");
+  app.add_option("--frame", o.frame, "Archive frame instead of the automatic choice (same forms: any projected CRS PROJ knows, or local)");
   app.add_option("--origin", origin,
                  "Images/raw: frame coordinates X,Y of the south-west sample (default 0,0; each within +-1e8 CRS units)");
   app.add_option("--spacing", spacing, "Images/raw: sample spacing D or DX,DY in CRS units (> 0, <= 1e7)");

@@ -42,7 +42,7 @@ struct ArchiveReader::Impl {
     if (detail::crc32_of(metadata) != header.metadata_crc32)
       return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
                                                            std::to_string(header.metadata_offset) + ")");
-    if (Status s = detail::decode_metadata(metadata, world); !s.ok()) return s;
+    if (Status s = detail::decode_metadata(metadata, header.format_version, world); !s.ok()) return s;
     const auto directory = file.subspan(header.directory_offset, header.directory_size);
     if (detail::crc32_of(directory) != header.directory_crc32)
       return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +

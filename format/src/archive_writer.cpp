@@ -141,6 +141,7 @@ Status ArchiveWriter::finish(const WorldInfo& world) {
   detail::encode_metadata(world, metadata);
 
   detail::Header h;
+  h.format_version = detail::required_format_version(world);
   h.node_count = uint32_t(w.records.size());
   h.payload_offset = layout::kHeaderSize;
   h.payload_size = payload_size;

@@ -130,9 +130,9 @@ Status decode_header(std::span<const uint8_t> file, Header& h) {
     return fail(Error::bad_magic, "not a terrain archive (the first 8 bytes are not \"TERRAIN\\x1A\")");
   if (file.size() < 12) return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " bytes)");
   h.format_version = load_u32(p + f::format_version);
-  if (h.format_version != layout::kFormatVersion)
+  if (h.format_version < layout::kFormatVersion || h.format_version > layout::kMaxFormatVersion)
     return fail(Error::unsupported_version, "archive format version " + std::to_string(h.format_version) +
-                                                ", this reader supports version " + std::to_string(layout::kFormatVersion));
+                                                ", this reader supports versions 1 and 2");
   if (file.size() < layout::kHeaderSize)
     return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " of 128 bytes)");
   const uint32_t stored_crc = load_u32(p + f::header_crc32);
@@ -178,8 +178,8 @@ Status decode_header(std::span<const uint8_t> file, Header& h) {
 Status validate_world(const WorldInfo& w) {
   auto bad = [](std::string msg) { return fail(Error::metadata_invalid, std::move(msg)); };
   const FrameCrs& c = w.crs;
-  if (c.kind != ProjectionKind::local && c.kind != ProjectionKind::transverse_mercator)
-    return bad("unknown projection_kind " + std::to_string(int(c.kind)) + " (0 = local, 1 = transverse_mercator)");
+  if (c.kind != ProjectionKind::local && c.kind != ProjectionKind::transverse_mercator && c.kind != ProjectionKind::proj)
+    return bad("unknown projection_kind " + std::to_string(int(c.kind)) + " (0 = local, 1 = transverse_mercator, 2 = proj)");
   for (double v : {c.semi_major_m, c.inverse_flattening, c.lat0_deg, c.lon0_deg, c.scale_k0, c.false_easting_m,
                    c.false_northing_m, w.origin_x_m, w.origin_y_m, w.extent_min_x_m, w.extent_min_y_m, w.extent_max_x_m,
                    w.extent_max_y_m})
@@ -190,6 +190,15 @@ Status validate_world(const WorldInfo& w) {
     if (!(c.inverse_flattening == 0 || c.inverse_flattening > 1)) return bad("inverse_flattening must be 0 (sphere) or > 1");
     if (!(c.scale_k0 > 0)) return bad("scale_k0 must be > 0");
     if (!(std::fabs(c.lat0_deg) <= 90 && std::fabs(c.lon0_deg) <= 180)) return bad("lat0/lon0 out of range");
+  }
+  if (c.kind == ProjectionKind::proj) {
+    if (!(c.semi_major_m > 0)) return bad("projection_kind proj needs semi_major_m > 0");
+    if (!(c.inverse_flattening == 0 || c.inverse_flattening > 1)) return bad("inverse_flattening must be 0 (sphere) or > 1");
+    if (c.definition.empty()) return bad("projection_kind proj without a frame_definition record");
+    if (c.definition.size() > layout::kMaxFrameDefinitionSize) return bad("frame_definition longer than 64 KiB");
+    if (c.definition.find('\0') != std::string::npos) return bad("frame_definition contains NUL");
+  } else if (!c.definition.empty()) {
+    return bad("a frame_definition record with projection_kind " + std::to_string(int(c.kind)) + " (only proj has one)");
   }
   if (c.name.size() > layout::kMaxCrsNameSize) return bad("CRS name longer than 1024 bytes");
   if (w.roots_x < 1 || w.roots_y < 1 || w.roots_x > layout::kMaxRoots || w.roots_y > layout::kMaxRoots)
@@ -215,10 +224,57 @@ Status validate_world(const WorldInfo& w) {
   return Status::success();
 }
 
+namespace {
+size_t padded4(size_t n) { return (n + 3) & ~size_t(3); }
+// The v2 extension records of `w` (SPEC 6.5), in tag order.
+std::vector<uint8_t> encode_extensions(const WorldInfo& w) {
+  std::vector<uint8_t> out;
+  auto add = [&out](uint32_t tag, const std::string& bytes) {
+    const size_t at = out.size();
+    out.resize(at + layout::kExtensionHeaderSize + padded4(bytes.size()), 0);
+    store_u32(out.data() + at, tag);
+    store_u32(out.data() + at + 4, uint32_t(bytes.size()));
+    std::memcpy(out.data() + at + layout::kExtensionHeaderSize, bytes.data(), bytes.size());
+  };
+  if (w.crs.kind == ProjectionKind::proj) add(layout::kExtensionFrameDefinition, w.crs.definition);
+  return out;
+}
+
+Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
+  auto bad = [](std::string msg) { return fail(Error::metadata_invalid, "extension records: " + std::move(msg)); };
+  size_t at = 0;
+  uint64_t last_tag = 0;
+  while (at < bytes.size()) {
+    if (bytes.size() - at < layout::kExtensionHeaderSize) return bad("a record header is cut by the end of the metadata");
+    const uint32_t tag = load_u32(bytes.data() + at), size = load_u32(bytes.data() + at + 4);
+    if (tag == 0 || tag <= last_tag) return bad("tag " + std::to_string(tag) + " is zero or not after the previous one");
+    last_tag = tag;
+    const size_t body = at + layout::kExtensionHeaderSize;
+    if (size > bytes.size() - body || padded4(size) > bytes.size() - body)
+      return bad("record " + std::to_string(tag) + " of " + std::to_string(size) + " bytes runs past extension_size");
+    if (!all_zero(bytes.data() + body + size, padded4(size) - size)) return bad("padding bytes are not zero");
+    const char* text = reinterpret_cast<const char*>(bytes.data() + body);
+    if (tag == layout::kExtensionFrameDefinition) {
+      if (size == 0 || size > layout::kMaxFrameDefinitionSize) return bad("frame_definition size " + std::to_string(size));
+      w.crs.definition.assign(text, size);
+    } else if (!(tag & layout::kExtensionOptional)) {
+      return bad("unknown required tag " + std::to_string(tag) + " (written by a newer writer)");
+    }
+    at = body + padded4(size);
+  }
+  return Status::success();
+}
+}  // namespace
+
+uint32_t required_format_version(const WorldInfo& w) {
+  return w.crs.kind == ProjectionKind::proj ? layout::kFormatVersionV2 : layout::kFormatVersion;
+}
+
 void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
   namespace f = layout::metadata;
+  const std::vector<uint8_t> ext = encode_extensions(w);
   const size_t size = layout::kMetadataFixedSize + w.crs.name.size() + w.palette.size() * layout::kMaterialRecordSize +
-                      w.cook_info_json.size();
+                      w.cook_info_json.size() + ext.size();
   out.assign(size, 0);
   uint8_t* p = out.data();
   store_u32(p + f::level_count, kLevelCount);
@@ -241,9 +297,14 @@ void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
     at += layout::kMaterialRecordSize;
   }
   std::memcpy(p + at, w.cook_info_json.data(), w.cook_info_json.size());
+  at += w.cook_info_json.size();
+  if (!ext.empty()) {  // v2 only (required_format_version): a v1 file keeps 0 here
+    store_u32(p + f::extension_size, uint32_t(ext.size()));
+    std::memcpy(p + at, ext.data(), ext.size());
+  }
 }
 
-Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
+Status decode_metadata(std::span<const uint8_t> bytes, uint32_t format_version, WorldInfo& w) {
   namespace f = layout::metadata;
   auto bad = [](std::string msg) { return fail(Error::metadata_invalid, std::move(msg)); };
   if (bytes.size() < layout::kMetadataFixedSize)
@@ -253,8 +314,9 @@ Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
   if (load_u32(p + f::height_samples) != kHeightSamples) return bad("height_samples is not 129");
   if (load_f64(p + f::level0_node_size_m) != kLevel0NodeSizeM) return bad("level0_node_size_m is not 64");
   if (load_i32(p + f::height_unit_log2) != kHeightUnitLog2) return bad("height_unit_log2 is not -10");
+  const bool v2 = format_version >= layout::kFormatVersionV2;
   if (load_u16(p + f::reserved0) != 0 || load_u32(p + f::reserved1) != 0 || !all_zero(p + f::reserved2, 3) ||
-      load_u32(p + f::reserved3) != 0)
+      (!v2 && load_u32(p + f::reserved3) != 0))
     return bad("reserved metadata bytes are not zero");
   w = WorldInfo{};
   world_fields(w, loader(p));
@@ -266,7 +328,11 @@ Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
   if (name_size > layout::kMaxCrsNameSize) return bad("crs_name_size " + std::to_string(name_size) + " exceeds 1024");
   if (palette_count > layout::kMaxPaletteCount) return bad("palette_count " + std::to_string(palette_count) + " exceeds 256");
   if (cook_size > layout::kMaxCookInfoSize) return bad("cook_info_size exceeds 16 MiB");
-  const uint64_t expected = layout::kMetadataFixedSize + name_size + palette_count * layout::kMaterialRecordSize + cook_size;
+  const uint64_t ext_size = v2 ? load_u32(p + f::extension_size) : 0;
+  if (ext_size > layout::kMaxExtensionSize) return bad("extension_size exceeds 16 MiB");
+  if (ext_size % 4) return bad("extension_size " + std::to_string(ext_size) + " is not a multiple of 4");
+  const uint64_t expected =
+      layout::kMetadataFixedSize + name_size + palette_count * layout::kMaterialRecordSize + cook_size + ext_size;
   if (expected != bytes.size())
     return bad("metadata_size is " + std::to_string(bytes.size()) + " but its fields add up to " + std::to_string(expected));
   size_t at = layout::kMetadataFixedSize;
@@ -284,6 +350,9 @@ Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& w) {
     at += layout::kMaterialRecordSize;
   }
   w.cook_info_json.assign(reinterpret_cast<const char*>(p + at), cook_size);
+  at += cook_size;
+  if (Status st = decode_extensions(bytes.subspan(at, ext_size), w); !st.ok()) return st;
+  if (w.crs.kind == ProjectionKind::proj && !v2) return bad("projection_kind 2 (proj) in a version 1 file");
   return validate_world(w);
 }
 

@@ -28,8 +28,10 @@ void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]);
 Status decode_header(std::span<const uint8_t> file, Header& out);
 
 Status validate_world(const WorldInfo& world);
+// 1, or 2 when `world` uses a version-2 feature (SPEC 6.5): today's archives stay version 1.
+uint32_t required_format_version(const WorldInfo& world);
 void encode_metadata(const WorldInfo& world, std::vector<uint8_t>& out);
-Status decode_metadata(std::span<const uint8_t> bytes, WorldInfo& out);
+Status decode_metadata(std::span<const uint8_t> bytes, uint32_t format_version, WorldInfo& out);
 
 void encode_entry(const NodeRecord& r, uint8_t out[layout::kEntrySize]);
 // Decodes and checks each entry on its own (ranges, reserved bits, grid bounds, payload bounds).

@@ -24,6 +24,7 @@ const char* kind_name(ProjectionKind k) {
   switch (k) {
     case ProjectionKind::local: return "local";
     case ProjectionKind::transverse_mercator: return "transverse_mercator";
+    case ProjectionKind::proj: return "proj";
   }
   return "unknown";
 }
@@ -108,6 +109,7 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   j["frame"] = {{"kind", kind_name(c.kind)}, {"epsg", c.epsg}, {"name", c.name}, {"semi_major_m", c.semi_major_m},
                 {"inverse_flattening", c.inverse_flattening}, {"lat0_deg", c.lat0_deg}, {"lon0_deg", c.lon0_deg},
                 {"scale_k0", c.scale_k0}, {"false_easting_m", c.false_easting_m}, {"false_northing_m", c.false_northing_m}};
+  if (c.kind == ProjectionKind::proj) j["frame"]["definition_wkt2"] = c.definition;
   j["origin_m"] = {w.origin_x_m, w.origin_y_m};
   j["roots"] = {w.roots_x, w.roots_y};
   j["extent_m"] = {{"min_x", w.extent_min_x_m}, {"min_y", w.extent_min_y_m}, {"max_x", w.extent_max_x_m}, {"max_y", w.extent_max_y_m}};

@@ -89,7 +89,7 @@ LonLatToFrame::LonLatToFrame(LonLatToFrame&&) noexcept = default;
 LonLatToFrame& LonLatToFrame::operator=(LonLatToFrame&&) noexcept = default;
 
 Status LonLatToFrame::init(const FrameCrs& frame, const std::string& lonlat_crs) {
-  if (frame.kind != ProjectionKind::transverse_mercator)
+  if (frame.kind != ProjectionKind::transverse_mercator && frame.kind != ProjectionKind::proj)
     return Status::failure(Error::invalid_argument,
                            "this archive's frame is 'local' (no geodetic meaning): give frame metres with --sample/--sample-file "
                            "instead of longitude/latitude");
@@ -105,6 +105,21 @@ Status LonLatToFrame::init(const FrameCrs& frame, const std::string& lonlat_crs)
                            fmt::format("--lonlat-crs {}: {} is not a geographic (longitude/latitude) CRS", from_name,
                                        proj_get_name(from.p)));
   std::string datum;
+  if (frame.kind == ProjectionKind::proj) {  // format v2: the WKT2 defines the frame, datum included
+    PjPtr to(proj_create(m.ctx, frame.definition.c_str()));
+    if (!to.p || proj_get_type(to.p) != PJ_TYPE_PROJECTED_CRS)
+      return Status::failure(Error::invalid_argument, "PROJ cannot read the archive's frame definition (WKT2)");
+    PjPtr op(proj_create_crs_to_crs_from_pj(m.ctx, from.p, to.p, nullptr, nullptr));
+    if (op.p) op = PjPtr(proj_normalize_for_visualization(m.ctx, op.p));
+    if (!op.p)
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("PROJ finds no conversion from {} to the archive's frame ({})", from_name,
+                                         proj_get_name(to.p)));
+    m.op = std::move(op);
+    m.description = fmt::format("{} ({}) -> frame {} (WKT2 of the archive)", from_name, proj_get_name(from.p),
+                                proj_get_name(to.p));
+    return Status::success();
+  }
   PjPtr base = m.frame_geodetic(frame, datum);
   // The archive's own parameters define the frame (format/SPEC.md 6.2); the EPSG code only names its datum.
   PjPtr conv(proj_create_conversion_transverse_mercator(m.ctx, frame.lat0_deg, frame.lon0_deg, frame.scale_k0,

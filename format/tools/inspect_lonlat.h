@@ -24,7 +24,8 @@ class LonLatToFrame {
   // -> `frame`. The frame's datum is its EPSG code's, else the "EPSG:n" its name cites (the
   // cooker names the geographic CRS of the input there), else unknown: then lon/lat are taken on
   // the frame's own ellipsoid with no datum shift. invalid_argument for a local frame, a CRS PROJ
-  // does not know or one that is not geographic.
+  // does not know or one that is not geographic. A proj frame (format v2) is the CRS of its WKT2
+  // definition, datum included.
   Status init(const FrameCrs& frame, const std::string& lonlat_crs);
   Status convert(double lon_deg, double lat_deg, double& x, double& y) const;
   // "EPSG:4326 -> NAD27 (EPSG:4267) datum of the frame", for messages.

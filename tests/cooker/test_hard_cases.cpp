@@ -514,14 +514,19 @@ TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
   EXPECT_NEAR(report.frame.lon0_deg, 9.0, 1e-12);
 }
 
-// A CRS the cooker cannot use (Web Mercator) is named, with a gdalwarp line to fix it.
-TEST(Inputs, UnsupportedCrsIsNamedWithAGdalwarpLine) {
+// Web Mercator at 46 N (scale 1.44, beyond the 0.5 % bound) is no longer refused (issue 13): it
+// is projected through PROJ to a Transverse Mercator centred on the data, and the report says why.
+TEST(Inputs, WebMercatorAwayFromTheEquatorGetsACentredTransverseMercator) {
   const SyntheticDem d = flat_dem(40, 40, 10.0, 1113194.9, 5780000.0, 5.0, 3857);
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-3857"), "webmerc", d, false, o));
+  o.heights_only = true;
   cook::CookReport report;
-  // 10 E, 46 N: UTM zone 32.
-  expect_refusal(cook::cook(o, {}, report), Error::unsupported_input, {"Pseudo-Mercator", "gdalwarp -t_srs EPSG:32632"});
+  ASSERT_TRUE(cook::cook(o, {}, report).ok());
+  EXPECT_EQ(report.frame.kind, ProjectionKind::transverse_mercator);
+  // x 1113194.9 .. +400 m is 10.0000 .. 10.0036 E; lon0 the centre rounded to an arc-second.
+  EXPECT_NEAR(report.frame.lon0_deg, 10.0018, 0.0003);
+  EXPECT_NE(report.frame_reason.find("scale error"), std::string::npos) << report.frame_reason;
 }
 
 // --frame puts geographic input into a given UTM zone. Bound: every sample within tolerance + half

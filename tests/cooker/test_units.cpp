@@ -256,7 +256,9 @@ TEST(Crs, EpsgCodesResolveThroughProj) {
 TEST(Crs, OtherProjectionsAndGarbageAreNamed) {
   SourceCrs c;
   ASSERT_TRUE(parse_crs_spec("EPSG:3857", c).ok());
-  EXPECT_EQ(c.kind, CrsKind::unsupported);
+  EXPECT_EQ(c.kind, CrsKind::projected);  // any projected CRS PROJ knows (issue 13); choose_frame decides
+  EXPECT_EQ(c.tm.kind, ProjectionKind::proj);
+  EXPECT_NE(c.tm.definition.find("Popular Visualisation Pseudo Mercator"), std::string::npos) << c.tm.definition;
   EXPECT_NE(describe_crs(c).find("Pseudo-Mercator"), std::string::npos) << describe_crs(c);
   EXPECT_NE(conversion_hint(c, "in.tif").find("gdalwarp -t_srs EPSG:326"), std::string::npos);
   EXPECT_FALSE(parse_crs_spec("EPSG:99999", c).ok());

@@ -172,6 +172,29 @@ TEST(Corruption, SyntheticArchiveNeverCrashesAndNeverLies) {
   std::filesystem::remove_all(dir);
 }
 
+// The same on a version-2 archive (proj frame, format/SPEC.md section 17): its extension record
+// is inside the metadata CRC, so any damage to it is caught at open.
+TEST(Corruption, SyntheticVersionTwoArchiveNeverCrashesAndNeverLies) {
+  const auto dir = test::scratch_dir("corruption-v2");
+  const auto path = (dir / "a.terrain").string();
+  WorldInfo w = test::make_world();
+  w.crs.kind = ProjectionKind::proj;
+  w.crs.lat0_deg = w.crs.lon0_deg = w.crs.false_easting_m = 0;
+  w.crs.scale_k0 = 1;
+  w.crs.definition = "PROJCRS[\"custom LCC\",BASEGEOGCRS[\"WGS 84\",DATUM[\"World Geodetic System 1984\",ELLIPSOID[\"WGS 84\","
+                     "6378137,298.257223563]]],CONVERSION[\"lcc\",METHOD[\"Lambert Conic Conformal (2SP)\"]],"
+                     "CS[Cartesian,2],AXIS[\"E\",east],AXIS[\"N\",north],LENGTHUNIT[\"metre\",1]]";
+  ASSERT_TRUE(test::write_archive_of(path, w, test::sparse_keys(), PayloadOptions{},
+                                     [&](const NodeKey& k) { return test::make_seed_node(w, k); })
+                  .ok());
+  ASSERT_EQ(slurp(path)[8], 2);
+  const Outcome o = attack_archive("synthetic v2", path, 1500, 43);
+  EXPECT_EQ(o.trials, 1500);
+  EXPECT_GT(o.rejected_at_open, 300);
+  EXPECT_GT(o.rejected_at_decode, 100);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Corruption, RealKilaueaArchiveNeverCrashesAndNeverLies) {
   const auto dem_path = test::data_file("kilauea_utm5n.tif");
   TERRAIN_REQUIRE_DATA(dem_path);
@@ -199,7 +222,7 @@ TEST(Corruption, NamedFieldDamageGivesTheNamedError) {
     return r.open_memory(b).code;
   };
   EXPECT_EQ(open_with([](auto& b) { b[0] = 'X'; }), Error::bad_magic);
-  EXPECT_EQ(open_with([](auto& b) { b[8] = 2; }), Error::unsupported_version);
+  EXPECT_EQ(open_with([](auto& b) { b[8] = 3; }), Error::unsupported_version);  // readers open 1 and 2
   EXPECT_EQ(open_with([](auto& b) { b.resize(100); }), Error::truncated);
   EXPECT_EQ(open_with([](auto& b) { b.resize(b.size() - 1); }), Error::truncated);
   EXPECT_EQ(open_with([](auto& b) { b.push_back(0); }), Error::header_invalid);

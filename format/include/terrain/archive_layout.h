@@ -1,4 +1,4 @@
-// Archive format v1: byte offsets and limits of every fixed structure (format/SPEC.md tables).
+// Archive format v1/v2: byte offsets and limits of every fixed structure (format/SPEC.md tables).
 // Names follow the SPEC's field names. Exposed so tests and independent tools can address fields
 // directly (e.g. to corrupt one on purpose); normal users go through ArchiveReader/ArchiveWriter.
 #pragma once
@@ -9,7 +9,9 @@ namespace terrain::layout {
 
 // ---- File header (SPEC "Header"): 128 bytes at offset 0 -----------------------------------------
 inline constexpr std::array<uint8_t, 8> kMagic = {'T', 'E', 'R', 'R', 'A', 'I', 'N', 0x1A};
-inline constexpr uint32_t kFormatVersion = 1;
+inline constexpr uint32_t kFormatVersion = 1;        // what writers write unless a v2 feature is used
+inline constexpr uint32_t kFormatVersionV2 = 2;      // extension records (SPEC 6.5); readers open 1 and 2
+inline constexpr uint32_t kMaxFormatVersion = kFormatVersionV2;
 inline constexpr uint32_t kHeaderSize = 128;
 namespace header {
 inline constexpr uint32_t magic = 0;             // 8 bytes
@@ -82,8 +84,19 @@ inline constexpr uint32_t false_northing_m = 144;   // f64
 inline constexpr uint32_t crs_name_size = 152;      // u32
 inline constexpr uint32_t palette_count = 156;      // u32
 inline constexpr uint32_t cook_info_size = 160;     // u32
-inline constexpr uint32_t reserved3 = 164;          // u32, reserved (0)
+inline constexpr uint32_t reserved3 = 164;          // u32: v1 reserved (0); v2 extension_size
+inline constexpr uint32_t extension_size = 164;     // v2: bytes of extension records after cook_info
 }  // namespace metadata
+
+// ---- Metadata extension records (SPEC 6.5, format v2): after cook_info ------------------------
+// Each record: u32 tag, u32 size, size bytes, zero padding to a multiple of 4. Tags ascend, each at
+// most once. A tag with kExtensionOptional set may be skipped by a reader that does not know it;
+// any other unknown tag makes the file unreadable (metadata_invalid).
+inline constexpr uint32_t kExtensionHeaderSize = 8;
+inline constexpr uint32_t kExtensionOptional = 0x80000000u;
+inline constexpr uint32_t kExtensionFrameDefinition = 1;  // UTF-8 PROJ WKT2:2019 of a projection_kind 2 frame
+inline constexpr uint32_t kMaxFrameDefinitionSize = 64 * 1024;
+inline constexpr uint32_t kMaxExtensionSize = 16u << 20;
 
 // ---- Node payload (SPEC "Payload"): section table, then section data ---------------------------
 inline constexpr uint32_t kSectionCount = 5;

@@ -1,4 +1,4 @@
-// Archive format v1: constants, value types and the height quantization scheme.
+// Archive format v1 and v2: constants, value types and the height quantization scheme.
 // format/SPEC.md is the byte-level definition; names here follow the SPEC's field names.
 // Light header: no I/O, no third-party includes.
 #pragma once
@@ -56,6 +56,7 @@ inline float units_to_metres_f32(int32_t units) { return float(units) * float(kH
 enum class ProjectionKind : uint8_t {
   local = 0,                // metric engineering frame with no geodetic meaning (game heightmaps)
   transverse_mercator = 1,  // GeographicLib TransverseMercator (exact) on the given ellipsoid
+  proj = 2,                 // any projected CRS in metres, defined by `definition` (PROJ WKT2:2019); format v2
 };
 
 struct FrameCrs {
@@ -69,6 +70,9 @@ struct FrameCrs {
   double false_easting_m = 0;
   double false_northing_m = 0;
   std::string name;                   // human-readable, e.g. "WGS 84 / UTM zone 5N"
+  // projection_kind proj only (format v2, SPEC 6.5): the frame CRS as PROJ WKT2:2019, which defines
+  // it; lat0..false_northing are then unused (written 0, 0, 1, 0, 0), the ellipsoid is the CRS's.
+  std::string definition;
 };
 
 // One entry of the material palette (the splat map stores indices into it).
