@@ -109,6 +109,21 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
   crs.model_unit = srs.GetLinearUnits();
   const char* method = srs.GetAttrValue("PROJECTION");
   if (!method || !EQUAL(method, SRS_PT_TRANSVERSE_MERCATOR) || !(a > 0)) {
+    // Any other projection: through PROJ (crs.cpp), by its EPSG code when the file names one, else
+    // by its WKT2, as the libgeotiff reader resolves it.
+    std::string definition = crs.epsg ? fmt::format("EPSG:{}", crs.epsg) : "";
+    if (definition.empty()) {
+      char* wkt = nullptr;
+      const char* options[] = {"FORMAT=WKT2_2019", nullptr};
+      if (srs.exportToWkt(&wkt, options) == OGRERR_NONE && wkt) definition = wkt;
+      CPLFree(wkt);
+    }
+    if (SourceCrs resolved; !definition.empty() && parse_crs_spec(definition, resolved).ok() &&
+                            resolved.kind == CrsKind::projected) {
+      if (pcs_name && *pcs_name && !EQUAL(pcs_name, "unknown")) resolved.name = resolved.tm.name = pcs_name;
+      if (crs.epsg) resolved.epsg = resolved.tm.epsg = crs.epsg;
+      return resolved;
+    }
     crs.kind = CrsKind::unsupported;
     crs.projection = method ? method : "unknown projection";
     // Where the data is, for the gdalwarp hint.
