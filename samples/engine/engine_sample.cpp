@@ -13,9 +13,11 @@
 // A small --budget and --error-px make even a small archive split and evict along the path;
 // --slots equal to --budget (the smallest atlas) reuses evicted slots as soon as their fence allows.
 #include <terrain/format.h>
+#include <terrain/queries.h>
 #include <terrain/streamer.h>
 #include <terrain/surface_contract.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -196,18 +198,55 @@ int finest_resident_level(const terrain::Streamer& s, const CpuAtlas& a, double 
 }
 
 // ---- Gameplay queries ---------------------------------------------------------------------------
-// QUERIES GO HERE (issue 16, "Queries"): once terrain/queries.h is in the streamer, this function
-// asks it, every frame, for the ground height and normal under a character walking below the camera
-// (resident data and finest level), and casts a few rays from the character's eyes; the results go
-// into the summary line. Until then it reports nothing.
+// What gameplay asks every frame: the ground under a character walking below the camera (from the
+// resident data, and from the archive's finest data), and what the character sees along a few rays
+// from its eyes. Two consistency checks make the answers part of the sample's test: a ray cast
+// straight down onto the character's position hits the height height_at() gave, and where the
+// resident node is the archive's finest there, the resident answer equals the archive's bit for bit.
 struct QueryReport {
-  bool ran = false;
+  bool ground = false;
+  double ground_m = 0;
+  bool finer_not_resident = false;
+  int rays_hit = 0, rays = 0;
+  double nearest_hit_m = 0;
 };
 
-QueryReport run_gameplay_queries(const terrain::Streamer& streamer, const terrain::View& camera) {
-  (void)streamer;
-  (void)camera;
-  return {};
+QueryReport run_gameplay_queries(const terrain::Streamer& streamer, terrain::ArchiveSurface& finest,
+                                 const terrain::View& camera, Checks& checks) {
+  QueryReport r;
+  const terrain::ResidentSurface ground = streamer.resident_surface();  // any thread may do this
+  const terrain::SurfacePoint p = ground.height_at(camera.x, camera.y);
+  if (!p.hit) return r;
+  r.ground = true;
+  r.ground_m = p.height_m;
+  r.finer_not_resident = p.finer_not_resident;
+
+  // Straight down from 50 m above: the same triangle, the same height.
+  const terrain::RayHit down = ground.raycast({{camera.x, camera.y, p.height_m + 50.0}, {0, 0, -1}, 100.0});
+  if (!down.hit || std::fabs(down.point[2] - p.height_m) > 1e-6)
+    checks.fail("a vertical ray at the character disagrees with height_at (" + std::to_string(p.height_m) + " m)");
+
+  terrain::SurfacePoint f;
+  if (!finest.height_at(camera.x, camera.y, f).ok()) checks.fail("ArchiveSurface::height_at failed");
+  else if (!p.finer_not_resident && (!f.hit || f.height_m != p.height_m))
+    checks.fail("the resident answer differs from the archive's finest where that node is resident");
+
+  // Line of sight: eight 100 m rays from 1.8 m above the ground, 5 degrees down, around the compass.
+  std::array<terrain::Ray, 8> rays;
+  std::array<terrain::RayHit, 8> hits;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const double az = double(i) * 3.14159265358979 / 4.0, down_slope = std::tan(5.0 * 3.14159265358979 / 180.0);
+    rays[i] = {{camera.x, camera.y, p.height_m + 1.8}, {std::sin(az), std::cos(az), -down_slope}, 100.0};
+  }
+  ground.raycast(rays, hits);
+  r.rays = int(rays.size());
+  r.nearest_hit_m = 1e300;
+  for (const terrain::RayHit& h : hits)
+    if (h.hit) {
+      ++r.rays_hit;
+      r.nearest_hit_m = std::min(r.nearest_hit_m, h.distance_m);
+    }
+  return r;
 }
 
 }  // namespace
@@ -260,21 +299,23 @@ int main(int argc, char** argv) {
               double(atlas.layers.size() * sizeof(terrain::NodeData)) / 1e6, streamer.config().budget_nodes);
 
   Checks checks;
+  terrain::ArchiveSurface finest(streamer.archive());
   uint64_t delivered = 0, evicted = 0;
   auto frame = [&](const terrain::View& view) {
     const terrain::FrameUpdate& u = streamer.update({&view, 1});
     checks.frame = u.frame;
     upload(u, streamer, atlas, checks);
     const uint32_t resident = check_atlas(streamer, atlas, checks);
-    const QueryReport q = run_gameplay_queries(streamer, view);
-    (void)q;
+    const QueryReport q = run_gameplay_queries(streamer, finest, view, checks);
     delivered += u.delivered.size();
     evicted += u.evicted.size();
     const terrain::StreamerStats st = streamer.stats();
     std::printf("frame %3llu  eye %9.0f %10.0f %6.0f  +%-3zu -%-3zu resident %3u  required missing %3u  pending %3u  "
-                "finest level under eye %d\n",
+                "finest level under eye %d  ground %s%.2f m%s  rays %d/%d hit\n",
                 (unsigned long long)u.frame, view.x, view.y, view.z, u.delivered.size(), u.evicted.size(), resident,
-                st.required_missing, st.pending, finest_resident_level(streamer, atlas, view.x, view.y));
+                st.required_missing, st.pending, finest_resident_level(streamer, atlas, view.x, view.y),
+                q.ground ? "" : "none ", q.ground_m, q.finer_not_resident ? " (finer not resident)" : "", q.rays_hit,
+                q.rays);
     std::this_thread::sleep_for(std::chrono::milliseconds(8));  // the rest of the engine's frame
     return st;
   };
