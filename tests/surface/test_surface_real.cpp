@@ -197,7 +197,7 @@ AlbedoPsnr albedo_psnr(const std::vector<bench::DemNode>& nodes) {
       acc.alpha_mismatches += c.alpha_mismatches;
     };
     add(albedo_method(BcQuality::balanced), own);
-    add(Bc1Method::own_cluster, cluster);
+    add(Bc1Method::ordering_search, cluster);
     add(Bc1Method::stb, stb);
     add(Bc1Method::squish_cluster, squish);
   }
@@ -217,7 +217,7 @@ TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
     nodes.push_back(std::move(n));
   }
   const AlbedoPsnr p = albedo_psnr(nodes);
-  std::printf("Kilauea splat albedo PSNR: default %.3f dB, own-cluster %.3f dB, stb_dxt %.3f dB, squish cluster %.3f dB\n",
+  std::printf("Kilauea splat albedo PSNR: default %.3f dB, ordering-search %.3f dB, stb_dxt %.3f dB, squish cluster %.3f dB\n",
               p.own, p.cluster, p.stb, p.squish);
   EXPECT_EQ(p.mismatches, 0u);
   EXPECT_GE(p.own, std::max(p.stb, p.squish));
@@ -230,7 +230,7 @@ TEST(SurfaceReal, DefaultAlbedoEncoderMatchesTheBestLibraryOnKilauea) {
 // non-smooth blocks (own/squish error ratio ~1.10 across the worst 50 % of blocks, measured with
 // terrain-bc-bench --block-stats), and no effort setting of ours reaches squish at stb_dxt's time
 // (terrain-bc-bench --frontier). The test pins what holds: the default beats stb_dxt, stays
-// within the measured gap of squish (bound 0.4 dB; 0.26 dB on these nodes), and own-cluster (ordering
+// within the measured gap of squish (bound 0.4 dB; 0.26 dB on these nodes), and ordering-search (ordering
 // search) is at least libsquish cluster fit's PSNR (+0.03 dB on these nodes, a tie on the bench's).
 TEST(SurfaceReal, AlbedoEncodersAgainstTheLibrariesOnOetztal) {
   TERRAIN_REQUIRE_DATA(terrain::test::data_file("srtm_oetztal.tif"));
@@ -246,7 +246,7 @@ TEST(SurfaceReal, AlbedoEncodersAgainstTheLibrariesOnOetztal) {
   }
   ASSERT_GE(nodes.size(), 4u);
   const AlbedoPsnr p = albedo_psnr(nodes);
-  std::printf("Oetztal splat albedo PSNR over %zu nodes: default %.3f dB, own-cluster %.3f dB, stb_dxt %.3f dB, "
+  std::printf("Oetztal splat albedo PSNR over %zu nodes: default %.3f dB, ordering-search %.3f dB, stb_dxt %.3f dB, "
               "squish cluster %.3f dB\n", nodes.size(), p.own, p.cluster, p.stb, p.squish);
   EXPECT_EQ(p.mismatches, 0u);
   EXPECT_GE(p.own, p.stb);

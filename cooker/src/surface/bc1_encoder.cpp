@@ -8,7 +8,7 @@
 //  This is where the quality over stb_dxt comes from (stb rounds its least-squares endpoints once).
 //  The opaque 4-colour path (encode_opaque_scalar, restated in SSE2 as encode_opaque_sse) ranks the
 //  candidates on moments instead; see its section below.
-// Ordering search (own_cluster setting): see ordering_search_scalar() below; a sorted-order
+// Ordering search (Bc1Method::ordering_search): see ordering_search_scalar() below; a sorted-order
 //  partition search like libsquish's cluster fit, restricted to coordinate sweeps over the group
 //  boundaries.
 // G-only blocks (encode_bc1_g_only): normal maps whose R and B are constant.
@@ -520,7 +520,7 @@ float assign_scalar(const float ch[3][16], const int pal[4][3], const float w[3]
   return sum16(best);
 }
 
-// Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::own_cluster.
+// Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::ordering_search.
 // Texels sorted along the principal axis form four contiguous groups with c0 weights 1, 2/3, 1/3, 0
 // from the low end. With group boundaries i <= j <= k and P(r) the prefix sums of the sorted
 // colours, sum a*x = (P(i) + P(j) + P(k)) / 3, sum a = (i + j + k) / 3 and sum a^2 = (5i + 3j + k) / 9,
@@ -529,7 +529,7 @@ float assign_scalar(const float ch[3][16], const int pal[4][3], const float w[3]
 // partitions; we run coordinate sweeps from the partition the current indices imply: each boundary
 // in turn scans its whole free range with the other two fixed (4 candidates per step), then
 // the winner is quantised exactly (4x4 window) and kept if its exact error is lower.
-// Measured on Oetztal splat albedo (terrain-bc-bench --block-stats; default own 39.76 dB, squish
+// Measured on Oetztal splat albedo (terrain-bc-bench --block-stats; default axis-fit-hard 39.76 dB, squish
 // cluster 40.08 dB): the winning partitions usually differ from the start in one boundary, by up
 // to ~7 texels, so a +-1 neighbourhood hill-climb stalls at 39.93 dB (+-3: 40.04 dB); one sweep
 // gives 40.06 dB, two 40.08 dB, the full 969-partition search 40.27 dB (at ~10x the time);

@@ -138,10 +138,10 @@ const char* bc1_method_name(Bc1Method m) {
     case Bc1Method::squish_range: return "squish-range";
     case Bc1Method::squish_cluster: return "squish-cluster";
     case Bc1Method::squish_iterative: return "squish-iter";
-    case Bc1Method::own_fast: return "own-fast";
-    case Bc1Method::own: return "own";
-    case Bc1Method::own_best: return "own+squish";
-    case Bc1Method::own_cluster: return "own-cluster";
+    case Bc1Method::axis_fit: return "axis-fit";
+    case Bc1Method::axis_fit_hard: return "axis-fit-hard";
+    case Bc1Method::best_of_axis_fit_and_squish: return "axis-fit+squish";
+    case Bc1Method::ordering_search: return "ordering-search";
   }
   return "?";
 }
@@ -151,8 +151,8 @@ const char* bc3_method_name(Bc3Method m) {
     case Bc3Method::stb: return "stb_dxt";
     case Bc3Method::stb_hq: return "stb_dxt-hq";
     case Bc3Method::squish_cluster: return "squish-cluster";
-    case Bc3Method::own: return "own";
-    case Bc3Method::own_hq: return "own-hq";
+    case Bc3Method::g_axis_fit: return "g-axis-fit";
+    case Bc3Method::g_axis_fit_hq: return "g-axis-fit-hq";
   }
   return "?";
 }
@@ -161,9 +161,9 @@ namespace {
 // Effort of our opaque encoder for each of our settings (see Bc1Method).
 Bc1OpaqueEffort opaque_effort(Bc1Method method) {
   Bc1OpaqueEffort e;
-  e.refine_hard = method != Bc1Method::own_fast;
-  if (method == Bc1Method::own_cluster) e.ordering_sweeps = 2;
-  if (method == Bc1Method::own_best) {
+  e.refine_hard = method != Bc1Method::axis_fit;
+  if (method == Bc1Method::ordering_search) e.ordering_sweeps = 2;
+  if (method == Bc1Method::best_of_axis_fit_and_squish) {
     e.iterations = 2;
     e.three_colour_threshold = kBc1ThreeColourThreshold;
   }
@@ -173,7 +173,7 @@ Bc1OpaqueEffort opaque_effort(Bc1Method method) {
 
 void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) {
   const uint16_t holes = hole_mask_of(rgba);
-  if (holes == 0 && (method == Bc1Method::own_fast || method == Bc1Method::own)) {
+  if (holes == 0 && (method == Bc1Method::axis_fit || method == Bc1Method::axis_fit_hard)) {
     // Hot path of the default setting: our opaque encoder ignores alpha and only writes
     // 4-colour blocks (or equal endpoints with index 0), so no copy and no re-check are needed.
     encode_bc1_opaque(rgba, out, opaque_effort(method));
@@ -189,9 +189,9 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
     uint8_t tmp[64];
     std::memcpy(tmp, rgba, 64);
     for (int i = 0; i < 16; ++i) tmp[4 * i + 3] = (holes >> i & 1) ? 0 : 255;
-    if (method == Bc1Method::own || method == Bc1Method::own_fast || method == Bc1Method::own_cluster) {
+    if (method == Bc1Method::axis_fit_hard || method == Bc1Method::axis_fit || method == Bc1Method::ordering_search) {
       encode_bc1_holes(rgba, holes, out);
-    } else if (method == Bc1Method::own_best) {
+    } else if (method == Bc1Method::best_of_axis_fit_and_squish) {
       uint8_t a[8], b[8];
       encode_bc1_holes(rgba, holes, a);
       squish::Compress(tmp, b, squish::kDxt1 | squish::kColourClusterFit);
@@ -213,10 +213,10 @@ void encode_bc1_block(const uint8_t rgba[64], Bc1Method method, uint8_t out[8]) 
   switch (method) {
     case Bc1Method::stb: stb_compress_dxt_block(out, opaque, 0, STB_DXT_NORMAL); break;
     case Bc1Method::stb_hq: stb_compress_dxt_block(out, opaque, 0, STB_DXT_HIGHQUAL); break;
-    case Bc1Method::own_fast:
-    case Bc1Method::own:
-    case Bc1Method::own_cluster: encode_bc1_opaque(opaque, out, opaque_effort(method)); break;
-    case Bc1Method::own_best: {
+    case Bc1Method::axis_fit:
+    case Bc1Method::axis_fit_hard:
+    case Bc1Method::ordering_search: encode_bc1_opaque(opaque, out, opaque_effort(method)); break;
+    case Bc1Method::best_of_axis_fit_and_squish: {
       uint8_t a[8], b[8];
       encode_bc1_opaque(opaque, a, opaque_effort(method));
       squish::Compress(opaque, b, squish::kDxt1 | squish::kColourClusterFit);
@@ -246,13 +246,13 @@ void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16])
       squish::Compress(rgba, out, squish::kDxt5 | squish::kColourClusterFit, metric);
       break;
     }
-    case Bc3Method::own:
-    case Bc3Method::own_hq: {
+    case Bc3Method::g_axis_fit:
+    case Bc3Method::g_axis_fit_hq: {
       uint8_t a[16];
       for (int i = 0; i < 16; ++i) a[i] = rgba[4 * i + 3];
       encode_bc4(a, out);
       const float weights[3] = {0.25f, 1.0f, 0.05f};
-      const int iterations = method == Bc3Method::own_hq ? 2 : 1;
+      const int iterations = method == Bc3Method::g_axis_fit_hq ? 2 : 1;
       if (!encode_bc1_g_only(rgba, out + 8, iterations)) encode_bc1_weighted(rgba, weights, out + 8);
       break;
     }

@@ -20,12 +20,14 @@ enum class Bc1Method : uint8_t {
   squish_range,      // libsquish range fit (uniform RGB metric)
   squish_cluster,    // libsquish cluster fit (uniform RGB metric)
   squish_iterative,  // libsquish iterative cluster fit (uniform RGB metric)
-  own_fast,          // our encoder (bc1_encoder.cpp), one endpoint refit; our 3-colour fit for hole blocks
-  own,               // our encoder, one refit, up to 4 on hard blocks (mean sq. error > 8 per channel)
-  own_best,          // per block the better of (two refits, hard-block refits, 3-colour try) and libsquish cluster fit
-  own_cluster,       // `own` plus two sweeps of our ordering search (a cheap cluster fit) on every block
-                     // with error: >= libsquish cluster-fit PSNR on every bench set at 1/18 of its time
-                     // on Oetztal splat (0.60 vs 10.6 us/block), but ~3x `own`'s time (not a default)
+  // This project's encoder (bc1_encoder.cpp): endpoints from the colours' principal axis.
+  axis_fit,          // one endpoint refit; our 3-colour fit for hole blocks
+  axis_fit_hard,     // one refit, up to 4 on hard blocks (mean sq. error > 8 per channel)
+  best_of_axis_fit_and_squish,  // per block the better of (two refits, hard-block refits, 3-colour try) and
+                                // libsquish cluster fit
+  ordering_search,   // `axis_fit_hard` plus two sweeps of our ordering search (a cheap cluster fit) on every
+                     // block with error: >= libsquish cluster-fit PSNR on every bench set at 1/18 of its time
+                     // on Oetztal splat (0.60 vs 10.6 us/block), but ~3x `axis_fit_hard`'s time (not a default)
 };
 const char* bc1_method_name(Bc1Method m);
 
@@ -40,8 +42,8 @@ enum class Bc3Method : uint8_t {
   stb,             // stb_dxt (alpha: min/max, colour: PCA + 1 refinement, uniform RGB)
   stb_hq,          // stb_dxt high quality
   squish_cluster,  // libsquish kDxt5 cluster fit, colour metric weighted toward G
-  own,             // our alpha encoder + our G fit, one refinement (bc1_encoder.cpp)
-  own_hq,          // the same with two refinements and a wider endpoint search
+  g_axis_fit,      // this project's alpha encoder + G-weighted axis fit, one refinement (bc1_encoder.cpp)
+  g_axis_fit_hq,   // the same with two refinements and a wider endpoint search
 };
 const char* bc3_method_name(Bc3Method m);
 void encode_bc3_block(const uint8_t rgba[64], Bc3Method method, uint8_t out[16]);
@@ -63,7 +65,7 @@ struct Bc1OpaqueEffort {
   float ordering_threshold = 16.0f;      // blocks above this error run the ordering search
   float three_colour_threshold = -1.0f;  // blocks above this error also try 3 colours (< 0: never)
 };
-// The 3-colour try of the `own_best` setting: from a mean squared error of 4 per channel (it gains
+// The 3-colour try of the `best_of_axis_fit_and_squish` setting: from a mean squared error of 4 per channel (it gains
 // up to 0.1 dB on splat albedo but doubles the time, so only the best setting uses it).
 inline constexpr float kBc1ThreeColourThreshold = 48.0f * 4.0f;
 // The default's hard-block refits plus the given search and 3-colour settings.

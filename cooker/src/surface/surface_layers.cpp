@@ -30,20 +30,20 @@ double thread_seconds() {
 
 Bc1Method albedo_method(BcQuality q) {
   switch (q) {
-    case BcQuality::fast: return Bc1Method::own_fast;
-    case BcQuality::balanced: return Bc1Method::own;
-    case BcQuality::best: return Bc1Method::own_best;
+    case BcQuality::fast: return Bc1Method::axis_fit;
+    case BcQuality::balanced: return Bc1Method::axis_fit_hard;
+    case BcQuality::best: return Bc1Method::best_of_axis_fit_and_squish;
   }
-  return Bc1Method::own;
+  return Bc1Method::axis_fit_hard;
 }
 
 Bc3Method normals_method(BcQuality q) {
   switch (q) {
     case BcQuality::fast: return Bc3Method::stb;
-    case BcQuality::balanced: return Bc3Method::own;
-    case BcQuality::best: return Bc3Method::own_hq;
+    case BcQuality::balanced: return Bc3Method::g_axis_fit;
+    case BcQuality::best: return Bc3Method::g_axis_fit_hq;
   }
-  return Bc3Method::own;
+  return Bc3Method::g_axis_fit;
 }
 
 void encode_bc1_image(const uint8_t* rgba, Bc1Method method, uint8_t* out_blocks) {

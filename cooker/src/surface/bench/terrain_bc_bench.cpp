@@ -185,13 +185,13 @@ void print_block_stats(const char* name, const std::vector<NodePayload>& payload
             for (int c = 0; c < 3; ++c) e += (block[4 * i + c] - dec[4 * i + c]) * (block[4 * i + c] - dec[4 * i + c]);
           return e;
         };
-        v.push_back({err(Bc1Method::own), err(Bc1Method::squish_cluster), ncol, err(Bc1Method::own_cluster)});
+        v.push_back({err(Bc1Method::axis_fit_hard), err(Bc1Method::squish_cluster), ncol, err(Bc1Method::ordering_search)});
       }
   if (v.empty()) return;
   double own_total = 0, sq_total = 0, cl_total = 0;
   for (const BlockErr& b : v) { own_total += b.own; sq_total += b.squish; cl_total += b.cluster; }
   const double samples = double(v.size()) * 48;
-  std::printf("\n# block stats %s splat albedo: %zu hole-free blocks; own %.2f dB, squish-cluster %.2f dB, own-cluster %.2f dB\n",
+  std::printf("\n# block stats %s splat albedo: %zu hole-free blocks; own %.2f dB, squish-cluster %.2f dB, ordering-search %.2f dB\n",
               name, v.size(), psnr_db(own_total, uint64_t(samples)), psnr_db(sq_total, uint64_t(samples)),
               psnr_db(cl_total, uint64_t(samples)));
   std::sort(v.begin(), v.end(), [](const BlockErr& a, const BlockErr& b) { return a.own > b.own; });
@@ -279,13 +279,13 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
       return measure(bc1_method_name(m), [m](const uint8_t* in, uint8_t* o) { encode_bc1_block(in, m, o); });
     };
     const Result stb = library(Bc1Method::stb), squish = library(Bc1Method::squish_cluster);
-    std::vector<Result> rows = {library(Bc1Method::own)};
+    std::vector<Result> rows = {library(Bc1Method::axis_fit_hard)};
     struct Variant { const char* label; Bc1OpaqueEffort e; };
     const auto effort = hard_block_effort;
     const Variant variants[] = {
         {"search1 >800", effort(1, 800, -1)},           {"search2 >400", effort(2, 400, -1)},
         {"search2 >200", effort(2, 200, -1)},           {"search2 >100", effort(2, 100, -1)},
-        {"search2 >16 (own-cluster)", effort(2, 16, -1)}, {"3-colour >1600", effort(0, 16, 1600)},
+        {"search2 >16 (ordering-search)", effort(2, 16, -1)}, {"3-colour >1600", effort(0, 16, 1600)},
         {"3-colour >800", effort(0, 16, 800)},          {"search1 >800 + 3-col >1600", effort(1, 800, 1600)},
         {"search2 >400 + 3-col >800", effort(2, 400, 800)}, {"search2 >100 + 3-col >400", effort(2, 100, 400)},
         {"search2 >16 + 3-col >192", effort(2, 16, 192)},
@@ -296,7 +296,7 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
     rows.push_back(measure("own, scalar path", [](const uint8_t* in, uint8_t* o) {
       encode_bc1_opaque_scalar(in, o, hard_block_effort(0, 16, -1));
     }));
-    rows.push_back(measure("own-cluster, scalar path", [](const uint8_t* in, uint8_t* o) {
+    rows.push_back(measure("ordering-search, scalar path", [](const uint8_t* in, uint8_t* o) {
       encode_bc1_opaque_scalar(in, o, hard_block_effort(2, 16, -1));
     }));
     const double target_db = std::max(stb.psnr, squish.psnr);
@@ -363,10 +363,10 @@ int main(int argc, char** argv) {
   std::vector<CookRow> cook_rows;
 
   const Bc1Method bc1_methods[] = {Bc1Method::stb,          Bc1Method::stb_hq,   Bc1Method::squish_range,
-                                   Bc1Method::squish_cluster, Bc1Method::squish_iterative, Bc1Method::own_fast,
-                                   Bc1Method::own,          Bc1Method::own_cluster, Bc1Method::own_best};
-  const Bc3Method bc3_methods[] = {Bc3Method::stb, Bc3Method::stb_hq, Bc3Method::squish_cluster, Bc3Method::own,
-                                   Bc3Method::own_hq};
+                                   Bc1Method::squish_cluster, Bc1Method::squish_iterative, Bc1Method::axis_fit,
+                                   Bc1Method::axis_fit_hard,          Bc1Method::ordering_search, Bc1Method::best_of_axis_fit_and_squish};
+  const Bc3Method bc3_methods[] = {Bc3Method::stb, Bc3Method::stb_hq, Bc3Method::squish_cluster, Bc3Method::g_axis_fit,
+                                   Bc3Method::g_axis_fit_hq};
 
   for (const Dataset& ds : kDatasets) {
     if (!only.empty() && std::string(ds.file).find(only) == std::string::npos) continue;
@@ -421,7 +421,7 @@ int main(int argc, char** argv) {
       }
     for (int variant = 0; variant < 2; ++variant)
       for (Bc3Method m : bc3_methods) {
-        if (variant == 1 && m != Bc3Method::own && m != Bc3Method::stb) continue;
+        if (variant == 1 && m != Bc3Method::g_axis_fit && m != Bc3Method::stb) continue;
         if (!encoder_only.empty() && encoder_only != bc3_method_name(m)) continue;
         Row row{dem.name, variant ? "normals(R=const)" : "normals(R=AO)", bc3_method_name(m)};
         std::vector<double> times;
