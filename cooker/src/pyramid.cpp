@@ -31,6 +31,8 @@ void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
   t.normal_samples += n.normal_samples;
   t.albedo_sq_err_sum += n.albedo_sq_err_sum;
   t.albedo_samples += n.albedo_samples;
+  t.albedo_hole_texels += n.albedo_hole_texels;
+  t.albedo_alpha_mismatches += n.albedo_alpha_mismatches;
   t.cone_exact_deg_sum += n.cone_exact_deg_sum;
   t.cone_encoded_deg_sum += n.cone_encoded_deg_sum;
   t.cone_patches += n.cone_patches;

@@ -87,6 +87,8 @@ std::string report_json(const CookReport& r) {
                     {"normal_samples", t.normal_samples},
                     {"albedo_psnr_db", t.albedo_psnr_db()},
                     {"albedo_samples", t.albedo_samples},
+                    {"albedo_hole_texels", t.albedo_hole_texels},
+                    {"albedo_alpha_mismatches", t.albedo_alpha_mismatches},
                     {"cones", {{"patches", t.cone_patches},
                                {"patches_never_cull", t.cone_patches_never_cull},
                                {"exact_mean_deg", t.cone_exact_mean_deg()},

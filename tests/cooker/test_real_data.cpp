@@ -423,6 +423,11 @@ TEST_P(RealData, ReportStatesTheSurfaceStatistics) {
   EXPECT_LE(mean_deg, max_deg);
   EXPECT_GT(surface["albedo_samples"].get<double>(), 0);
   EXPECT_LE(surface["albedo_samples"].get<double>(), 3 * nodes * kTexels * kTexels);
+  // Every albedo texel is either opaque (3 colour samples) or a hole, and hole alpha is exact
+  // (format/SPEC.md: BC1 1-bit alpha marks holes).
+  EXPECT_EQ(surface["albedo_samples"].get<double>() / 3 + surface["albedo_hole_texels"].get<double>(),
+            nodes * kTexels * kTexels);
+  EXPECT_EQ(surface["albedo_alpha_mismatches"].get<uint64_t>(), 0u);
   double layer_cpu = 0;
   for (const char* layer : {"normals", "albedo", "splat", "cones"}) {
     const double s = surface["cpu_s"][layer].get<double>();

@@ -108,6 +108,9 @@ struct SurfaceTotals {
   // Decoded BC1 albedo against the uncompressed bake, per colour channel of the opaque texels.
   double albedo_sq_err_sum = 0;
   uint64_t albedo_samples = 0;
+  // Albedo texels that are holes, and texels whose decoded alpha disagrees with the hole flag (the
+  // encoders guarantee 0: hole alpha is exact).
+  uint64_t albedo_hole_texels = 0, albedo_alpha_mismatches = 0;
   // Patch cones (8 x 8 per node) over the patches holding triangles: half-angles of the exact
   // cones and of the encoded ones (with the margins the viewer culls with), and the patches whose
   // encoded cone can never cull (90 degrees or more).

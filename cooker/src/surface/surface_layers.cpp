@@ -191,6 +191,8 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
     const AlbedoCheck ac = check_albedo(albedo_rgba.data(), out.albedo_bc1.data());
     stats->albedo_sq_err_sum += ac.sq_err;
     stats->albedo_samples += ac.samples;
+    stats->albedo_hole_texels += ac.holes;
+    stats->albedo_alpha_mismatches += ac.alpha_mismatches;
     stats->cone_exact_deg_sum += cone_stats.mean_exact_deg * cone_stats.patches;
     stats->cone_encoded_deg_sum += cone_stats.mean_encoded_deg * cone_stats.patches;
     stats->cone_patches += uint64_t(cone_stats.patches);

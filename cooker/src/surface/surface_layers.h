@@ -83,6 +83,8 @@ struct SurfaceStats {  // summed over nodes by the caller
   uint64_t normal_samples = 0;
   double albedo_sq_err_sum = 0;  // decoded BC1 vs uncompressed, over opaque texels (for PSNR)
   uint64_t albedo_samples = 0;   // colour channels summed (3 per opaque texel)
+  uint64_t albedo_hole_texels = 0;       // texels flagged as holes (transparent by the format's rule)
+  uint64_t albedo_alpha_mismatches = 0;  // texels whose decoded alpha differs from the hole flag (0 by design)
   double cone_exact_deg_sum = 0;    // half-angles of the exact cones, over patches with triangles
   double cone_encoded_deg_sum = 0;  // decoded half-angles incl. margins (what the viewer culls with)
   uint64_t cone_patches = 0;        // patches with triangles
