@@ -5,6 +5,7 @@
 #include <cstring>
 #include <memory>
 
+#include "../../cooker/src/surface/noise.h"  // header-only: the cook's albedo variation (fbm_noise)
 #include "bc_encode.h"
 #include "synthetic_shapes.h"
 #include "terrain/bc_decode.h"
@@ -39,6 +40,46 @@ bool is_hole(const Ctx& c, int64_t hx, int64_t hy) {
 }
 
 uint8_t to_u8(double v) { return uint8_t(std::clamp(std::lround(v), 0L, 255L)); }
+
+double srgb8_to_linear(uint8_t v) {
+  const double c = v / 255.0;
+  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+}
+uint8_t linear_to_srgb8(double l) {
+  l = std::clamp(l, 0.0, 1.0);
+  return to_u8(255.0 * (l <= 0.0031308 ? l * 12.92 : 1.055 * std::pow(l, 1.0 / 2.4) - 0.055));
+}
+
+// Splat id of the straight-boundary option at local x (m).
+uint8_t boundary_id(const Spec& o, double lx) { return lx < o.splat_boundary_x_m ? 0 : 1; }
+
+// The albedo the cook bakes from the straight-boundary splat (format/SPEC.md 16.3): lattice sample
+// (k, l) at vertex (2k - 2, 2l - 2) takes its palette colour in linear light times
+// 1 + 0.5 * strength * fbm (wavelength max(48 m, 6 s), seed 0xA1BED0); texel (t, u) is the
+// bilinear blend at lattice ((t + 0.5) / 2, (u + 0.5) / 2), in sRGB8.
+void bake_boundary_albedo(const Ctx& c, const NodeKey& key, double s, std::vector<uint8_t>& rgba) {
+  const std::vector<Material>& pal = world_info(*c.o).palette;
+  constexpr int kLattice = kSplatSamples + 2;
+  std::vector<double> lin(size_t(kLattice) * kLattice * 3);
+  const double scale = std::max(48.0, 6.0 * s);
+  for (int l = 0; l < kLattice; ++l)
+    for (int k = 0; k < kLattice; ++k) {
+      const double lx = (double(key.x) * kQuadsPerSide + 2 * k - 2) * s, ly = (double(key.y) * kQuadsPerSide + 2 * l - 2) * s;
+      const Material& m = pal[boundary_id(*c.o, lx)];
+      const double v = 1.0 + m.detail_strength * 0.5 * cook::fbm_noise(c.origin_x + lx, c.origin_y + ly, scale, 2, 0xA1BED0u);
+      for (int ch = 0; ch < 3; ++ch) lin[(size_t(l) * kLattice + k) * 3 + ch] = srgb8_to_linear(m.albedo_srgb[size_t(ch)]) * v;
+    }
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      const int k0 = t / 2, l0 = u / 2;
+      const double fx = t % 2 == 0 ? 0.25 : 0.75, fy = u % 2 == 0 ? 0.25 : 0.75;
+      for (int ch = 0; ch < 3; ++ch) {
+        auto at = [&](int k, int l) { return lin[(size_t(l) * kLattice + k) * 3 + ch]; };
+        const double v = (1 - fy) * ((1 - fx) * at(k0, l0) + fx * at(k0 + 1, l0)) + fy * ((1 - fx) * at(k0, l0 + 1) + fx * at(k0 + 1, l0 + 1));
+        rgba[(size_t(u) * kTexels + t) * 4 + ch] = linear_to_srgb8(v);
+      }
+    }
+}
 
 // Calls `emit(normal)` for every triangle the renderer can draw in patch (p, q): the regular
 // 16x16 quads and, on the patch border, the same quads with edge vertices collapsed for every
@@ -156,12 +197,14 @@ void build_node(const Ctx& c, const NodeKey& key, Node& out) {
         rgb[0] = 0.70; rgb[1] = 0.64; rgb[2] = 0.46;  // sand
       }
       uint8_t* a = &albedo_rgba[(size_t(u) * kTexels + t) * 4];
-      for (int k = 0; k < 3; ++k) a[k] = to_u8(rgb[k] * 255.0);
+      if (c.o->splat_boundary_x_m < 0)
+        for (int k = 0; k < 3; ++k) a[k] = to_u8(rgb[k] * 255.0);
       // Alpha: the hole flag of vertex (t - 2, u - 2) (apron texels included: world-defined).
       const int64_t hx = (int64_t(key.x) * kQuadsPerSide + t - kApron) * (int64_t(1) << level);
       const int64_t hy = (int64_t(key.y) * kQuadsPerSide + u - kApron) * (int64_t(1) << level);
       a[3] = is_hole(c, hx, hy) ? 0 : 255;
     }
+  if (c.o->splat_boundary_x_m >= 0) bake_boundary_albedo(c, key, s, albedo_rgba);  // colour only, alpha kept
   for (int by = 0; by < kTexelBlocks; ++by)
     for (int bx = 0; bx < kTexelBlocks; ++bx) {
       uint8_t nb[16][4], ab[16][4];
@@ -184,6 +227,7 @@ void build_node(const Ctx& c, const NodeKey& key, Node& out) {
       const int32_t u = units[size_t(2 * b) * kHeightSamples + 2 * a];
       const double h = u / 1024.0;
       d.splat[size_t(b) * kSplatSamples + a] = uint8_t(h > 420 ? 3 : h > 330 ? 2 : h > 200 ? 1 : 0);
+      if (c.o->splat_boundary_x_m >= 0) d.splat[size_t(b) * kSplatSamples + a] = boundary_id(*c.o, (double(key.x) * kQuadsPerSide + 2 * a) * s);
     }
 
   // Patch cones from the exact triangles (quantized heights), stitched edges d <= 4 included.

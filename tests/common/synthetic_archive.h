@@ -48,6 +48,11 @@ struct Spec {
   // so views refine deep where the smooth field alone would not ask for it. 0 = measured only.
   double error_floor_m = 0;
   bool cones = true;  // false: every patch "never cull"
+  // >= 0: a straight north-south material boundary at this local x (m from the origin): splat id 0
+  // (sand) west of it, 1 (grass) east, and the albedo baked from that splat as the cook bakes it
+  // without an orthophoto (format/SPEC.md 16.3, the cook's own variation noise). < 0: the default
+  // height-band splat and albedo, byte for byte.
+  double splat_boundary_x_m = -1;
 };
 
 // The analytic surface's defaults: 2 x 2 roots, every node down to level 2.

@@ -576,5 +576,142 @@ TEST(ViewerGpu, VertexShaderStitchingEqualsTheContract) {
   EXPECT_GT(moved, want.size() / 10) << "the queries must exercise the collapse";
 }
 
+// ---- Material transitions and the near/far switch (issue 18) ----
+
+// A flat world (300 m) with a straight north-south boundary between sand (id 0, west) and grass
+// (id 1, east) at local x = 1000.3 m, its albedo baked from the splat as the cook bakes it.
+// Nodes of level `level` exist around (1000, 1000); the error floor makes views refine to them.
+synthetic::World boundary_world(uint32_t level) {
+  synthetic::Spec o = synthetic::analytic_surface();
+  o.roots_x = o.roots_y = 1;
+  o.relief_m = 0;
+  o.detail = 0;
+  o.cones = false;
+  o.error_floor_m = 0.01;
+  o.splat_boundary_x_m = 1000.3;
+  o.keep = [level](const NodeKey& k) { return k.level >= level && (k.level >= 3 || box_distance(k, 1000, 1000) < 120.0); };
+  return synthetic::make_world(o);
+}
+
+TEST(ViewerGpu, MaterialTransitionsDoNotFollowTheTexelGrid) {
+  // Seen from straight above with 12 px per splat texel (2^L m at level L), 32 texels of the line in
+  // view, at level 0 (1 m) and
+  // level 2 (4 m). Per image row the boundary's position is the count of pixels on the sand side
+  // of the 50 % line, measured on log(R / G): lighting and the per-material detail noise multiply
+  // all channels alike, so the ratio tells the materials apart wherever the pixel is.
+  // Bounds: the 50 % line moves by height_blend (0.6 here) * (hA - hB) texels (terrain.frag), so
+  // along 32 texels it must spread over at least half a texel; a line on the texel grid would step
+  // by a whole texel (12 px) from one row to the next, the noise line drifts by at most a few px.
+  for (uint32_t level : {0u, 2u}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    constexpr uint32_t kSize = 384;
+    constexpr double kPxPerTexel = 12;
+    const double texel_m = double(1u << level);
+    const double above = kSize / kPxPerTexel * texel_m / (2.0 * std::tan(M_PI / 6));  // 32 texels across
+    TV_ALL_RESIDENT(boundary_world(level), 512, kSize, kSize);
+    FrameSettings s;
+    s.error_target_px = 0.01;
+    ASSERT_TRUE(render_frame(*gpu, uploads, camera_at(world.synthetic.world, 1000.3, 1000, 300 + above, 0, -90), s, true).ok());
+    uploads.clear();
+    GpuLists lists;
+    gpu->renderer.read_lists(lists.nodes, lists.lod, lists.patches);
+    std::vector<uint8_t> rgba;
+    read_color(gpu->target, rgba);
+    dump_ppm(*gpu, rgba, "transition_level" + std::to_string(level));
+    auto ratio = [&](uint32_t x, uint32_t y) {
+      const uint8_t* p = &rgba[(size_t(y) * kSize + x) * 4];
+      return std::log((p[0] + 0.5) / (p[1] + 0.5));
+    };
+    // The two materials' ratios: medians of the outer 32 columns (13 texels from the line).
+    std::vector<double> left, right;
+    for (uint32_t y = 0; y < kSize; ++y)
+      for (uint32_t x = 0; x < 32; ++x) {
+        left.push_back(ratio(x, y));
+        right.push_back(ratio(kSize - 1 - x, y));
+      }
+    std::nth_element(left.begin(), left.begin() + left.size() / 2, left.end());
+    std::nth_element(right.begin(), right.begin() + right.size() / 2, right.end());
+    const double la = left[left.size() / 2], lb = right[right.size() / 2];
+    ASSERT_GT(std::abs(lb - la), 0.05) << "the two materials must differ in hue";
+    std::vector<double> pos(kSize);
+    for (uint32_t y = 0; y < kSize; ++y) {
+      int n = 0;
+      for (uint32_t x = 0; x < kSize; ++x) n += (ratio(x, y) - la) / (lb - la) < 0.5;
+      pos[y] = n;
+    }
+    const auto [lo, hi] = std::minmax_element(pos.begin(), pos.end());
+    double max_jump = 0;
+    for (uint32_t y = 1; y < kSize; ++y) max_jump = std::max(max_jump, std::abs(pos[y] - pos[y - 1]));
+    const double spread_texels = (*hi - *lo) / kPxPerTexel;
+    std::printf("transition level %u: 50%% line between columns %.0f and %.0f (spread %.2f texel), largest row-to-row step %.0f px (texel %.0f px)\n",
+                level, *lo, *hi, spread_texels, max_jump, kPxPerTexel);
+    EXPECT_GT(*lo, kSize / 4.0) << "the line stays near the middle of the view";
+    EXPECT_LT(*hi, kSize * 3 / 4.0);
+    EXPECT_GE(spread_texels, 0.5) << "the line does not wander off the texel grid";
+    EXPECT_LE(max_jump, 4.0) << "a hard step along the line";
+    // The view was drawn with nodes of the level under test.
+    EXPECT_GT(lists.nodes.level_counts[level], 0u);
+  }
+}
+
+TEST(ViewerGpu, NearShadingMatchesTheBakedAlbedoInMeanColour) {
+  // An oblique view (40 m above flat ground, 12 degrees down) over the baked boundary world whose
+  // rows run from ~60 m to the world's edge, across the near-shading distances (150 .. 400 m): the
+  // frame with splat shading against the same frame with the baked albedo alone. Bound 3/255 per
+  // channel (issue 18): below what the eye sees as a switch.
+  TV_ALL_RESIDENT(boundary_world(2), 512, 320, 240);
+  const Camera cam = camera_at(world.synthetic.world, 1000.3, 780, 300 + 40, 0, -12);
+  FrameSettings s = magenta_clear(1.0);
+  std::vector<uint8_t> image[2];
+  for (int splat = 0; splat < 2; ++splat) {
+    s.splat = splat == 1;
+    ASSERT_TRUE(render_frame(*gpu, uploads, cam, s, false).ok());
+    uploads.clear();
+    read_color(gpu->target, image[splat]);
+    dump_ppm(*gpu, image[splat], splat ? "near_far_splat" : "near_far_baked");
+  }
+  // The band: rows whose flat ground (40 m below the camera) lies 100 .. 450 m away (slant), 50 m
+  // either side of the fade (150 .. 400 m), split at 275 m into a near and a far side, each cut in
+  // strips 40 px wide: every such tile (~30 .. 80 m across: the cook's 48 m variation does not
+  // average out in it) must agree, and the whole band too. Terrain pixels only (not the clear colour).
+  const uint32_t w = gpu->target.width, h = gpu->target.height;
+  const double px_per_tan = (h / 2.0) / std::tan(cam.fovy / 2);
+  auto row_distance = [&](uint32_t y) {
+    const double below = 12.0 * M_PI / 180 + std::atan((y + 0.5 - h / 2.0) / px_per_tan);
+    return below > 0 ? 40.0 / std::sin(below) : 1e9;
+  };
+  double worst = 0, all_sum[3] = {}, all_n = 0;
+  size_t changed = 0;
+  for (int side = 0; side < 2; ++side)
+    for (uint32_t tx = 0; tx < w; tx += 40) {
+      double sum[3] = {}, n = 0;
+      for (uint32_t y = 0; y < h; ++y) {
+        const double d = row_distance(y);
+        if (d < (side ? 275.0 : 100.0) || d >= (side ? 450.0 : 275.0)) continue;
+        for (uint32_t x = tx; x < tx + 40; ++x) {
+          const uint8_t* a = &image[0][(size_t(y) * w + x) * 4];
+          const uint8_t* b = &image[1][(size_t(y) * w + x) * 4];
+          if (a[0] == 255 && a[1] == 0 && a[2] == 255) continue;  // clear colour
+          changed += a[0] != b[0] || a[1] != b[1] || a[2] != b[2];
+          for (int c = 0; c < 3; ++c) sum[c] += double(b[c]) - double(a[c]);
+          n += 1;
+        }
+      }
+      ASSERT_GT(n, 200.0);
+      for (int c = 0; c < 3; ++c) {
+        all_sum[c] += sum[c];
+        worst = std::max(worst, std::abs(sum[c] / n));
+      }
+      all_n += n;
+      std::printf("near/far %s side, columns %u..%u: mean splat - baked %+.2f %+.2f %+.2f (/255) over %.0f px\n",
+                  side ? "far" : "near", tx, tx + 39, sum[0] / n, sum[1] / n, sum[2] / n, n);
+    }
+  std::printf("near/far band: %+.2f %+.2f %+.2f (/255); worst tile %.2f; %zu px changed by splat shading\n",
+              all_sum[0] / all_n, all_sum[1] / all_n, all_sum[2] / all_n, worst, changed);
+  EXPECT_GT(changed, size_t(all_n / 2)) << "splat shading must cover the band";
+  for (int c = 0; c < 3; ++c) EXPECT_LE(std::abs(all_sum[c] / all_n), 3.0);
+  EXPECT_LE(worst, 3.0) << "every tile, near and far of the switch, agrees";
+}
+
 }  // namespace
 }  // namespace terrain::view::test

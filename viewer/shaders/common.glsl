@@ -32,7 +32,7 @@ layout(std430, set = 0, binding = 15) readonly buffer CoarseErrors { vec4 coarse
 
 struct Material {
   vec4 albedo_roughness;
-  vec4 detail;      // scale m, strength, height blend
+  vec4 detail;      // scale m, strength, height blend, 1 = albedo baked from the palette
 };
 layout(std140, set = 0, binding = 14) uniform Palette {
   Material materials[TV_MAX_MATERIALS];

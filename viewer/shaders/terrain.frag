@@ -102,23 +102,33 @@ void main() {
       ivec2 b = clamp(ivec2(floor(sc)), ivec2(0), ivec2(TV_SPLAT_SAMPLES - 2));
       vec2 f = clamp(sc - vec2(b), 0.0, 1.0);
       float w[4] = float[](((1.0 - f.x) * (1.0 - f.y)), (f.x * (1.0 - f.y)), ((1.0 - f.x) * f.y), (f.x * f.y));
-      vec3 near_albedo = vec3(0.0);
-      float score[4];
       uint ids[4];
+      for (int k = 0; k < 4; ++k) ids[k] = texelFetch(splat_tex, ivec3(b + ivec2(k & 1, k >> 1), int(slot)), 0).r;
+      // One weight per distinct id (its bilinear coverage): per-sample weights would make the
+      // perturbation's reach depend on the position within the texel, a pattern on the texel grid.
+      for (int k = 1; k < 4; ++k)
+        for (int j = 0; j < k; ++j)
+          if (w[k] > -1.0 && ids[j] == ids[k]) { w[j] += w[k]; w[k] = -2.0; }
+      // Noise-perturbed transition (seed 003), sized to the splat texel of this level (65 samples
+      // over 64 m * 2^L: 2^L m): each material's own height pattern moves the 50 % line by up to
+      // height_blend texels, with features of 0.8 texel, so the line wanders off the grid at
+      // every level without sub-pixel shimmer when far. 1.25 / texel keeps the 4096 m wrap whole.
+      float texel_m = float(1u << node_level);
+      vec2 tp = v_wrap * (1.25 / texel_m);
+      float score[4];
       float best = -1e9;
       for (int k = 0; k < 4; ++k) {
-        ids[k] = texelFetch(splat_tex, ivec3(b + ivec2(k & 1, k >> 1), int(slot)), 0).r;
-        Material m = palette.materials[ids[k]];
-        // Noise-perturbed transition: each material's own height pattern pushes its weight.
-        float h = value_noise(v_wrap * (1.0 / 1.3), ids[k] * 7919u + 1u);
-        score[k] = w[k] + m.detail.z * (h - 0.5);
+        float h = value_noise(tp, ids[k] * 7919u + 1u);
+        score[k] = w[k] < -1.0 ? -1e9 : w[k] + 2.0 * palette.materials[ids[k]].detail.z * (h - 0.5);
         best = max(best, score[k]);
       }
       float total = 0.0;
-      vec3 mixed = vec3(0.0);
+      vec3 mixed = vec3(0.0), base = vec3(0.0);
       for (int k = 0; k < 4; ++k) {
-        float wk = max(score[k] - best + 0.2, 0.0);
+        if (w[k] < -1.0) continue;
         Material m = palette.materials[ids[k]];
+        base += m.albedo_roughness.rgb * w[k];
+        float wk = max(score[k] - best + 0.2, 0.0);
         float scale = max(m.detail.x, 0.05);
         float detail = value_noise(v_wrap / scale, ids[k] * 31u + 5u) * 0.65 +
                        value_noise(v_wrap * (4.0 / scale), ids[k] * 31u + 9u) * 0.35;
@@ -126,7 +136,15 @@ void main() {
         mixed += c * wk;
         total += wk;
       }
-      near_albedo = mixed / max(total, 1e-6);
+      vec3 near_albedo = mixed / max(total, 1e-6);
+      // The baked albedo is the bilinear palette blend times the cook's large-scale variation, one
+      // factor for all channels (format/SPEC.md 16.3): carry that factor (far / base, in
+      // luminance: the hue stays the palette's, free of BC1 chroma error) into the near colour, so
+      // both agree in mean colour and the near/far switch does not show. (An orthophoto is no
+      // palette colour: detail.w = 0 leaves the near colour as it was.)
+      const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
+      float variation = dot(far_albedo, lum) / max(dot(base, lum), 1e-4);
+      near_albedo *= mix(1.0, variation, palette.materials[ids[0]].detail.w);
       albedo = mix(far_albedo, near_albedo, near_w);
     }
   } else if (debug_view == TV_DEBUG_LOD) {

@@ -72,7 +72,7 @@ static_assert(sizeof(FrameUniforms) % 16 == 0);
 // Material palette entry (std140 vec4 x 2).
 struct GpuMaterial {
   float albedo_roughness[4] = {};  // linear rgb, roughness
-  float detail[4] = {};            // detail scale m, detail strength, height blend, unused
+  float detail[4] = {};            // detail scale m, detail strength, height blend, 1 = albedo baked from the palette
 };
 static_assert(sizeof(GpuMaterial) == 32);
 

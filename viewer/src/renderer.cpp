@@ -134,6 +134,11 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
 
   // Palette (sRGB -> linear) and the cone table are written at set_frame(); the grid indices now.
   PaletteBlock* pb = new (palette_buf_.mapped) PaletteBlock{};
+  // Without an orthophoto the baked albedo is the palette blend times a variation the near
+  // shading carries over (detail.w = 1, terrain.frag); a photo is no palette colour (0).
+  const size_t photo_at = world.cook_info_json.find("\"albedo\":\"");
+  const bool photo = photo_at != std::string::npos && world.cook_info_json.size() > photo_at + 10 &&
+                     world.cook_info_json[photo_at + 10] != '"';
   for (size_t m = 0; m < TV_MAX_MATERIALS; ++m) {
     GpuMaterial& g = pb->materials[m];
     if (m < world.palette.size()) {
@@ -143,6 +148,7 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
       g.detail[0] = src.detail_scale_m;
       g.detail[1] = src.detail_strength;
       g.detail[2] = src.height_blend;
+      g.detail[3] = photo ? 0.0f : 1.0f;
     } else {  // ids outside the palette show as neutral grey
       g.albedo_roughness[0] = g.albedo_roughness[1] = g.albedo_roughness[2] = 0.25f;
       g.detail[0] = 4;
