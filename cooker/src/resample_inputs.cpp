@@ -1,5 +1,6 @@
 #include "resample_inputs.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cpl_conv.h>
 #include <cpl_error.h>
@@ -16,8 +17,11 @@
 namespace terrain::cook {
 namespace {
 
-// The warper's working buffer (GDALWarpOptions::dfWarpMemoryLimit): it chunks larger outputs.
-constexpr uint64_t kWarpBufferBytes = 64ull << 20;
+// The warper's working buffer (GDALWarpOptions::dfWarpMemoryLimit): what the whole warp needs in
+// its Float64 working type (source and destination), at least 1 MB, at most 64 MB (it chunks).
+uint64_t warp_buffer_bytes(uint64_t src_samples, uint64_t dst_samples) {
+  return std::clamp<uint64_t>(2 * sizeof(double) * (src_samples + dst_samples), 1ull << 20, 64ull << 20);
+}
 
 // An OGR spatial reference for a source CRS: its EPSG code, else its WKT (projected) or the
 // Transverse Mercator / geographic parameters it was resolved to. False for local and no CRS.
@@ -138,7 +142,8 @@ Status resample_onto_grid(const Raster& ref, const Raster& in, uint64_t held_byt
                            fmt::format("{} resampled onto {}'s grid would be {:.0f}x{:.0f} samples: too large", in.path,
                                        ref.path, wd, hd));
   const int w = int(wd), h = int(hd);
-  if (Status st = check_memory(held_bytes + uint64_t(w) * uint64_t(h) * sizeof(float) + kWarpBufferBytes,
+  const uint64_t warp_bytes = warp_buffer_bytes(in.values.size(), uint64_t(w) * uint64_t(h));
+  if (Status st = check_memory(held_bytes + uint64_t(w) * uint64_t(h) * sizeof(float) + warp_bytes,
                                memory_limit_bytes, fmt::format("resampling {} onto {}'s grid", in.path, ref.path),
                                fmt::format("{} samples of {}x{} and the inputs held", format_count(uint64_t(w) * h), w, h),
                                "raise --memory-limit, or reproject the inputs to one grid with gdalwarp first");
@@ -180,7 +185,7 @@ Status resample_onto_grid(const Raster& ref, const Raster& in, uint64_t held_byt
   wo->padfDstNoDataReal[0] = NAN;
   wo->eResampleAlg = GRA_Bilinear;
   wo->eWorkingDataType = GDT_Float64;
-  wo->dfWarpMemoryLimit = double(kWarpBufferBytes);
+  wo->dfWarpMemoryLimit = double(warp_bytes);
   wo->pfnTransformer = GDALGenImgProjTransform;  // exact per pixel: no approximating transformer
   wo->pTransformerArg = transformer;
   wo->papszWarpOptions = CSLSetNameValue(wo->papszWarpOptions, "INIT_DEST", "NO_DATA");
