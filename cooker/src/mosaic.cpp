@@ -5,6 +5,7 @@
 
 #include "crs.h"
 #include "memory_budget.h"
+#include "resample_inputs.h"
 
 namespace terrain::cook {
 
@@ -22,8 +23,18 @@ Status mosaic(std::vector<Raster>& inputs, Raster& out, uint64_t memory_limit_by
   int64_t c0 = 0, r0 = 0, c1 = ref.width, r1 = ref.height;
   double ref_lon = 0, ref_lat = 0;
   ref_map.to_model(0.5 * (ref.width - 1), 0.5 * (ref.height - 1), ref_lon, ref_lat);
+  uint64_t held_bytes = 0;
+  for (const Raster& r : inputs) held_bytes += uint64_t(r.values.size()) * sizeof(float);
   for (size_t i = 0; i < inputs.size(); ++i) {
     Raster& r = inputs[i];
+    if (i > 0 && needs_resampling(ref, r)) {
+      // Another CRS or spacing: onto the first input's grid (resample_inputs.h), then a tile as any.
+      Raster resampled;
+      if (Status st = resample_onto_grid(ref, r, held_bytes, memory_limit_bytes, resampled); !st.ok()) return st;
+      held_bytes += uint64_t(resampled.values.size()) * sizeof(float);
+      held_bytes -= uint64_t(r.values.size()) * sizeof(float);
+      r = std::move(resampled);
+    }
     if (r.crs.kind == CrsKind::geographic) {
       // Tiles either side of the antimeridian (N19E179 and N19W180) are neighbours: move each
       // input by whole turns to within half a turn of the first one, so they share one grid.

@@ -24,7 +24,7 @@ enum class NodataPolicy : uint8_t {
 enum class SurfaceQuality : uint8_t { fast, balanced, best };
 
 struct CookOptions {
-  std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (same CRS and pixel grid)
+  std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
   std::string output;               // archive path (written atomically)
 
   double tolerance_m = 0.5;         // a node is refined while its geometric error exceeds this

@@ -1,0 +1,267 @@
+// Inputs in different CRSs and at different spacings in one cook (issue 13): every input after the
+// first is resampled onto the first input's grid (cooker/src/resample_inputs.h), then mosaicked
+// with first-listed-wins.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <gdal.h>
+#include <iterator>
+#include <ogr_srs_api.h>
+
+#include "cooker_test_util.h"
+#include "test_data.h"
+
+using namespace terrain;
+using namespace terrain::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string file_bytes(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+// Transforms (x, y) from EPSG `from` to EPSG `to` (x = easting/longitude) with OSR, not the cooker.
+void transform(int from, int to, double& x, double& y) {
+  OGRSpatialReferenceH a = OSRNewSpatialReference(nullptr), b = OSRNewSpatialReference(nullptr);
+  OSRImportFromEPSG(a, from);
+  OSRImportFromEPSG(b, to);
+  OSRSetAxisMappingStrategy(a, OAMS_TRADITIONAL_GIS_ORDER);
+  OSRSetAxisMappingStrategy(b, OAMS_TRADITIONAL_GIS_ORDER);
+  OGRCoordinateTransformationH t = OCTNewCoordinateTransformation(a, b);
+  ASSERT_NE(t, nullptr);
+  EXPECT_TRUE(OCTTransform(t, 1, &x, &y, nullptr));
+  OCTDestroyCoordinateTransformation(t);
+  OSRDestroySpatialReference(a);
+  OSRDestroySpatialReference(b);
+}
+
+// A: 100x100 samples of 30 m in UTM 33N, all 100 m. B: a geographic (EPSG:4326) grid of 0.0005 deg
+// over A and 0.01 deg around it, 500 m plus a 100 m ripple, with a nodata hole of 0.004 deg inside
+// A's area (around the point `hole_lon`, `hole_lat`).
+struct Pair {
+  SyntheticDem a, b;
+  double hole_lon = 0, hole_lat = 0;
+};
+
+void make_pair_dems(Pair& p) {
+  SyntheticDem& a = p.a;
+  a.width = a.height = 100;
+  a.values.assign(100 * 100, 100.0);
+  a.x0 = 500015;
+  a.y0 = 4984985;
+  a.dx = a.dy = 30;
+  a.epsg_projected = 32633;
+  double lon0 = 500000, lat1 = 4985000, lon1 = 503000, lat0 = 4982000;
+  ASSERT_NO_FATAL_FAILURE(transform(32633, 4326, lon0, lat1));
+  ASSERT_NO_FATAL_FAILURE(transform(32633, 4326, lon1, lat0));
+  p.hole_lon = 500000 + 30 * 70;
+  p.hole_lat = 4985000 - 30 * 70;
+  ASSERT_NO_FATAL_FAILURE(transform(32633, 4326, p.hole_lon, p.hole_lat));
+  SyntheticDem& b = p.b;
+  b.dx = b.dy = 0.0005;
+  b.x0 = std::min(lon0, lon1) - 0.01;
+  b.y0 = std::max(lat0, lat1) + 0.01;
+  b.width = int((std::max(lon0, lon1) + 0.01 - b.x0) / b.dx) + 1;
+  b.height = int((b.y0 - std::min(lat0, lat1) + 0.01) / b.dy) + 1;
+  b.values.resize(size_t(b.width) * size_t(b.height));
+  b.nodata = -9999;
+  b.epsg_geographic = 4326;
+  for (int row = 0; row < b.height; ++row)
+    for (int col = 0; col < b.width; ++col) {
+      const double lon = b.mx(col), lat = b.my(row);
+      const bool hole = std::fabs(lon - p.hole_lon) < 0.002 && std::fabs(lat - p.hole_lat) < 0.002;
+      b.at(col, row) = hole ? NAN : 500 + 100 * std::sin(col * 0.1) * std::cos(row * 0.13);
+    }
+}
+
+class MixedSynthetic : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = scratch_dir("mixed_mosaic");
+    ASSERT_NO_FATAL_FAILURE(make_pair_dems(pair_));
+    std::string error;
+    ASSERT_TRUE(write_geotiff((dir_ / "a_utm.tif").string(), pair_.a, true, error)) << error;
+    ASSERT_TRUE(write_geotiff((dir_ / "b_geo.tif").string(), pair_.b, false, error)) << error;
+  }
+  void cook(std::vector<std::string> names, const std::string& out, int threads, CookedArchive& ca) {
+    cook::CookOptions o;
+    for (const std::string& n : names) o.inputs.push_back((dir_ / n).string());
+    o.output = (dir_ / out).string();
+    o.threads = threads;
+    cook::CookReport report;
+    uint64_t compared = 0;
+    ASSERT_NO_FATAL_FAILURE(cook_and_verify(o, report, ca, compared));
+  }
+  fs::path dir_;
+  Pair pair_;
+};
+
+// First listed wins across CRSs: with the UTM input first, every one of its samples cooks to its
+// 100 m (within tolerance + half the root step + 1 mm), although the geographic input under it
+// holds 400..600 m there; the geographic input still fills around it.
+TEST_F(MixedSynthetic, FirstListedWinsAcrossCrss) {
+  CookedArchive ca;
+  ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "ab.terrain", 2, ca));
+  EXPECT_EQ(ca.reader.world().crs.epsg, 32633);
+  const double bound = 0.5 + ca.max_half_step() + 0.001;
+  size_t checked = 0, bad = 0;
+  for (int row = 0; row < 100; ++row)
+    for (int col = 0; col < 100; ++col) {
+      const auto h = ca.height(pair_.a.mx(col), pair_.a.my(row));
+      ++checked;
+      if (!h || std::fabs(*h - 100.0) > bound) {
+        if (bad++ < 5) ADD_FAILURE() << "A sample (" << col << ", " << row << "): " << (h ? *h : NAN);
+      }
+    }
+  EXPECT_EQ(checked, 10000u);
+  EXPECT_EQ(bad, 0u);
+  // 200 m east of A (0.4 deg of B's ripple amplitude away from 100 m): B's data, resampled.
+  const auto outside = ca.height(503300, 4983500);
+  ASSERT_TRUE(outside.has_value());
+  EXPECT_GT(*outside, 390.0);
+  EXPECT_LT(*outside, 610.0);
+}
+
+// The other order gives the documented other result: the geographic input sets the frame and
+// wins over A's area (400..600 m there), and A only fills the hole B leaves (100 m).
+TEST_F(MixedSynthetic, TheOtherOrderLetsTheGeographicInputWin) {
+  CookedArchive ab, ba;
+  ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "ab.terrain", 2, ab));
+  ASSERT_NO_FATAL_FAILURE(cook({"b_geo.tif", "a_utm.tif"}, "ba.terrain", 2, ba));
+  EXPECT_NE(ba.reader.world().crs.epsg, 32633);
+  const double bound = 0.5 + ba.max_half_step() + 0.001;
+  // A's sample (30, 30): away from the hole (which is around A's sample (70, 70)).
+  double lon = pair_.a.mx(30), lat = pair_.a.my(30);
+  const auto h_ab = ab.height(pair_.a.mx(30), pair_.a.my(30));
+  ASSERT_NO_FATAL_FAILURE(transform(32633, 4326, lon, lat));
+  double x = 0, y = 0;
+  lonlat_to_frame(ba.reader.world().crs, lon, lat, x, y);
+  const auto h_ba = ba.height(x, y);
+  ASSERT_TRUE(h_ab && h_ba);
+  EXPECT_NEAR(*h_ab, 100.0, bound);
+  EXPECT_GT(*h_ba, 390.0) << "B listed first must win over A's area";
+  // The hole's centre: B has no data there, so A (resampled into B's grid) fills it in both orders.
+  lonlat_to_frame(ba.reader.world().crs, pair_.hole_lon, pair_.hole_lat, x, y);
+  const auto hole_ba = ba.height(x, y);
+  const auto hole_ab = ab.height(pair_.a.mx(70), pair_.a.my(70));
+  ASSERT_TRUE(hole_ba && hole_ab);
+  EXPECT_NEAR(*hole_ba, 100.0, bound);
+  EXPECT_NEAR(*hole_ab, 100.0, bound);
+}
+
+// Determinism: the mixed cook with 1 and 2 threads is byte-identical.
+TEST_F(MixedSynthetic, OneAndTwoThreadsAreByteIdentical) {
+  CookedArchive one, two;
+  ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "t1.terrain", 1, one));
+  ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "t2.terrain", 2, two));
+  const std::string a = file_bytes(dir_ / "t1.terrain"), b = file_bytes(dir_ / "t2.terrain");
+  EXPECT_GT(a.size(), 1000u);
+  EXPECT_TRUE(a == b) << "archives differ (" << a.size() << " vs " << b.size() << " bytes)";
+}
+
+// Kilauea (UTM 5N, 30 m) cut in two overlapping halves: the west half as is, the east half
+// gdalwarp'ed (bilinear, exact transformer) to EPSG:4326 at 0.0004 deg (about 42 x 44 m). The mixed
+// cook (west first) is checked at the uncut DEM's samples, read here with GDAL.
+//
+// The bound: at a sample the cook answers the mosaic's value within tolerance + half the root step
+// + 1 mm (the cooker's bound, test_real_data.cpp). West of column 440 the mosaic IS the uncut DEM.
+// East of it the mosaic value is two bilinear resamplings of the uncut DEM, each a convex
+// combination (weights >= 0, sum 1; nodata neighbours are dropped and the rest renormalised) of
+// samples near the point: gdalwarp's at a 4326 sample draws on uncut samples within its kernel,
+// at most 2 samples (60 m) per axis when it downsamples 30 -> 42 m (GDAL widens the kernel by
+// the ratio, 1.5 < 2), so within 85 m; ours at a uncut grid point draws on 4326 samples of the
+// cell around it, within its diagonal, 62 m. So the resampled value lies between the min and max
+// of the uncut samples within 85 + 62 < 150 m = 5 samples: the resampling error at P is at most
+// max(max - f(P), f(P) - min) over the 11 x 11 window around P (a square holds that disk).
+TEST(MixedReal, KilaueaHalfInGeographicCooksWithinTheDerivedBound) {
+  const fs::path dem = data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(dem);
+  const fs::path dir = scratch_dir("mixed_mosaic_real");
+  const fs::path west = dir / "west.tif", east_utm = dir / "east_utm.tif", east = dir / "east_geo.tif";
+  for (const std::string& cmd :
+       {fmt::format("gdal_translate -q -srcwin 0 0 440 793 '{}' '{}'", dem.string(), west.string()),
+        fmt::format("gdal_translate -q -srcwin 420 0 437 793 '{}' '{}'", dem.string(), east_utm.string()),
+        fmt::format("gdalwarp -q -et 0 -t_srs EPSG:4326 -tr 0.0004 0.0004 -r bilinear '{}' '{}'", east_utm.string(),
+                    east.string())})
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+
+  cook::CookOptions o;
+  o.inputs = {west.string(), east.string()};
+  o.output = (dir / "mixed.terrain").string();
+  o.threads = 2;
+  cook::CookReport report;
+  CookedArchive ca;
+  uint64_t compared = 0;
+  ASSERT_NO_FATAL_FAILURE(cook_and_verify(o, report, ca, compared));
+  EXPECT_EQ(ca.reader.world().crs.lon0_deg, -153.0);  // the west half's UTM 5N frame
+
+  // The uncut DEM through GDAL (the oracle), independent of the cooker's readers.
+  GDALAllRegister();
+  GDALDatasetH ds = GDALOpen(dem.string().c_str(), GA_ReadOnly);
+  ASSERT_NE(ds, nullptr);
+  const int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+  double gt[6];
+  GDALGetGeoTransform(ds, gt);
+  GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+  int has_nodata = 0;
+  const double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+  std::vector<double> z(size_t(w) * size_t(h));
+  ASSERT_EQ(GDALRasterIO(band, GF_Read, 0, 0, w, h, z.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  GDALClose(ds);
+  for (double& v : z)
+    if (has_nodata && v == nodata) v = NAN;
+
+  const double base = 0.5 + ca.max_half_step() + 0.001;
+  constexpr int kWindow = 5;
+  size_t west_points = 0, east_points = 0, bad = 0;
+  double worst_excess = -INFINITY, sum_resampling = 0, sum_east_error = 0, sum_east_step = 0;
+  for (int row = kWindow + 1; row < h - kWindow - 1; row += 3)
+    for (int col = kWindow + 1; col < w - kWindow - 1; col += 3) {
+      const double f = z[size_t(row) * size_t(w) + size_t(col)];
+      double lo = INFINITY, hi = -INFINITY;
+      for (int dr = -kWindow; dr <= kWindow; ++dr)
+        for (int dc = -kWindow; dc <= kWindow; ++dc) {
+          const double v = z[size_t(row + dr) * size_t(w) + size_t(col + dc)];
+          lo = std::min(lo, v);  // NaN never wins a min/max: checked below
+          hi = std::max(hi, v);
+          if (std::isnan(v)) lo = NAN;
+        }
+      if (std::isnan(f) || std::isnan(lo)) continue;  // nodata nearby: the void filler's business
+      const bool east_side = col >= 440;
+      const double resampling = east_side ? std::max(hi - f, f - lo) : 0.0;
+      const double bound = base + resampling;
+      const auto cooked = ca.height(gt[0] + gt[1] * (col + 0.5), gt[3] + gt[5] * (row + 0.5));
+      (east_side ? east_points : west_points)++;
+      sum_resampling += resampling;
+      if (east_side && cooked) {
+        sum_east_error += std::fabs(*cooked - f);
+        sum_east_step += std::fabs(z[size_t(row) * size_t(w) + size_t(col + 1)] - f);
+      }
+      const double err = cooked ? std::fabs(*cooked - f) : INFINITY;
+      worst_excess = std::max(worst_excess, err - bound);
+      if (err > bound && bad++ < 5)
+        ADD_FAILURE() << "sample (" << col << ", " << row << "): cooked " << (cooked ? *cooked : NAN) << " source " << f
+                      << " bound " << bound;
+    }
+  const double n_east = double(std::max<size_t>(east_points, 1));
+  std::printf("mixed kilauea: %zu west + %zu east points, east: mean resampling allowance %.3f m, mean error %.3f m, "
+              "mean one-sample step %.3f m; worst excess over the bound %.4f m\n",
+              west_points, east_points, sum_resampling / n_east, sum_east_error / n_east, sum_east_step / n_east,
+              worst_excess);
+  EXPECT_GT(west_points, 10000u);
+  EXPECT_GT(east_points, 10000u);
+  EXPECT_EQ(bad, 0u);
+  // The allowance above is loose where the relief is steep (11 x 11 windows); placement itself is
+  // checked on average: the east half put half a sample off would err by about half the mean
+  // one-sample height step on average (on top of the tolerance), so the mean error stays below it.
+  EXPECT_LT(sum_east_error / n_east, 0.5 * sum_east_step / n_east);
+}
+
+}  // namespace
