@@ -16,15 +16,19 @@ namespace {
 constexpr double kFrameAnchorStepM = 512.0;  // frame -> sample anchors
 constexpr int kSampleAnchorStep = 16;         // sample -> frame anchors, in samples
 
+// Sample bounds of the raster's valid data, or the whole raster when it holds none.
+void data_or_raster_bounds(const Raster& r, int& c0, int& r0, int& c1, int& r1) {
+  uint64_t valid = 0;
+  if (valid_bounds(r, c0, r0, c1, r1, valid)) return;
+  c0 = r0 = 0;
+  c1 = r.width - 1;
+  r1 = r.height - 1;
+}
+
 // Data centre longitude/latitude of a geographic raster (the middle of its valid samples).
 void data_centre(const Raster& r, double& lon, double& lat) {
-  int c0 = 0, r0 = 0, c1 = r.width - 1, r1 = r.height - 1;
-  uint64_t valid = 0;
-  if (!valid_bounds(r, c0, r0, c1, r1, valid)) {
-    c0 = r0 = 0;
-    c1 = r.width - 1;
-    r1 = r.height - 1;
-  }
+  int c0 = 0, r0 = 0, c1 = 0, r1 = 0;
+  data_or_raster_bounds(r, c0, r0, c1, r1);
   AffineMap::from(r.geo).to_model(0.5 * (c0 + c1), 0.5 * (r0 + r1), lon, lat);
 }
 
@@ -94,13 +98,8 @@ Status frame_for_projected(const Raster& r, FrameCrs& out, std::string& reason) 
   const SourceCrs& src = r.crs;
   std::shared_ptr<const ProjProjection> proj;
   if (Status st = ProjProjection::create(src.tm.definition, proj); !st.ok()) return st;
-  int c0 = 0, r0 = 0, c1 = r.width - 1, r1 = r.height - 1;
-  uint64_t valid = 0;
-  if (!valid_bounds(r, c0, r0, c1, r1, valid)) {
-    c0 = r0 = 0;
-    c1 = r.width - 1;
-    r1 = r.height - 1;
-  }
+  int c0 = 0, r0 = 0, c1 = 0, r1 = 0;
+  data_or_raster_bounds(r, c0, r0, c1, r1);
   const AffineMap map = AffineMap::from(r.geo);
   constexpr int kGrid = 9;
   std::vector<double> lat, lon;

@@ -15,6 +15,10 @@
 #include "terrain/format.h"
 #include "terrain/sample.h"
 
+namespace terrain::cook {
+struct Raster;
+}
+
 namespace terrain::test {
 
 struct SyntheticDem {
@@ -84,5 +88,12 @@ uint64_t count_seam_mismatches(const ArchiveReader& reader, uint64_t& compared, 
 // when the cook, the open or the verify fails.
 void cook_and_verify(const cook::CookOptions& options, cook::CookReport& report, CookedArchive& archive,
                      uint64_t& compared);
+
+// Two readers' rasters of one file agree: size, every value and georeferencing bit, nodata,
+// description and CRS (GoogleTest expectations).
+void expect_same_raster(const cook::Raster& a, const cook::Raster& b);
+
+// Runs `cmd` through the shell; its standard output in `out`. True when it exits 0.
+bool run_command(const std::string& cmd, std::string& out);
 
 }  // namespace terrain::test

@@ -47,29 +47,6 @@ cook::CookOptions options_for(const std::vector<std::string>& inputs) {
   return o;
 }
 
-void expect_same_raster(const cook::Raster& a, const cook::Raster& b) {
-  ASSERT_EQ(a.width, b.width);
-  ASSERT_EQ(a.height, b.height);
-  ASSERT_EQ(a.values.size(), b.values.size());
-  EXPECT_EQ(std::memcmp(a.values.data(), b.values.data(), a.values.size() * sizeof(float)), 0) << "values differ";
-  for (int i = 0; i < 6; ++i) EXPECT_EQ(a.geo.c[i], b.geo.c[i]) << "geo.c[" << i << "]";
-  EXPECT_EQ(a.geo.valid, b.geo.valid);
-  EXPECT_EQ(a.geo.point_samples, b.geo.point_samples);
-  EXPECT_EQ(a.nodata_declared, b.nodata_declared);
-  EXPECT_EQ(a.description, b.description);
-  EXPECT_EQ(a.crs.kind, b.crs.kind);
-  EXPECT_EQ(a.crs.epsg, b.crs.epsg);
-  EXPECT_EQ(a.crs.name, b.crs.name);
-  EXPECT_EQ(a.crs.model_unit, b.crs.model_unit);
-  EXPECT_EQ(a.crs.tm.lon0_deg, b.crs.tm.lon0_deg);
-  EXPECT_EQ(a.crs.tm.lat0_deg, b.crs.tm.lat0_deg);
-  EXPECT_EQ(a.crs.tm.scale_k0, b.crs.tm.scale_k0);
-  EXPECT_EQ(a.crs.tm.false_easting_m, b.crs.tm.false_easting_m);
-  EXPECT_EQ(a.crs.tm.false_northing_m, b.crs.tm.false_northing_m);
-  EXPECT_EQ(a.crs.tm.semi_major_m, b.crs.tm.semi_major_m);
-  EXPECT_EQ(a.crs.tm.inverse_flattening, b.crs.tm.inverse_flattening);
-}
-
 Status read_through_gdal(const std::string& path, cook::Raster& r) {
   std::unique_ptr<cook::SourceRaster> src;
   cook::ReadOptions ro;

@@ -26,24 +26,7 @@ TEST_P(SharedGeoTiff, GdalReaderEqualsTheLibgeotiffReader) {
   std::unique_ptr<cook::SourceRaster> src;
   ASSERT_TRUE(cook::open_gdal_source(path.string(), ro, src).ok());
   ASSERT_TRUE(cook::read_whole_source(*src, ro, new_r).ok());
-  ASSERT_EQ(old_r.width, new_r.width);
-  ASSERT_EQ(old_r.height, new_r.height);
-  EXPECT_EQ(std::memcmp(old_r.values.data(), new_r.values.data(), old_r.values.size() * sizeof(float)), 0);
-  for (int i = 0; i < 6; ++i) EXPECT_EQ(old_r.geo.c[i], new_r.geo.c[i]) << i;
-  EXPECT_EQ(old_r.geo.point_samples, new_r.geo.point_samples);
-  EXPECT_EQ(old_r.nodata_declared, new_r.nodata_declared);
-  EXPECT_EQ(old_r.description, new_r.description);
-  EXPECT_EQ(old_r.crs.kind, new_r.crs.kind);
-  EXPECT_EQ(old_r.crs.epsg, new_r.crs.epsg);
-  EXPECT_EQ(old_r.crs.name, new_r.crs.name);
-  EXPECT_EQ(old_r.crs.model_unit, new_r.crs.model_unit);
-  EXPECT_EQ(std::memcmp(&old_r.crs.tm.lon0_deg, &new_r.crs.tm.lon0_deg, sizeof(double)), 0);
-  EXPECT_EQ(old_r.crs.tm.lat0_deg, new_r.crs.tm.lat0_deg);
-  EXPECT_EQ(old_r.crs.tm.scale_k0, new_r.crs.tm.scale_k0);
-  EXPECT_EQ(old_r.crs.tm.false_easting_m, new_r.crs.tm.false_easting_m);
-  EXPECT_EQ(old_r.crs.tm.false_northing_m, new_r.crs.tm.false_northing_m);
-  EXPECT_EQ(old_r.crs.tm.semi_major_m, new_r.crs.tm.semi_major_m);
-  EXPECT_EQ(old_r.crs.tm.inverse_flattening, new_r.crs.tm.inverse_flattening);
+  expect_same_raster(old_r, new_r);
   // Bytes asked of the driver: every sample once.
   EXPECT_GE(src->info().bytes_read, uint64_t(new_r.width) * uint64_t(new_r.height));
 }

@@ -32,16 +32,6 @@ const char* const kLccFrame = "+proj=lcc +lat_0=46.9 +lon_0=10.85 +lat_1=46.6 +l
 const char* const kAlbers = "+proj=aea +lat_0=46.9 +lon_0=10.85 +lat_1=46.5 +lat_2=47.3 +x_0=100000 +y_0=200000 "
                             "+ellps=GRS80 +units=m +no_defs";
 
-bool run(const std::string& cmd, std::string& out) {
-  out.clear();
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return false;
-  char buf[1 << 16];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  return pclose(p) == 0;
-}
-
 // Single-quoted for the shell (appended, not "'" + s: GCC 12's -Wrestrict misfires on that).
 std::string q(const std::filesystem::path& p) {
   std::string s(1, '\'');
@@ -64,7 +54,7 @@ bool warped(const std::string& name, const std::string& srs, std::filesystem::pa
   out = work_dir() / (name + ".tif");
   if (std::filesystem::exists(out)) return true;
   std::string text;
-  if (!run("gdalwarp -q -overwrite -t_srs '" + srs + "' -te_srs EPSG:4326 -te 10.70 46.73 11.03 46.96 -r cubic -tr 60 60 -ot Float32 -dstnodata -32768 " +
+  if (!run_command("gdalwarp -q -overwrite -t_srs '" + srs + "' -te_srs EPSG:4326 -te 10.70 46.73 11.03 46.96 -r cubic -tr 60 60 -ot Float32 -dstnodata -32768 " +
                q(data_file(kSource)) + " " + q(out) + " 2>&1",
            text)) {
     why = "gdalwarp failed: " + text;
@@ -78,7 +68,7 @@ bool cook_input(const std::filesystem::path& input, const std::string& name, con
           std::filesystem::path& archive, std::string& out) {
   archive = work_dir() / (name + ".terrain");
   if (std::filesystem::exists(archive)) return true;
-  return run(q(bin_dir() / "terrain-cook") + " " + q(input) + " -o " + q(archive) + " " + flags + " 2>&1", out);
+  return run_command(q(bin_dir() / "terrain-cook") + " " + q(input) + " -o " + q(archive) + " " + flags + " 2>&1", out);
 }
 
 struct OracleResult {
@@ -93,7 +83,7 @@ bool oracle(const std::filesystem::path& tif, const std::filesystem::path& archi
             std::string& why, double shift = 0.0) {
   std::string pts_text;
   const std::string script = (source_dir() / "tests" / "cooker" / "oracle_points.py").string();
-  if (!run("/usr/bin/python3 '" + script + "' " + q(tif) + " --count 10000 --seed 1 --shift " + std::to_string(shift) + " 2>&1", pts_text)) {
+  if (!run_command("/usr/bin/python3 '" + script + "' " + q(tif) + " --count 10000 --seed 1 --shift " + std::to_string(shift) + " 2>&1", pts_text)) {
     why = "the GDAL oracle failed: " + pts_text.substr(0, 300);
     return false;
   }
@@ -111,7 +101,7 @@ bool oracle(const std::filesystem::path& tif, const std::filesystem::path& archi
     for (const auto& p : pts) f << std::fixed << p[0] << " " << p[1] << "\n";
   }
   std::string text;
-  if (!run(q(bin_dir() / "terrain-inspect") + " " + q(archive) + " --sample-file " + q(file) + (lonlat ? " --lonlat" : "") +
+  if (!run_command(q(bin_dir() / "terrain-inspect") + " " + q(archive) + " --sample-file " + q(file) + (lonlat ? " --lonlat" : "") +
                " 2>&1",
            text)) {
     why = "terrain-inspect failed: " + text.substr(0, 300);
@@ -176,7 +166,7 @@ TEST_P(NonTmFrame, InputCrsIsTheFrameAndTheOracleHolds) {
   EXPECT_NEAR(f.semi_major_m, c.semi_major_m, 1e-6);
   // The frame is the file's own coordinates: the archive's extent lies on the raster's footprint.
   std::string info;
-  ASSERT_TRUE(run("gdalinfo -json " + q(tif), info));
+  ASSERT_TRUE(run_command("gdalinfo -json " + q(tif), info));
   const auto gi = nlohmann::json::parse(info);
   const auto& gt = gi["geoTransform"];
   const double x0 = gt[0], y1 = gt[3], w = gi["size"][0], h = gi["size"][1];
@@ -281,12 +271,12 @@ TEST(NonTmFrameChoice, InspectSampleLonLatAgreesWithGdaltransform) {
   const double pts[][2] = {{10.80, 46.90}, {10.95, 46.80}, {10.76, 46.78}};
   for (const auto& p : pts) {
     std::string gt, js;
-    ASSERT_TRUE(run("echo '" + std::to_string(p[0]) + " " + std::to_string(p[1]) +
+    ASSERT_TRUE(run_command("echo '" + std::to_string(p[0]) + " " + std::to_string(p[1]) +
                         "' | gdaltransform -s_srs EPSG:4326 -t_srs EPSG:2154 -output_xy",
                     gt));
     double gx = 0, gy = 0;
     std::istringstream(gt) >> gx >> gy;
-    ASSERT_TRUE(run(q(bin_dir() / "terrain-inspect") + " " + q(archive) + " --json --sample-lonlat " +
+    ASSERT_TRUE(run_command(q(bin_dir() / "terrain-inspect") + " " + q(archive) + " --json --sample-lonlat " +
                         std::to_string(p[0]) + "," + std::to_string(p[1]),
                     js))
         << js;
@@ -314,7 +304,7 @@ TEST(NonTmFrameChoice, UnresolvableCrsAndGeographicFrameAreNamedErrors) {
                {"--frame EPSG:4326", "no metric meaning"}};
   for (const Case& c : cases) {
     std::string out;
-    EXPECT_FALSE(run(q(bin_dir() / "terrain-cook") + " " + q(data_file(kSource)) + " -o " + q(archive) + " " + c.flags + " 2>&1",
+    EXPECT_FALSE(run_command(q(bin_dir() / "terrain-cook") + " " + q(data_file(kSource)) + " -o " + q(archive) + " " + c.flags + " 2>&1",
                      out))
         << c.flags;
     EXPECT_NE(out.find(c.message), std::string::npos) << c.flags << ": " << out;

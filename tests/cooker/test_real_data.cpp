@@ -97,16 +97,6 @@ void load_default_report(const RealDem& d, nlohmann::json& out) {
   ASSERT_TRUE(out.is_object()) << path << " is not JSON";
 }
 
-bool run(const std::string& cmd, std::string& out) {
-  out.clear();
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return false;
-  char buf[1 << 16];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  return pclose(p) == 0;
-}
-
 struct OraclePoint {
   double a, b, value;
   bool edge;
@@ -120,7 +110,7 @@ std::vector<OraclePoint> oracle_points(const RealDem& d, double shift, std::stri
   if (d.scale != 1.0) cmd += " --scale " + std::to_string(d.scale);
   if (d.spacing > 0) cmd += " --spacing " + std::to_string(d.spacing);
   if (shift != 0) cmd += " --shift " + std::to_string(shift);
-  if (!run(cmd + " 2>&1", out)) {
+  if (!run_command(cmd + " 2>&1", out)) {
     why = "the GDAL oracle failed (needs Debian's python3-gdal under /usr/bin/python3): " + out.substr(0, 300);
     return {};
   }
@@ -146,7 +136,7 @@ bool inspect_heights(const std::filesystem::path& archive, const std::vector<Ora
   }
   const std::string inspect = (bin_dir() / "terrain-inspect").string();
   std::string text;
-  if (!run("'" + inspect + "' '" + archive.string() + "' --sample-file '" + file.string() + "'" +
+  if (!run_command("'" + inspect + "' '" + archive.string() + "' --sample-file '" + file.string() + "'" +
                (lonlat ? " --lonlat" : "") + " 2>&1",
            text)) {
     why = "terrain-inspect failed: " + text.substr(0, 300);

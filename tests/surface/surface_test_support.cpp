@@ -189,4 +189,13 @@ ConeCheck check_cones(const bench::DemNode& node, const NodeData& data, int eyes
   return r;
 }
 
+MaterialRules per_sample(MaterialRules r) {
+  r.scale_m = 0;
+  r.despeckle = false;
+  r.band_limit_noise = false;
+  r.scales = {0.0};
+  for (MaterialRule& rule : r.rules) rule.scale_m = 0, rule.scale_index = 0;
+  return r;
+}
+
 }  // namespace terrain::cook::test

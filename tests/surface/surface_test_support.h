@@ -52,4 +52,8 @@ struct ConeCheck {
 // (enumerated here independently of the cooker).
 ConeCheck check_cones(const bench::DemNode& node, const NodeData& data, int eyes, uint64_t seed);
 
+// The rules read the way they were before rule scales: every parameter per sample, no despeckle,
+// no band-limited noise (the baseline the splat coherence tests compare against).
+MaterialRules per_sample(MaterialRules r);
+
 }  // namespace terrain::cook::test

@@ -30,16 +30,6 @@ double lidar_hills(double x, double y) {
   return 30 * std::sin(x / 70.0) * std::cos(y / 90.0) + 0.02 * x + 0.4 * jitter(x, y);
 }
 
-// Today's behaviour of a rules set: every rule per sample, no despeckle.
-MaterialRules per_sample(MaterialRules r) {
-  r.scale_m = 0;
-  r.despeckle = false;
-  r.band_limit_noise = false;
-  r.scales = {0.0};
-  for (MaterialRule& rule : r.rules) rule.scale_m = 0, rule.scale_index = 0;
-  return r;
-}
-
 struct Coherence {
   double isolated_pct = 0, changes_pct = 0;
 };

@@ -17,15 +17,6 @@ using namespace terrain::cook::test;
 
 namespace {
 
-MaterialRules per_sample(MaterialRules r) {
-  r.scale_m = 0;
-  r.despeckle = false;
-  r.band_limit_noise = false;
-  r.scales = {0.0};
-  for (MaterialRule& rule : r.rules) rule.scale_m = 0, rule.scale_index = 0;
-  return r;
-}
-
 struct Tally {
   uint64_t iso = 0, iso_n = 0, chg = 0, pairs = 0, samples = 0;
   std::array<uint64_t, 256> count{};
