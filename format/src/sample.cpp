@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "terrain/bc_decode.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain {
 
@@ -64,14 +65,12 @@ Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<Surf
     // neighbour's east/north edge. A point on an edge or vertex shared by several triangles (of
     // one node or of neighbours) lies on each of them and is answered by the first one drawn
     // (heights agree along shared edges); "no data" only when none is drawn.
-    const double nx = std::floor(fx), ny = std::floor(fy);
+    NodeKey holding[4];
+    const int holding_count = nodes_holding_point(level, fx, fy, grid_x, grid_y, holding);
     bool any_node = false;
-    for (int cand = 0; cand < 4; ++cand) {
-      const double cx = nx - ((cand & 1) ? 1 : 0), cy = ny - ((cand & 2) ? 1 : 0);
-      if ((cand & 1) && fx != nx) continue;
-      if ((cand & 2) && fy != ny) continue;
-      if (cx < 0 || cy < 0 || cx >= grid_x || cy >= grid_y) continue;
-      const NodeKey key{uint32_t(level), uint32_t(cx), uint32_t(cy)};
+    for (int k = 0; k < holding_count; ++k) {
+      const NodeKey key = holding[k];
+      const double cx = key.x, cy = key.y;
       const int64_t index = impl_->reader.find(key);
       if (index < 0) continue;
       any_node = true;

@@ -10,6 +10,7 @@
 
 #include "resident_surface.h"
 #include "terrain/bc_decode.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain {
 namespace detail {
@@ -195,15 +196,13 @@ Status sample_levels(double rx, double ry, uint32_t roots_x, uint32_t roots_y, L
     const double grid_x = double(uint64_t(roots_x) << (kRootLevel - level));
     const double grid_y = double(uint64_t(roots_y) << (kRootLevel - level));
     if (fx < 0 || fy < 0 || fx > grid_x || fy > grid_y) return Status::success();
-    const double nx = std::floor(fx), ny = std::floor(fy);
+    NodeKey holding[4];
+    const int holding_count = nodes_holding_point(level, fx, fy, grid_x, grid_y, holding);
     bool any_node = false;
-    for (int cand = 0; cand < 4; ++cand) {
-      const double cx = nx - ((cand & 1) ? 1 : 0), cy = ny - ((cand & 2) ? 1 : 0);
-      if ((cand & 1) && fx != nx) continue;
-      if ((cand & 2) && fy != ny) continue;
-      if (cx < 0 || cy < 0 || cx >= grid_x || cy >= grid_y) continue;
+    for (int k = 0; k < holding_count; ++k) {
+      const double cx = holding[k].x, cy = holding[k].y;
       const NodeSurface* n = nullptr;
-      if (Status s = lookup(NodeKey{uint32_t(level), uint32_t(cx), uint32_t(cy)}, n); !s.ok()) return s;
+      if (Status s = lookup(holding[k], n); !s.ok()) return s;
       if (!n) continue;
       if (!any_node) out.node = n->key;
       any_node = true;

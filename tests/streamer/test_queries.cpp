@@ -159,14 +159,24 @@ std::array<double, 2> random_point(std::mt19937_64& rng, double cx, double cy, d
 
 // ---- Heights ------------------------------------------------------------------------------------
 
-void check_heights_against_sampler(const std::string& path) {
-  Streamer streamer;
+// Opens `path` (two workers) and settles the streamer over the centre of the data (cx, cy).
+void open_settled_over_centre(Streamer& streamer, const std::string& path, ResidentSurface& surface, double& cx,
+                              double& cy) {
   StreamerConfig config;
   config.worker_threads = 2;
   ASSERT_TRUE(streamer.open(path, config).ok());
   const WorldInfo& w = streamer.world();
-  const double cx = 0.5 * (w.extent_min_x_m + w.extent_max_x_m), cy = 0.5 * (w.extent_min_y_m + w.extent_max_y_m);
-  const ResidentSurface surface = settle_over(streamer, cx, cy, 20);
+  cx = 0.5 * (w.extent_min_x_m + w.extent_max_x_m);
+  cy = 0.5 * (w.extent_min_y_m + w.extent_max_y_m);
+  surface = settle_over(streamer, cx, cy, 20);
+}
+
+void check_heights_against_sampler(const std::string& path) {
+  Streamer streamer;
+  ResidentSurface surface;
+  double cx = 0, cy = 0;
+  ASSERT_NO_FATAL_FAILURE(open_settled_over_centre(streamer, path, surface, cx, cy));
+  const WorldInfo& w = streamer.world();
   ASSERT_FALSE(surface.empty());
   std::set<Key> resident;
   for (const NodeKey& k : surface.nodes()) resident.insert(key_of(k));
@@ -262,12 +272,9 @@ std::vector<Ray> gameplay_rays(const ResidentSurface& surface, double cx, double
 
 void check_rays_against_brute_force(const std::string& path, int ray_count) {
   Streamer streamer;
-  StreamerConfig config;
-  config.worker_threads = 2;
-  ASSERT_TRUE(streamer.open(path, config).ok());
-  const WorldInfo& w = streamer.world();
-  const double cx = 0.5 * (w.extent_min_x_m + w.extent_max_x_m), cy = 0.5 * (w.extent_min_y_m + w.extent_max_y_m);
-  const ResidentSurface surface = settle_over(streamer, cx, cy, 20);
+  ResidentSurface surface;
+  double cx = 0, cy = 0;
+  ASSERT_NO_FATAL_FAILURE(open_settled_over_centre(streamer, path, surface, cx, cy));
   ArchiveReader reader;
   ASSERT_TRUE(reader.open(path).ok());
   const BruteForce brute(reader, surface.nodes());

@@ -25,6 +25,24 @@ inline constexpr int kNormalCentre = 128, kNormalScale = 127;
 inline uint8_t normal_texel_of(float c) { return uint8_t(std::clamp(int(128.5f + 127.0f * c), 1, 255)); }
 inline float normal_of_texel(uint8_t v8) { return (float(v8) - 128.0f) / 127.0f; }
 
+// ---- Which node answers a point (SurfaceSampler, the streamer's resident queries) ---------------
+// The nodes of `level` whose closed square holds the point (fx, fy) (in node units of that level,
+// from the frame's grid origin), in the order the surface asks them: the node containing the point,
+// then, on a shared edge or corner, its west, south and south-west neighbours; nodes outside the
+// grid_x by grid_y grid are left out. Fills out[0 .. returned count - 1] (at most 4).
+inline int nodes_holding_point(int level, double fx, double fy, double grid_x, double grid_y, NodeKey out[4]) {
+  const double nx = std::floor(fx), ny = std::floor(fy);
+  int n = 0;
+  for (int cand = 0; cand < 4; ++cand) {
+    const double cx = nx - ((cand & 1) ? 1 : 0), cy = ny - ((cand & 2) ? 1 : 0);
+    if ((cand & 1) && fx != nx) continue;
+    if ((cand & 2) && fy != ny) continue;
+    if (cx < 0 || cy < 0 || cx >= grid_x || cy >= grid_y) continue;
+    out[n++] = NodeKey{uint32_t(level), uint32_t(cx), uint32_t(cy)};
+  }
+  return n;
+}
+
 // ---- Slot table and index grids (streamer -> GPU) ---------------------------------------------
 inline constexpr uint16_t kIndexNotResident = 0xFFFF;  // the node exists but is not resident
 inline constexpr uint16_t kIndexNoNode = 0xFFFE;       // no node here, or its payload failed to load
