@@ -75,6 +75,22 @@ struct Jacksboro : ::testing::Test {
   }
 };
 
+// Samples the export plan's 8 m lattice on the original archive and on the one cooked back from the
+// export; visit(original m, cooked back m, geometric error of the cooked-back node that answered).
+template <class Visit>
+void compare_cooked_back(const ArchiveReader& original, const ArchiveReader& again, const ex::Plan& p, Visit&& visit) {
+  SurfaceSampler a(original), b(again);
+  for (int row = 0; row < p.height; ++row)
+    for (int col = 0; col < p.width; ++col) {
+      const double x = p.west_x_m + col * 8.0, y = p.north_y_m - row * 8.0;
+      std::optional<terrain::SurfaceSample> sa, sb;
+      ASSERT_TRUE(a.sample(x, y, sa).ok());
+      ASSERT_TRUE(b.sample(x, y, sb).ok());
+      ASSERT_TRUE(sa && sb) << row << "," << col;
+      visit(sa->height_m, sb->height_m, double(again.nodes()[size_t(again.find(sb->node))].geometric_error_m));
+    }
+}
+
 }  // namespace
 
 // ---- size and Z rules (no archive) --------------------------------------------------------------
@@ -306,22 +322,14 @@ TEST_F(Jacksboro, UnrealHeightmapCooksBackWithinTheStatedBound) {
   ASSERT_EQ(std::system(cmd), 0) << cmd;
   ArchiveReader again;
   ASSERT_TRUE(again.open(cooked).ok());
-  SurfaceSampler a(reader), b(again);
   const double half_step = r.unreal.step_m / 2;
   double worst = 0, worst_excess = -1e9, max_node_error = 0;
-  for (int row = 0; row < p.height; ++row)
-    for (int col = 0; col < p.width; ++col) {
-      const double x = p.west_x_m + col * 8.0, y = p.north_y_m - row * 8.0;
-      std::optional<terrain::SurfaceSample> sa, sb;
-      ASSERT_TRUE(a.sample(x, y, sa).ok());
-      ASSERT_TRUE(b.sample(x, y, sb).ok());
-      ASSERT_TRUE(sa && sb) << row << "," << col;
-      const float node_error = again.nodes()[size_t(again.find(sb->node))].geometric_error_m;
-      const double d = std::fabs(sa->height_m - sb->height_m);
-      worst = std::max(worst, d);
-      max_node_error = std::max(max_node_error, double(node_error));
-      worst_excess = std::max(worst_excess, d - (half_step + node_error + 1e-6));
-    }
+  ASSERT_NO_FATAL_FAILURE(compare_cooked_back(reader, again, p, [&](double ha, double hb, double node_error) {
+    const double d = std::fabs(ha - hb);
+    worst = std::max(worst, d);
+    max_node_error = std::max(max_node_error, node_error);
+    worst_excess = std::max(worst_excess, d - (half_step + node_error + 1e-6));
+  }));
   EXPECT_LE(worst_excess, 0.0);
   // The cook met its tolerance at level 4 here, so the bound a user can state is step/2 + 0.02 m.
   EXPECT_LE(max_node_error, 0.02);
@@ -478,23 +486,15 @@ TEST_F(Jacksboro, GodotHeightsCookBackWithinTheStatedBound) {
   ASSERT_EQ(std::system(cmd), 0) << cmd;
   ArchiveReader again;
   ASSERT_TRUE(again.open(cooked).ok());
-  SurfaceSampler a(reader), b(again);
   double worst_excess = -1e9, max_node_error = 0;
   size_t compared = 0;
-  for (int row = 0; row < p.height; ++row)
-    for (int col = 0; col < p.width; ++col) {
-      const double x = p.west_x_m + col * 8.0, y = p.north_y_m - row * 8.0;
-      std::optional<terrain::SurfaceSample> sa, sb;
-      ASSERT_TRUE(a.sample(x, y, sa).ok());
-      ASSERT_TRUE(b.sample(x, y, sb).ok());
-      ASSERT_TRUE(sa && sb) << row << "," << col;
-      const double f32 = std::fabs(sa->height_m) * std::ldexp(1.0, -24);  // half an ulp of the EXR float
-      const double node_error = again.nodes()[size_t(again.find(sb->node))].geometric_error_m;
-      max_node_error = std::max(max_node_error, node_error);
-      const double bound = f32 + node_error + 1e-6;
-      worst_excess = std::max(worst_excess, std::fabs(sa->height_m - sb->height_m) - bound);
-      ++compared;
-    }
+  ASSERT_NO_FATAL_FAILURE(compare_cooked_back(reader, again, p, [&](double ha, double hb, double node_error) {
+    const double f32 = std::fabs(ha) * std::ldexp(1.0, -24);  // half an ulp of the EXR float
+    max_node_error = std::max(max_node_error, node_error);
+    const double bound = f32 + node_error + 1e-6;
+    worst_excess = std::max(worst_excess, std::fabs(ha - hb) - bound);
+    ++compared;
+  }));
   EXPECT_EQ(compared, size_t(201 * 201));
   EXPECT_LE(worst_excess, 0.0);
   EXPECT_LE(max_node_error, 0.02);  // the cook met its tolerance: the bound is float rounding + 0.02 m
