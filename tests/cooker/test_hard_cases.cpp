@@ -36,6 +36,13 @@ void cook_dem(const std::string& name, const SyntheticDem& dem, cook::CookOption
   cook_and_verify(options, out.report, out.archive, compared);
 }
 
+// Writes `dem` as a stripped GeoTIFF <name>.tif in scratch folder cooker-<name> and sets `options`
+// for a heights-only cook of it.
+void heights_only_input(const std::string& name, const SyntheticDem& dem, cook::CookOptions& options) {
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-" + name), name, dem, false, options));
+  options.heights_only = true;
+}
+
 SyntheticDem utm_dem(int w, int h, double spacing, double east, double north) {
   SyntheticDem d;
   d.width = w;
@@ -504,9 +511,8 @@ TEST(Determinism, OneAndTwoThreadsGiveIdenticalBytes) {
 TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
   const SyntheticDem d = flat_dem(40, 40, 2.0, 512001.0, 5022079.0, 77.0, 0);
   cook::CookOptions o;
-  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-nocrs"), "nocrs", d, false, o));
-  o.heights_only = true;
   cook::CookReport report;
+  ASSERT_NO_FATAL_FAILURE(heights_only_input("nocrs", d, o));
   expect_refusal(cook::cook(o, {}, report), Error::invalid_argument, {"--crs"});
   o.crs = "EPSG:32632";
   ASSERT_TRUE(cook::cook(o, {}, report).ok());
@@ -519,9 +525,8 @@ TEST(Inputs, NoCrsIsRefusedUnlessTheFlagsGiveOne) {
 TEST(Inputs, WebMercatorAwayFromTheEquatorGetsACentredTransverseMercator) {
   const SyntheticDem d = flat_dem(40, 40, 10.0, 1113194.9, 5780000.0, 5.0, 3857);
   cook::CookOptions o;
-  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("cooker-3857"), "webmerc", d, false, o));
-  o.heights_only = true;
   cook::CookReport report;
+  ASSERT_NO_FATAL_FAILURE(heights_only_input("webmerc", d, o));
   ASSERT_TRUE(cook::cook(o, {}, report).ok());
   EXPECT_EQ(report.frame.kind, ProjectionKind::transverse_mercator);
   // x 1113194.9 .. +400 m is 10.0000 .. 10.0036 E; lon0 the centre rounded to an arc-second.
