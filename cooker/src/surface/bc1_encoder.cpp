@@ -520,6 +520,31 @@ float assign_scalar(const float ch[3][16], const int pal[4][3], const float w[3]
   return sum16(best);
 }
 
+// Ordering search, both paths: prefix sums of each channel in the search's order (P[c][r]: the
+// first r texels; padded to 24 with the total) and three times each channel's total.
+inline void prefix_sums_in_order(const float ch[3][16], const int order[16], float P[3][24], float X3[3]) {
+  for (int c = 0; c < 3; ++c) {
+    float acc = 0;
+    P[c][0] = 0;
+    for (int r = 0; r < 16; ++r) P[c][r + 1] = acc += ch[c][order[r]];
+    for (int r = 17; r < 24; ++r) P[c][r] = acc;
+    X3[c] = 3 * acc;
+  }
+}
+
+// Ordering search, both paths: the start partition, the group boundaries of the block's current
+// indices counted from the endpoint that projects lower on the axis.
+inline void start_boundaries(uint32_t idx, const float axis[3], const int q0[3], const int q1[3], int b[3]) {
+  int cnt[4] = {0, 0, 0, 0};
+  for (int t = 0; t < 16; ++t) ++cnt[(idx >> (2 * t)) & 3];
+  const float d0 = axis[0] * float(expand5(q0[0])) + axis[1] * float(expand6(q0[1])) + axis[2] * float(expand5(q0[2]));
+  const float d1 = axis[0] * float(expand5(q1[0])) + axis[1] * float(expand6(q1[1])) + axis[2] * float(expand5(q1[2]));
+  const bool low0 = d0 <= d1;
+  b[0] = low0 ? cnt[0] : cnt[1];
+  b[1] = b[0] + cnt[low0 ? 2 : 3];
+  b[2] = b[1] + cnt[low0 ? 3 : 2];
+}
+
 // Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::ordering_search.
 // Texels sorted along the principal axis form four contiguous groups with c0 weights 1, 2/3, 1/3, 0
 // from the low end. With group boundaries i <= j <= k and P(r) the prefix sums of the sorted
@@ -621,23 +646,9 @@ void ordering_search_scalar(const float ch[3][16], const float proj[16], const f
     }
   }
   OrderingSearchScalar os;
-  for (int c = 0; c < 3; ++c) {
-    float acc = 0;
-    os.P[c][0] = 0;
-    for (int r = 0; r < 16; ++r) os.P[c][r + 1] = acc += ch[c][order[r]];
-    for (int r = 17; r < 24; ++r) os.P[c][r] = acc;
-    os.X3[c] = 3 * acc;
-  }
-  // Start: the group sizes of the current indices, from the endpoint that projects lower.
-  int cnt[4] = {0, 0, 0, 0};
-  for (int t = 0; t < 16; ++t) ++cnt[(best_idx >> (2 * t)) & 3];
-  const float d0 = axis[0] * float(expand5(best_q0[0])) + axis[1] * float(expand6(best_q0[1])) + axis[2] * float(expand5(best_q0[2]));
-  const float d1 = axis[0] * float(expand5(best_q1[0])) + axis[1] * float(expand6(best_q1[1])) + axis[2] * float(expand5(best_q1[2]));
-  const bool low0 = d0 <= d1;
+  prefix_sums_in_order(ch, order, os.P, os.X3);
   int b[3];
-  b[0] = low0 ? cnt[0] : cnt[1];
-  b[1] = b[0] + cnt[low0 ? 2 : 3];
-  b[2] = b[1] + cnt[low0 ? 3 : 2];
+  start_boundaries(best_idx, axis, best_q0, best_q1, b);
   const int start[3] = {b[0], b[1], b[2]};
   float best;
   {
@@ -1048,23 +1059,9 @@ void ordering_search_sse(const __m128 ch[3][4], const __m128 proj[4], const floa
     }
   }
   OrderingSearchSse os;
-  for (int c = 0; c < 3; ++c) {
-    float acc = 0;
-    os.P[c][0] = 0;
-    for (int r = 0; r < 16; ++r) os.P[c][r + 1] = acc += col[c][order[r]];
-    for (int r = 17; r < 24; ++r) os.P[c][r] = acc;
-    os.X3[c] = 3 * acc;
-  }
-  // Start: the group sizes of the current indices, from the endpoint that projects lower.
-  int cnt[4] = {0, 0, 0, 0};
-  for (int t = 0; t < 16; ++t) ++cnt[(best_idx >> (2 * t)) & 3];
-  const float d0 = axis[0] * float(expand5(best_q0[0])) + axis[1] * float(expand6(best_q0[1])) + axis[2] * float(expand5(best_q0[2]));
-  const float d1 = axis[0] * float(expand5(best_q1[0])) + axis[1] * float(expand6(best_q1[1])) + axis[2] * float(expand5(best_q1[2]));
-  const bool low0 = d0 <= d1;
+  prefix_sums_in_order(col, order, os.P, os.X3);
   int b[3];
-  b[0] = low0 ? cnt[0] : cnt[1];
-  b[1] = b[0] + cnt[low0 ? 2 : 3];
-  b[2] = b[1] + cnt[low0 ? 3 : 2];
+  start_boundaries(best_idx, axis, best_q0, best_q1, b);
   const int start[3] = {b[0], b[1], b[2]};
   float best;
   {
