@@ -2,6 +2,7 @@
 # CLI safety cases of issue 11: cli_safety.sh CASE BIN_DIR SCRATCH_PARENT. Each case checks the exit
 # code, the message, and that every file present before the command is byte-identical after it.
 set -u
+here=$(cd "$(dirname "$0")" && pwd)
 case_name=$1 bin=$2 work=$3/cli-safety-$1
 dem=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
 [ -f "$dem" ] || { echo "SKIP: $dem absent"; exit 0; }
@@ -12,15 +13,8 @@ mknod null c 1 3 2>/dev/null || { echo "SKIP: mknod needs root"; exit 0; }
 mkfifo fifo; mkdir dir; echo '{"old": 1}' > old.json
 snapshot() { find . -type f -print0 | sort -z | xargs -0 sha256sum; ls -l null fifo | cut -c1; }
 before=$(snapshot)
-expect() {  # expect RC REGEX command...
-  local rc=$1 re=$2; shift 2
-  local err; err=$(timeout 20 "$@" 2>&1 >/dev/null); local got=$?
-  [ "$got" = "$rc" ] || { echo "FAIL: exit $got, expected $rc: $*: $err"; exit 1; }
-  [[ "$err" =~ $re ]] || { echo "FAIL: message '$err' does not match '$re'"; exit 1; }
-  [ "$(snapshot)" = "$before" ] || { echo "FAIL: files changed by $*"; exit 1; }
-  ls | grep -q 'tmp-' && { echo "FAIL: temp file left"; exit 1; }
-  echo "ok: $* -> $got: $err"
-}
+. "$here/cli_expect.sh"
+expect() { expect_exit "$before" "$@"; }  # expect RC REGEX command... (against the files at the start)
 cook=("$bin/terrain-cook" in.npz --crs EPSG:4326 -q)
 case $case_name in
   output_device) expect 2 "character device" "${cook[@]}" -o null ;;

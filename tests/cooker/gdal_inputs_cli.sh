@@ -3,6 +3,7 @@
 # Broken inputs exit 1 with a message naming the problem and leave every file as it was (no archive
 # written, the previous one untouched); a directory of tiles cooks.
 set -u
+here=$(cd "$(dirname "$0")" && pwd)
 case_name=$1 bin=$2 work=$3/gdal-inputs-cli-$1
 command -v gdal_create >/dev/null || { echo "SKIP: gdal_create (gdal-bin) absent"; exit 0; }
 rm -rf "$work"; mkdir -p "$work/tiles"; cd "$work" || exit 1
@@ -14,16 +15,8 @@ gdal_create -q -of GTiff -outsize 64 64 -bands 1 -ot Float32 -burn 300 -a_srs EP
 gdalbuildvrt -q mosaic.vrt tiles/a.tif tiles/b.tif || { echo "FAIL: gdalbuildvrt"; exit 1; }
 "$bin/terrain-cook" tiles/a.tif -q -o keep.terrain --heights-only || { echo "FAIL: setup cook"; exit 1; }
 snapshot() { find . -type f -print0 | sort -z | xargs -0 sha256sum; }
-expect_refused() {  # expect_refused RC REGEX command... (after the setup changed the files)
-  local rc=$1 re=$2; shift 2
-  local before; before=$(snapshot)
-  local err; err=$(timeout 60 "$@" 2>&1 >/dev/null); local got=$?
-  [ "$got" = "$rc" ] || { echo "FAIL: exit $got, expected $rc: $*: $err"; exit 1; }
-  [[ "$err" =~ $re ]] || { echo "FAIL: message '$err' does not match '$re'"; exit 1; }
-  [ "$(snapshot)" = "$before" ] || { echo "FAIL: files changed by $*"; exit 1; }
-  ls | grep -q 'tmp-' && { echo "FAIL: temp file left"; exit 1; }
-  echo "ok: $* -> $got: $err"
-}
+. "$here/cli_expect.sh"
+expect_refused() { expect_exit "$(snapshot)" "$@"; }  # expect_refused RC REGEX command... (files as they are now)
 case $case_name in
   vrt_missing_tile)
     rm tiles/b.tif
