@@ -91,6 +91,16 @@ void compare_cooked_back(const ArchiveReader& original, const ArchiveReader& aga
     }
 }
 
+// A Godot export of level 4 into `dir` in regions of `tile_size` samples.
+ex::Options godot_level4(const std::string& dir, int tile_size) {
+  ex::Options o;
+  o.target = ex::Target::godot;
+  o.out_dir = dir;
+  o.level = 4;
+  o.tile_size = tile_size;
+  return o;
+}
+
 }  // namespace
 
 // ---- size and Z rules (no archive) --------------------------------------------------------------
@@ -402,11 +412,7 @@ TEST_F(Jacksboro, UnrealTilesShareIdenticalEdges) {
 // Godot: EXR heights are the sampler's (as float32), NaN and control alpha 0 where it has no
 // terrain; the collision heightfield holds the same floats for the rectangle, its mask the holes.
 TEST_F(Jacksboro, GodotRegionsAndCollisionMatchTheSurface) {
-  ex::Options o;
-  o.target = ex::Target::godot;
-  o.out_dir = kScratch + "/godot";
-  o.level = 4;
-  o.tile_size = 128;
+  ex::Options o = godot_level4(kScratch + "/godot", 128);
   const double east = reader.world().extent_max_x_m;
   o.rect = ex::Rect{east - 8.0 * 150, cy(), east + 8.0 * 20, cy() + 8.0 * 100};
   const ex::Plan p = plan_for(o);
@@ -465,11 +471,7 @@ TEST_F(Jacksboro, GodotRegionsAndCollisionMatchTheSurface) {
 // the new surface at the lattice points is the original's within float32 rounding of the EXR plus
 // the new cook's stated geometric error of the answering node.
 TEST_F(Jacksboro, GodotHeightsCookBackWithinTheStatedBound) {
-  ex::Options o;
-  o.target = ex::Target::godot;
-  o.out_dir = kScratch + "/godot_cook";
-  o.level = 4;
-  o.tile_size = 256;
+  ex::Options o = godot_level4(kScratch + "/godot_cook", 256);
   o.rect = ex::Rect{cx() - 8.0 * 100, cy() - 8.0 * 100, cx() + 8.0 * 100, cy() + 8.0 * 100};
   const ex::Plan p = plan_for(o);
   ASSERT_EQ(p.tiles_x, 1);
