@@ -545,6 +545,27 @@ inline void start_boundaries(uint32_t idx, const float axis[3], const int q0[3],
   b[2] = b[1] + cnt[low0 ? 3 : 2];
 }
 
+// Ordering search, both paths: coordinate sweeps over the three boundaries b (os.scan keeps the
+// best score), then the moments of the winning partition. False when the winner is the start.
+template <class Search>
+bool sweep_to_winner(Search& os, int sweeps, const int start[3], int b[3], float& best, Moments& m) {
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    const int before[3] = {b[0], b[1], b[2]};
+    os.scan(0, 0, b[1], b, best);
+    os.scan(2, b[1], 16, b, best);
+    os.scan(1, b[0], b[2], b, best);
+    if (b[0] == before[0] && b[1] == before[1] && b[2] == before[2]) break;
+  }
+  if (b[0] == start[0] && b[1] == start[1] && b[2] == start[2]) return false;
+  m.sa = float(b[0] + b[1] + b[2]) / 3.0f;
+  m.saa = float(5 * b[0] + 3 * b[1] + b[2]) / 9.0f;
+  for (int c = 0; c < 3; ++c) {
+    m.sax[c] = (os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]]) / 3.0f;
+    m.sx[c] = os.P[c][16];
+  }
+  return true;
+}
+
 // Ordering search (a cheap relative of libsquish's cluster fit), used by Bc1Method::ordering_search.
 // Texels sorted along the principal axis form four contiguous groups with c0 weights 1, 2/3, 1/3, 0
 // from the low end. With group boundaries i <= j <= k and P(r) the prefix sums of the sorted
@@ -656,22 +677,9 @@ void ordering_search_scalar(const float ch[3][16], const float proj[16], const f
     for (int c = 0; c < 3; ++c) T[c] = os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]];
     best = OrderingSearchScalar::score(float(b[0]), float(b[1]), float(b[2]), T, false, os.X3);
   }
-  for (int sweep = 0; sweep < sweeps; ++sweep) {
-    const int before[3] = {b[0], b[1], b[2]};
-    os.scan(0, 0, b[1], b, best);
-    os.scan(2, b[1], 16, b, best);
-    os.scan(1, b[0], b[2], b, best);
-    if (b[0] == before[0] && b[1] == before[1] && b[2] == before[2]) break;
-  }
-  if (b[0] == start[0] && b[1] == start[1] && b[2] == start[2]) return;
-  // The winner's endpoints, quantised exactly (4x4 window), then the exact nearest indices.
   Moments m;
-  m.sa = float(b[0] + b[1] + b[2]) / 3.0f;
-  m.saa = float(5 * b[0] + 3 * b[1] + b[2]) / 9.0f;
-  for (int c = 0; c < 3; ++c) {
-    m.sax[c] = (os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]]) / 3.0f;
-    m.sx[c] = os.P[c][16];
-  }
+  if (!sweep_to_winner(os, sweeps, start, b, best, m)) return;
+  // The winner's endpoints, quantised exactly (4x4 window), then the exact nearest indices.
   int q0[3], q1[3], pal[4][3], sel[16];
   fit_from_moments_scalar(m, q0, q1);
   palette_of(q0, q1, true, pal);
@@ -1071,22 +1079,9 @@ void ordering_search_sse(const __m128 ch[3][4], const __m128 proj[4], const floa
                                            _mm_setzero_ps(), os.X3);
     best = _mm_cvtss_f32(e);
   }
-  for (int sweep = 0; sweep < sweeps; ++sweep) {
-    const int before[3] = {b[0], b[1], b[2]};
-    os.scan(0, 0, b[1], b, best);
-    os.scan(2, b[1], 16, b, best);
-    os.scan(1, b[0], b[2], b, best);
-    if (b[0] == before[0] && b[1] == before[1] && b[2] == before[2]) break;
-  }
-  if (b[0] == start[0] && b[1] == start[1] && b[2] == start[2]) return;
-  // The winner's endpoints, quantised exactly (4x4 window), then the exact nearest indices.
   Moments m;
-  m.sa = float(b[0] + b[1] + b[2]) / 3.0f;
-  m.saa = float(5 * b[0] + 3 * b[1] + b[2]) / 9.0f;
-  for (int c = 0; c < 3; ++c) {
-    m.sax[c] = (os.P[c][b[0]] + os.P[c][b[1]] + os.P[c][b[2]]) / 3.0f;
-    m.sx[c] = os.P[c][16];
-  }
+  if (!sweep_to_winner(os, sweeps, start, b, best, m)) return;
+  // The winner's endpoints, quantised exactly (4x4 window), then the exact nearest indices.
   int q0[3], q1[3], pal[4][3];
   fit_from_moments_sse(m, q0, q1);
   palette_of(q0, q1, true, pal);
