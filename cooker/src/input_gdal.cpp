@@ -355,14 +355,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
     model(shift, shift, x0, y0);
     model(1 + shift, shift, x1, y1);
     model(shift, 1 + shift, x2, y2);
-    info.geo.c[0] = x0;
-    info.geo.c[1] = x1 - x0;
-    info.geo.c[2] = x2 - x0;
-    info.geo.c[3] = y0;
-    info.geo.c[4] = y1 - y0;
-    info.geo.c[5] = y2 - y0;
-    info.geo.valid = info.geo.c[1] * info.geo.c[5] - info.geo.c[2] * info.geo.c[4] != 0.0;
-    info.geo.point_samples = point;
+    info.geo = sample_geo_from_points(x0, y0, x1, y1, x2, y2, point);
   }
   if (info.geo.valid) {
     double cx = 0, cy = 0;

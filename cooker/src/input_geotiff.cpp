@@ -222,14 +222,7 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
     double x0 = shift, y0 = shift, x1 = 1 + shift, y1 = shift, x2 = shift, y2 = 1 + shift;
     if (GTIFImageToPCS(gtif.get(), &x0, &y0) && GTIFImageToPCS(gtif.get(), &x1, &y1) &&
         GTIFImageToPCS(gtif.get(), &x2, &y2)) {
-      out.geo.c[0] = x0;
-      out.geo.c[1] = x1 - x0;
-      out.geo.c[2] = x2 - x0;
-      out.geo.c[3] = y0;
-      out.geo.c[4] = y1 - y0;
-      out.geo.c[5] = y2 - y0;
-      out.geo.valid = out.geo.c[1] * out.geo.c[5] - out.geo.c[2] * out.geo.c[4] != 0.0;
-      out.geo.point_samples = point;
+      out.geo = sample_geo_from_points(x0, y0, x1, y1, x2, y2, point);
     }
     double cx = 0, cy = 0;
     AffineMap::from(out.geo).to_model(0.5 * (width - 1), 0.5 * (height - 1), cx, cy);

@@ -42,6 +42,22 @@ struct SampleGeo {
   bool point_samples = false;
 };
 
+// The affine georeferencing from the model positions of sample (0, 0), (1, 0) and (0, 1); valid
+// when the map is not singular. Shared by the GeoTIFF readers (libgeotiff and GDAL).
+inline SampleGeo sample_geo_from_points(double x0, double y0, double x1, double y1, double x2, double y2,
+                                        bool point_samples) {
+  SampleGeo g;
+  g.c[0] = x0;
+  g.c[1] = x1 - x0;
+  g.c[2] = x2 - x0;
+  g.c[3] = y0;
+  g.c[4] = y1 - y0;
+  g.c[5] = y2 - y0;
+  g.valid = g.c[1] * g.c[5] - g.c[2] * g.c[4] != 0.0;
+  g.point_samples = point_samples;
+  return g;
+}
+
 struct Raster {
   std::string path;
   std::string description;   // format, type, size, compression: for the report
