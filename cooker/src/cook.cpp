@@ -1,10 +1,13 @@
 // cook(): read -> mosaic -> voids -> frame and grid -> steps -> pyramid -> finish, timed per stage.
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <numeric>
+#include <random>
 #include <tuple>
 #include <utility>
 #include <fmt/format.h>
@@ -16,6 +19,7 @@
 #include "memory_budget.h"
 #include "mosaic.h"
 #include "node_cook.h"
+#include "node_spool.h"
 #include "overlays.h"
 #include "parallel.h"
 #include "pyramid.h"
@@ -111,6 +115,35 @@ auto grid_of(T& t) {
                   t.extent_max_x_m, t.extent_max_y_m);
 }
 
+// Blocks of side x side roots: the largest side whose cook window (source samples at 4 bytes, their
+// filled flags, the step pass's range index at under 1 byte) takes at most a third of the budget;
+// the rest is for GDAL's cache, the node batches and the spool's records.
+uint32_t block_roots_for(uint64_t memory_limit_bytes, double sx, double sy, uint32_t roots_x, uint32_t roots_y) {
+  constexpr double kBytesPerWindowSample = 6.0;
+  const uint32_t most = std::max(roots_x, roots_y);
+  uint32_t side = 1;
+  while (side < most) {
+    const uint32_t next = side + 1;
+    const double margin_m = 2.0 * kWindowMargin * vertex_spacing_m(kRootLevel);
+    const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 16;
+    const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 16;
+    if (cols * rows * kBytesPerWindowSample > double(memory_limit_bytes) / 3.0) break;
+    side = next;
+  }
+  return side;
+}
+
+// Block indices in cooking order: row by row, or shuffled by `seed` (tests).
+std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
+  std::vector<uint32_t> order(count);
+  std::iota(order.begin(), order.end(), 0u);
+  if (seed) {
+    std::mt19937_64 rng(seed);
+    for (uint32_t i = count; i > 1; --i) std::swap(order[i - 1], order[size_t(rng() % i)]);
+  }
+  return order;
+}
+
 uint64_t peak_rss_bytes() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -130,7 +163,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   const int threads = resolve_threads(options.threads);
   report.threads = threads;
   report.tolerance_m = options.tolerance_m;
-  auto stage = [&](double f, const char* name) { return !progress || progress(f, name); };
+  auto stage = [&](double f, const std::string& name) { return !progress || progress(f, name); };
   if (!stage(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
 
   // ---- read ----
@@ -178,8 +211,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
   // The footprint: pixel areas, or for point samples the samples' hull.
   mapping.frame_bounds(vc0, vr0, vc1, vr1, source.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
-  CookContext ctx(source);
-  ctx.filled = &filled;
+  CookContext ctx;
+  ctx.source_width = source.width;
+  ctx.source_height = source.height;
   ctx.mapping = &mapping;
   ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
   ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
@@ -219,9 +253,14 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   ctx.heights_only = options.heights_only;
   ctx.payload.zstd_level = options.zstd_level;
   ctx.payload.surface_zstd_level = options.surface_zstd_level;
-
-  RangeIndex index;
-  index.build(source);
+  // Where even the finest level's vertices are further apart than half a source sample, widen the
+  // covered band beyond the raster's outer samples to one vertex spacing (reconstruct.h), so the
+  // triangles holding the outer samples are drawn. A function of position only, as hole flags
+  // must be; 0.5 (no change) for sources of 1 m and coarser.
+  {
+    const double s = vertex_spacing_m(ctx.finest_level);
+    ctx.surface.set_outer_apron(sx > 0 ? s / sx : 0.5, sy > 0 ? s / sy : 0.5);
+  }
 
   // Surface layers: material rules and palette.
   std::shared_ptr<const MaterialRules> rules;
@@ -241,21 +280,95 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
       !st.ok())
     return st;
   ctx.overlays = overlays.get();
+
+  // Blocks of roots, each reading only its window of the source.
+  const BlockGrid grid{report.roots_x, report.roots_y,
+                       options.block_roots ? options.block_roots
+                                           : block_roots_for(report.memory_limit_bytes, sx, sy, report.roots_x,
+                                                             report.roots_y)};
+  report.block_roots = grid.side;
+  report.blocks = grid.count();
+  const std::vector<uint32_t> order = block_order(grid.count(), options.block_order);
+  SampleWindow window;
+  auto read_window = [&](const SampleRect& rect) -> Status {
+    window.rect = rect;
+    window.source_width = source.width;
+    window.source_height = source.height;
+    window.values.resize(size_t(rect.samples()));
+    window.filled.resize(size_t(rect.samples()));
+    for (int r = rect.r0; r <= rect.r1; ++r) {
+      const size_t from = size_t(r) * size_t(source.width) + size_t(rect.c0);
+      std::copy_n(&source.values[from], size_t(rect.width()), &window.values[window.index(rect.c0, r)]);
+      std::copy_n(&filled[from], size_t(rect.width()), &window.filled[window.index(rect.c0, r)]);
+    }
+    report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
+    return Status::success();
+  };
+
+  // Pass 1: every level's step, from the range bounds of every node that could exist.
+  {
+    std::array<double, kLevelCount> worst{};
+    for (size_t n = 0; n < order.size(); ++n) {
+      const RootBlock b = grid.block(order[n]);
+      int top = 0;
+      const SampleRect rect = block_range_rect(ctx, b, top);
+      if (rect.empty()) continue;
+      if (Status st = read_window(rect); !st.ok()) return st;
+      RangeIndex index;
+      index.build(window, top);
+      block_range_bounds(ctx, index, b, threads, worst);
+      if (!stage(0.02 + 0.08 * double(n + 1) / double(order.size()), "steps"))
+        return Status::failure(Error::cancelled, "cancelled");
+    }
+    choose_steps(worst, ctx.tolerance_m, ctx.finest_level, ctx.step_log2);
+  }
   report.seconds_prepare = seconds_since(t_prep);
 
   // ---- pyramid ----
   const auto t_pyr = Clock::now();
   ArchiveWriter writer;
   if (Status st = writer.open(options.output); !st.ok()) return st;
-  const ProgressFn sub = progress ? scaled_progress(progress, 0.05, 0.98) : ProgressFn{};
-  if (Status st = build_pyramid(ctx, index, report.roots_x, report.roots_y, threads, writer, sub, report); !st.ok()) {
-    writer.abort();
-    return st;
+  NodeSpool spool;
+  const bool spooled = grid.count() > 1;
+  if (spooled)
+    if (Status st = spool.open(fmt::format("{}.spool-{}", options.output, ::getpid())); !st.ok()) return st;
+  const NodeSink sink = [&](NodeResult& r) {
+    return spooled ? spool.add(r.record, r.payload) : writer.add_node(r.record, r.payload);
+  };
+  PyramidTotals totals;
+  for (size_t n = 0; n < order.size(); ++n) {
+    const RootBlock b = grid.block(order[n]);
+    const SampleRect rect = block_cook_rect(ctx, b);
+    if (rect.empty()) continue;
+    if (Status st = read_window(rect); !st.ok()) return st;
+    ctx.set_window(window);
+    if (Status st = cook_block(ctx, b, threads, sink, totals, report); !st.ok()) {
+      writer.abort();
+      return st;
+    }
+    if (!stage(0.1 + 0.85 * double(n + 1) / double(order.size()), fmt::format("block {}/{}", n + 1, order.size())))
+      return Status::failure(Error::cancelled, "cancelled");
   }
+  window = SampleWindow{};
+  if (spooled) {
+    report.spool_bytes = spool.bytes();
+    if (Status st = spool.drain(writer); !st.ok()) return st;
+  }
+  finish_pyramid_report(ctx, totals, report);
   report.seconds_pyramid = seconds_since(t_pyr);
   if (report.nodes == 0) {
     writer.abort();
     return Status::failure(Error::no_data, "no node holds terrain (is the data smaller than a vertex?)");
+  }
+  // Levels finer than the finest level cooked hold no node; they record its step (as the steps of
+  // a level-by-level cook did).
+  {
+    int f = 0;
+    while (f < kRootLevel && report.levels[size_t(f)].nodes == 0) ++f;
+    for (int l = f - 1; l >= 0; --l) {
+      ctx.step_log2[size_t(l)] = ctx.step_log2[size_t(f)];
+      report.levels[size_t(l)].step_log2 = ctx.step_log2[size_t(f)];
+    }
   }
 
   // ---- finish ----

@@ -204,16 +204,15 @@ bool node_has_terrain(const CookContext& ctx, const NodeKey& key) {
 
 void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow& w, NodeError& out) {
   out = NodeError{};
-  const Raster& src = *ctx.source;
-  const std::vector<uint8_t>& filled = *ctx.filled;
+  const SampleWindow& src = *ctx.window;
   const double s = vertex_spacing_m(int(key.level));
   const double x0 = ctx.lattice_x(lattice_index(key.x, 0, key.level));
   const double y0 = ctx.lattice_y(lattice_index(key.y, 0, key.level));
   // Samples of the node square, plus one sample around.
   double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
   node_sample_bounds(ctx, key, cmin, rmin, cmax, rmax);
-  const int c0 = std::max(0, int(std::floor(cmin)) - 1), c1 = std::min(src.width - 1, int(std::ceil(cmax)) + 1);
-  const int r0 = std::max(0, int(std::floor(rmin)) - 1), r1 = std::min(src.height - 1, int(std::ceil(rmax)) + 1);
+  const int c0 = std::max(0, int(std::floor(cmin)) - 1), c1 = std::min(src.source_width - 1, int(std::ceil(cmax)) + 1);
+  const int r0 = std::max(0, int(std::floor(rmin)) - 1), r1 = std::min(src.source_height - 1, int(std::ceil(rmax)) + 1);
   auto vertex = [&](int i, int j, double& h) {
     const size_t k = size_t(j + kWindowMargin) * kWindowSize + size_t(i + kWindowMargin);
     h = double(w.units[k]) * kHeightUnitM;
@@ -227,9 +226,9 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   for (int row = r0; row <= r1; ++row) {
     ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
     for (int col = c0; col <= c1; ++col) {
-      const size_t idx = size_t(row) * size_t(src.width) + size_t(col);
+      const size_t idx = src.index(col, row);
       const float z = src.values[idx];
-      if (std::isnan(z) || filled[idx]) continue;
+      if (std::isnan(z) || (!src.filled.empty() && src.filled[idx])) continue;
       const double u = (fxs[size_t(col - c0)] - x0) * inv_s, v = (fys[size_t(col - c0)] - y0) * inv_s;
       if (!(u >= 0 && v >= 0 && u <= kQuadsPerSide && v <= kQuadsPerSide)) continue;
       const int i = std::min(int(u), kQuadsPerSide - 1), j = std::min(int(v), kQuadsPerSide - 1);

@@ -10,6 +10,7 @@
 #include "frame.h"
 #include "raster.h"
 #include "reconstruct.h"
+#include "sample_window.h"
 #include "surface/surface_layers.h"
 #include "terrain/archive_writer.h"
 #include "terrain/format.h"
@@ -17,8 +18,10 @@
 namespace terrain::cook {
 
 struct CookContext {
-  const Raster* source = nullptr;
-  const std::vector<uint8_t>* filled = nullptr;  // 1 = sample was a filled void (not source data)
+  // The source samples of the block being cooked (sample_window.h): every node of the block reads
+  // only inside it; `surface` evaluates them. Set per block by set_window().
+  const SampleWindow* window = nullptr;
+  int source_width = 0, source_height = 0;  // the whole source (mosaic), in samples
   const SourceMapping* mapping = nullptr;
   Surface surface;
   double origin_x = 0, origin_y = 0;
@@ -32,7 +35,10 @@ struct CookContext {
   const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes / --landcover rasters (overlays.cpp), or null
   PayloadOptions payload;
 
-  explicit CookContext(const Raster& r) : source(&r), surface(r) {}
+  void set_window(const SampleWindow& w) {
+    window = &w;
+    surface.set_samples(w);
+  }
   // Frame position of level-0 lattice index (gx, gy): exact in double.
   double lattice_x(int64_t gx) const { return origin_x + double(gx) * 0.5; }
   double lattice_y(int64_t gy) const { return origin_y + double(gy) * 0.5; }

@@ -10,14 +10,25 @@
 namespace terrain::cook {
 namespace {
 
-// Upper bound on the surface range (metres) over a node's vertices.
-double node_range_bound(const CookContext& ctx, const RangeIndex& index, const NodeKey& key) {
+constexpr double kRootSizeM = node_size_m(kRootLevel);
+
+// The source rectangle a node's range bound queries: Catmull-Rom taps reach one sample west/south
+// and two east/north of the cell; one more sample absorbs the curvature of a projected node edge.
+SampleRect node_query_rect(const CookContext& ctx, const NodeKey& key) {
   double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
   node_sample_bounds(ctx, key, cmin, rmin, cmax, rmax);
-  // Catmull-Rom taps reach one sample west/south and two east/north of the cell; one more sample
-  // absorbs the curvature of a projected node edge.
-  return index.surface_range_bound(int(std::floor(cmin)) - 2, int(std::floor(rmin)) - 2, int(std::floor(cmax)) + 3,
-                                   int(std::floor(rmax)) + 3);
+  return {int(std::floor(cmin)) - 2, int(std::floor(rmin)) - 2, int(std::floor(cmax)) + 3, int(std::floor(rmax)) + 3};
+}
+
+// Every node of the block at levels finest .. 5, coarsest first.
+std::vector<NodeKey> block_nodes(const CookContext& ctx, const RootBlock& b) {
+  std::vector<NodeKey> keys;
+  for (int level = kRootLevel; level >= ctx.finest_level; --level) {
+    const uint32_t f = 1u << (kRootLevel - level);
+    for (uint32_t y = b.y0 * f; y < b.y1 * f; ++y)
+      for (uint32_t x = b.x0 * f; x < b.x1 * f; ++x) keys.push_back({uint32_t(level), x, y});
+  }
+  return keys;
 }
 
 // One node's surface statistics into the cook's totals (every field of SurfaceStats).
@@ -41,55 +52,96 @@ void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
 
 double rms_of(const ErrorStats& e) { return e.samples ? std::sqrt(e.sum_sq / double(e.samples)) : 0.0; }
 
+SampleRect source_rect(const CookContext& ctx) { return {0, 0, ctx.source_width - 1, ctx.source_height - 1}; }
+
 }  // namespace
 
-Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x, uint32_t roots_y, int threads, ArchiveWriter& writer,
-                     const ProgressFn& progress, CookReport& report) {
-  std::array<ErrorStats, kLevelCount> level_error{};
-  ErrorStats leaf;  // each source sample against the finest node covering it
-  const int nthreads = resolve_threads(threads);
-  const int level_count = kRootLevel - ctx.finest_level + 1;
-  // Where even the finest level's vertices are further apart than half a source sample, widen the
-  // covered band beyond the raster's outer samples to one vertex spacing (reconstruct.h), so the
-  // triangles holding the outer samples are drawn. A function of position only, as hole flags
-  // must be; 0.5 (no change) for sources of 1 m and coarser.
-  {
-    double sx = 0, sy = 0;
-    ctx.mapping->spacing_m(sx, sy);
-    const double s = vertex_spacing_m(ctx.finest_level);
-    ctx.surface.set_outer_apron(sx > 0 ? s / sx : 0.5, sy > 0 ? s / sy : 0.5);
+SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top) {
+  SampleRect r;
+  top = 0;
+  for (const NodeKey& key : block_nodes(ctx, b)) {
+    const SampleRect q = node_query_rect(ctx, key);
+    const int k = RangeIndex::level_for(q, ctx.source_width, ctx.source_height);
+    top = std::max(top, k);
+    if (q.c1 < 0 || q.r1 < 0 || q.c0 >= ctx.source_width || q.r0 >= ctx.source_height) continue;
+    r = unite(r, RangeIndex::window_for(q, k, ctx.source_width, ctx.source_height));
   }
+  return r;
+}
 
+SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b) {
+  // The block's square plus the root windows' margin, mapped along its edges (a projected square
+  // bends by far less than a sample between 64 points of an edge).
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel);
+  const double x0 = ctx.origin_x + b.x0 * kRootSizeM - margin, x1 = ctx.origin_x + b.x1 * kRootSizeM + margin;
+  const double y0 = ctx.origin_y + b.y0 * kRootSizeM - margin, y1 = ctx.origin_y + b.y1 * kRootSizeM + margin;
+  double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
+  constexpr int kPoints = 64;
+  for (int e = 0; e <= kPoints; ++e) {
+    const double t = double(e) / kPoints;
+    const double pts[4][2] = {{x0 + t * (x1 - x0), y0}, {x0 + t * (x1 - x0), y1}, {x0, y0 + t * (y1 - y0)},
+                              {x1, y0 + t * (y1 - y0)}};
+    for (const auto& p : pts) {
+      double c = 0, r = 0;
+      ctx.mapping->frame_to_sample(p[0], p[1], c, r);
+      cmin = std::min(cmin, c);
+      cmax = std::max(cmax, c);
+      rmin = std::min(rmin, r);
+      rmax = std::max(rmax, r);
+    }
+  }
+  // Taps: one sample before, two after (Catmull-Rom), the error's ring of one and slack of one.
+  const SampleRect r{int(std::floor(cmin)) - 4, int(std::floor(rmin)) - 4, int(std::ceil(cmax)) + 4,
+                     int(std::ceil(rmax)) + 4};
+  return intersect(r, source_rect(ctx));
+}
+
+void block_range_bounds(const CookContext& ctx, const RangeIndex& index, const RootBlock& b, int threads,
+                        std::array<double, kLevelCount>& worst) {
+  const std::vector<NodeKey> keys = block_nodes(ctx, b);
+  std::vector<double> bound(keys.size(), 0.0);
+  parallel_for(keys.size(), resolve_threads(threads), [&](size_t i) {
+    const SampleRect q = node_query_rect(ctx, keys[i]);
+    bound[i] = index.surface_range_bound(q.c0, q.r0, q.c1, q.r1);
+  });
+  for (size_t i = 0; i < keys.size(); ++i) {
+    double& w = worst[keys[i].level];
+    w = std::max(w, bound[i]);
+  }
+}
+
+void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
+                  std::array<uint8_t, kLevelCount>& steps) {
+  const int floor_step = tolerance_step(tolerance_m);
+  for (int level = kRootLevel; level >= finest_level; --level) {
+    const double w = worst[size_t(level)];
+    const int step = level == kRootLevel
+                         ? std::max(required_step(w, -1), floor_step)
+                         : std::min(std::max(required_step(w, steps[kRootLevel]), floor_step), int(steps[size_t(level + 1)]));
+    steps[size_t(level)] = uint8_t(step);
+  }
+  for (int level = finest_level - 1; level >= 0; --level) steps[size_t(level)] = steps[size_t(finest_level)];
+}
+
+Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals,
+                  CookReport& report) {
+  const int nthreads = resolve_threads(threads);
   // Roots that hold terrain.
   std::vector<NodeKey> keys;
   {
     std::vector<NodeKey> all;
-    for (uint32_t y = 0; y < roots_y; ++y)
-      for (uint32_t x = 0; x < roots_x; ++x) all.push_back({uint32_t(kRootLevel), x, y});
+    for (uint32_t y = b.y0; y < b.y1; ++y)
+      for (uint32_t x = b.x0; x < b.x1; ++x) all.push_back({uint32_t(kRootLevel), x, y});
     std::vector<uint8_t> has(all.size(), 0);
     parallel_for(all.size(), nthreads, [&](size_t i) { has[i] = node_has_terrain(ctx, all[i]) ? 1 : 0; });
     for (size_t i = 0; i < all.size(); ++i)
       if (has[i]) keys.push_back(all[i]);
   }
-
   const size_t batch = size_t(16) * size_t(nthreads);
   std::vector<NodeResult> results;
   for (int level = kRootLevel; level >= ctx.finest_level && !keys.empty(); --level) {
     LevelStats& ls = report.levels[size_t(level)];
-    {
-      std::vector<double> bound(keys.size(), 0.0);
-      parallel_for(keys.size(), nthreads, [&](size_t i) { bound[i] = node_range_bound(ctx, index, keys[i]); });
-      const double worst = *std::max_element(bound.begin(), bound.end());
-      // The range's step or the tolerance's, whichever is coarser; capped by the parent level's
-      // (itself >= the tolerance's), so steps never decrease towards the roots.
-      const int floor_step = tolerance_step(ctx.tolerance_m);
-      const int step = level == kRootLevel
-                           ? std::max(required_step(worst, -1), floor_step)
-                           : std::min(std::max(required_step(worst, ctx.step_log2[kRootLevel]), floor_step),
-                                      int(ctx.step_log2[size_t(level + 1)]));
-      for (int l = level; l >= 0; --l) ctx.step_log2[size_t(l)] = uint8_t(step);  // finer levels: until cooked
-    }
-    ErrorStats& le = level_error[size_t(level)];
+    ErrorStats& le = totals.level_error[size_t(level)];
     std::vector<NodeKey> next;
     for (size_t start = 0; start < keys.size(); start += batch) {
       const size_t n = std::min(batch, keys.size() - start);
@@ -98,42 +150,45 @@ Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x
       for (size_t i = 0; i < n; ++i) {  // key order: deterministic bytes and sums
         NodeResult& r = results[i];
         if (!r.status.ok()) return r.status;
-        if (Status st = writer.add_node(r.record, r.payload); !st.ok()) return st;
         ++ls.nodes;
         ls.vertices += r.vertices;
         le.add(r.error.total);
         for (int c = 0; c < 4; ++c) {
           if (r.record.child_mask & (1u << c)) next.push_back(child_of(r.record.key, c));
-          else leaf.add(r.error.quadrant[size_t(c)]);
+          else totals.leaf.add(r.error.quadrant[size_t(c)]);
         }
         report.cpu_heights += r.cpu_heights;
         report.cpu_error += r.cpu_error;
         report.cpu_surface += r.cpu_surface;
         report.cpu_encode += r.cpu_encode;
         add_surface_stats(report.surface, r.surface);
+        if (Status st = sink(r); !st.ok()) return st;
         r.payload = {};
       }
-      if (progress) {
-        const double done = double(kRootLevel - level) + double(start + n) / double(keys.size());
-        if (!progress(done / level_count, fmt::format("level {}", level)))
-          return Status::failure(Error::cancelled, "cancelled");
-      }
     }
+    std::sort(next.begin(), next.end(), key_less);
+    keys = std::move(next);
+  }
+  return Status::success();
+}
+
+void finish_pyramid_report(const CookContext& ctx, const PyramidTotals& totals, CookReport& report) {
+  report.nodes = 0;
+  for (int l = 0; l < kLevelCount; ++l) {
+    LevelStats& ls = report.levels[size_t(l)];
+    const ErrorStats& le = totals.level_error[size_t(l)];
     report.nodes += ls.nodes;
     ls.error_samples = le.samples;
     ls.error_max_m = le.max_m;
     ls.error_rms_m = rms_of(le);
     ls.uncovered_samples = le.uncovered;
-    std::sort(next.begin(), next.end(), key_less);
-    keys = std::move(next);
+    ls.step_log2 = ctx.step_log2[size_t(l)];
   }
   report.output_vertices = report.nodes * uint64_t(kHeightCount);
-  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].step_log2 = ctx.step_log2[size_t(l)];
-  report.leaf_error_samples = leaf.samples;
-  report.leaf_error_max_m = leaf.max_m;
-  report.leaf_error_rms_m = rms_of(leaf);
-  report.leaf_uncovered_samples = leaf.uncovered;
-  return Status::success();
+  report.leaf_error_samples = totals.leaf.samples;
+  report.leaf_error_max_m = totals.leaf.max_m;
+  report.leaf_error_rms_m = rms_of(totals.leaf);
+  report.leaf_uncovered_samples = totals.leaf.uncovered;
 }
 
 }  // namespace terrain::cook

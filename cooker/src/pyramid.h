@@ -1,22 +1,74 @@
-// The level loop: roots with terrain, then each level's children where the parent's error asks
-// for them, cooked in parallel batches and handed to the writer in key order (level 5 first, then
-// y, x), so the archive bytes do not depend on the thread count. Memory: one batch of nodes.
-// Each level's quantization step is chosen when the level's node list is known, from a bound on
-// those nodes' surface ranges (range_index.h); ctx.step_log2 holds the result for every level.
+// The block-wise pyramid (issue 13). The root grid is cut into square blocks of roots; a block's
+// nodes (its roots and all their descendants) read only a window of source samples around it, so
+// memory follows the block, never the input.
+//
+// Two passes over the blocks, each independent of the others and of the block size and order:
+//  1. steps: every node of every level that could exist (its sample rectangle holds data) bounds
+//     its surface range (range_index.h); a level's quantization step comes from the worst bound
+//     of the level (quantize.h), so it is known before any node is cooked.
+//  2. cook: per block, the level loop (roots with terrain, then the children the parents' error
+//     asks for), nodes in parallel batches; results in key order (level 5 first, then y, x)
+//     within the block. The caller restores the global key order (node_spool.h).
 #pragma once
 #include <array>
+#include <functional>
 
 #include "node_cook.h"
 #include "range_index.h"
-#include "terrain/archive_writer.h"
+#include "sample_window.h"
 #include "terrain/cook.h"
 
 namespace terrain::cook {
 
-// Fills the pyramid's part of `report` (levels, nodes, full-detail error, output vertices, the CPU
-// seconds per node stage and the surface totals), summed in key order onto the zeros cook() starts
-// the report with.
-Status build_pyramid(CookContext& ctx, const RangeIndex& index, uint32_t roots_x, uint32_t roots_y, int threads, ArchiveWriter& writer,
-                     const ProgressFn& progress, CookReport& report);
+// Roots [x0, x1) x [y0, y1) of the node grid.
+struct RootBlock {
+  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+// The node grid cut into blocks of `side` x `side` roots, row-major from the south-west.
+struct BlockGrid {
+  uint32_t roots_x = 0, roots_y = 0, side = 1;
+  uint32_t blocks_x() const { return (roots_x + side - 1) / side; }
+  uint32_t blocks_y() const { return (roots_y + side - 1) / side; }
+  uint32_t count() const { return blocks_x() * blocks_y(); }
+  RootBlock block(uint32_t i) const {
+    const uint32_t bx = i % blocks_x(), by = i / blocks_x();
+    return {bx * side, by * side, std::min(roots_x, (bx + 1) * side), std::min(roots_y, (by + 1) * side)};
+  }
+};
+
+// Source samples the step pass of block `b` reads (the range index's blocks of every node query).
+// `top`: the coarsest range-index level those queries use.
+SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top);
+// Source samples the cook of block `b` reads: its nodes' windows, Catmull-Rom taps and the error
+// measurement's ring, clipped to the source.
+SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b);
+
+// Pass 1 for one block: raises worst[level] to the range bound of every node of the block at
+// levels ctx.finest_level .. 5 (index built over block_range_rect()).
+void block_range_bounds(const CookContext& ctx, const RangeIndex& index, const RootBlock& b, int threads,
+                        std::array<double, kLevelCount>& worst);
+// The levels' steps from the worst bounds: the range's step or the tolerance's, whichever is
+// coarser; each level capped by the next coarser one's, so steps never decrease towards the roots.
+// Levels finer than ctx.finest_level get the finest level's step.
+void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
+                  std::array<uint8_t, kLevelCount>& steps);
+
+// Totals of the cook that blocks add to (summed in block order: floating sums may differ in the
+// last bits between block orders; they go to the report only).
+struct PyramidTotals {
+  std::array<ErrorStats, kLevelCount> level_error{};
+  ErrorStats leaf;  // each source sample against the finest node covering it
+};
+
+// Pass 2 for one block (ctx's window covering block_cook_rect()): cooks its nodes and hands each
+// result to `sink` in key order within the block. Fills the report's per-level node and vertex
+// counts, CPU seconds and surface totals.
+using NodeSink = std::function<Status(NodeResult&)>;
+Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals,
+                  CookReport& report);
+
+// The report's pyramid part after every block: nodes, errors, output vertices, steps.
+void finish_pyramid_report(const CookContext& ctx, const PyramidTotals& totals, CookReport& report);
 
 }  // namespace terrain::cook

@@ -11,8 +11,8 @@ bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {
   if (!nearest_valid(ic, ir, tx, ty)) return false;  // the hole test of covered()
   double sum = 0;
   if (ic >= 1 && ir >= 1 && ic + 2 < w_ && ir + 2 < h_) {
-    const float* p = z_ + size_t(ir - 1) * size_t(w_) + size_t(ic - 1);
-    for (int j = 0; j < 4; ++j, p += w_)
+    const float* p = at(ic - 1, ir - 1);
+    for (int j = 0; j < 4; ++j, p += stride_)
       sum += wy[j] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);
   } else {
     // Next to the raster's edge: taps beyond it continue the two outermost samples linearly along
@@ -40,7 +40,7 @@ bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {
     for (int i = 0; i < 2; ++i) {
       const int c = ic + i;
       if (c < 0 || c >= w_) continue;
-      const float v = z_[size_t(r) * size_t(w_) + size_t(c)];
+      const float v = *at(c, r);
       if (std::isnan(v)) continue;
       const double wgt = wr * (i ? tx : 1.0 - tx);
       sum += wgt * v;

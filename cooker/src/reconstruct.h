@@ -18,6 +18,7 @@
 
 #include "anchor_grid.h"
 #include "raster.h"
+#include "sample_window.h"
 
 namespace terrain::cook {
 
@@ -29,7 +30,21 @@ inline double fast_floor(double x) {
 
 class Surface {
  public:
-  explicit Surface(const Raster& r) : z_(r.values.data()), w_(r.width), h_(r.height) {}
+  Surface() = default;
+  // The whole raster in memory.
+  explicit Surface(const Raster& r) : z_(r.values.data()), stride_(r.width), w_(r.width), h_(r.height) {}
+  // A window of the source (block-wise cook): sample coordinates stay the whole source's, and every
+  // evaluation that reads only samples inside the window gives the bits the whole raster gives.
+  explicit Surface(const SampleWindow& win)
+      : z_(win.values.data()), c0_(win.rect.c0), r0_(win.rect.r0), stride_(win.rect.width()), w_(win.source_width),
+        h_(win.source_height) {}
+  // Keeps the outer apron, replaces the samples.
+  void set_samples(const SampleWindow& win) {
+    const double ac = apron_c_, ar = apron_r_;
+    *this = Surface(win);
+    apron_c_ = ac;
+    apron_r_ = ar;
+  }
 
   // How far (in samples, per axis) beyond the outer samples the surface is covered: 0.5 (the
   // pixel edge) by default, at most 1.5 (the linear continuation reaches two samples out).
@@ -66,9 +81,9 @@ class Surface {
     if (x.i >= 1 && y.i >= 1 && x.i + 2 < w_ && y.i + 2 < h_) {
       // The nearest sample is one of the 16 taps and any NaN tap (nodata) poisons the sum (0 * NaN
       // is NaN), so a finite sum means the point is covered; otherwise the general path decides.
-      const float* p = z_ + size_t(y.i - 1) * size_t(w_) + size_t(x.i - 1);
+      const float* p = at(x.i - 1, y.i - 1);
       double sum = 0;
-      for (int j = 0; j < 4; ++j, p += w_)
+      for (int j = 0; j < 4; ++j, p += stride_)
         sum += y.w[j] * (x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3]);
       if (!std::isnan(sum)) {
         h = sum;
@@ -83,7 +98,7 @@ class Surface {
   bool x_interior(const Axis& x) const { return x.in && x.i >= 1 && x.i + 2 < w_; }
   bool y_interior(const Axis& y) const { return y.in && y.i >= 1 && y.i + 2 < h_; }
   double horizontal(const Axis& x, int r) const {
-    const float* p = z_ + size_t(r) * size_t(w_) + size_t(x.i - 1);
+    const float* p = at(x.i - 1, r);
     return x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3];
   }
   // `rows[j]` = horizontal(x, y.i - 1 + j); requires x_interior(x) and y_interior(y).
@@ -109,6 +124,8 @@ class Surface {
   bool sample_general(const Axis& x, const Axis& y, double& h) const;
 
  private:
+  // Sample (c, r) of the source (inside the window).
+  const float* at(int c, int r) const { return z_ + ptrdiff_t(r - r0_) * stride_ + ptrdiff_t(c - c0_); }
 
   // Sample (c, r), with samples up to two beyond the raster extrapolated linearly from the two
   // outermost ones (NaN when those are nodata). Needs a raster of at least 2x2 samples.
@@ -118,13 +135,12 @@ class Surface {
     return row_extended(c, r);
   }
   double row_extended(int c, int r) const {
-    const float* row = z_ + size_t(r) * size_t(w_);
-    if (c < 0) return row[0] + c * (double(row[1]) - row[0]);
-    if (c >= w_) return row[w_ - 1] + (c - w_ + 1) * (double(row[w_ - 1]) - row[w_ - 2]);
-    return row[c];
+    if (c < 0) return *at(0, r) + c * (double(*at(1, r)) - *at(0, r));
+    if (c >= w_) return *at(w_ - 1, r) + (c - w_ + 1) * (double(*at(w_ - 1, r)) - *at(w_ - 2, r));
+    return *at(c, r);
   }
   bool valid(int c, int r) const {
-    return c >= 0 && r >= 0 && c < w_ && r < h_ && !std::isnan(z_[size_t(r) * size_t(w_) + size_t(c)]);
+    return c >= 0 && r >= 0 && c < w_ && r < h_ && !std::isnan(*at(c, r));
   }
   // The nearest sample of (ic + tx, ir + ty) is valid; exactly halfway between two samples either
   // may carry the point, so pixel edges belong to the covered side in every direction.
@@ -144,11 +160,14 @@ class Surface {
   // The outermost valid sample nearest (ic + tx, ir + ty), for points in the widened apron.
   double clamped_nearest(int ic, int ir, double tx, double ty) const {
     const int c = std::clamp(ic + (tx > 0.5 ? 1 : 0), 0, w_ - 1), r = std::clamp(ir + (ty > 0.5 ? 1 : 0), 0, h_ - 1);
-    return z_[size_t(r) * size_t(w_) + size_t(c)];
+    return *at(c, r);
   }
 
-  const float* z_;
-  int w_, h_;
+  const float* z_ = nullptr;
+  int c0_ = 0, r0_ = 0;  // the window's first sample
+  ptrdiff_t stride_ = 0;  // samples per window row
+  int w_ = 0, h_ = 0;     // the whole source
+
   double apron_c_ = 0.5, apron_r_ = 0.5;
 };
 

@@ -80,6 +80,10 @@ std::string report_json(const CookReport& r) {
                 {"height_samples_per_cpu_s", r.height_samples_per_cpu_second}};
   j["peak_rss_bytes"] = r.peak_rss_bytes;
   j["memory_limit_bytes"] = r.memory_limit_bytes;
+  j["blocks"] = {{"block_roots", r.block_roots},
+                 {"count", r.blocks},
+                 {"window_samples_max", r.block_window_samples_max},
+                 {"spool_bytes", r.spool_bytes}};
   if (r.surface_layers) {
     const SurfaceTotals& t = r.surface;
     j["surface"] = {{"normal_err_max_deg", t.normal_err_max_deg},
@@ -147,6 +151,9 @@ std::string report_summary(const CookReport& r) {
                    r.nodes, r.source_samples, r.archive_bytes,
                    r.source_samples ? double(r.archive_bytes) / double(r.source_samples) : 0.0, r.seconds_total,
                    r.source_samples_per_second / 1e6, r.height_samples_per_cpu_second / 1e6, r.peak_rss_bytes >> 20);
+  s += fmt::format("blocks: {} of {}x{} roots, largest source window {} samples, {} bytes spooled; memory limit {} MB\n",
+                   r.blocks, r.block_roots, r.block_roots, r.block_window_samples_max, r.spool_bytes,
+                   r.memory_limit_bytes >> 20);
   return s;
 }
 

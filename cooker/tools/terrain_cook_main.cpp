@@ -131,6 +131,15 @@ int run(int argc, char** argv) {
                  "(today the cook holds the source at ~16 B per sample); default: half the RAM, cgroup limit or "
                  "ulimit -v, whichever is least (" +
                      fmt::format("{:.1f}G here)", double(terrain::cook::default_memory_limit_bytes()) / (1 << 30)));
+  app.add_option("--block-roots", o.block_roots,
+                 "Cook blocks of N x N root nodes (2 km each), reading only each block's window of the source "
+                 "(default 0: the largest block whose window fits a third of --memory-limit); the archive is the "
+                 "same for every N")
+      ->check(cli::int_range(0, 1 << 16));
+  app.add_option("--block-order", o.block_order,
+                 "Cook the blocks in an order shuffled by this seed (0: row by row); tests that the archive does "
+                 "not change")
+      ->group("");
   app.add_option("--fill-max", o.fill_max_samples, "auto: largest enclosed void to fill, in samples")
       ->capture_default_str()
       ->check(cli::int_range(0, 1000000000000LL));

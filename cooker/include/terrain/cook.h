@@ -46,6 +46,11 @@ struct CookOptions {
   // Memory budget in bytes (0: default_memory_limit_bytes()). Every allocation sized by the input
   // is checked against it first; today the cook holds the source in memory at ~16 B per sample.
   uint64_t memory_limit_bytes = 0;
+  // The block-wise cook (issue 13): blocks of block_roots x block_roots root nodes (0: the largest
+  // whose source window fits the budget). block_order 0 cooks blocks row by row; any other value
+  // is the seed of a shuffled order (tests: neither changes a byte of the archive).
+  uint32_t block_roots = 0;
+  uint64_t block_order = 0;
 
   // Raw heightmaps (.r16/.raw: uint16 little-endian by default, .r32/.f32: float32).
   std::array<int, 2> raw_size{0, 0};  // width, height (required for raw input)
@@ -162,6 +167,11 @@ struct CookReport {
   double height_samples_per_cpu_second = 0;   // output vertices / cpu_heights
   uint64_t peak_rss_bytes = 0;
   uint64_t memory_limit_bytes = 0;   // the budget in force
+  // Block-wise cook: blocks of block_roots x block_roots roots; the largest source window a block
+  // read (samples); bytes of node payloads spooled (0 when one block took the whole cook).
+  uint32_t block_roots = 0, blocks = 0;
+  uint64_t block_window_samples_max = 0;
+  uint64_t spool_bytes = 0;
   // What the cook could not do as asked or had to guess (e.g. implausible heights, an unmet
   // tolerance): printed on stderr by terrain-cook and listed in the JSON report.
   std::vector<std::string> warnings;

@@ -1,0 +1,63 @@
+#include "node_spool.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fmt/format.h>
+
+namespace terrain::cook {
+
+NodeSpool::~NodeSpool() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!path_.empty()) ::unlink(path_.c_str());
+}
+
+Status NodeSpool::open(const std::string& path) {
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd_ < 0)
+    return Status::failure(Error::io_write, fmt::format("{}: cannot create the node spool: {}", path, std::strerror(errno)));
+  path_ = path;
+  return Status::success();
+}
+
+Status NodeSpool::add(const NodeRecord& record, std::span<const uint8_t> payload) {
+  size_t done = 0;
+  while (done < payload.size()) {
+    const ssize_t n = ::pwrite(fd_, payload.data() + done, payload.size() - done, off_t(bytes_ + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return Status::failure(Error::io_write, fmt::format("{}: writing the node spool: {}", path_,
+                                                          n < 0 ? std::strerror(errno) : "no space written"));
+    done += size_t(n);
+  }
+  entries_.push_back({record, bytes_, uint32_t(payload.size())});
+  bytes_ += payload.size();
+  return Status::success();
+}
+
+Status NodeSpool::drain(ArchiveWriter& writer) {
+  std::sort(entries_.begin(), entries_.end(),
+            [](const Entry& a, const Entry& b) { return payload_order_less(a.record.key, b.record.key); });
+  std::vector<uint8_t> buf;
+  for (const Entry& e : entries_) {
+    buf.resize(e.size);
+    size_t done = 0;
+    while (done < e.size) {
+      const ssize_t n = ::pread(fd_, buf.data() + done, e.size - done, off_t(e.offset + done));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0)
+        return Status::failure(Error::io_read, fmt::format("{}: reading the node spool: {}", path_,
+                                                           n < 0 ? std::strerror(errno) : "unexpected end"));
+      done += size_t(n);
+    }
+    if (Status st = writer.add_node(e.record, buf); !st.ok()) return st;
+  }
+  entries_.clear();
+  entries_.shrink_to_fit();
+  return Status::success();
+}
+
+}  // namespace terrain::cook
