@@ -3,6 +3,7 @@
 // CRS (mapped to what the cooker understands: geographic, Transverse Mercator, or a named
 // unsupported CRS for the gdalwarp hint).
 #include <cpl_conv.h>
+#include <cpl_minixml.h>
 #include <cpl_error.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
@@ -11,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fmt/format.h>
 #include <mutex>
 #include <vector>
@@ -276,6 +278,53 @@ class GdalSource final : public SourceRaster {
 }  // namespace
 
 void init_gdal() { init_gdal_once(); }
+
+void set_gdal_cache_bytes(uint64_t bytes) {
+  init_gdal_once();
+  if (!CPLGetConfigOption("GDAL_CACHEMAX", nullptr))
+    GDALSetCacheMax64(GIntBig(std::min<uint64_t>(bytes, uint64_t(INT64_MAX))));
+}
+
+uint64_t gdal_cache_used_bytes() { return uint64_t(std::max<GIntBig>(GDALGetCacheUsed64(), 0)); }
+
+namespace {
+
+// Every <SourceFilename> under `node` (nested VRTs' own tiles are checked when they are read).
+void collect_source_files(const CPLXMLNode* node, const std::string& vrt_dir, std::vector<std::string>& out) {
+  for (; node; node = node->psNext) {
+    if (node->eType != CXT_Element) continue;
+    if (EQUAL(node->pszValue, "SourceFilename")) {
+      const char* name = CPLGetXMLValue(node, nullptr, "");
+      const bool relative = CPLTestBool(CPLGetXMLValue(node, "relativeToVRT", "0"));
+      if (name && *name) out.push_back(relative ? std::string(CPLFormFilename(vrt_dir.c_str(), name, nullptr)) : name);
+      continue;
+    }
+    collect_source_files(node->psChild, vrt_dir, out);
+  }
+}
+
+}  // namespace
+
+Status check_vrt_tiles(const std::string& path) {
+  const std::string base = std::filesystem::path(path).filename().string();
+  if (!ends_with(base, ".vrt")) return Status::success();
+  init_gdal_once();
+  QuietErrors quiet;
+  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
+  if (!tree) return Status::success();  // GDAL opened it; its reads name any problem
+  std::vector<std::string> files;
+  collect_source_files(tree, CPLGetPath(path.c_str()), files);
+  CPLDestroyXMLNode(tree);
+  for (const std::string& f : files) {
+    // Names such as "MEM:::..." or "NETCDF:file:var" are not plain files: left to GDAL's read.
+    if (f.find(':') != std::string::npos && f.rfind("/vsi", 0) != 0) continue;
+    VSIStatBufL st;
+    if (VSIStatL(f.c_str(), &st) != 0)
+      return Status::failure(Error::io_read,
+                             fmt::format("{}: cannot read its tile {}: No such file or directory", path, f));
+  }
+  return Status::success();
+}
 
 SourceCrs gdal_crs_of_epsg(int code) {
   init_gdal_once();

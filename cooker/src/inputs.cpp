@@ -46,95 +46,67 @@ bool is_raster_name(const std::string& base) {
   return std::any_of(std::begin(kExts), std::end(kExts), [&](const char* e) { return ends_with(base, e); });
 }
 
-// Inputs with every directory replaced by the rasters under it, in path order (so "first listed
-// wins" is the sorted order within a directory).
-Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out) {
-  out.clear();
-  for (const std::string& in : inputs) {
-    std::error_code ec;
-    if (!std::filesystem::is_directory(in, ec)) {
-      out.push_back(in);
-      continue;
-    }
-    std::vector<std::string> found;
-    for (auto it = std::filesystem::recursive_directory_iterator(in, ec); !ec && it != std::filesystem::end(it);
-         it.increment(ec))
-      if (it->is_regular_file(ec) && is_raster_name(it->path().filename().string())) found.push_back(it->path().string());
-    if (ec) return Status::failure(Error::io_open, fmt::format("{}: cannot list the directory: {}", in, ec.message()));
-    if (found.empty())
-      return Status::failure(Error::unsupported_input, fmt::format("{}: a directory with no raster files in it", in));
-    std::sort(found.begin(), found.end());
-    out.insert(out.end(), found.begin(), found.end());
-  }
-  return Status::success();
-}
-
-Status read_gdal(const std::string& path, const ReadOptions& ro, Raster& r) {
-  std::unique_ptr<SourceRaster> src;
-  if (Status st = open_gdal_source(path, ro, src); !st.ok()) return st;
-  return read_whole_source(*src, ro, r);
-}
-
-Status read_web_tile(const std::string& path, const std::string& encoding_flag, const ReadOptions& ro, Raster& r) {
-  TileAddress t;
-  parse_tile_address(path, t);
-  TileEncoding enc = TileEncoding::none;
-  if (Status st = tile_encoding_of(path, encoding_flag, enc); !st.ok()) return st;
-  std::unique_ptr<SourceRaster> src;
-  if (Status st = open_web_tile(path, t, enc, src); !st.ok()) return st;
-  return read_whole_source(*src, ro, r);
-}
-
 // An undeclared -9999 (the most common nodata value written without a tag) is a void when no
 // 8-neighbour other than -9999 or nodata lies within 1000 m of it: a real -9999 m depth has
 // neighbours near it, a void's rim is land or sea far above it.
 constexpr float kSentinel = -9999.0f;
 constexpr double kSentinelNeighbourM = 1000.0;
 
-uint64_t drop_sentinels(Raster& r) {
-  uint64_t n = 0;
-  const int w = r.width, h = r.height;
-  for (int row = 0; row < h; ++row)
-    for (int col = 0; col < w; ++col) {
-      float& v = r.values[size_t(row) * size_t(w) + size_t(col)];
-      if (v != kSentinel) continue;
-      bool near = false;
-      for (int dr = -1; dr <= 1 && !near; ++dr)
-        for (int dc = -1; dc <= 1 && !near; ++dc) {
-          const int c = col + dc, rr = row + dr;
-          if ((dc == 0 && dr == 0) || c < 0 || rr < 0 || c >= w || rr >= h) continue;
-          const float u = r.at(c, rr);
-          near = !std::isnan(u) && u != kSentinel && std::fabs(double(u) - kSentinel) <= kSentinelNeighbourM;
-        }
-      if (!near) {
-        v = NAN;
-        ++n;
-      }
+// The -9999 rule at (col, row) of a w x h buffer: true when no 8-neighbour inside the buffer is a
+// height within 1000 m of it. Neighbours already dropped (NaN) were -9999 and never count, so the
+// answer does not depend on the order the samples are visited in.
+bool is_void_sentinel(const float* values, int w, int h, int col, int row) {
+  for (int dr = -1; dr <= 1; ++dr)
+    for (int dc = -1; dc <= 1; ++dc) {
+      const int c = col + dc, rr = row + dr;
+      if ((dc == 0 && dr == 0) || c < 0 || rr < 0 || c >= w || rr >= h) continue;
+      const float u = values[size_t(rr) * size_t(w) + size_t(c)];
+      if (!std::isnan(u) && u != kSentinel && std::fabs(double(u) - kSentinel) <= kSentinelNeighbourM) return false;
     }
-  return n;
+  return true;
 }
 
 }  // namespace
 
+void finish_window(float* values, int w, int h, int ix0, int iy0, int iw, int ih, const HeightRules& rules,
+                   Raster::Implausible* count) {
+  Raster::Implausible unused;
+  Raster::Implausible& im = count ? *count : unused;
+  // Sentinels on the file's own values (-9999 is written before any scale applies): every one of
+  // the window first, so the neighbours they look at are still file values.
+  if (!rules.nodata_declared)
+    for (int row = iy0; row < iy0 + ih; ++row)
+      for (int col = ix0; col < ix0 + iw; ++col) {
+        float& v = values[size_t(row) * size_t(w) + size_t(col)];
+        if (v == kSentinel && is_void_sentinel(values, w, h, col, row)) {
+          v = NAN;
+          ++im.sentinel;
+        }
+      }
+  const bool affine = rules.scale != 1.0 || rules.offset != 0.0;
+  for (int row = iy0; row < iy0 + ih; ++row) {
+    float* p = values + size_t(row) * size_t(w);
+    for (int col = ix0; col < ix0 + iw; ++col) {
+      float& v = p[col];
+      if (std::isnan(v)) continue;
+      const double m = affine ? double(v) * rules.scale + rules.offset : double(v);
+      if (m >= rules.valid_range_m[0] && m <= rules.valid_range_m[1]) {
+        v = float(m);
+        continue;
+      }
+      im.lowest = im.out_of_range ? std::min(im.lowest, m) : m;
+      im.highest = im.out_of_range ? std::max(im.highest, m) : m;
+      ++im.out_of_range;
+      v = NAN;
+    }
+  }
+}
+
 uint64_t finish_heights(Raster& r, double scale, double offset, const std::array<double, 2>& valid_range_m,
                         bool nodata_declared) {
   r.implausible = {};
-  // Sentinels on the file's own values (-9999 is written before any scale applies).
-  if (!nodata_declared) r.implausible.sentinel = drop_sentinels(r);
-  const bool affine = scale != 1.0 || offset != 0.0;
-  for (float& v : r.values) {
-    if (std::isnan(v)) continue;
-    const double m = affine ? double(v) * scale + offset : double(v);
-    if (m >= valid_range_m[0] && m <= valid_range_m[1]) {
-      v = float(m);
-      continue;
-    }
-    Raster::Implausible& im = r.implausible;
-    im.lowest = im.out_of_range ? std::min(im.lowest, m) : m;
-    im.highest = im.out_of_range ? std::max(im.highest, m) : m;
-    ++im.out_of_range;
-    v = NAN;
-  }
+  finish_window(r.values.data(), r.width, r.height, 0, 0, r.width, r.height,
+                HeightRules{scale, offset, valid_range_m, nodata_declared}, &r.implausible);
   return r.implausible.out_of_range + r.implausible.sentinel;
 }
 
@@ -163,8 +135,35 @@ Status check_raster_memory(const std::string& path, uint64_t width, uint64_t hei
                       "-srcwin) and cook them apart");
 }
 
-Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
+// Inputs with every directory replaced by the rasters under it, in path order (so "first listed
+// wins" is the sorted order within a directory).
+Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out) {
   out.clear();
+  for (const std::string& in : inputs) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(in, ec)) {
+      out.push_back(in);
+      continue;
+    }
+    std::vector<std::string> found;
+    for (auto it = std::filesystem::recursive_directory_iterator(in, ec); !ec && it != std::filesystem::end(it);
+         it.increment(ec))
+      if (it->is_regular_file(ec) && is_raster_name(it->path().filename().string())) found.push_back(it->path().string());
+    if (ec) return Status::failure(Error::io_open, fmt::format("{}: cannot list the directory: {}", in, ec.message()));
+    if (found.empty())
+      return Status::failure(Error::unsupported_input, fmt::format("{}: a directory with no raster files in it", in));
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  return Status::success();
+}
+
+InputLayer::InputLayer() = default;
+InputLayer::~InputLayer() = default;
+InputLayer::InputLayer(InputLayer&&) noexcept = default;
+InputLayer& InputLayer::operator=(InputLayer&&) noexcept = default;
+
+Status input_read_options(const CookOptions& options, ReadOptions& ro) {
   if (options.inputs.empty()) return Status::failure(Error::invalid_argument, "no input files given");
   SourceCrs crs_override;
   if (!options.crs.empty())
@@ -175,8 +174,7 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
     return Status::failure(Error::invalid_argument, "--spacing must be positive");
   if (!(std::isfinite(options.height_scale) && options.height_scale != 0 && std::isfinite(options.height_offset)))
     return Status::failure(Error::invalid_argument, "--height-scale must be finite and non-zero, --height-offset finite");
-
-  ReadOptions ro;
+  ro = ReadOptions{};
   ro.nodata_value = options.nodata_value;
   ro.raw_size = options.raw_size;
   ro.raw_type = options.raw_type;
@@ -186,6 +184,117 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
     return Status::failure(Error::invalid_argument,
                            fmt::format("--valid-range {},{}: expected MIN,MAX in metres with MIN < MAX, e.g. -12000,9000",
                                        options.valid_range_m[0], options.valid_range_m[1]));
+  return Status::success();
+}
+
+Status open_input_layer(const std::string& path, const CookOptions& options, const ReadOptions& ro, InputLayer& out) {
+  out = InputLayer{};
+  if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
+  Raster r;
+  std::unique_ptr<SourceRaster> src;
+  Status st;
+  switch (format_of(path)) {
+    case Format::gdal: st = open_gdal_source(path, ro, src); break;
+    case Format::web_tile: {
+      TileAddress t;
+      parse_tile_address(path, t);
+      TileEncoding enc = TileEncoding::none;
+      st = tile_encoding_of(path, options.tile_encoding, enc);
+      if (st.ok()) st = open_web_tile(path, t, enc, src);
+      break;
+    }
+    case Format::hgt: st = read_hgt(path, ro, r); break;
+    case Format::image: st = read_image(path, ro, r); break;
+    case Format::raw: st = read_raw(path, ro, r); break;
+    case Format::npz: st = read_npz(path, ro, r); break;
+  }
+  if (!st.ok()) return st;
+  if (src) {
+    // What read_whole_source states of a source, without its values.
+    const SourceInfo& info = src->info();
+    r.path = info.path;
+    r.width = info.width;
+    r.height = info.height;
+    r.geo = info.geo;
+    r.crs = info.crs;
+    r.nodata_declared = info.nodata.has_value();
+    r.description = info.description;
+  }
+  if (r.width < 2 || r.height < 2)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("{}: {}x{} samples; at least 2x2 are needed", path, r.width, r.height));
+
+  if (options.spacing) {
+    // Heightmap images and raw grids are vertex grids: the terrain ends at the outer samples.
+    if (!r.geo.valid) r.geo.point_samples = true;
+    const double sx = (*options.spacing)[0], sy = (*options.spacing)[1];
+    const std::array<double, 2> o = options.origin.value_or(std::array<double, 2>{0.0, 0.0});
+    r.geo.c[0] = o[0];
+    r.geo.c[1] = sx;
+    r.geo.c[2] = 0;
+    r.geo.c[3] = o[1] + double(r.height - 1) * sy;  // row 0 is the northern row
+    r.geo.c[4] = 0;
+    r.geo.c[5] = -sy;
+    r.geo.valid = true;
+  }
+  if (!r.geo.valid)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("{}: carries no georeferencing; give --spacing DX,DY (and --origin X,Y of the "
+                                       "south-west sample, --crs)", path));
+  if (!options.crs.empty())
+    if (Status cst = parse_crs_spec(options.crs, r.crs); !cst.ok()) return cst;
+  if (r.crs.kind == CrsKind::none)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("{}: has no CRS; say what its coordinates are with --crs (EPSG:4326 for lon/lat, "
+                                       "EPSG:326xx for UTM, any Transverse Mercator EPSG code, tm:lon0=..,k0=..,x0=.., "
+                                       "or local for a game heightmap)", path));
+  if (r.crs.kind == CrsKind::unsupported)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("{}: its CRS is {}, which terrain-cook cannot use (it reads geographic lon/lat, "
+                                       "UTM and other Transverse Mercator CRSs); {}",
+                                       path, describe_crs(r.crs), conversion_hint(r.crs, path)));
+  out.rules = HeightRules{options.height_scale, options.height_offset, options.valid_range_m,
+                          r.nodata_declared || options.nodata_value.has_value()};
+  // Inputs read whole are finished now (their implausible counts are then known).
+  if (!src) finish_heights(r, out.rules.scale, out.rules.offset, out.rules.valid_range_m, out.rules.nodata_declared);
+  out.raster = std::move(r);
+  out.source = std::move(src);
+  return Status::success();
+}
+
+Status read_layer_window(InputLayer& layer, int x0, int y0, int w, int h, float* out, std::vector<float>& scratch,
+                         Raster::Implausible* count) {
+  const Raster& r = layer.raster;
+  if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > r.width || y0 + h > r.height)
+    return Status::failure(Error::invalid_argument, fmt::format("{}: window {}x{} at ({}, {}) outside the {}x{} raster",
+                                                                r.path, w, h, x0, y0, r.width, r.height));
+  if (!layer.source) {
+    for (int row = 0; row < h; ++row)
+      std::copy_n(&r.values[size_t(y0 + row) * size_t(r.width) + size_t(x0)], size_t(w), out + size_t(row) * size_t(w));
+    return Status::success();
+  }
+  // The -9999 rule looks at 8 neighbours: read a ring of one sample around the window (inside the input).
+  const int ring = layer.rules.nodata_declared ? 0 : 1;
+  const int rx0 = std::max(0, x0 - ring), ry0 = std::max(0, y0 - ring);
+  const int rx1 = std::min(r.width, x0 + w + ring), ry1 = std::min(r.height, y0 + h + ring);
+  const int rw = rx1 - rx0, rh = ry1 - ry0;
+  if (rw == w && rh == h) {
+    if (Status st = layer.source->read_window(x0, y0, w, h, out); !st.ok()) return st;
+    finish_window(out, w, h, 0, 0, w, h, layer.rules, count);
+    return Status::success();
+  }
+  scratch.resize(size_t(rw) * size_t(rh));
+  if (Status st = layer.source->read_window(rx0, ry0, rw, rh, scratch.data()); !st.ok()) return st;
+  finish_window(scratch.data(), rw, rh, x0 - rx0, y0 - ry0, w, h, layer.rules, count);
+  for (int row = 0; row < h; ++row)
+    std::copy_n(&scratch[size_t(y0 - ry0 + row) * size_t(rw) + size_t(x0 - rx0)], size_t(w), out + size_t(row) * size_t(w));
+  return Status::success();
+}
+
+Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
+  out.clear();
+  ReadOptions ro;
+  if (Status st = input_read_options(options, ro); !st.ok()) return st;
   // The budget: each input's whole-cook estimate, less what the inputs before it took.
   const uint64_t limit = memory_limit_of(options);
   uint64_t reserved = 0;
@@ -193,56 +302,27 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
 
   std::vector<std::string> paths;
   if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  std::vector<float> scratch;
   for (const std::string& path : paths) {
-    if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
-    Raster r;
-    Status st;
     ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;
-    switch (format_of(path)) {
-      case Format::gdal: st = read_gdal(path, ro, r); break;
-      case Format::web_tile: st = read_web_tile(path, options.tile_encoding, ro, r); break;
-      case Format::hgt: st = read_hgt(path, ro, r); break;
-      case Format::image: st = read_image(path, ro, r); break;
-      case Format::raw: st = read_raw(path, ro, r); break;
-      case Format::npz: st = read_npz(path, ro, r); break;
+    InputLayer layer;
+    if (Status st = open_input_layer(path, options, ro, layer); !st.ok()) return st;
+    if (layer.source) {
+      // One window over the whole input: the windowed mosaic's path.
+      const SourceInfo& info = layer.source->info();
+      if (Status st = check_raster_memory(info.path, uint64_t(info.width), uint64_t(info.height), info.sample_type, ro,
+                                          layer.source->scratch_bytes(info.width, info.height));
+          !st.ok())
+        return st;
+      Raster& r = layer.raster;
+      r.values.assign(size_t(r.width) * size_t(r.height), NAN);
+      r.implausible = {};
+      if (Status st = read_layer_window(layer, 0, 0, r.width, r.height, r.values.data(), scratch, &r.implausible);
+          !st.ok())
+        return st;
     }
-    if (!st.ok()) return st;
-    if (r.width < 2 || r.height < 2)
-      return Status::failure(Error::unsupported_input,
-                             fmt::format("{}: {}x{} samples; at least 2x2 are needed", path, r.width, r.height));
-
-    if (options.spacing) {
-      // Heightmap images and raw grids are vertex grids: the terrain ends at the outer samples.
-      if (!r.geo.valid) r.geo.point_samples = true;
-      const double sx = (*options.spacing)[0], sy = (*options.spacing)[1];
-      const std::array<double, 2> o = options.origin.value_or(std::array<double, 2>{0.0, 0.0});
-      r.geo.c[0] = o[0];
-      r.geo.c[1] = sx;
-      r.geo.c[2] = 0;
-      r.geo.c[3] = o[1] + double(r.height - 1) * sy;  // row 0 is the northern row
-      r.geo.c[4] = 0;
-      r.geo.c[5] = -sy;
-      r.geo.valid = true;
-    }
-    if (!r.geo.valid)
-      return Status::failure(Error::invalid_argument,
-                             fmt::format("{}: carries no georeferencing; give --spacing DX,DY (and --origin X,Y of the "
-                                         "south-west sample, --crs)", path));
-    if (!options.crs.empty()) r.crs = crs_override;
-    if (r.crs.kind == CrsKind::none)
-      return Status::failure(Error::invalid_argument,
-                             fmt::format("{}: has no CRS; say what its coordinates are with --crs (EPSG:4326 for lon/lat, "
-                                         "EPSG:326xx for UTM, any Transverse Mercator EPSG code, tm:lon0=..,k0=..,x0=.., "
-                                         "or local for a game heightmap)", path));
-    if (r.crs.kind == CrsKind::unsupported)
-      return Status::failure(Error::unsupported_input,
-                             fmt::format("{}: its CRS is {}, which terrain-cook cannot use (it reads geographic lon/lat, "
-                                         "UTM and other Transverse Mercator CRSs); {}",
-                                         path, describe_crs(r.crs), conversion_hint(r.crs, path)));
-    finish_heights(r, options.height_scale, options.height_offset, options.valid_range_m,
-                   r.nodata_declared || options.nodata_value.has_value());
-    reserved += uint64_t(r.values.size()) * kCookBytesPerSample;
-    out.push_back(std::move(r));
+    reserved += uint64_t(layer.raster.values.size()) * kCookBytesPerSample;
+    out.push_back(std::move(layer.raster));
   }
   return Status::success();
 }

@@ -3,6 +3,7 @@
 #pragma once
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -44,8 +45,52 @@ Status read_raw(const std::string& path, const ReadOptions& options, Raster& out
 Status read_npz(const std::string& path, const ReadOptions& options, Raster& out);
 
 // Reads every input with the reader its name calls for, applies --crs, --origin, --spacing,
-// --height-scale and --height-offset, and checks that each input is positioned.
+// --height-scale and --height-offset, and checks that each input is positioned. Each input is an
+// InputLayer (below) read whole through read_layer_window: the same path as the windowed mosaic.
 Status load_inputs(const CookOptions& options, std::vector<Raster>& out);
+
+// What turns a file's values into heights (after the reader's own scale/offset and nodata):
+// --height-scale / --height-offset, --valid-range, and the undeclared -9999 rule.
+struct HeightRules {
+  double scale = 1.0, offset = 0.0;
+  std::array<double, 2> valid_range_m{-12000.0, 9000.0};
+  bool nodata_declared = false;  // the file or --nodata-value declares nodata: no -9999 rule
+};
+
+// One input, opened. GDAL-readable inputs (and web tiles) keep their SourceRaster open and are read
+// by windows, their heights finished per window; the inputs only our own readers take (.npz, HGT,
+// PNG/EXR, raw) are read whole at open and finished then (`raster.values` holds them).
+class SourceRaster;
+struct InputLayer {
+  Raster raster;  // path, description, size, geo and crs after the flags; values only when source is null
+  std::unique_ptr<SourceRaster> source;
+  HeightRules rules;
+  InputLayer();
+  ~InputLayer();
+  InputLayer(InputLayer&&) noexcept;
+  InputLayer& operator=(InputLayer&&) noexcept;
+};
+
+// The checks of the flags load_inputs makes before reading anything, and the options every reader
+// gets from them (memory limit and bytes per sample left to the caller).
+Status input_read_options(const CookOptions& options, ReadOptions& ro);
+// The inputs with every directory replaced by the rasters under it, in path order.
+Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out);
+// Opens `path` (file checks, reader by name, --crs/--origin/--spacing, positioned, CRS usable, at
+// least 2x2) as load_inputs does, with `ro`'s memory budget for an input read whole.
+Status open_input_layer(const std::string& path, const CookOptions& options, const ReadOptions& ro, InputLayer& out);
+// Heights of samples [x0, x0+w) x [y0, y0+h) of the layer (inside it) into out: every rule of
+// HeightRules applied (a 1-sample ring is read around the window so the -9999 rule sees the same
+// neighbours as over the whole input). `scratch` holds the ring window between calls. Counts the
+// implausible samples of the window into `count` when given.
+Status read_layer_window(InputLayer& layer, int x0, int y0, int w, int h, float* out, std::vector<float>& scratch,
+                         Raster::Implausible* count);
+
+// The rules on samples [ix0, ix0+iw) x [iy0, iy0+ih) of a w x h buffer of file heights (the samples
+// around them are the neighbours the -9999 rule looks at and stay as they are). finish_heights is
+// this over a whole raster. Counts into `count` when given.
+void finish_window(float* values, int w, int h, int ix0, int iy0, int iw, int ih, const HeightRules& rules,
+                   Raster::Implausible* count);
 
 // Small helpers shared by the readers.
 bool ends_with(const std::string& s, const std::string& suffix);  // case-insensitive

@@ -18,6 +18,8 @@ namespace terrain::cook {
 // Geographic inputs are placed by longitude modulo 360 (tiles either side of the antimeridian join).
 // A single input is moved through unchanged. The mosaic (plus the inputs it copies from) is
 // checked against memory_limit_bytes before it is allocated (tiles far apart make a huge one).
+// Implemented as MosaicSource (mosaic_source.h) over the inputs held whole, read as one window: the
+// windowed cook's reader places and overlaps inputs with the same code.
 Status mosaic(std::vector<Raster>& inputs, Raster& out, uint64_t memory_limit_bytes = UINT64_MAX);
 
 }  // namespace terrain::cook

@@ -1,4 +1,5 @@
-// The whole-raster read on top of a window reader (what load_inputs uses until the block-wise cook).
+// The whole-raster read on top of a window reader (load_inputs reads through read_layer_window instead,
+// which adds the height rules; this stays for the readers' own tests).
 #include "source_raster.h"
 
 #include <algorithm>

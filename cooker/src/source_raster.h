@@ -51,6 +51,15 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
 
 // Registers GDAL's drivers and sets its cache once (called by every GDAL-backed source).
 void init_gdal();
+// GDAL's block cache (process-wide): init_gdal sets 64 MB; the block-wise cook gives it a share of
+// --memory-limit. An explicit GDAL_CACHEMAX (environment or config option) wins over both.
+void set_gdal_cache_bytes(uint64_t bytes);
+// Bytes GDAL's block cache holds now.
+uint64_t gdal_cache_used_bytes();
+// A VRT (by name, .vrt) whose listed tiles do not all exist: an io_read error naming the VRT and the
+// missing tile ("No such file or directory"), which a read of the windows over it would give later.
+// Success for anything else.
+Status check_vrt_tiles(const std::string& path);
 
 // EPSG `code` as the GDAL reader maps a file in that CRS (kind none when GDAL does not know it).
 SourceCrs gdal_crs_of_epsg(int code);
