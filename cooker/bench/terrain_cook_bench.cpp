@@ -287,19 +287,35 @@ void scale_cook(ScaleRow& row, const std::string& tool, const std::string& dem, 
   row.rss_bytes = median(rss);
 }
 
+struct ScaleOptions {
+  std::vector<int> sizes, baseline_sizes;  // km
+  bool heights_only = false;
+  int runs = 1;
+  double tile_km = 0;  // > 0: each DEM is a VRT of tile_km x tile_km km GeoTIFF tiles
+  std::string work, source, python, script;
+};
+
+// The generated DEM of one size: one tiled GeoTIFF, or a VRT of GeoTIFF tiles (--tile-km).
+std::string dem_path(const ScaleOptions& o, int km) {
+  return o.tile_km > 0 ? fmt::format("{}/lidar_like_{}km_tiles{:g}km.vrt", o.work, km, o.tile_km)
+                       : fmt::format("{}/lidar_like_{}km.tif", o.work, km);
+}
+
 // Makes the DEM of one size unless present; "" or why not.
-std::string ensure_dem(const std::string& dem, uint64_t samples, const std::string& work, const std::string& python,
-                       const std::string& script, const std::string& source, int km, double& gen_s) {
+std::string ensure_dem(const ScaleOptions& o, const std::string& dem, uint64_t samples, int km, double& gen_s) {
   if (std::filesystem::exists(dem)) {
     gen_s = 0;  // reused
     return "";
   }
   const double disk_need = kGeneratedBytesPerSample * double(samples);
-  if (disk_need > double(disk_free_bytes(work)))
-    return fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), work);
-  const Run g = run({python, script, "--source", source, "--size-km", std::to_string(km), "--out", dem});
+  if (disk_need > double(disk_free_bytes(o.work)))
+    return fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), o.work);
+  std::vector<std::string> argv = {o.python, o.script, "--source", o.source, "--size-km", std::to_string(km),
+                                   "--out", dem};
+  if (o.tile_km > 0) argv.insert(argv.end(), {"--tile-km", fmt::format("{:g}", o.tile_km)});
+  const Run g = run(argv);
   gen_s = g.wall_s;
-  return g.ok ? "" : fmt::format("failed: {} {} could not make {}", python, script, dem);
+  return g.ok ? "" : fmt::format("failed: {} {} could not make {}", o.python, o.script, dem);
 }
 
 std::string count_or_dash(int64_t v) { return v < 0 ? "-" : std::to_string(v); }
@@ -474,11 +490,13 @@ std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& titl
   return s + "</svg>\n";
 }
 
-int scale_main(const std::string& tool, const std::filesystem::path& self, std::vector<int> sizes,
-               const std::vector<int>& baseline_sizes, bool heights_only, int runs, std::string work,
-               const std::string& source, const std::string& python, std::string script) {
-  if (work.empty()) work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
-  if (script.empty()) script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+int scale_main(const std::string& tool, const std::filesystem::path& self, ScaleOptions o) {
+  if (o.work.empty()) o.work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
+  if (o.script.empty()) o.script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+  const std::string& work = o.work;
+  const std::string& source = o.source;
+  const bool heights_only = o.heights_only;
+  const int runs = o.runs;
   std::error_code ec;
   std::filesystem::create_directories(work, ec);
   if (ec) {
@@ -494,8 +512,10 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, std::
                                                        : std::vector<std::string>{};
   std::vector<std::string> in_core = common;
   in_core.insert(in_core.end(), {"--block-roots", kInCoreBlockRoots, "--memory-limit", kInCoreMemoryLimit});
-  fmt::print("terrain-cook-bench --scale: {} cooks of 1 m lidar-like squares from {}, work {}, median of {} run{}\n",
-             mode, source, work, runs, runs == 1 ? "" : "s");
+  const std::string dem_form = o.tile_km > 0 ? fmt::format("VRT of {:g} km GeoTIFF tiles", o.tile_km) : "GeoTIFF";
+  fmt::print("terrain-cook-bench --scale: {} cooks of 1 m lidar-like squares ({}) from {}, work {}, median of {} "
+             "run{}\n",
+             mode, dem_form, source, work, runs, runs == 1 ? "" : "s");
   fmt::print("blocks: default flags{}; in-core: the same plus --block-roots {} --memory-limit {} (one block: "
              "the whole source in memory), skipped when its estimated peak (max({} B/sample, measured so far) x "
              "samples) exceeds {:.0f}% of MemAvailable. vs_in-core: the blocks archive compared byte for byte "
@@ -508,20 +528,20 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, std::
   std::vector<ScaleRow> rows;
   double in_core_bps = 0;  // largest in-core bytes per sample measured so far
   bool different = false;
-  for (int km : sizes) {
+  for (int km : o.sizes) {
     ScaleRow b;
     b.mode = "blocks";
     b.km = km;
     b.samples = uint64_t(km) * 1000 * uint64_t(km) * 1000;
-    const std::string dem = fmt::format("{}/lidar_like_{}km.tif", work, km);
-    const std::string why = ensure_dem(dem, b.samples, work, python, script, source, km, b.gen_s);
+    const std::string dem = dem_path(o, km);
+    const std::string why = ensure_dem(o, dem, b.samples, km, b.gen_s);
     const bool have_dem = why.empty();
     if (!have_dem) b.status = why;
     const std::string blocks_archive = fmt::format("{}/lidar_like_{}km.blocks.terrain", work, km);
     const std::string in_core_archive = fmt::format("{}/lidar_like_{}km.in-core.terrain", work, km);
     if (b.ok()) scale_cook(b, tool, dem, blocks_archive, common, runs);
     const bool want_in_core =
-        std::find(baseline_sizes.begin(), baseline_sizes.end(), km) != baseline_sizes.end();
+        std::find(o.baseline_sizes.begin(), o.baseline_sizes.end(), km) != o.baseline_sizes.end();
     if (!want_in_core || !b.ok()) print_scale_row(b);  // else printed with the comparison below
     if (want_in_core) {
       ScaleRow i;
@@ -584,6 +604,7 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, std::
   for (const TargetCheck& c : checks) targets.push_back({{"target", c.name}, {"verdict", c.verdict}, {"detail", c.detail}});
   std::ofstream(stem + ".json") << nlohmann::json{{"mode", mode},
                                                   {"source", source},
+                                                  {"dem_form", dem_form},
                                                   {"runs", runs},
                                                   {"threads", std::thread::hardware_concurrency()},
                                                   {"in_core_flags", in_core},
@@ -600,6 +621,7 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, std::
   if (different) fmt::print(stderr, "terrain-cook-bench: a block-wise archive differs from the in-core one\n");
   return failed ? 1 : 0;
 }
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -608,9 +630,11 @@ int main(int argc, char** argv) {
   std::vector<std::string> only;
   int runs = 3;
   bool skip_default = false;
-  bool scale = false, heights_only = false;
-  std::vector<int> sizes = {4, 8, 16, 40}, baseline_sizes = {8};
-  std::string work, source, script, python = "/usr/bin/python3";
+  bool scale = false;
+  ScaleOptions so;
+  so.sizes = {4, 8, 16, 40};
+  so.baseline_sizes = {8};
+  so.python = "/usr/bin/python3";
   CLI::App app{"terrain-cook-bench: tolerance sweep over the shared DEMs against gdalwarp -r cubic"};
   app.add_option("--data", data, "Folder of the shared DEMs")->capture_default_str();
   app.add_option("--tolerances", tolerances, "Tolerances to sweep (metres)")->delimiter(',');
@@ -618,18 +642,22 @@ int main(int argc, char** argv) {
   app.add_option("--runs", runs, "Runs per measurement (median; default 3, --scale 1)")->check(CLI::Range(1, 100));
   app.add_flag("--skip-default", skip_default, "Skip the default cooks with every section");
   app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
-  app.add_option("--sizes", sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
+  app.add_option("--sizes", so.sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
       ->capture_default_str();
-  app.add_option("--baseline-sizes", baseline_sizes,
+  app.add_option("--baseline-sizes", so.baseline_sizes,
                  "--scale: sizes (of --sizes) also cooked in-core, one block with a large --memory-limit (0: none)")
       ->delimiter(',')
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
-  app.add_flag("--heights-only", heights_only, "--scale: cook with --heights-only");
-  app.add_option("--work", work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
-  app.add_option("--source", source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
-  app.add_option("--python", python, "--scale: Python with GDAL and numpy")->capture_default_str();
-  app.add_option("--script", script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
+  app.add_flag("--heights-only", so.heights_only, "--scale: cook with --heights-only");
+  app.add_option("--tile-km", so.tile_km,
+                 "--scale: generate each square as a VRT of K x K km GeoTIFF tiles, as national lidar comes "
+                 "(default 0: one tiled GeoTIFF)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--work", so.work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
+  app.add_option("--source", so.source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
+  app.add_option("--python", so.python, "--scale: Python with GDAL and numpy")->capture_default_str();
+  app.add_option("--script", so.script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -643,11 +671,11 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
   }
-  if (scale)
-    return scale_main(tool, self, sizes, baseline_sizes, heights_only, app.count("--runs") ? runs : 1, work,
-                      source.empty() ? std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string()
-                                     : source,
-                      python, script);
+  if (scale) {
+    so.runs = app.count("--runs") ? runs : 1;
+    if (so.source.empty()) so.source = std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string();
+    return scale_main(tool, self, so);
+  }
   const std::string d = data + "/";
   std::vector<Dem> dems = {
       {"tahoe_bare", d + "tahoe_lidar_bareearth.tif", {}, d + "tahoe_lidar_bareearth.tif"},
