@@ -428,7 +428,15 @@ std::pair<double, double> nice_axis(double v) {
 // per mode; the peak panel draws the 2 GiB target. Plain SVG: opens in any browser.
 std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& title) {
   constexpr double kPanelW = 340, kPanelH = 230, kLeft = 64, kTop = 72, kGap = 90;
+  // Blocks: filled dots; in-core: rings around them, so equal values stay visible.
   const std::vector<std::pair<std::string, std::string>> series = {{"blocks", "#1f5fbf"}, {"in-core", "#d0402a"}};
+  const auto marker = [](const std::string& mode, double x, double y, const std::string& colour) {
+    return mode == "blocks"
+               ? fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\">", x, y, colour)
+               : fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"7\" fill=\"none\" stroke=\"{}\" "
+                             "stroke-width=\"2\">",
+                             x, y, colour);
+  };
   double max_km = 0, max_peak = mib(kPeakTargetBytes), max_rate = 0;
   for (const ScaleRow& r : rows) {
     if (!r.ok()) continue;
@@ -443,9 +451,9 @@ std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& titl
       "<text x=\"{2}\" y=\"22\" font-size=\"14\">{3}</text>\n",
       kLeft + 2 * kPanelW + kGap + 30, kTop + kPanelH + 56, kLeft, xml_escape(title));
   for (size_t k = 0; k < series.size(); ++k)  // legend
-    s += fmt::format(
-        "<circle cx=\"{0}\" cy=\"38\" r=\"4\" fill=\"{1}\"/><text x=\"{2}\" y=\"42\">{3}</text>\n",
-        kLeft + 4 + 110.0 * double(k), series[k].second, kLeft + 12 + 110.0 * double(k), series[k].first);
+    s += marker(series[k].first, kLeft + 8 + 110.0 * double(k), 40, series[k].second) +
+         fmt::format("</circle><text x=\"{}\" y=\"44\">{}</text>\n", kLeft + 20 + 110.0 * double(k),
+                     series[k].first);
   const auto panel = [&](double x0, const std::string& y_label, double y_max_data, auto value, double target) {
     const auto [y_end, y_step] = nice_axis(y_max_data);
     const auto px = [&](double km) { return x0 + kPanelW * km / x_end; };
@@ -475,8 +483,7 @@ std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& titl
         if (r.mode != mode || !r.ok()) continue;
         const double x = px(r.km), y = py(value(r));
         points += fmt::format("{:.1f},{:.1f} ", x, y);
-        p += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\"><title>{} {} km: {:.3g}</title></circle>\n",
-                         x, y, colour, mode, r.km, value(r));
+        p += marker(mode, x, y, colour) + fmt::format("<title>{} {} km: {:.3g}</title></circle>\n", mode, r.km, value(r));
       }
       if (std::count(points.begin(), points.end(), ' ') > 1)
         p += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.5\"/>\n", points, colour);
