@@ -9,9 +9,12 @@ source is mirrored at them (Kilauea is 25.7 x 23.8 km, the 40 km square needs th
 
 Streams by blocks of rows and columns: memory is one block plus the (small) source, whatever the size.
 Writes a tiled, ZSTD-compressed Float32 GeoTIFF (BIGTIFF=IF_SAFER) through a temporary name, so a file
-under the final name is always complete.
+under the final name is always complete. With --tile-km K the square is instead cut into K x K km GeoTIFF
+tiles (as national lidar is delivered) in the folder OUT.tiles, listed by the VRT OUT (written last); the
+samples are the same as those of the single file.
 
 Usage: make_lidar_like.py --size-km 8 --out DIR/lidar_like_8km.tif [--source DEM] [--seed 1] [--block 2048]
+       make_lidar_like.py --size-km 8 --out DIR/lidar_like_8km_tiles1km.vrt --tile-km 1
 Needs python3-gdal and python3-numpy (Debian's /usr/bin/python3).
 """
 import argparse
@@ -104,9 +107,13 @@ def main():
     p.add_argument("--out", required=True, help="output GeoTIFF (its folder must exist)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--block", type=int, default=2048, help="samples per block side (multiple of 512)")
+    p.add_argument("--tile-km", type=float, default=0,
+                   help="write K x K km GeoTIFF tiles listed by the VRT --out (default 0: one GeoTIFF)")
     a = p.parse_args()
     if a.block % 512 or a.block <= 0:
         sys.exit("make_lidar_like.py: --block must be a positive multiple of 512")
+    if a.tile_km < 0 or (a.tile_km and not a.out.endswith(".vrt")):
+        sys.exit("make_lidar_like.py: --tile-km needs a positive size and an --out ending in .vrt")
 
     try:
         src = gdal.Open(a.source)
@@ -131,38 +138,67 @@ def main():
     x0 = np.floor(gx0 + 0.5 * sw * dx) - n // 2
     y0 = np.floor(gy0 + 0.5 * sh * dy) + n // 2
 
-    tmp = a.out + ".partial.tif"
     opts = ["TILED=YES", "BLOCKXSIZE=512", "BLOCKYSIZE=512", "COMPRESS=ZSTD", "ZSTD_LEVEL=1", "PREDICTOR=3",
             "BIGTIFF=IF_SAFER"]
     gdal.SetCacheMax(256 << 20)
-    out = gdal.GetDriverByName("GTiff").Create(tmp, n, n, 1, gdal.GDT_Float32, opts)
-    out.SetGeoTransform((x0, 1.0, 0.0, y0, 0.0, -1.0))
-    out.SetSpatialRef(srs)
-    ob = out.GetRasterBand(1)
     any_hole = holes.any()
-    if any_hole:
-        ob.SetNoDataValue(NODATA)
 
-    for r0 in range(0, n, a.block):
-        rows = min(a.block, n - r0)
-        ys = y0 - (r0 + np.arange(rows) + 0.5)
-        wy, fy = cubic_matrix((ys - gy0) / dy - 0.5, sh)
-        for c0 in range(0, n, a.block):
-            cols = min(a.block, n - c0)
-            xs = x0 + c0 + np.arange(cols) + 0.5
-            wx, fx = cubic_matrix((xs - gx0) / dx - 0.5, sw)
-            win = (slice(fy, fy + wy.shape[1]), slice(fx, fx + wx.shape[1]))
-            z = wy @ s[win] @ wx.T + roughness(xs, ys, a.seed)
-            if any_hole:  # a sample whose cubic support touches a void is a void
-                z[(np.abs(wy) > 0) @ holes[win] @ (np.abs(wx) > 0).T > 0] = NODATA
-            ob.WriteArray(z.astype(np.float32), c0, r0)
-        print(f"\rmake_lidar_like.py: {a.size_km:g} km: rows {r0 + rows}/{n}", end="", file=sys.stderr, flush=True)
+    def write_geotiff(path, r_first, c_first, rows_n, cols_n):
+        """Samples [r_first, r_first + rows_n) x [c_first, c_first + cols_n) of the square into one GeoTIFF."""
+        out = gdal.GetDriverByName("GTiff").Create(path, cols_n, rows_n, 1, gdal.GDT_Float32, opts)
+        out.SetGeoTransform((x0 + c_first, 1.0, 0.0, y0 - r_first, 0.0, -1.0))
+        out.SetSpatialRef(srs)
+        ob = out.GetRasterBand(1)
+        if any_hole:
+            ob.SetNoDataValue(NODATA)
+        for r0 in range(0, rows_n, a.block):
+            rows = min(a.block, rows_n - r0)
+            ys = y0 - (r_first + r0 + np.arange(rows) + 0.5)
+            wy, fy = cubic_matrix((ys - gy0) / dy - 0.5, sh)
+            for c0 in range(0, cols_n, a.block):
+                cols = min(a.block, cols_n - c0)
+                xs = x0 + c_first + c0 + np.arange(cols) + 0.5
+                wx, fx = cubic_matrix((xs - gx0) / dx - 0.5, sw)
+                win = (slice(fy, fy + wy.shape[1]), slice(fx, fx + wx.shape[1]))
+                z = wy @ s[win] @ wx.T + roughness(xs, ys, a.seed)
+                if any_hole:  # a sample whose cubic support touches a void is a void
+                    z[(np.abs(wy) > 0) @ holes[win] @ (np.abs(wx) > 0).T > 0] = NODATA
+                ob.WriteArray(z.astype(np.float32), c0, r0)
+            if not a.tile_km:
+                print(f"\rmake_lidar_like.py: {a.size_km:g} km: rows {r0 + rows}/{n}", end="", file=sys.stderr,
+                      flush=True)
+        ob.FlushCache()
+        ob = None
+        out = None  # closes the file
+
+    if not a.tile_km:
+        tmp = a.out + ".partial.tif"
+        write_geotiff(tmp, 0, 0, n, n)
+        print(file=sys.stderr)
+        os.replace(tmp, a.out)
+        return
+
+    # Tiles of t samples (the last row and column of tiles may be narrower), then the VRT listing them:
+    # the VRT exists only once every tile is complete.
+    t = int(round(a.tile_km * 1000))
+    folder = a.out + ".tiles"
+    os.makedirs(folder, exist_ok=True)
+    tiles = []
+    count = ((n + t - 1) // t) ** 2
+    for r_first in range(0, n, t):
+        for c_first in range(0, n, t):
+            path = os.path.join(folder, f"r{r_first // t:03d}_c{c_first // t:03d}.tif")
+            write_geotiff(path + ".partial.tif", r_first, c_first, min(t, n - r_first), min(t, n - c_first))
+            os.replace(path + ".partial.tif", path)
+            tiles.append(path)
+            print(f"\rmake_lidar_like.py: {a.size_km:g} km: tiles {len(tiles)}/{count}", end="", file=sys.stderr,
+                  flush=True)
     print(file=sys.stderr)
-    ob.FlushCache()
-    ob = None
-    out = None
+    tmp = a.out + ".partial.vrt"
+    vrt = gdal.BuildVRT(tmp, tiles)
+    vrt.FlushCache()
+    vrt = None
     os.replace(tmp, a.out)
-
 
 if __name__ == "__main__":
     main()

@@ -8,7 +8,8 @@
 // child's own (wait4 ru_maxrss) and the numbers are those a user sees.
 //
 // --scale: cooks 1 m lidar-like squares of --sizes km (made by make_lidar_like.py from a real DEM)
-// and prints peak memory, time and throughput per size: the issue-13 baseline (bounded-memory cook).
+// with default flags (the bounded-memory, block-wise cook) and, for --baseline-sizes, in-core (one
+// block) side by side; prints peak memory, time and throughput per size and the issue-13 targets.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -178,14 +179,24 @@ Baseline gdal_baseline(const Dem& dem, const nlohmann::json& report, double spac
 std::string mb(double bytes) { return fmt::format("{:.2f}", bytes / 1e6); }
 
 // ---- --scale: peak memory and throughput against source size -------------------------------------
+//
+// Per size: the default cook (block-wise, bounded memory) and, for --baseline-sizes, the in-core cook
+// of the same DEM measured in the same run: one block holding every root and a budget large enough to
+// hold the whole source (today's behaviour before the block-wise cook). The two archives must be
+// byte-identical.
 
-// Today's cooker holds the whole source raster (and per-sample working grids) in memory, so its
-// peak grows with the source. Refuse a size whose estimate exceeds what the machine has, instead of
-// swapping it: the estimate is the larger of this figure and the bytes per sample measured on the
-// sizes already cooked in this run.
-constexpr double kAssumedBytesPerSourceSample = 17.0;
-constexpr double kUsableMemoryFraction = 0.8;  // of MemAvailable: others share the machine
+constexpr const char* kInCoreBlockRoots = "4096";  // 4096 roots of 2 km: one block for any input
+constexpr const char* kInCoreMemoryLimit = "20G";
+// The in-core cook holds the source and per-sample working grids, so its peak grows with the source:
+// refuse a size whose estimate exceeds what the machine has instead of swapping. The estimate is the
+// larger of this figure and the bytes per sample measured on in-core cooks earlier in this run.
+constexpr double kAssumedInCoreBytesPerSample = 17.0;
+constexpr double kUsableMemoryFraction = 0.8;     // of MemAvailable: others share the machine
 constexpr double kGeneratedBytesPerSample = 4.5;  // disk for one generated DEM (ZSTD float32 + margin)
+// Targets of issue 13. Binary units, like terrain-cook's --memory-limit 2G.
+constexpr double kPeakTargetBytes = 2.0 * double(1ull << 30);
+constexpr double kPeakGrowthTarget = 1.25;       // peak(40 km) / peak(8 km)
+constexpr double kThroughputTarget = 1.0;        // blocks / in-core samples per CPU-second, 8 km
 
 uint64_t mem_available_bytes() {
   std::ifstream in("/proc/meminfo");
@@ -203,22 +214,296 @@ uint64_t disk_free_bytes(const std::string& dir) {
   return uint64_t(s.f_bavail) * s.f_frsize;
 }
 
+double gb(double bytes) { return bytes / double(1ull << 30); }
+double mib(double bytes) { return bytes / double(1ull << 20); }
+
+// True when both files exist and hold the same bytes (what `cmp` says, without a child process).
+bool same_bytes(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  const auto na = std::filesystem::file_size(a, ec);
+  if (ec) return false;
+  const auto nb = std::filesystem::file_size(b, ec);
+  if (ec || na != nb) return false;
+  std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
+  std::vector<char> ba(1 << 20), bb(1 << 20);
+  while (fa && fb) {
+    fa.read(ba.data(), std::streamsize(ba.size()));
+    fb.read(bb.data(), std::streamsize(bb.size()));
+    if (fa.gcount() != fb.gcount() || !std::equal(ba.begin(), ba.begin() + fa.gcount(), bb.begin())) return false;
+  }
+  return fa.eof() && fb.eof();
+}
+
 struct ScaleRow {
+  std::string mode;  // "blocks" (default flags) or "in-core" (one block, large budget)
   int km = 0;
   uint64_t samples = 0;
-  std::string status = "ok";  // or why the size was skipped / failed
+  std::string status = "ok";  // or why the row was skipped / failed
   double gen_s = NAN, wall_s = NAN, cpu_s = NAN, rss_bytes = NAN;
-  uint64_t nodes = 0, archive_bytes = 0;
+  uint64_t nodes = 0, archive_bytes = 0, report_peak_rss_bytes = 0, memory_limit_bytes = 0;
+  int64_t blocks = -1, block_roots = -1;  // -1: the report has no "blocks" (a cooker before issue 13)
+  uint64_t window_samples_max = 0, spool_bytes = 0;
+  std::string vs_in_core = "-";  // blocks rows: "same bytes" / "DIFFERENT" against the in-core archive
+  bool ok() const { return status == "ok"; }
   double bytes_per_sample() const { return rss_bytes / double(samples); }
   double samples_per_cpu_s() const { return double(samples) / cpu_s; }
 };
 
-double gb(double bytes) { return bytes / double(1ull << 30); }
+// Medians of `runs` cooks of `dem` into `archive` (kept for the byte comparison); sizes from the last
+// report (deterministic).
+void scale_cook(ScaleRow& row, const std::string& tool, const std::string& dem, const std::string& archive,
+                const std::vector<std::string>& flags, int runs) {
+  std::vector<double> wall, cpu, rss;
+  for (int k = 0; k < runs; ++k) {
+    std::vector<std::string> argv = {tool, dem, "-o", archive, "--json"};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    const Run r = run(argv);
+    if (!r.ok) {
+      row.status = "failed: terrain-cook exited non-zero";
+      return;
+    }
+    const auto j = nlohmann::json::parse(r.out, nullptr, false);
+    if (j.is_discarded() || !j.contains("output")) {
+      row.status = "failed: terrain-cook printed no JSON report";
+      return;
+    }
+    row.nodes = j["output"]["nodes"];
+    row.archive_bytes = j["output"]["archive_bytes"];
+    row.report_peak_rss_bytes = j.value("peak_rss_bytes", uint64_t(0));
+    row.memory_limit_bytes = j.value("memory_limit_bytes", uint64_t(0));
+    if (j.contains("blocks") && j["blocks"].is_object()) {
+      const auto& b = j["blocks"];
+      row.block_roots = b.value("block_roots", int64_t(-1));
+      row.blocks = b.value("count", int64_t(-1));
+      row.window_samples_max = b.value("window_samples_max", uint64_t(0));
+      row.spool_bytes = b.value("spool_bytes", uint64_t(0));
+    }
+    wall.push_back(r.wall_s);
+    cpu.push_back(r.cpu_s);
+    rss.push_back(double(r.rss_bytes));
+  }
+  row.wall_s = median(wall);
+  row.cpu_s = median(cpu);
+  row.rss_bytes = median(rss);
+}
 
-int scale_main(const std::string& tool, const std::filesystem::path& self, std::vector<int> sizes, bool heights_only,
-               std::string work, const std::string& source, const std::string& python, std::string script) {
-  if (work.empty()) work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
-  if (script.empty()) script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+struct ScaleOptions {
+  std::vector<int> sizes, baseline_sizes;  // km
+  bool heights_only = false;
+  int runs = 1;
+  double tile_km = 0;  // > 0: each DEM is a VRT of tile_km x tile_km km GeoTIFF tiles
+  std::string work, source, python, script;
+};
+
+// The generated DEM of one size: one tiled GeoTIFF, or a VRT of GeoTIFF tiles (--tile-km).
+std::string dem_path(const ScaleOptions& o, int km) {
+  return o.tile_km > 0 ? fmt::format("{}/lidar_like_{}km_tiles{:g}km.vrt", o.work, km, o.tile_km)
+                       : fmt::format("{}/lidar_like_{}km.tif", o.work, km);
+}
+
+// Makes the DEM of one size unless present; "" or why not.
+std::string ensure_dem(const ScaleOptions& o, const std::string& dem, uint64_t samples, int km, double& gen_s) {
+  if (std::filesystem::exists(dem)) {
+    gen_s = 0;  // reused
+    return "";
+  }
+  const double disk_need = kGeneratedBytesPerSample * double(samples);
+  if (disk_need > double(disk_free_bytes(o.work)))
+    return fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), o.work);
+  std::vector<std::string> argv = {o.python, o.script, "--source", o.source, "--size-km", std::to_string(km),
+                                   "--out", dem};
+  if (o.tile_km > 0) argv.insert(argv.end(), {"--tile-km", fmt::format("{:g}", o.tile_km)});
+  const Run g = run(argv);
+  gen_s = g.wall_s;
+  return g.ok ? "" : fmt::format("failed: {} {} could not make {}", o.python, o.script, dem);
+}
+
+std::string count_or_dash(int64_t v) { return v < 0 ? "-" : std::to_string(v); }
+
+void print_scale_row(const ScaleRow& r) {
+  fmt::print("{:<8} {:>4} {:>13} {:>9.1f} {:>7.2f} {:>8.2f} {:>8.2f} {:>9.2f} {:>7} {:>12} {:>6} {:>6} {:>6.1f}  {:<10}  {}\n",
+             r.mode, r.km, r.samples, mib(r.rss_bytes), r.bytes_per_sample(), r.wall_s, r.cpu_s,
+             r.samples_per_cpu_s() / 1e6, r.nodes, r.archive_bytes, count_or_dash(r.blocks),
+             count_or_dash(r.block_roots), r.gen_s, r.vs_in_core, r.status);
+  std::fflush(stdout);
+}
+
+const ScaleRow* find_row(const std::vector<ScaleRow>& rows, const std::string& mode, int km) {
+  for (const ScaleRow& r : rows)
+    if (r.mode == mode && r.km == km && r.ok()) return &r;
+  return nullptr;
+}
+
+struct TargetCheck {
+  std::string name, verdict, detail;  // verdict: PASS, FAIL or n/a
+};
+
+std::vector<TargetCheck> scale_targets(const std::vector<ScaleRow>& rows) {
+  std::vector<TargetCheck> checks;
+  {  // Peak RSS of every default (block-wise) cook.
+    TargetCheck c{fmt::format("peak RSS <= {:.0f} MiB at every size (blocks)", mib(kPeakTargetBytes)), "PASS", ""};
+    int measured = 0;
+    for (const ScaleRow& r : rows) {
+      if (r.mode != "blocks") continue;
+      if (!c.detail.empty()) c.detail += ", ";
+      if (!r.ok()) {
+        c.verdict = "FAIL";
+        c.detail += fmt::format("{} km not measured", r.km);
+        continue;
+      }
+      ++measured;
+      c.detail += fmt::format("{} km {:.0f} MiB", r.km, mib(r.rss_bytes));
+      if (r.rss_bytes > kPeakTargetBytes) c.verdict = "FAIL";
+    }
+    if (!measured) c.verdict = "n/a";
+    checks.push_back(c);
+  }
+  {  // Peak growth: 40 km (or the largest size) against 8 km (or the smallest).
+    std::vector<const ScaleRow*> ok;
+    for (const ScaleRow& r : rows)
+      if (r.mode == "blocks" && r.ok()) ok.push_back(&r);
+    std::sort(ok.begin(), ok.end(), [](const ScaleRow* a, const ScaleRow* b) { return a->km < b->km; });
+    const ScaleRow* ref = find_row(rows, "blocks", 8);
+    const ScaleRow* top = find_row(rows, "blocks", 40);
+    if (!ref && !ok.empty()) ref = ok.front();
+    if (!top && !ok.empty()) top = ok.back();
+    TargetCheck c{fmt::format("peak(40 km) / peak(8 km) <= {:.2f} (blocks)", kPeakGrowthTarget), "n/a",
+                  "needs two sizes"};
+    if (ref && top && ref->km != top->km) {
+      const double ratio = top->rss_bytes / ref->rss_bytes;
+      c.verdict = ratio <= kPeakGrowthTarget ? "PASS" : "FAIL";
+      c.detail = fmt::format("{} km {:.0f} MiB / {} km {:.0f} MiB = {:.3f}", top->km, mib(top->rss_bytes), ref->km,
+                             mib(ref->rss_bytes), ratio);
+      if (ref->km != 8 || top->km != 40) c.detail += " (sizes measured in this run)";
+    }
+    checks.push_back(c);
+  }
+  {  // Throughput: blocks against in-core on the same DEM, 8 km (or the largest size with both).
+    const ScaleRow *b = find_row(rows, "blocks", 8), *i = find_row(rows, "in-core", 8);
+    if (!b || !i) {
+      b = i = nullptr;
+      for (const ScaleRow& r : rows) {
+        const ScaleRow* other = find_row(rows, "in-core", r.km);
+        if (r.mode == "blocks" && r.ok() && other && (!b || r.km > b->km)) b = &r, i = other;
+      }
+    }
+    TargetCheck c{fmt::format("samples per CPU-s, blocks / in-core on 8 km >= {:.2f}", kThroughputTarget), "n/a",
+                  "needs an in-core row (--baseline-sizes)"};
+    if (b && i) {
+      const double ratio = b->samples_per_cpu_s() / i->samples_per_cpu_s();
+      c.verdict = ratio >= kThroughputTarget ? "PASS" : "FAIL";
+      c.detail = fmt::format("{} km: {:.2f} / {:.2f} M samples per CPU-s = {:.3f}", b->km, b->samples_per_cpu_s() / 1e6,
+                             i->samples_per_cpu_s() / 1e6, ratio);
+      if (b->km != 8) c.detail += " (8 km not measured)";
+    }
+    checks.push_back(c);
+  }
+  return checks;
+}
+
+std::string xml_escape(const std::string& s) {
+  std::string o;
+  for (char ch : s) {
+    switch (ch) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += ch;
+    }
+  }
+  return o;
+}
+
+// A round axis end above v (1, 2 or 5 times a power of ten) and its tick step.
+std::pair<double, double> nice_axis(double v) {
+  if (!(v > 0)) return {1, 0.2};
+  const double p = std::pow(10.0, std::floor(std::log10(v)));
+  for (double m : {1.0, 2.0, 2.5, 5.0, 10.0})
+    if (m * p >= v) return {m * p, m * p / (m == 2.5 ? 5 : (m == 2.0 ? 4 : 5))};
+  return {10 * p, 2 * p};
+}
+
+// Two panels, peak RSS (MiB) and M samples per CPU-second against the square's side (km), one series
+// per mode; the peak panel draws the 2 GiB target. Plain SVG: opens in any browser.
+std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& title) {
+  constexpr double kPanelW = 340, kPanelH = 230, kLeft = 64, kTop = 72, kGap = 90;
+  // Blocks: filled dots; in-core: rings around them, so equal values stay visible.
+  const std::vector<std::pair<std::string, std::string>> series = {{"blocks", "#1f5fbf"}, {"in-core", "#d0402a"}};
+  const auto marker = [](const std::string& mode, double x, double y, const std::string& colour) {
+    return mode == "blocks"
+               ? fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\">", x, y, colour)
+               : fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"7\" fill=\"none\" stroke=\"{}\" "
+                             "stroke-width=\"2\">",
+                             x, y, colour);
+  };
+  double max_km = 0, max_peak = mib(kPeakTargetBytes), max_rate = 0;
+  for (const ScaleRow& r : rows) {
+    if (!r.ok()) continue;
+    max_km = std::max(max_km, double(r.km));
+    max_peak = std::max(max_peak, mib(r.rss_bytes));
+    max_rate = std::max(max_rate, r.samples_per_cpu_s() / 1e6);
+  }
+  const auto [x_end, x_step] = nice_axis(max_km);
+  std::string s = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" viewBox=\"0 0 {0} {1}\" "
+      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      "<text x=\"{2}\" y=\"22\" font-size=\"14\">{3}</text>\n",
+      kLeft + 2 * kPanelW + kGap + 30, kTop + kPanelH + 56, kLeft, xml_escape(title));
+  for (size_t k = 0; k < series.size(); ++k)  // legend
+    s += marker(series[k].first, kLeft + 8 + 110.0 * double(k), 40, series[k].second) +
+         fmt::format("</circle><text x=\"{}\" y=\"44\">{}</text>\n", kLeft + 20 + 110.0 * double(k),
+                     series[k].first);
+  const auto panel = [&](double x0, const std::string& y_label, double y_max_data, auto value, double target) {
+    const auto [y_end, y_step] = nice_axis(y_max_data);
+    const auto px = [&](double km) { return x0 + kPanelW * km / x_end; };
+    const auto py = [&](double v) { return kTop + kPanelH * (1 - v / y_end); };
+    std::string p = fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#888\"/>\n",
+                                x0, kTop, kPanelW, kPanelH);
+    for (double t = 0; t <= x_end + 1e-9; t += x_step)
+      p += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1}\" x2=\"{0:.1f}\" y2=\"{2}\" stroke=\"#eee\"/>"
+                       "<text x=\"{0:.1f}\" y=\"{3}\" text-anchor=\"middle\">{4:g}</text>\n",
+                       px(t), kTop, kTop + kPanelH, kTop + kPanelH + 16, t);
+    for (double t = 0; t <= y_end + 1e-9; t += y_step)
+      p += fmt::format("<line x1=\"{0}\" y1=\"{1:.1f}\" x2=\"{2}\" y2=\"{1:.1f}\" stroke=\"#eee\"/>"
+                       "<text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\">{5:g}</text>\n",
+                       x0, py(t), x0 + kPanelW, x0 - 6, py(t) + 4, t);
+    p += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">square side, km</text>\n", x0 + kPanelW / 2,
+                     kTop + kPanelH + 34);
+    p += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>\n",
+                     x0 + kPanelW / 2, kTop - 6, y_label);
+    if (target > 0)
+      p += fmt::format("<line x1=\"{0}\" y1=\"{1:.1f}\" x2=\"{2}\" y2=\"{1:.1f}\" stroke=\"#555\" "
+                       "stroke-dasharray=\"5,4\"/><text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\" fill=\"#555\">"
+                       "2 GiB target</text>\n",
+                       x0, py(target), x0 + kPanelW, x0 + kPanelW - 4, py(target) - 4);
+    for (const auto& [mode, colour] : series) {
+      std::string points;
+      for (const ScaleRow& r : rows) {
+        if (r.mode != mode || !r.ok()) continue;
+        const double x = px(r.km), y = py(value(r));
+        points += fmt::format("{:.1f},{:.1f} ", x, y);
+        p += marker(mode, x, y, colour) + fmt::format("<title>{} {} km: {:.3g}</title></circle>\n", mode, r.km, value(r));
+      }
+      if (std::count(points.begin(), points.end(), ' ') > 1)
+        p += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.5\"/>\n", points, colour);
+    }
+    return p;
+  };
+  s += panel(kLeft, "peak RSS, MiB", max_peak, [](const ScaleRow& r) { return mib(r.rss_bytes); },
+             mib(kPeakTargetBytes));
+  s += panel(kLeft + kPanelW + kGap, "M source samples per CPU-second", max_rate,
+             [](const ScaleRow& r) { return r.samples_per_cpu_s() / 1e6; }, 0);
+  return s + "</svg>\n";
+}
+
+int scale_main(const std::string& tool, const std::filesystem::path& self, ScaleOptions o) {
+  if (o.work.empty()) o.work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
+  if (o.script.empty()) o.script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+  const std::string& work = o.work;
+  const std::string& source = o.source;
+  const bool heights_only = o.heights_only;
+  const int runs = o.runs;
   std::error_code ec;
   std::filesystem::create_directories(work, ec);
   if (ec) {
@@ -230,88 +515,117 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, std::
     return 1;
   }
   const std::string mode = heights_only ? "heights-only" : "full";
-  fmt::print("terrain-cook-bench --scale: {} cooks (default flags{}) of 1 m lidar-like squares from {}, work {}\n",
-             mode, heights_only ? " + --heights-only" : "", source, work);
-  fmt::print("Limit today: the cooker holds the source in memory; a size is skipped when its estimated peak "
-             "(max({} B/sample, measured so far) x samples) exceeds {:.0f}% of MemAvailable.\n\n",
-             kAssumedBytesPerSourceSample, 100 * kUsableMemoryFraction);
-  fmt::print("{:>5} {:>13} {:>9} {:>8} {:>8} {:>8} {:>10} {:>7} {:>12} {:>7}  {}\n", "km", "samples", "peak_MB",
-             "B/samp", "wall_s", "cpu_s", "MS/cpu_s", "nodes", "archive_B", "gen_s", "status");
+  const std::vector<std::string> common = heights_only ? std::vector<std::string>{"--heights-only"}
+                                                       : std::vector<std::string>{};
+  std::vector<std::string> in_core = common;
+  in_core.insert(in_core.end(), {"--block-roots", kInCoreBlockRoots, "--memory-limit", kInCoreMemoryLimit});
+  const std::string dem_form = o.tile_km > 0 ? fmt::format("VRT of {:g} km GeoTIFF tiles", o.tile_km) : "GeoTIFF";
+  fmt::print("terrain-cook-bench --scale: {} cooks of 1 m lidar-like squares ({}) from {}, work {}, median of {} "
+             "run{}\n",
+             mode, dem_form, source, work, runs, runs == 1 ? "" : "s");
+  fmt::print("blocks: default flags{}; in-core: the same plus --block-roots {} --memory-limit {} (one block: "
+             "the whole source in memory), skipped when its estimated peak (max({} B/sample, measured so far) x "
+             "samples) exceeds {:.0f}% of MemAvailable. vs_in-core: the blocks archive compared byte for byte "
+             "with the in-core one.\n\n",
+             heights_only ? " + --heights-only" : "", kInCoreBlockRoots, kInCoreMemoryLimit,
+             kAssumedInCoreBytesPerSample, 100 * kUsableMemoryFraction);
+  fmt::print("{:<8} {:>4} {:>13} {:>9} {:>7} {:>8} {:>8} {:>9} {:>7} {:>12} {:>6} {:>6} {:>6}  {:<10}  {}\n", "mode",
+             "km", "samples", "peak_MiB", "B/samp", "wall_s", "cpu_s", "MS/cpu_s", "nodes", "archive_B", "blocks",
+             "roots", "gen_s", "vs_in-core", "status");
   std::vector<ScaleRow> rows;
-  double measured_bps = 0;
-  for (int km : sizes) {
-    ScaleRow row;
-    row.km = km;
-    row.samples = uint64_t(km) * 1000 * uint64_t(km) * 1000;
-    const std::string dem = fmt::format("{}/lidar_like_{}km.tif", work, km);
-    const double need = std::max(kAssumedBytesPerSourceSample, measured_bps) * double(row.samples);
-    const double avail = kUsableMemoryFraction * double(mem_available_bytes());
-    if (need > avail) {
-      row.status = fmt::format("skipped: in-core cook needs ~{:.1f} GB, {:.1f} GB usable (source held in memory)",
-                               gb(need), gb(avail));
-    } else if (!std::filesystem::exists(dem)) {
-      const double disk_need = kGeneratedBytesPerSample * double(row.samples);
-      if (disk_need > double(disk_free_bytes(work))) {
-        row.status = fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), work);
+  double in_core_bps = 0;  // largest in-core bytes per sample measured so far
+  bool different = false;
+  for (int km : o.sizes) {
+    ScaleRow b;
+    b.mode = "blocks";
+    b.km = km;
+    b.samples = uint64_t(km) * 1000 * uint64_t(km) * 1000;
+    const std::string dem = dem_path(o, km);
+    const std::string why = ensure_dem(o, dem, b.samples, km, b.gen_s);
+    const bool have_dem = why.empty();
+    if (!have_dem) b.status = why;
+    const std::string blocks_archive = fmt::format("{}/lidar_like_{}km.blocks.terrain", work, km);
+    const std::string in_core_archive = fmt::format("{}/lidar_like_{}km.in-core.terrain", work, km);
+    if (b.ok()) scale_cook(b, tool, dem, blocks_archive, common, runs);
+    const bool want_in_core =
+        std::find(o.baseline_sizes.begin(), o.baseline_sizes.end(), km) != o.baseline_sizes.end();
+    if (!want_in_core || !b.ok()) print_scale_row(b);  // else printed with the comparison below
+    if (want_in_core) {
+      ScaleRow i;
+      i.mode = "in-core";
+      i.km = km;
+      i.samples = b.samples;
+      i.gen_s = 0;
+      if (!have_dem) {
+        i.status = b.status;
       } else {
-        const Run g = run({python, script, "--source", source, "--size-km", std::to_string(km), "--out", dem});
-        row.gen_s = g.wall_s;
-        if (!g.ok) row.status = fmt::format("failed: {} {} could not make {}", python, script, dem);
+        const double need = std::max(kAssumedInCoreBytesPerSample, in_core_bps) * double(i.samples);
+        const double avail = kUsableMemoryFraction * double(mem_available_bytes());
+        if (need > avail)
+          i.status = fmt::format("skipped: in-core cook needs ~{:.1f} GB, {:.1f} GB usable", gb(need), gb(avail));
+        else
+          scale_cook(i, tool, dem, in_core_archive, in_core, runs);
+        if (i.ok()) in_core_bps = std::max(in_core_bps, i.bytes_per_sample());
       }
+      if (b.ok() && i.ok()) {
+        b.vs_in_core = same_bytes(blocks_archive, in_core_archive) ? "same bytes" : "DIFFERENT";
+        different |= b.vs_in_core == "DIFFERENT";
+      }
+      if (b.ok()) print_scale_row(b);
+      print_scale_row(i);
+      rows.push_back(b);
+      rows.push_back(i);
     } else {
-      row.gen_s = 0;  // reused
+      rows.push_back(b);
     }
-    if (row.status == "ok") {
-      const std::string archive = fmt::format("{}/lidar_like_{}km.terrain", work, km);
-      std::vector<std::string> argv = {tool, dem, "-o", archive, "--json"};
-      if (heights_only) argv.push_back("--heights-only");
-      const Run r = run(argv);
-      if (!r.ok) {
-        row.status = "failed: terrain-cook exited non-zero";
-      } else {
-        const auto j = nlohmann::json::parse(r.out, nullptr, false);
-        if (j.is_discarded() || !j.contains("output")) {
-          row.status = "failed: terrain-cook printed no JSON report";
-        } else {
-          row.nodes = j["output"]["nodes"];
-          row.archive_bytes = j["output"]["archive_bytes"];
-        }
-        row.wall_s = r.wall_s;
-        row.cpu_s = r.cpu_s;
-        row.rss_bytes = double(r.rss_bytes);
-        measured_bps = std::max(measured_bps, row.bytes_per_sample());
-      }
-      std::filesystem::remove(archive, ec);  // archives of the large sizes are gigabytes
-    }
-    fmt::print("{:>5} {:>13} {:>9.0f} {:>8.2f} {:>8.2f} {:>8.2f} {:>10.2f} {:>7} {:>12} {:>7.1f}  {}\n", row.km,
-               row.samples, row.rss_bytes / 1e6, row.bytes_per_sample(), row.wall_s, row.cpu_s,
-               row.samples_per_cpu_s() / 1e6, row.nodes, row.archive_bytes, row.gen_s, row.status);
-    std::fflush(stdout);
-    rows.push_back(row);
+    std::filesystem::remove(blocks_archive, ec);  // archives of the large sizes are gigabytes
+    std::filesystem::remove(in_core_archive, ec);
   }
-  // The table next to the DEMs, one file per mode (heights-only and full runs do not overwrite each other).
+
+  const std::vector<TargetCheck> checks = scale_targets(rows);
+  fmt::print("\nTargets (issue 13):\n");
+  for (const TargetCheck& c : checks) fmt::print("  {:<4}  {}: {}\n", c.verdict, c.name, c.detail);
+
+  // The table next to the DEMs, one set of files per mode (heights-only and full runs do not overwrite each other).
+  const std::string stem = fmt::format("{}/scale-{}", work, mode);
   nlohmann::json js = nlohmann::json::array();
-  std::ofstream csv(fmt::format("{}/scale-{}.csv", work, mode));
-  csv << "size_km,samples,peak_rss_bytes,bytes_per_sample,wall_s,cpu_s,samples_per_cpu_s,nodes,archive_bytes,gen_s,"
-         "status\n";
+  std::ofstream csv(stem + ".csv");
+  csv << "mode,size_km,samples,peak_rss_bytes,bytes_per_sample,wall_s,cpu_s,samples_per_cpu_s,nodes,archive_bytes,"
+         "blocks,block_roots,window_samples_max,spool_bytes,gen_s,vs_in_core,status\n";
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  auto opt = [](int64_t v) { return v < 0 ? nlohmann::json(nullptr) : nlohmann::json(v); };
   for (const ScaleRow& r : rows) {
-    js.push_back({{"size_km", r.km}, {"samples", r.samples}, {"peak_rss_bytes", num(r.rss_bytes)},
+    js.push_back({{"mode", r.mode}, {"size_km", r.km}, {"samples", r.samples}, {"peak_rss_bytes", num(r.rss_bytes)},
+                  {"report_peak_rss_bytes", r.report_peak_rss_bytes}, {"memory_limit_bytes", r.memory_limit_bytes},
                   {"bytes_per_sample", num(r.bytes_per_sample())}, {"wall_s", num(r.wall_s)}, {"cpu_s", num(r.cpu_s)},
                   {"samples_per_cpu_s", num(r.samples_per_cpu_s())}, {"nodes", r.nodes},
-                  {"archive_bytes", r.archive_bytes}, {"gen_s", num(r.gen_s)}, {"status", r.status}});
-    csv << fmt::format("{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.0f},{},{},{:.1f},\"{}\"\n", r.km, r.samples, r.rss_bytes,
-                       r.bytes_per_sample(), r.wall_s, r.cpu_s, r.samples_per_cpu_s(), r.nodes, r.archive_bytes,
-                       r.gen_s, r.status);
+                  {"archive_bytes", r.archive_bytes}, {"blocks", opt(r.blocks)}, {"block_roots", opt(r.block_roots)},
+                  {"window_samples_max", r.window_samples_max}, {"spool_bytes", r.spool_bytes},
+                  {"gen_s", num(r.gen_s)}, {"vs_in_core", r.vs_in_core}, {"status", r.status}});
+    csv << fmt::format("{},{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.0f},{},{},{},{},{},{},{:.1f},{},\"{}\"\n", r.mode, r.km,
+                       r.samples, r.rss_bytes, r.bytes_per_sample(), r.wall_s, r.cpu_s, r.samples_per_cpu_s(),
+                       r.nodes, r.archive_bytes, count_or_dash(r.blocks), count_or_dash(r.block_roots),
+                       r.window_samples_max, r.spool_bytes, r.gen_s, r.vs_in_core, r.status);
   }
-  std::ofstream(fmt::format("{}/scale-{}.json", work, mode))
-      << nlohmann::json{{"mode", mode}, {"source", source}, {"threads", std::thread::hardware_concurrency()},
-                        {"rows", js}}
-             .dump(2)
-      << "\n";
-  fmt::print("\nWrote {}/scale-{}.json and .csv\n", work, mode);
-  bool failed = false;
+  nlohmann::json targets = nlohmann::json::array();
+  for (const TargetCheck& c : checks) targets.push_back({{"target", c.name}, {"verdict", c.verdict}, {"detail", c.detail}});
+  std::ofstream(stem + ".json") << nlohmann::json{{"mode", mode},
+                                                  {"source", source},
+                                                  {"dem_form", dem_form},
+                                                  {"runs", runs},
+                                                  {"threads", std::thread::hardware_concurrency()},
+                                                  {"in_core_flags", in_core},
+                                                  {"rows", js},
+                                                  {"targets", targets}}
+                                       .dump(2)
+                                << "\n";
+  std::ofstream(stem + ".svg") << scale_svg(
+      rows, fmt::format("terrain-cook {} on 1 m lidar-like squares: blocks (default flags) vs in-core", mode));
+  fmt::print("\nWrote {}.json, .csv and .svg\n", stem);
+  bool failed = different;
   for (const ScaleRow& r : rows) failed |= r.status.rfind("failed", 0) == 0;
+  std::fflush(stdout);
+  if (different) fmt::print(stderr, "terrain-cook-bench: a block-wise archive differs from the in-core one\n");
   return failed ? 1 : 0;
 }
 
@@ -323,23 +637,34 @@ int main(int argc, char** argv) {
   std::vector<std::string> only;
   int runs = 3;
   bool skip_default = false;
-  bool scale = false, heights_only = false;
-  std::vector<int> sizes = {4, 8, 16, 40};
-  std::string work, source, script, python = "/usr/bin/python3";
+  bool scale = false;
+  ScaleOptions so;
+  so.sizes = {4, 8, 16, 40};
+  so.baseline_sizes = {8};
+  so.python = "/usr/bin/python3";
   CLI::App app{"terrain-cook-bench: tolerance sweep over the shared DEMs against gdalwarp -r cubic"};
   app.add_option("--data", data, "Folder of the shared DEMs")->capture_default_str();
   app.add_option("--tolerances", tolerances, "Tolerances to sweep (metres)")->delimiter(',');
   app.add_option("--dems", only, "Only these DEMs (names as printed)")->delimiter(',');
-  app.add_option("--runs", runs, "Runs per measurement (median)")->capture_default_str();
+  app.add_option("--runs", runs, "Runs per measurement (median; default 3, --scale 1)")->check(CLI::Range(1, 100));
   app.add_flag("--skip-default", skip_default, "Skip the default cooks with every section");
   app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
-  app.add_option("--sizes", sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
+  app.add_option("--sizes", so.sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
       ->capture_default_str();
-  app.add_flag("--heights-only", heights_only, "--scale: cook with --heights-only");
-  app.add_option("--work", work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
-  app.add_option("--source", source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
-  app.add_option("--python", python, "--scale: Python with GDAL and numpy")->capture_default_str();
-  app.add_option("--script", script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
+  app.add_option("--baseline-sizes", so.baseline_sizes,
+                 "--scale: sizes (of --sizes) also cooked in-core, one block with a large --memory-limit (0: none)")
+      ->delimiter(',')
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  app.add_flag("--heights-only", so.heights_only, "--scale: cook with --heights-only");
+  app.add_option("--tile-km", so.tile_km,
+                 "--scale: generate each square as a VRT of K x K km GeoTIFF tiles, as national lidar comes "
+                 "(default 0: one tiled GeoTIFF)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--work", so.work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
+  app.add_option("--source", so.source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
+  app.add_option("--python", so.python, "--scale: Python with GDAL and numpy")->capture_default_str();
+  app.add_option("--script", so.script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -353,11 +678,11 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
   }
-  if (scale)
-    return scale_main(tool, self, sizes, heights_only, work,
-                      source.empty() ? std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string()
-                                     : source,
-                      python, script);
+  if (scale) {
+    so.runs = app.count("--runs") ? runs : 1;
+    if (so.source.empty()) so.source = std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string();
+    return scale_main(tool, self, so);
+  }
   const std::string d = data + "/";
   std::vector<Dem> dems = {
       {"tahoe_bare", d + "tahoe_lidar_bareearth.tif", {}, d + "tahoe_lidar_bareearth.tif"},
