@@ -56,7 +56,8 @@ struct VoidPlan {
 // from the top), labels the voids of each tile, joins them across tile edges (union-find over the
 // labels of the last row and column read) and decides fill or hole per void with fill_voids()'s
 // rule. Memory: one tile, two raster rows of labels and the records of the voids still open,
-// plus spanning_fills; never the raster. The tile size changes no result of fill_voids_window().
+// plus spanning_fills; never the raster. The tile size changes no result of fill_voids_window()
+// (tile: 1..46340, tile * tile samples indexed with 32 bits; invalid_argument otherwise).
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
                   int tile, VoidPlan& out);
 
