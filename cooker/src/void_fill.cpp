@@ -1,6 +1,7 @@
 #include "void_fill.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fmt/format.h>
 
@@ -9,56 +10,52 @@
 namespace terrain::cook {
 namespace {
 
-struct Void {
-  std::vector<uint32_t> samples;  // indices, in breadth-first order from the void's first sample
-  bool touches_border = false;
-};
+// Sample indices are window-local; 32 bits when the window allows (half the memory per void sample).
+template <class Index>
+using Samples = std::vector<Index>;  // in depth-first order from the void's first sample
 
-// Harmonic fill of one void: breadth-first initial guess from the rim, then SOR sweeps.
-double fill_one(Raster& r, const Void& v, std::vector<uint8_t>& filled) {
-  const int w = r.width, h = r.height;
-  float* z = r.values.data();
-  // Initial guess: visit samples nearest the rim first (multi-source BFS from valid neighbours).
-  std::vector<uint32_t> order;
-  order.reserve(v.samples.size());
-  std::vector<uint8_t> done(v.samples.size(), 0);
+// Harmonic fill of one void of a w x h window: breadth-first initial guess from the rim, then SOR
+// sweeps. Every neighbour of the void's samples lies in the window or outside the raster.
+template <class Index>
+double fill_one(float* z, int w, int h, const Samples<Index>& samples, uint8_t* filled) {
+  std::vector<uint8_t> done(samples.size(), 0);
   // Local index of each void sample (the void's own samples only).
-  std::vector<std::pair<uint32_t, uint32_t>> local(v.samples.size());
-  for (uint32_t i = 0; i < v.samples.size(); ++i) local[i] = {v.samples[i], i};
+  std::vector<std::pair<Index, Index>> local(samples.size());
+  for (Index i = 0; i < samples.size(); ++i) local[i] = {samples[i], i};
   std::sort(local.begin(), local.end());
-  auto local_of = [&](uint32_t idx) -> int64_t {
-    auto it = std::lower_bound(local.begin(), local.end(), std::make_pair(idx, 0u));
+  auto local_of = [&](Index idx) -> int64_t {
+    auto it = std::lower_bound(local.begin(), local.end(), std::make_pair(idx, Index(0)));
     return it != local.end() && it->first == idx ? int64_t(it->second) : -1;
   };
-  std::vector<std::array<int64_t, 4>> nbr(v.samples.size());  // local index, -1 valid/outside handled below
-  for (uint32_t i = 0; i < v.samples.size(); ++i) {
-    const uint32_t idx = v.samples[i];
-    const int x = int(idx % uint32_t(w)), y = int(idx / uint32_t(w));
+  std::vector<std::array<int64_t, 4>> nbr(samples.size());  // local index, -1 valid/outside handled below
+  for (Index i = 0; i < samples.size(); ++i) {
+    const Index idx = samples[i];
+    const int x = int(idx % Index(w)), y = int(idx / Index(w));
     const int64_t cand[4] = {x > 0 ? int64_t(idx) - 1 : -2, x + 1 < w ? int64_t(idx) + 1 : -2,
                              y > 0 ? int64_t(idx) - w : -2, y + 1 < h ? int64_t(idx) + w : -2};
     for (int k = 0; k < 4; ++k) {
       if (cand[k] == -2) { nbr[i][size_t(k)] = -2; continue; }                    // outside the raster
-      const int64_t l = local_of(uint32_t(cand[k]));
+      const int64_t l = local_of(Index(cand[k]));
       nbr[i][size_t(k)] = l >= 0 ? l : -(cand[k] + 3);                             // <= -3: valid sample
     }
   }
   auto value_of = [&](int64_t code) -> float { return z[size_t(-code - 3)]; };
-  std::vector<uint32_t> queue;
-  for (uint32_t i = 0; i < v.samples.size(); ++i)
+  std::vector<Index> queue;
+  for (Index i = 0; i < samples.size(); ++i)
     for (int64_t c : nbr[i])
       if (c <= -3) { queue.push_back(i); done[i] = 1; break; }
   for (size_t qi = 0; qi < queue.size(); ++qi) {
-    const uint32_t i = queue[qi];
+    const Index i = queue[qi];
     double sum = 0;
     int n = 0;
     for (int64_t c : nbr[i]) {
       if (c <= -3) { sum += value_of(c); ++n; }
-      else if (c >= 0 && done[size_t(c)] == 2) { sum += z[v.samples[size_t(c)]]; ++n; }
+      else if (c >= 0 && done[size_t(c)] == 2) { sum += z[samples[size_t(c)]]; ++n; }
     }
-    z[v.samples[i]] = float(sum / std::max(n, 1));
+    z[samples[i]] = float(sum / std::max(n, 1));
     done[i] = 2;
     for (int64_t c : nbr[i])
-      if (c >= 0 && done[size_t(c)] == 0) { done[size_t(c)] = 1; queue.push_back(uint32_t(c)); }
+      if (c >= 0 && done[size_t(c)] == 0) { done[size_t(c)] = 1; queue.push_back(Index(c)); }
   }
   // Successive over-relaxation towards the discrete Laplace equation.
   const double omega = 1.85;
@@ -66,15 +63,15 @@ double fill_one(Raster& r, const Void& v, std::vector<uint8_t>& filled) {
   double last = 0;
   for (size_t sweep = 0; sweep < max_sweeps; ++sweep) {
     double change = 0;
-    for (uint32_t i = 0; i < v.samples.size(); ++i) {
+    for (Index i = 0; i < samples.size(); ++i) {
       double sum = 0;
       int n = 0;
       for (int64_t c : nbr[i]) {
         if (c <= -3) { sum += value_of(c); ++n; }
-        else if (c >= 0) { sum += z[v.samples[size_t(c)]]; ++n; }
+        else if (c >= 0) { sum += z[samples[size_t(c)]]; ++n; }
       }
       if (n == 0) continue;
-      float& zi = z[v.samples[i]];
+      float& zi = z[samples[i]];
       const double next = zi + omega * (sum / n - zi);
       change = std::max(change, std::fabs(next - zi));
       zi = float(next);
@@ -82,59 +79,93 @@ double fill_one(Raster& r, const Void& v, std::vector<uint8_t>& filled) {
     last = change;
     if (change < 1e-4) break;
   }
-  for (uint32_t idx : v.samples) filled[idx] = 1;
+  for (Index idx : samples) filled[idx] = 1;
   return last;
 }
 
+template <class Index>
+Status fill_complete_voids_as(const FillWindow& win, float* z, uint8_t* filled, NodataPolicy policy,
+                              int64_t max_fill_samples, uint64_t base_bytes, const std::string& what,
+                              VoidStats& stats, uint64_t memory_limit_bytes) {
+  const int w = win.w, h = win.h;
+  const int rw = win.raster_width, rh = win.raster_height;
+  const size_t n = size_t(w) * size_t(h);
+  const uint64_t raster_samples = uint64_t(rw) * uint64_t(rh);
+  // Window edges inside the raster: a void reaching one may continue beyond the window.
+  const bool open_left = win.c0 > 0, open_right = win.c0 + w < rw;
+  const bool open_top = win.r0 > 0, open_bottom = win.r0 + h < rh;
+  std::vector<uint8_t> seen(n, 0);
+  std::vector<Index> stack;
+  Samples<Index> samples;
+  for (size_t start = 0; start < n; ++start) {
+    if (!std::isnan(z[start]) || seen[start]) continue;
+    // Depth-first from the void's first sample, neighbours left, right, up, down: this order
+    // (through fill_one) decides the filled values' bits, so it must not change.
+    samples.clear();
+    bool touches_border = false, cut = false;
+    stack.assign(1, Index(start));
+    seen[start] = 1;
+    while (!stack.empty()) {
+      const Index idx = stack.back();
+      stack.pop_back();
+      samples.push_back(idx);
+      const int x = int(idx % Index(w)), y = int(idx / Index(w));
+      const int gx = win.c0 + x, gy = win.r0 + y;
+      if (gx == 0 || gy == 0 || gx == rw - 1 || gy == rh - 1) touches_border = true;
+      if ((x == 0 && open_left) || (x == w - 1 && open_right) || (y == 0 && open_top) || (y == h - 1 && open_bottom))
+        cut = true;
+      const int64_t cand[4] = {x > 0 ? int64_t(idx) - 1 : -1, x + 1 < w ? int64_t(idx) + 1 : -1,
+                               y > 0 ? int64_t(idx) - w : -1, y + 1 < h ? int64_t(idx) + w : -1};
+      for (int64_t c : cand)
+        if (c >= 0 && !seen[size_t(c)] && std::isnan(z[size_t(c)])) {
+          seen[size_t(c)] = 1;
+          stack.push_back(Index(c));
+        }
+    }
+    if (cut) continue;  // not all of it is here: its caller leaves it nodata
+    const bool fill = policy == NodataPolicy::fill ||
+                      (policy == NodataPolicy::automatic && !touches_border &&
+                       int64_t(samples.size()) <= max_fill_samples);
+    if (fill && samples.size() < raster_samples) {
+      const uint64_t need = base_bytes + uint64_t(samples.size()) * kFillBytesPerVoidSample;
+      if (Status st = check_memory(need, memory_limit_bytes, what,
+                                   fmt::format("filling a void of {} samples next to sample ({}, {})",
+                                               format_count(samples.size()), win.c0 + int(samples[0] % Index(w)),
+                                               win.r0 + int(samples[0] / Index(w))),
+                                   "raise --memory-limit, or leave large voids as holes (--nodata auto or hole)");
+          !st.ok())
+        return st;
+      stats.max_residual_m = std::max(stats.max_residual_m, fill_one<Index>(z, w, h, samples, filled));
+      stats.filled_samples += samples.size();
+      stats.filled_regions += 1;
+    } else {
+      stats.hole_samples += samples.size();
+      stats.hole_regions += 1;
+    }
+  }
+  return Status::success();
+}
+
 }  // namespace
+
+Status fill_complete_voids(const FillWindow& window, float* values, uint8_t* filled, NodataPolicy policy,
+                           int64_t max_fill_samples, uint64_t base_bytes, const std::string& what, VoidStats& stats,
+                           uint64_t memory_limit_bytes) {
+  if (uint64_t(window.w) * uint64_t(window.h) <= UINT32_MAX)
+    return fill_complete_voids_as<uint32_t>(window, values, filled, policy, max_fill_samples, base_bytes, what, stats,
+                                            memory_limit_bytes);
+  return fill_complete_voids_as<uint64_t>(window, values, filled, policy, max_fill_samples, base_bytes, what, stats,
+                                          memory_limit_bytes);
+}
 
 Status fill_voids(Raster& r, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
                   VoidStats& stats, uint64_t memory_limit_bytes) {
   stats = VoidStats{};
   filled.assign(r.values.size(), 0);
-  const int w = r.width, h = r.height;
-  std::vector<uint8_t> seen(r.values.size(), 0);
-  std::vector<uint32_t> stack;
-  for (size_t start = 0; start < r.values.size(); ++start) {
-    if (!std::isnan(r.values[start]) || seen[start]) continue;
-    Void v;
-    stack.assign(1, uint32_t(start));
-    seen[start] = 1;
-    while (!stack.empty()) {
-      const uint32_t idx = stack.back();
-      stack.pop_back();
-      v.samples.push_back(idx);
-      const int x = int(idx % uint32_t(w)), y = int(idx / uint32_t(w));
-      if (x == 0 || y == 0 || x == w - 1 || y == h - 1) v.touches_border = true;
-      const int64_t cand[4] = {x > 0 ? int64_t(idx) - 1 : -1, x + 1 < w ? int64_t(idx) + 1 : -1,
-                               y > 0 ? int64_t(idx) - w : -1, y + 1 < h ? int64_t(idx) + w : -1};
-      for (int64_t c : cand)
-        if (c >= 0 && !seen[size_t(c)] && std::isnan(r.values[size_t(c)])) {
-          seen[size_t(c)] = 1;
-          stack.push_back(uint32_t(c));
-        }
-    }
-    const bool fill = policy == NodataPolicy::fill ||
-                      (policy == NodataPolicy::automatic && !v.touches_border &&
-                       int64_t(v.samples.size()) <= max_fill_samples);
-    if (fill && v.samples.size() < r.values.size()) {
-      const uint64_t need = uint64_t(r.values.size()) * kCookBytesPerSample + uint64_t(v.samples.size()) * kFillBytesPerVoidSample;
-      if (Status st = check_memory(need, memory_limit_bytes, r.path,
-                                   fmt::format("filling a void of {} samples next to sample ({}, {})",
-                                               format_count(v.samples.size()), v.samples[0] % uint32_t(w),
-                                               v.samples[0] / uint32_t(w)),
-                                   "raise --memory-limit, or leave large voids as holes (--nodata auto or hole)");
-          !st.ok())
-        return st;
-      stats.max_residual_m = std::max(stats.max_residual_m, fill_one(r, v, filled));
-      stats.filled_samples += v.samples.size();
-      stats.filled_regions += 1;
-    } else {
-      stats.hole_samples += v.samples.size();
-      stats.hole_regions += 1;
-    }
-  }
-  return Status::success();
+  // The whole raster is one window: every void is complete in it.
+  const FillWindow whole{r.width, r.height, 0, 0, r.width, r.height};
+  return fill_complete_voids(whole, r.values.data(), filled.data(), policy, max_fill_samples,
+                             uint64_t(r.values.size()) * kCookBytesPerSample, r.path, stats, memory_limit_bytes);
 }
 
 }  // namespace terrain::cook

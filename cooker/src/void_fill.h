@@ -8,6 +8,7 @@
 // breadth-first initial guess), so the fill meets the data continuously with no new extrema.
 #pragma once
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "raster.h"
@@ -28,5 +29,20 @@ struct VoidStats {
 // kCookBytesPerSample); a void that would exceed memory_limit_bytes is refused before it is filled.
 Status fill_voids(Raster& raster, NodataPolicy policy, int64_t max_fill_samples, std::vector<uint8_t>& filled,
                   VoidStats& stats, uint64_t memory_limit_bytes = UINT64_MAX);
+
+// The one fill algorithm, on a window of samples [c0, c0 + w) x [r0, r0 + h) of a raster of
+// raster_width x raster_height (fill_voids() passes the whole raster, void_plan.h its windows).
+struct FillWindow {
+  int raster_width = 0, raster_height = 0;
+  int c0 = 0, r0 = 0, w = 0, h = 0;
+};
+// Fills, in `values` (the window's samples, row-major, NaN = nodata), every void COMPLETE inside
+// the window (none of its samples on a window edge that is not a raster edge) that fill_voids()'s
+// rule fills; voids cut by the window edge are left as they are. `filled` (window-sized, set by the
+// caller) gets 1 where a sample was filled; `stats` counts the complete voids only. The memory
+// check is base_bytes + kFillBytesPerVoidSample per sample of the void, `what` names the source.
+Status fill_complete_voids(const FillWindow& window, float* values, uint8_t* filled, NodataPolicy policy,
+                           int64_t max_fill_samples, uint64_t base_bytes, const std::string& what, VoidStats& stats,
+                           uint64_t memory_limit_bytes);
 
 }  // namespace terrain::cook

@@ -1,0 +1,232 @@
+#include "void_plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <tuple>
+
+#include "memory_budget.h"
+
+namespace terrain::cook {
+namespace {
+
+// What the plan knows of one void (or of a part of it until the parts are joined).
+struct VoidRecord {
+  int64_t parent = 0;  // union-find; a root is its own parent
+  int64_t samples = 0;
+  SampleRect bbox;
+  bool touches_border = false;
+};
+
+SampleRect united(const SampleRect& a, const SampleRect& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  return {std::min(a.c0, b.c0), std::min(a.r0, b.r0), std::max(a.c1, b.c1), std::max(a.r1, b.r1)};
+}
+
+SampleRect intersected(const SampleRect& a, const SampleRect& b) {
+  return {std::max(a.c0, b.c0), std::max(a.r0, b.r0), std::min(a.c1, b.c1), std::min(a.r1, b.r1)};
+}
+
+// fill_voids()'s rule (void_fill.cpp): the whole raster as one void is never filled.
+bool will_fill(const VoidPlan& plan, int64_t samples, bool touches_border) {
+  const bool fill = plan.policy == NodataPolicy::fill ||
+                    (plan.policy == NodataPolicy::automatic && !touches_border && samples <= plan.max_fill_samples);
+  return fill && uint64_t(samples) < uint64_t(plan.width) * uint64_t(plan.height);
+}
+
+// A whole void is known: count it, and keep its box when it is filled across tiles.
+void finish_void(VoidPlan& plan, int64_t samples, const SampleRect& bbox, bool touches_border) {
+  if (will_fill(plan, samples, touches_border)) {
+    plan.stats.filled_samples += uint64_t(samples);
+    plan.stats.filled_regions += 1;
+    const int t = plan.tile;
+    if (bbox.c0 / t != bbox.c1 / t || bbox.r0 / t != bbox.r1 / t) plan.spanning_fills.push_back(bbox);
+  } else {
+    plan.stats.hole_samples += uint64_t(samples);
+    plan.stats.hole_regions += 1;
+  }
+}
+
+// The voids that reach a tile edge inside the raster, joined across edges as tiles are read.
+struct OpenVoids {
+  std::vector<VoidRecord> records;
+
+  int64_t find(int64_t i) {
+    while (records[size_t(i)].parent != i) {
+      records[size_t(i)].parent = records[size_t(records[size_t(i)].parent)].parent;  // path halving
+      i = records[size_t(i)].parent;
+    }
+    return i;
+  }
+  void join(int64_t a, int64_t b) {
+    a = find(a);
+    b = find(b);
+    if (a == b) return;
+    if (records[size_t(a)].samples < records[size_t(b)].samples) std::swap(a, b);
+    VoidRecord& ra = records[size_t(a)];
+    const VoidRecord& rb = records[size_t(b)];
+    ra.samples += rb.samples;
+    ra.bbox = united(ra.bbox, rb.bbox);
+    ra.touches_border = ra.touches_border || rb.touches_border;
+    records[size_t(b)].parent = a;
+  }
+  // After a row of tiles: finishes every void no label in `above` refers to (it cannot grow any
+  // more) and keeps only the others, renumbering `above`.
+  void close_unreferenced(VoidPlan& plan, std::vector<int64_t>& above) {
+    std::vector<int64_t> renumber(records.size(), -1);
+    for (int64_t& a : above)
+      if (a >= 0) a = find(a);
+    std::vector<VoidRecord> kept;
+    for (int64_t a : above)
+      if (a >= 0 && renumber[size_t(a)] < 0) {
+        renumber[size_t(a)] = int64_t(kept.size());
+        kept.push_back(records[size_t(a)]);
+        kept.back().parent = renumber[size_t(a)];
+      }
+    for (size_t i = 0; i < records.size(); ++i)
+      if (records[i].parent == int64_t(i) && renumber[i] < 0)
+        finish_void(plan, records[i].samples, records[i].bbox, records[i].touches_border);
+    for (int64_t& a : above)
+      if (a >= 0) a = renumber[size_t(a)];
+    records = std::move(kept);
+  }
+};
+
+}  // namespace
+
+Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
+                  int tile, VoidPlan& out) {
+  out = VoidPlan{};
+  if (width < 0 || height < 0 || tile <= 0 || int64_t(tile) * tile > INT32_MAX)  // tile indices are 32-bit
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("plan_voids: raster {} x {}, tile {}", width, height, tile));
+  out.width = width;
+  out.height = height;
+  out.tile = tile;
+  out.policy = policy;
+  out.max_fill_samples = max_fill_samples;
+
+  OpenVoids open;
+  // Record (or -1) of the last sample read in each column (the bottom row of the tiles read last
+  // there), and of the right column of the tile read last in this row of tiles.
+  std::vector<int64_t> above(size_t(width), -1), left;
+  std::vector<float> z;
+  std::vector<int32_t> label;        // per tile sample: its void in the tile, -1 valid
+  std::vector<int64_t> record_of;    // per void of the tile: its record, -1 when it reaches no inner edge
+  std::vector<int32_t> stack;
+  struct TileVoid { int64_t samples; SampleRect bbox; bool border, inner_edge; };
+  std::vector<TileVoid> tile_voids;
+
+  for (int ty = 0; ty < height; ty += tile) {
+    const int th = std::min(tile, height - ty);
+    left.assign(size_t(th), -1);
+    for (int tx = 0; tx < width; tx += tile) {
+      const int tw = std::min(tile, width - tx);
+      z.resize(size_t(tw) * size_t(th));
+      if (Status st = read(tx, ty, tw, th, z.data()); !st.ok()) return st;
+      // Valid samples.
+      for (int y = 0; y < th; ++y) {
+        int first = -1, last = -1;
+        for (int x = 0; x < tw; ++x)
+          if (!std::isnan(z[size_t(y) * size_t(tw) + size_t(x)])) {
+            if (first < 0) first = x;
+            last = x;
+            ++out.valid_samples;
+          }
+        if (first >= 0) out.valid_bounds = united(out.valid_bounds, SampleRect{tx + first, ty + y, tx + last, ty + y});
+      }
+      // The tile's voids (any labelling order: only sizes, boxes and edges matter here).
+      label.assign(z.size(), -1);
+      tile_voids.clear();
+      for (size_t s = 0; s < z.size(); ++s) {
+        if (!std::isnan(z[s]) || label[s] >= 0) continue;
+        const int32_t id = int32_t(tile_voids.size());
+        TileVoid v{0, {}, false, false};
+        stack.assign(1, int32_t(s));
+        label[s] = id;
+        while (!stack.empty()) {
+          const int32_t i = stack.back();
+          stack.pop_back();
+          const int x = i % tw, y = i / tw, gx = tx + x, gy = ty + y;
+          ++v.samples;
+          v.bbox = united(v.bbox, SampleRect{gx, gy, gx, gy});
+          if (gx == 0 || gy == 0 || gx == width - 1 || gy == height - 1) v.border = true;
+          if ((x == 0 && gx > 0) || (y == 0 && gy > 0) || (x == tw - 1 && gx < width - 1) ||
+              (y == th - 1 && gy < height - 1))
+            v.inner_edge = true;
+          const int32_t cand[4] = {x > 0 ? i - 1 : -1, x + 1 < tw ? i + 1 : -1, y > 0 ? i - tw : -1,
+                                   y + 1 < th ? i + tw : -1};
+          for (int32_t c : cand)
+            if (c >= 0 && label[size_t(c)] < 0 && std::isnan(z[size_t(c)])) {
+              label[size_t(c)] = id;
+              stack.push_back(c);
+            }
+        }
+        tile_voids.push_back(v);
+      }
+      // Voids inside the tile are finished; those reaching an inner edge become records.
+      record_of.assign(tile_voids.size(), -1);
+      for (size_t v = 0; v < tile_voids.size(); ++v) {
+        const TileVoid& tv = tile_voids[v];
+        if (!tv.inner_edge) {
+          finish_void(out, tv.samples, tv.bbox, tv.border);
+          continue;
+        }
+        record_of[v] = int64_t(open.records.size());
+        open.records.push_back({record_of[v], tv.samples, tv.bbox, tv.border});
+      }
+      auto record_at = [&](int x, int y) -> int64_t {
+        const int32_t l = label[size_t(y) * size_t(tw) + size_t(x)];
+        return l >= 0 ? record_of[size_t(l)] : -1;
+      };
+      // Join across the top and left edges.
+      for (int x = 0; x < tw; ++x)
+        if (const int64_t r = record_at(x, 0); r >= 0 && above[size_t(tx + x)] >= 0) open.join(r, above[size_t(tx + x)]);
+      for (int y = 0; y < th; ++y)
+        if (const int64_t r = record_at(0, y); r >= 0 && left[size_t(y)] >= 0) open.join(r, left[size_t(y)]);
+      // What the next tiles join to (nothing beyond the raster's last row and column).
+      const bool last_row = ty + th == height, last_col = tx + tw == width;
+      for (int x = 0; x < tw; ++x) above[size_t(tx + x)] = last_row ? -1 : record_at(x, th - 1);
+      for (int y = 0; y < th; ++y) left[size_t(y)] = last_col ? -1 : record_at(tw - 1, y);
+    }
+    open.close_unreferenced(out, above);
+  }
+  std::sort(out.spanning_fills.begin(), out.spanning_fills.end(), [](const SampleRect& a, const SampleRect& b) {
+    return std::tie(a.r0, a.c0, a.r1, a.c1) < std::tie(b.r0, b.c0, b.r1, b.c1);
+  });
+  return Status::success();
+}
+
+SampleRect fill_read_rect(const VoidPlan& plan, const SampleRect& need) {
+  const SampleRect raster{0, 0, plan.width - 1, plan.height - 1};
+  const SampleRect n = intersected(need, raster);
+  if (n.empty() || plan.tile <= 0) return SampleRect{};
+  const int t = plan.tile;
+  // Whole tiles (so every void inside one tile that meets `need` is here), and a ring around them
+  // (so such a void touching its tile's edge is not cut by the window's).
+  SampleRect rect{(n.c0 / t) * t - 1, (n.r0 / t) * t - 1, (n.c1 / t + 1) * t, (n.r1 / t + 1) * t};
+  for (const SampleRect& f : plan.spanning_fills)
+    if (!intersected(f, n).empty()) rect = united(rect, SampleRect{f.c0 - 1, f.r0 - 1, f.c1 + 1, f.r1 + 1});
+  return intersected(rect, raster);
+}
+
+Status fill_voids_window(const VoidPlan& plan, const SampleRect& window, float* values, uint8_t* filled,
+                         double& max_residual_m, uint64_t memory_limit_bytes) {
+  max_residual_m = 0;
+  if (window.empty() || window.c0 < 0 || window.r0 < 0 || window.c1 >= plan.width || window.r1 >= plan.height)
+    return Status::failure(Error::invalid_argument,
+                           fmt::format("fill_voids_window: window [{}, {}] x [{}, {}] outside the {} x {} raster",
+                                       window.c0, window.c1, window.r0, window.r1, plan.width, plan.height));
+  std::fill(filled, filled + window.samples(), uint8_t(0));
+  const FillWindow w{plan.width, plan.height, window.c0, window.r0, window.width(), window.height()};
+  VoidStats stats;
+  const Status st = fill_complete_voids(w, values, filled, plan.policy, plan.max_fill_samples,
+                                        window.samples() * kCookBytesPerSample,
+                                        plan.source_name.empty() ? std::string("source") : plan.source_name, stats,
+                                        memory_limit_bytes);
+  max_residual_m = stats.max_residual_m;
+  return st;
+}
+
+}  // namespace terrain::cook
