@@ -25,6 +25,7 @@
 #include "crs.h"
 #include "frame.h"
 #include "inputs.h"
+#include "memory_budget.h"
 #include "sample_window.h"
 
 namespace terrain::cook {
@@ -77,6 +78,7 @@ struct OverlayRaster {
   // The orthophoto is not stored top-left first (Orientation tag): libtiff's oriented whole-image
   // read is the only one that turns it, so the window is the whole raster, read once.
   bool whole = false;
+  uint64_t memory_limit = 0;  // --memory-limit: a window (and its decode buffers) must fit it
   // The window: whole-raster sample indices; band 1 (NaN = nodata) or RGB and alpha.
   SampleRect window;
   std::vector<float> values;
@@ -124,6 +126,18 @@ Status read_block_band1(OverlayRaster& o, uint32_t bx, uint32_t by, uint32_t row
 Status read_overlay_window(OverlayRaster& o, SampleRect rect) {
   rect = intersect(rect, SampleRect{0, 0, o.raster.width - 1, o.raster.height - 1});
   if (o.whole) rect = SampleRect{0, 0, o.raster.width - 1, o.raster.height - 1};
+  // 4 bytes a sample (RGB and alpha, or a float), plus a block's raw, RGBA and float buffers (or
+  // the whole-image RGBA of the oriented read), checked before anything is allocated.
+  const uint64_t block = uint64_t(o.block_w) * o.block_h;
+  const uint64_t need = rect.samples() * 4 + block * (uint64_t(o.bits / 8) * o.spp + 8) +
+                        (o.rgb && o.whole ? uint64_t(o.raster.width) * uint64_t(o.raster.height) * 4 : 0);
+  if (Status st = check_memory(need, o.memory_limit, fmt::format("{} {}", o.what, o.path),
+                               fmt::format("a window of {} samples ({}x{})", format_count(rect.samples()), rect.width(),
+                                           rect.height()),
+                               "give a smaller --block-roots (the default block size counts the DEM's samples only) "
+                               "or a coarser overlay");
+      !st.ok())
+    return st;
   o.window = rect;
   const size_t n = size_t(rect.samples());
   o.values.clear();
@@ -433,6 +447,7 @@ Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vec
   auto load = [&](const char* what, const std::string& path, bool rgb, std::unique_ptr<OverlayRaster>& slot) -> Status {
     if (path.empty()) return Status::success();
     slot = std::make_unique<OverlayRaster>();
+    slot->memory_limit = memory_limit_of(o);
     if (Status st = open_overlay(what, path, rgb, *slot); !st.ok()) return st;
     if (Status st = slot->mapping.init(slot->raster, frame, threads); !st.ok())
       return Status::failure(st.code, fmt::format("{} {}: {}", what, path, st.message));

@@ -187,4 +187,28 @@ TEST_F(OverlayWindows, SixteenBitStripedPhotoInOneRootBlocksGivesTheOneBlockByte
   EXPECT_LT(double(split.windows.largest_window_samples), 0.6 * double(raster_samples(ov_.photo16)));
 }
 
+// A window is checked against --memory-limit before it is read: a 1 m photo (4000 x 2800 samples,
+// 45 MB as one window) is refused under a 40 MB limit in one block, with the way out named, and
+// cooks in blocks of one root (windows of at most 2176 x 2176 m: 19 MB).
+TEST_F(OverlayWindows, AWindowOverTheMemoryLimitIsRefusedAndSmallerBlocksFit) {
+  const fs::path fine = dir_ / "photo_1m.tif";
+  run(fmt::format("gdal_translate -q -r bilinear -tr 1 1 -co TILED=YES {} {}", q(dir_ / "relief_cut.tif"), q(fine)));
+  ASSERT_EQ(raster_samples(fine), uint64_t(4000) * 2800);
+  cook::CookOptions o = base_;
+  o.albedo_path = fine.string();
+  o.memory_limit_bytes = uint64_t(40) << 20;
+  o.block_roots = 4096;
+  o.output += ".limit";
+  cook::CookReport report;
+  const Status refused = cook::cook(o, nullptr, report);
+  expect_refusal(refused, Error::unsupported_input, {"--albedo", "photo_1m.tif", "11.2 M samples", "--block-roots"});
+  EXPECT_FALSE(fs::exists(o.output));
+  o.block_roots = 1;
+  cook::reset_overlay_window_stats();
+  const Status st = cook::cook(o, nullptr, report);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  EXPECT_EQ(cook::overlay_window_stats().misses, 0u);
+  EXPECT_LE(cook::overlay_window_stats().largest_window_samples * 4, uint64_t(40) << 20);
+}
+
 }  // namespace
