@@ -4,6 +4,7 @@
 // command-line tools from a synthetic DEM, in other CRSs than the DEM's (anchored mappings), tiled
 // and striped, covering a part of the DEM that crosses several root edges.
 #include <gtest/gtest.h>
+#include <tiffio.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -185,6 +186,34 @@ TEST_F(OverlayWindows, SixteenBitStripedPhotoInOneRootBlocksGivesTheOneBlockByte
   EXPECT_TRUE(split.bytes == whole.bytes) << "16-bit photo: blocks of one root in order 3 differ";
   EXPECT_EQ(split.windows.misses, 0u);
   EXPECT_LT(double(split.windows.largest_window_samples), 0.6 * double(raster_samples(ov_.photo16)));
+}
+
+// An orthophoto whose Orientation tag is not top-left: only libtiff's oriented whole-image read
+// turns it, so its window is the whole raster, read once, in every block.
+TEST_F(OverlayWindows, PhotoNotStoredTopLeftIsReadWholeOnce) {
+  const fs::path flipped = dir_ / "photo_botleft.tif";
+  fs::copy_file(ov_.photo, flipped, fs::copy_options::overwrite_existing);
+  {
+    TIFF* t = TIFFOpen(flipped.string().c_str(), "r+");
+    ASSERT_NE(t, nullptr);
+    ASSERT_EQ(TIFFSetField(t, TIFFTAG_ORIENTATION, ORIENTATION_BOTLEFT), 1);
+    ASSERT_EQ(TIFFRewriteDirectory(t), 1);
+    TIFFClose(t);
+  }
+  cook::CookOptions o = base_;
+  o.albedo_path = flipped.string();
+  Cooked whole, split;
+  ASSERT_NO_FATAL_FAILURE(cook_to(o, 4096, 0, ".flipwhole", whole));
+  ASSERT_NO_FATAL_FAILURE(cook_to(o, 1, 5, ".flipb1s5", split));
+  EXPECT_TRUE(split.bytes == whole.bytes) << "bottom-left photo: blocks of one root in order 5 differ";
+  EXPECT_EQ(split.windows.windows, 1u);
+  EXPECT_EQ(split.windows.largest_window_samples, raster_samples(flipped));
+  EXPECT_EQ(split.windows.misses, 0u);
+  // The flip is real: the archive differs from the top-left photo's.
+  o.albedo_path = ov_.photo.string();
+  Cooked upright;
+  ASSERT_NO_FATAL_FAILURE(cook_to(o, 4096, 0, ".upright", upright));
+  EXPECT_NE(upright.bytes, whole.bytes);
 }
 
 // A window is checked against --memory-limit before it is read: a 1 m photo (4000 x 2800 samples,
