@@ -211,7 +211,8 @@ Status read_overlay_window(OverlayRaster& o, SampleRect rect) {
 }
 
 // The window of `o` the frame rectangle maps to: its edges through the same batch mapping the
-// vertices take (map_frame_row), points at most 64 m apart, plus 2 samples for the bilinear taps
+// vertices take (map_frame_row), points 64 m apart (at most 4097 an edge: 256 m on a 1000 km edge,
+// where a frame line bends by millimetres in any source CRS), plus 2 samples for the bilinear taps
 // and the nearest-sample rounding.
 SampleRect frame_rect_window(const OverlayRaster& o, double x0, double y0, double x1, double y1) {
   const int n = int(std::min(4096.0, std::ceil(std::max(x1 - x0, y1 - y0) / 64.0))) + 1;

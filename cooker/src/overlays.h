@@ -23,7 +23,10 @@ Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vec
 // Reads, in place of the previous block's, the window of each overlay that the frame rectangle
 // [x0, x1] x [y0, y1] (a block's, pyramid.h block_frame_rect) maps to, plus the sampling's taps:
 // every vertex in the rectangle then samples what a read of the whole raster would give it.
-// Call before cooking the block's nodes; `ov` is what load_overlays made.
+// Call before cooking the block's nodes; `ov` is what load_overlays made. A window (4 B a sample)
+// must fit --memory-limit. An orthophoto whose Orientation tag is not top-left is read whole, once.
+// Decoding is libtiff's, tile by tile or strip by strip (a compressed image stored as one strip is
+// decoded whole for every block).
 Status prepare_overlays_block(SurfaceOverlays& ov, double x0, double y0, double x1, double y1);
 
 // Process-wide counts since reset_overlay_window_stats(), for the tests: the largest window read
