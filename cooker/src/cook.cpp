@@ -342,6 +342,11 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (rect.empty()) continue;
     if (Status st = read_window(rect); !st.ok()) return st;
     ctx.set_window(window);
+    if (overlays) {
+      double bx0 = 0, by0 = 0, bx1 = 0, by1 = 0;
+      block_frame_rect(ctx, b, bx0, by0, bx1, by1);
+      if (Status st = prepare_overlays_block(*overlays, bx0, by0, bx1, by1); !st.ok()) return st;
+    }
     if (Status st = cook_block(ctx, b, threads, sink, totals, report); !st.ok()) {
       writer.abort();
       return st;

@@ -154,14 +154,15 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
   if (block_bytes <= 0)
     return Status::failure(Error::unsupported_input, fmt::format("{}: inconsistent {} size ({})", path,
                                                                   TIFFIsTiled(tif.get()) ? "tile" : "strip", tiff_error));
-  if (Status st = check_raster_memory(path, width, height, tname, options, uint64_t(block_bytes)); !st.ok()) return st;
+  if (!options.header_only)
+    if (Status st = check_raster_memory(path, width, height, tname, options, uint64_t(block_bytes)); !st.ok()) return st;
 
   out = Raster{};
   out.path = path;
   out.width = int(width);
   out.height = int(height);
   out.nodata_declared = nodata.has_value();
-  out.values.assign(size_t(width) * height, NAN);
+  if (!options.header_only) out.values.assign(size_t(width) * height, NAN);
   const bool is_float = format == SAMPLEFORMAT_IEEEFP;
   const float nodata_f = nodata ? float(*nodata) : 0.0f;
   auto convert = [&](const uint8_t* src, float* dst, size_t count) {
@@ -174,7 +175,9 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
   };
 
   std::vector<uint8_t> buf;
-  if (TIFFIsTiled(tif.get())) {
+  if (options.header_only) {
+    // No samples: the georeferencing below only.
+  } else if (TIFFIsTiled(tif.get())) {
     uint32_t tw = 0, th = 0;
     TIFFGetField(tif.get(), TIFFTAG_TILEWIDTH, &tw);
     TIFFGetField(tif.get(), TIFFTAG_TILELENGTH, &th);

@@ -24,6 +24,9 @@ struct ReadOptions {
   // the whole cook will need per sample); the defaults check the raster alone against 2 GB.
   uint64_t memory_limit_bytes = uint64_t(2) << 30;
   uint64_t bytes_per_sample = sizeof(float);
+  // read_geotiff only: size, georeferencing, CRS, description and nodata_declared, no samples
+  // (values stays empty; the overlays read their samples by windows, overlays.cpp).
+  bool header_only = false;
 };
 
 // Success when a width x height raster (plus `extra_bytes` of reader buffers) fits the budget of

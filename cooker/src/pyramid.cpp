@@ -69,12 +69,19 @@ SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top
   return r;
 }
 
+void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1) {
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel);
+  x0 = ctx.origin_x + b.x0 * kRootSizeM - margin;
+  x1 = ctx.origin_x + b.x1 * kRootSizeM + margin;
+  y0 = ctx.origin_y + b.y0 * kRootSizeM - margin;
+  y1 = ctx.origin_y + b.y1 * kRootSizeM + margin;
+}
+
 SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b) {
   // The block's square plus the root windows' margin, mapped along its edges (a projected square
   // bends by far less than a sample between 64 points of an edge).
-  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel);
-  const double x0 = ctx.origin_x + b.x0 * kRootSizeM - margin, x1 = ctx.origin_x + b.x1 * kRootSizeM + margin;
-  const double y0 = ctx.origin_y + b.y0 * kRootSizeM - margin, y1 = ctx.origin_y + b.y1 * kRootSizeM + margin;
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  block_frame_rect(ctx, b, x0, y0, x1, y1);
   double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
   constexpr int kPoints = 64;
   for (int e = 0; e <= kPoints; ++e) {

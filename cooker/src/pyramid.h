@@ -40,6 +40,9 @@ struct BlockGrid {
 // Source samples the step pass of block `b` reads (the range index's blocks of every node query).
 // `top`: the coarsest range-index level those queries use.
 SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top);
+// Frame rectangle (metres) every vertex of block `b`'s node windows lies in: its roots' square
+// grown by the root windows' margin (kWindowMargin root vertex spacings).
+void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1);
 // Source samples the cook of block `b` reads: its nodes' windows, Catmull-Rom taps and the error
 // measurement's ring, clipped to the source.
 SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b);
