@@ -17,7 +17,9 @@
 #include "frame.h"
 #include "inputs.h"
 #include "memory_budget.h"
-#include "mosaic.h"
+#include "mosaic_source.h"
+#include "source_raster.h"
+#include "void_plan.h"
 #include "node_cook.h"
 #include "node_spool.h"
 #include "overlays.h"
@@ -35,6 +37,9 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr double kRootSizeM = node_size_m(kRootLevel);
+// Tile side (samples) of the void plan's first pass; a block's window grows by up to one tile per
+// side to whole tiles (void_plan.h).
+constexpr int kVoidPlanTile = 256;
 
 const char* policy_name(NodataPolicy p) {
   switch (p) {
@@ -115,19 +120,17 @@ auto grid_of(T& t) {
                   t.extent_max_x_m, t.extent_max_y_m);
 }
 
-// Blocks of side x side roots: the largest side whose cook window (source samples at 4 bytes, their
-// filled flags, the step pass's range index at under 1 byte) takes at most a third of the budget;
-// the rest is for GDAL's cache, the node batches and the spool's records.
-uint32_t block_roots_for(uint64_t memory_limit_bytes, double sx, double sy, uint32_t roots_x, uint32_t roots_y) {
-  constexpr double kBytesPerWindowSample = 6.0;
+// Blocks of side x side roots: the largest side whose cook window (the roots, their windows'
+// margin, the void plan's tile rounding) fits the window budget at kWindowBytesPerSample.
+uint32_t block_roots_for(uint64_t window_bytes, double sx, double sy, uint32_t roots_x, uint32_t roots_y) {
   const uint32_t most = std::max(roots_x, roots_y);
   uint32_t side = 1;
   while (side < most) {
     const uint32_t next = side + 1;
     const double margin_m = 2.0 * kWindowMargin * vertex_spacing_m(kRootLevel);
-    const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 16;
-    const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 16;
-    if (cols * rows * kBytesPerWindowSample > double(memory_limit_bytes) / 3.0) break;
+    const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 2 * kVoidPlanTile + 16;
+    const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 2 * kVoidPlanTile + 16;
+    if (cols * rows * double(kWindowBytesPerSample) > double(window_bytes)) break;
     side = next;
   }
   return side;
@@ -166,54 +169,67 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   auto stage = [&](double f, const std::string& name) { return !progress || progress(f, name); };
   if (!stage(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
 
-  // ---- read ----
-  std::vector<Raster> rasters;
-  if (Status st = load_inputs(options, rasters); !st.ok()) return st;
-  std::vector<std::pair<std::string, std::string>> descriptions;
-  for (const Raster& r : rasters) {
-    descriptions.emplace_back(r.path, r.description);
-    report.input_descriptions.push_back(fmt::format("{}: {}; {}", r.path, r.description, describe_crs(r.crs)));
-    if (const uint64_t n = r.implausible.out_of_range + r.implausible.sentinel; n) {
-      report.implausible_samples += n;
-      report.warnings.push_back(implausible_heights_warning(r, options.valid_range_m));
-    }
-  }
+  // ---- open the inputs; the first pass reads every sample once ----
   report.memory_limit_bytes = memory_limit_of(options);
-  Raster source;
-  if (Status st = mosaic(rasters, source, report.memory_limit_bytes); !st.ok()) return st;
-  report.source_samples = source.values.size();
+  const MemoryShares shares = memory_shares(report.memory_limit_bytes);
+  set_gdal_cache_bytes(shares.gdal_cache);
+  MosaicSource source;
+  if (Status st = open_mosaic_source(options, shares.inputs, source); !st.ok()) return st;
+  const Raster& header = source.header();
+  report.source_samples = uint64_t(header.width) * uint64_t(header.height);
   report.seconds_read = seconds_since(t_start);
 
   // ---- prepare: voids, frame, grid, steps ----
   const auto t_prep = Clock::now();
-  int vc0 = 0, vr0 = 0, vc1 = 0, vr1 = 0;
-  uint64_t valid = 0;
-  if (!valid_bounds(source, vc0, vr0, vc1, vr1, valid))
-    return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", source.path));
-  report.source_valid_samples = valid;
-  std::vector<uint8_t> filled;
-  VoidStats voids;
-  if (Status st = fill_voids(source, options.nodata, options.fill_max_samples, filled, voids, report.memory_limit_bytes);
-      !st.ok())
-    return st;
-  report.voids_filled_samples = voids.filled_samples;
-  report.voids_filled_regions = voids.filled_regions;
-  report.hole_samples = voids.hole_samples;
-  report.hole_regions = voids.hole_regions;
-  report.void_fill_residual_m = voids.max_residual_m;
-  if (options.nodata == NodataPolicy::fill) valid_bounds(source, vc0, vr0, vc1, vr1, valid);
+  VoidPlan voids;
+  {
+    source.set_count_implausible(true);
+    const ReadSamples read = [&](int c0, int r0, int w, int h, float* out) { return source.read(c0, r0, w, h, out); };
+    const ProgressFn sub = progress ? scaled_progress(progress, 0.0, 0.03) : ProgressFn{};
+    if (Status st = plan_voids(header.width, header.height, read, options.nodata, options.fill_max_samples,
+                               kVoidPlanTile, voids, sub);
+        !st.ok())
+      return st;
+    source.set_count_implausible(false);
+  }
+  std::vector<std::pair<std::string, std::string>> descriptions;
+  for (const MosaicSource::InputStat& in : source.inputs()) {
+    descriptions.emplace_back(in.path, in.description);
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}", in.path, in.description, describe_crs(in.crs)));
+    if (const uint64_t n = in.implausible.out_of_range + in.implausible.sentinel; n) {
+      report.implausible_samples += n;
+      Raster named;
+      named.path = in.path;
+      named.implausible = in.implausible;
+      report.warnings.push_back(implausible_heights_warning(named, options.valid_range_m));
+    }
+  }
+  if (voids.valid_samples == 0)
+    return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
+  report.source_valid_samples = voids.valid_samples;
+  report.voids_filled_samples = voids.stats.filled_samples;
+  report.voids_filled_regions = voids.stats.filled_regions;
+  report.hole_samples = voids.stats.hole_samples;
+  report.hole_regions = voids.stats.hole_regions;
+  // Filling every void (--nodata fill) leaves no nodata: the data then reach the raster's edges.
+  const SampleRect data_rect = options.nodata == NodataPolicy::fill
+                                   ? SampleRect{0, 0, header.width - 1, header.height - 1}
+                                   : voids.valid_bounds;
+  const int vc0 = data_rect.c0, vr0 = data_rect.r0, vc1 = data_rect.c1, vr1 = data_rect.r1;
+  const Raster& source_header = header;
 
   FrameCrs frame;
-  if (Status st = choose_frame(source, options.frame, frame, report.frame_reason); !st.ok()) return st;
+  if (Status st = choose_frame(source_header, options.frame, frame, report.frame_reason, &data_rect); !st.ok())
+    return st;
   report.frame = frame;
   SourceMapping mapping;
-  if (Status st = mapping.init(source, frame, threads); !st.ok()) return st;
+  if (Status st = mapping.init(source_header, frame, threads); !st.ok()) return st;
   double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
   // The footprint: pixel areas, or for point samples the samples' hull.
-  mapping.frame_bounds(vc0, vr0, vc1, vr1, source.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
+  mapping.frame_bounds(vc0, vr0, vc1, vr1, source_header.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
   CookContext ctx;
-  ctx.source_width = source.width;
-  ctx.source_height = source.height;
+  ctx.source_width = source_header.width;
+  ctx.source_height = source_header.height;
   ctx.mapping = &mapping;
   ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
   ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
@@ -284,23 +300,28 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   // Blocks of roots, each reading only its window of the source.
   const BlockGrid grid{report.roots_x, report.roots_y,
                        options.block_roots ? options.block_roots
-                                           : block_roots_for(report.memory_limit_bytes, sx, sy, report.roots_x,
-                                                             report.roots_y)};
+                                           : block_roots_for(shares.window, sx, sy, report.roots_x, report.roots_y)};
   report.block_roots = grid.side;
   report.blocks = grid.count();
   const std::vector<uint32_t> order = block_order(grid.count(), options.block_order);
+  // A block's window: the samples it needs, grown so that every void reaching into them is
+  // filled exactly as over the whole raster (void_plan.h), read from the inputs and filled.
   SampleWindow window;
-  auto read_window = [&](const SampleRect& rect) -> Status {
+  auto read_window = [&](const SampleRect& need) -> Status {
+    const SampleRect rect = fill_read_rect(voids, need);
     window.rect = rect;
-    window.source_width = source.width;
-    window.source_height = source.height;
+    window.source_width = source_header.width;
+    window.source_height = source_header.height;
     window.values.resize(size_t(rect.samples()));
     window.filled.resize(size_t(rect.samples()));
-    for (int r = rect.r0; r <= rect.r1; ++r) {
-      const size_t from = size_t(r) * size_t(source.width) + size_t(rect.c0);
-      std::copy_n(&source.values[from], size_t(rect.width()), &window.values[window.index(rect.c0, r)]);
-      std::copy_n(&filled[from], size_t(rect.width()), &window.filled[window.index(rect.c0, r)]);
-    }
+    if (Status st = source.read(rect.c0, rect.r0, rect.width(), rect.height(), window.values.data()); !st.ok())
+      return st;
+    double residual = 0;
+    if (Status st = fill_voids_window(voids, rect, window.values.data(), window.filled.data(), residual,
+                                      report.memory_limit_bytes);
+        !st.ok())
+      return st;
+    report.void_fill_residual_m = std::max(report.void_fill_residual_m, residual);
     report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
     return Status::success();
   };
@@ -393,6 +414,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
       }
   }
   report.seconds_finish = seconds_since(t_fin);
+  for (const MosaicSource::InputStat& in : source.inputs()) report.input_bytes_read.push_back(in.bytes_read);
 
   report.seconds_total = seconds_since(t_start);
   report.source_samples_per_second = double(report.source_samples) / report.seconds_total;

@@ -16,19 +16,27 @@ namespace {
 constexpr double kFrameAnchorStepM = 512.0;  // frame -> sample anchors
 constexpr int kSampleAnchorStep = 16;         // sample -> frame anchors, in samples
 
-// Sample bounds of the raster's valid data, or the whole raster when it holds none.
-void data_or_raster_bounds(const Raster& r, int& c0, int& r0, int& c1, int& r1) {
+// Sample bounds of the raster's valid data (`data` when the caller knows them: a header without
+// values), or the whole raster when it holds none.
+void data_or_raster_bounds(const Raster& r, const SampleRect* data, int& c0, int& r0, int& c1, int& r1) {
   uint64_t valid = 0;
-  if (valid_bounds(r, c0, r0, c1, r1, valid)) return;
+  if (data && !data->empty()) {
+    c0 = data->c0;
+    r0 = data->r0;
+    c1 = data->c1;
+    r1 = data->r1;
+    return;
+  }
+  if (!data && valid_bounds(r, c0, r0, c1, r1, valid)) return;
   c0 = r0 = 0;
   c1 = r.width - 1;
   r1 = r.height - 1;
 }
 
 // Data centre longitude/latitude of a geographic raster (the middle of its valid samples).
-void data_centre(const Raster& r, double& lon, double& lat) {
+void data_centre(const Raster& r, const SampleRect* data, double& lon, double& lat) {
   int c0 = 0, r0 = 0, c1 = 0, r1 = 0;
-  data_or_raster_bounds(r, c0, r0, c1, r1);
+  data_or_raster_bounds(r, data, c0, r0, c1, r1);
   AffineMap::from(r.geo).to_model(0.5 * (c0 + c1), 0.5 * (r0 + r1), lon, lat);
 }
 
@@ -94,12 +102,12 @@ FrameCrs centred_tm(const SourceCrs& src, double lon, double lat, std::string& r
 // Keeps a projected input's own CRS as the frame when it is metric east/north and its scale error
 // over the data (a 9 x 9 grid of the valid samples' footprint) is within kMaxFrameScaleError;
 // else the centred Transverse Mercator.
-Status frame_for_projected(const Raster& r, FrameCrs& out, std::string& reason) {
+Status frame_for_projected(const Raster& r, const SampleRect* data, FrameCrs& out, std::string& reason) {
   const SourceCrs& src = r.crs;
   std::shared_ptr<const ProjProjection> proj;
   if (Status st = ProjProjection::create(src.tm.definition, proj); !st.ok()) return st;
   int c0 = 0, r0 = 0, c1 = 0, r1 = 0;
-  data_or_raster_bounds(r, c0, r0, c1, r1);
+  data_or_raster_bounds(r, data, c0, r0, c1, r1);
   const AffineMap map = AffineMap::from(r.geo);
   constexpr int kGrid = 9;
   std::vector<double> lat, lon;
@@ -133,7 +141,8 @@ Status frame_for_projected(const Raster& r, FrameCrs& out, std::string& reason) 
 
 }  // namespace
 
-Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason) {
+Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason,
+                    const SampleRect* data) {
   const SourceCrs& src = source.crs;
   if (!frame_spec.empty()) {
     SourceCrs f;
@@ -186,11 +195,11 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
       return Status::success();
     case CrsKind::geographic: {
       double lon = 0, lat = 0;
-      data_centre(source, lon, lat);
+      data_centre(source, data, lon, lat);
       out = centred_tm(src, lon, lat, reason, "geographic input");
       return Status::success();
     }
-    case CrsKind::projected: return frame_for_projected(source, out, reason);
+    case CrsKind::projected: return frame_for_projected(source, data, out, reason);
     default:
       return Status::failure(Error::unsupported_input, fmt::format("no frame for an input in {}", describe_crs(src)));
   }

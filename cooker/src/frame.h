@@ -20,6 +20,7 @@
 
 #include "anchor_grid.h"
 #include "raster.h"
+#include "sample_window.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
@@ -29,7 +30,10 @@ namespace terrain::cook {
 // CRS is kept as the frame: 0.5 %, so a frame metre is a ground metre within 5 mm per metre.
 inline constexpr double kMaxFrameScaleError = 0.005;
 
-Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason);
+// `data`: the valid samples' bounds when `source` is a header without values (the block-wise cook
+// knows them from its first pass); null: found in source.values.
+Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCrs& out, std::string& reason,
+                    const SampleRect* data = nullptr);
 
 // Latitude/longitude on a CRS's own ellipsoid <-> its projected metres.
 class Projection {

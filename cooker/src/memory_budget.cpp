@@ -61,7 +61,19 @@ uint64_t default_memory_limit_bytes() {
   if (const uint64_t cg = cgroup_memory_max(); cg) avail = std::min(avail, cg);
   rlimit as{};
   if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) avail = std::min(avail, uint64_t(as.rlim_cur));
-  return std::max<uint64_t>(avail / 2, 64u << 20);
+  // 2 GB keeps a cook of any size well inside a workstation and lets two run on a 24 GB node
+  // with room to spare; the block-wise cook needs no more (a larger limit only makes blocks larger).
+  return std::max<uint64_t>(std::min<uint64_t>(avail / 2, uint64_t(2) << 30), 64u << 20);
+}
+
+MemoryShares memory_shares(uint64_t limit_bytes) {
+  MemoryShares s;
+  s.reserve = std::min<uint64_t>(limit_bytes / 2, uint64_t(200) << 20);
+  const uint64_t rest = limit_bytes - s.reserve;
+  s.gdal_cache = std::min<uint64_t>(rest / 8, uint64_t(256) << 20);
+  s.inputs = (rest - s.gdal_cache) / 4;
+  s.window = rest - s.gdal_cache - s.inputs;
+  return s;
 }
 
 uint64_t memory_limit_of(const CookOptions& options) {

@@ -2,8 +2,9 @@
 // is checked against it BEFORE it is made, so a huge or lying header is a named error (exit 1)
 // instead of std::bad_alloc or the OOM killer.
 //
-// Today's cook holds the whole source in memory (issue 13 will bound it by blocks), so its need is
-// estimated from the source sample count: kCookBytesPerSample is measured (see memory_budget.cpp).
+// The cook reads the source by windows, one block of roots at a time (pyramid.h): the budget sets
+// the block size (memory_shares, kWindowBytesPerSample). kCookBytesPerSample is what the in-memory
+// whole-raster path (load_inputs + mosaic, kept for tools and tests) needs per sample.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -14,12 +15,24 @@ namespace terrain::cook {
 
 struct CookOptions;
 
-// Peak bytes of the in-memory cook per source sample (heights-only and full cooks alike, measured
+// Peak bytes of a whole-raster, in-memory cook per source sample (heights-only and full cooks alike, measured
 // with /usr/bin/time -v on real DEMs: see memory_budget.cpp).
 inline constexpr uint64_t kCookBytesPerSample = 16;
 // Extra bytes per nodata sample while one void is filled (void_fill.cpp: its sample list, BFS
 // order and queue, the local index pairs and 4 neighbour codes of 8 bytes).
 inline constexpr uint64_t kFillBytesPerVoidSample = 64;
+
+// How a cook spends its budget: a fixed reserve (the process itself: libraries, PROJ's database, the
+// node batches in flight, the spool's records; ~150 MB measured on small cooks), GDAL's block cache,
+// the inputs held whole (own readers, resampled inputs), and the rest for one block's source window.
+struct MemoryShares {
+  uint64_t reserve = 0, gdal_cache = 0, inputs = 0, window = 0;
+};
+MemoryShares memory_shares(uint64_t limit_bytes);
+// Bytes per sample of a block's window: the heights (4), filled flags (1), the fill's visited flags
+// (1), the reader's copy with its one-sample ring (4, mosaic_source.cpp), the step pass's range
+// index (under 1), rounded up.
+inline constexpr uint64_t kWindowBytesPerSample = 12;
 
 // The limit in force: options.memory_limit_bytes, or default_memory_limit_bytes() when it is 0.
 uint64_t memory_limit_of(const CookOptions& options);

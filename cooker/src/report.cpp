@@ -21,6 +21,7 @@ double SurfaceTotals::albedo_psnr_db() const {
 std::string report_json(const CookReport& r) {
   nlohmann::ordered_json j;
   j["inputs"] = r.input_descriptions;
+  j["input_bytes_read"] = r.input_bytes_read;
   j["source"] = {{"samples", r.source_samples},
                  {"valid_samples", r.source_valid_samples},
                  {"spacing_m", r.source_spacing_m},
@@ -151,6 +152,10 @@ std::string report_summary(const CookReport& r) {
                    r.nodes, r.source_samples, r.archive_bytes,
                    r.source_samples ? double(r.archive_bytes) / double(r.source_samples) : 0.0, r.seconds_total,
                    r.source_samples_per_second / 1e6, r.height_samples_per_cpu_second / 1e6, r.peak_rss_bytes >> 20);
+  uint64_t read = 0;
+  for (uint64_t b : r.input_bytes_read) read += b;
+  if (read) s += fmt::format("read: {} bytes of samples from {} inputs (3 passes: voids, steps, cook)\n", read,
+                             r.input_bytes_read.size());
   s += fmt::format("blocks: {} of {}x{} roots, largest source window {} samples, {} bytes spooled; memory limit {} MB\n",
                    r.blocks, r.block_roots, r.block_roots, r.block_window_samples_max, r.spool_bytes,
                    r.memory_limit_bytes >> 20);

@@ -16,6 +16,7 @@ struct SampleRect {
   int width() const { return empty() ? 0 : c1 - c0 + 1; }
   int height() const { return empty() ? 0 : r1 - r0 + 1; }
   uint64_t samples() const { return uint64_t(width()) * uint64_t(height()); }
+  bool operator==(const SampleRect&) const = default;
   bool contains(const SampleRect& o) const {
     return o.empty() || (!empty() && o.c0 >= c0 && o.r0 >= r0 && o.c1 <= c1 && o.r1 <= r1);
   }

@@ -18,16 +18,6 @@ struct VoidRecord {
   bool touches_border = false;
 };
 
-SampleRect united(const SampleRect& a, const SampleRect& b) {
-  if (a.empty()) return b;
-  if (b.empty()) return a;
-  return {std::min(a.c0, b.c0), std::min(a.r0, b.r0), std::max(a.c1, b.c1), std::max(a.r1, b.r1)};
-}
-
-SampleRect intersected(const SampleRect& a, const SampleRect& b) {
-  return {std::max(a.c0, b.c0), std::max(a.r0, b.r0), std::min(a.c1, b.c1), std::min(a.r1, b.r1)};
-}
-
 // fill_voids()'s rule (void_fill.cpp): the whole raster as one void is never filled.
 bool will_fill(const VoidPlan& plan, int64_t samples, bool touches_border) {
   const bool fill = plan.policy == NodataPolicy::fill ||
@@ -67,7 +57,7 @@ struct OpenVoids {
     VoidRecord& ra = records[size_t(a)];
     const VoidRecord& rb = records[size_t(b)];
     ra.samples += rb.samples;
-    ra.bbox = united(ra.bbox, rb.bbox);
+    ra.bbox = unite(ra.bbox, rb.bbox);
     ra.touches_border = ra.touches_border || rb.touches_border;
     records[size_t(b)].parent = a;
   }
@@ -96,7 +86,7 @@ struct OpenVoids {
 }  // namespace
 
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out) {
+                  int tile, VoidPlan& out, const ProgressFn& progress) {
   out = VoidPlan{};
   if (width < 0 || height < 0 || tile <= 0 || int64_t(tile) * tile > INT32_MAX)  // tile indices are 32-bit
     return Status::failure(Error::invalid_argument,
@@ -134,7 +124,7 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
             last = x;
             ++out.valid_samples;
           }
-        if (first >= 0) out.valid_bounds = united(out.valid_bounds, SampleRect{tx + first, ty + y, tx + last, ty + y});
+        if (first >= 0) out.valid_bounds = unite(out.valid_bounds, SampleRect{tx + first, ty + y, tx + last, ty + y});
       }
       // The tile's voids (any labelling order: only sizes, boxes and edges matter here).
       label.assign(z.size(), -1);
@@ -150,7 +140,7 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
           stack.pop_back();
           const int x = i % tw, y = i / tw, gx = tx + x, gy = ty + y;
           ++v.samples;
-          v.bbox = united(v.bbox, SampleRect{gx, gy, gx, gy});
+          v.bbox = unite(v.bbox, SampleRect{gx, gy, gx, gy});
           if (gx == 0 || gy == 0 || gx == width - 1 || gy == height - 1) v.border = true;
           if ((x == 0 && gx > 0) || (y == 0 && gy > 0) || (x == tw - 1 && gx < width - 1) ||
               (y == th - 1 && gy < height - 1))
@@ -191,6 +181,8 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
       for (int y = 0; y < th; ++y) left[size_t(y)] = last_col ? -1 : record_at(tw - 1, y);
     }
     open.close_unreferenced(out, above);
+    if (progress && !progress(double(ty + th) / double(std::max(height, 1)), "voids"))
+      return Status::failure(Error::cancelled, "cancelled");
   }
   std::sort(out.spanning_fills.begin(), out.spanning_fills.end(), [](const SampleRect& a, const SampleRect& b) {
     return std::tie(a.r0, a.c0, a.r1, a.c1) < std::tie(b.r0, b.c0, b.r1, b.c1);
@@ -200,15 +192,15 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
 
 SampleRect fill_read_rect(const VoidPlan& plan, const SampleRect& need) {
   const SampleRect raster{0, 0, plan.width - 1, plan.height - 1};
-  const SampleRect n = intersected(need, raster);
+  const SampleRect n = intersect(need, raster);
   if (n.empty() || plan.tile <= 0) return SampleRect{};
   const int t = plan.tile;
   // Whole tiles (so every void inside one tile that meets `need` is here), and a ring around them
   // (so such a void touching its tile's edge is not cut by the window's).
   SampleRect rect{(n.c0 / t) * t - 1, (n.r0 / t) * t - 1, (n.c1 / t + 1) * t, (n.r1 / t + 1) * t};
   for (const SampleRect& f : plan.spanning_fills)
-    if (!intersected(f, n).empty()) rect = united(rect, SampleRect{f.c0 - 1, f.r0 - 1, f.c1 + 1, f.r1 + 1});
-  return intersected(rect, raster);
+    if (!intersect(f, n).empty()) rect = unite(rect, SampleRect{f.c0 - 1, f.r0 - 1, f.c1 + 1, f.r1 + 1});
+  return intersect(rect, raster);
 }
 
 Status fill_voids_window(const VoidPlan& plan, const SampleRect& window, float* values, uint8_t* filled,
@@ -222,7 +214,7 @@ Status fill_voids_window(const VoidPlan& plan, const SampleRect& window, float* 
   const FillWindow w{plan.width, plan.height, window.c0, window.r0, window.width(), window.height()};
   VoidStats stats;
   const Status st = fill_complete_voids(w, values, filled, plan.policy, plan.max_fill_samples,
-                                        window.samples() * kCookBytesPerSample,
+                                        window.samples() * kWindowBytesPerSample,
                                         plan.source_name.empty() ? std::string("source") : plan.source_name, stats,
                                         memory_limit_bytes);
   max_residual_m = stats.max_residual_m;

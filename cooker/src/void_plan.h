@@ -16,21 +16,13 @@
 #include <string>
 #include <vector>
 
+#include "sample_window.h"
 #include "terrain/cook.h"
+#include "terrain/progress.h"
 #include "terrain/status.h"
 #include "void_fill.h"
 
 namespace terrain::cook {
-
-// A rectangle of samples, inclusive, in global sample coordinates.
-struct SampleRect {
-  int c0 = 0, r0 = 0, c1 = -1, r1 = -1;
-  bool empty() const { return c1 < c0 || r1 < r0; }
-  int width() const { return empty() ? 0 : c1 - c0 + 1; }
-  int height() const { return empty() ? 0 : r1 - r0 + 1; }
-  uint64_t samples() const { return uint64_t(width()) * uint64_t(height()); }
-  bool operator==(const SampleRect&) const = default;
-};
 
 // Reads samples [c0, c0 + w) x [r0, r0 + h) of the whole source (always inside the raster) into
 // `out`, row-major, NaN = nodata.
@@ -58,8 +50,9 @@ struct VoidPlan {
 // rule. Memory: one tile, two raster rows of labels and the records of the voids still open,
 // plus spanning_fills; never the raster. The tile size changes no result of fill_voids_window()
 // (tile: 1..46340, tile * tile samples indexed with 32 bits; invalid_argument otherwise).
+// `progress` (optional) hears the fraction of rows done after each row of tiles.
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out);
+                  int tile, VoidPlan& out, const ProgressFn& progress = {});
 
 // The rectangle a block must read so that its `need` rectangle can be filled exactly: `need`
 // grown to whole tiles plus a one-sample ring, plus the bounding box and a one-sample ring of

@@ -127,9 +127,10 @@ int run(int argc, char** argv) {
                  "Plausible heights MIN,MAX in metres after scale/offset; others become nodata with a warning "
                  "(default -12000,9000)");
   app.add_option("--memory-limit", memory_limit,
-                 "Memory budget, e.g. 256M, 2G: inputs whose cook would need more are refused before reading "
-                 "(today the cook holds the source at ~16 B per sample); default: half the RAM, cgroup limit or "
-                 "ulimit -v, whichever is least (" +
+                 "Memory budget, e.g. 256M, 2G: sets the block size (the source is read by windows, one block at a "
+                 "time) and GDAL's cache; inputs held whole (npz, HGT, images, resampled inputs) and voids too large "
+                 "to fill within it are refused before reading; default: 2G, or half the RAM, cgroup limit or "
+                 "ulimit -v when less (" +
                      fmt::format("{:.1f}G here)", double(terrain::cook::default_memory_limit_bytes()) / (1 << 30)));
   app.add_option("--block-roots", o.block_roots,
                  "Cook blocks of N x N root nodes (2 km each), reading only each block's window of the source "

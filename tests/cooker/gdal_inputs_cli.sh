@@ -20,7 +20,7 @@ expect_refused() { expect_exit "$(snapshot)" "$@"; }  # expect_refused RC REGEX 
 case $case_name in
   vrt_missing_tile)
     rm tiles/b.tif
-    expect_refused 1 "mosaic.vrt: cannot read rows 0..63: tiles/b.tif: No such file or directory" \
+    expect_refused 1 "mosaic.vrt: cannot read its tile tiles/b.tif: No such file or directory" \
       "$bin/terrain-cook" mosaic.vrt -q -o keep.terrain --heights-only ;;
   vrt_unreadable_tile)
     head -c 5000 /dev/urandom > tiles/b.tif

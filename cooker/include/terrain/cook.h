@@ -44,7 +44,8 @@ struct CookOptions {
   // counted in a warning. An undeclared -9999 far from every neighbour is treated alike.
   std::array<double, 2> valid_range_m{-12000.0, 9000.0};
   // Memory budget in bytes (0: default_memory_limit_bytes()). Every allocation sized by the input
-  // is checked against it first; today the cook holds the source in memory at ~16 B per sample.
+  // is checked against it first. The block-wise cook splits it (memory_budget.h): GDAL's cache, the
+  // inputs held whole, and one block's source window, whose size follows from it.
   uint64_t memory_limit_bytes = 0;
   // The block-wise cook (issue 13): blocks of block_roots x block_roots root nodes (0: the largest
   // whose source window fits the budget). block_order 0 cooks blocks row by row; any other value
@@ -131,6 +132,9 @@ struct SurfaceTotals {
 struct CookReport {
   // Inputs
   std::vector<std::string> input_descriptions;
+  // Per input (same order): decoded bytes asked of GDAL over the whole cook (0 for inputs our own
+  // readers hold whole).
+  std::vector<uint64_t> input_bytes_read;
   uint64_t source_samples = 0;       // samples read (mosaic)
   uint64_t source_valid_samples = 0;
   uint64_t voids_filled_samples = 0, voids_filled_regions = 0;
@@ -188,8 +192,8 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
 // --memory-limit: "256M", "2G", "1.5G", "512K" (K/M/G/T are powers of 1024; a trailing B or iB is
 // accepted); false unless it is a finite size of at least 1 MB.
 bool parse_byte_size(const std::string& text, uint64_t& out);
-// The default budget: half the memory this process may use (physical RAM, the cgroup's memory.max
-// or ulimit -v, whichever is least). Issue 13's bounded-memory cook will make it a fixed 2 GB.
+// The default budget: 2 GB, or half the memory this process may use (physical RAM, the cgroup's
+// memory.max or ulimit -v, whichever is least) when that is less.
 uint64_t default_memory_limit_bytes();
 
 // The report as JSON (the --report file) and as the closing summary lines.
