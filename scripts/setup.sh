@@ -10,6 +10,7 @@ packages=(
   libvulkan-dev mesa-vulkan-drivers vulkan-tools glslang-tools glslc spirv-tools vulkan-validationlayers
   libglfw3-dev xvfb xauth
   gdal-bin python3-gdal python3-numpy python-matplotlib-data
+  slurm-wlm munge  # tests/cluster: a single-node Slurm cluster (daemons started by the test, not by init)
 )
 missing=()
 for p in "${packages[@]}"; do
