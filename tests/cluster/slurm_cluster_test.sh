@@ -183,7 +183,11 @@ units=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["units"])' "$
 [ "$units" -ge 8 ] || fail "$(basename "$input") planned into $units units with --unit-roots 1; the test needs >= 8"
 echo "planned $(basename "$input") into $units units; one-process cook $local_secs s"
 
+# written_since MARKER: files of W (not the job logs) written after MARKER was touched.
+written_since() { find "$work" -type f -newer "$1" ! -path "$work/slurm-logs/*" | wc -l; }
+
 # ---- Run 1: unit 2 fails on purpose; the merge runs (afterany) and refuses, naming unit 2 ----------
+touch "$scratch/run1.marker"
 t0=$(now)
 TERRAIN_COOK_FAIL_UNITS=2 submit
 wait_for "$merge_job" 600
@@ -200,7 +204,10 @@ grep -Eq 'unit 2([^0-9]|$)' "$merge_log" || fail "the merge log does not name un
 [ ! -e "$scratch/cluster.terrain" ] || fail "a failed merge left $scratch/cluster.terrain"
 echo "run 1 (unit 2 failing): $run1_secs s; 1 of $units tasks FAILED; merge refused: $(grep -E 'unit 2([^0-9]|$)' "$merge_log" | head -n 1)"
 
+run1_written=$(written_since "$scratch/run1.marker")
+
 # ---- Run 2: the array again without the failure; complete units are skipped ----------------------
+touch "$scratch/run2.marker"
 t0=$(now)
 submit
 wait_for "$merge_job" 600
@@ -209,6 +216,11 @@ completed=$(scontrol -o show job "$units_job" | grep -c 'JobState=COMPLETED' || 
 [ "$completed" -eq "$units" ] || fail "re-run array $units_job: $completed of $units tasks COMPLETED"
 [ "$(job_state "$merge_job")" = COMPLETED ] \
   || fail "merge job $merge_job is $(job_state "$merge_job"): $(cat "$work/slurm-logs/merge-$merge_job.out")"
+# Complete units are not redone: the re-run writes only unit 2's files, fewer than run 1's (every other unit).
+run2_written=$(written_since "$scratch/run2.marker")
+[ "$run2_written" -ge 1 ] && [ "$run2_written" -lt "$run1_written" ] \
+  || fail "files written in W: run 1 $run1_written, run 2 $run2_written (the re-run should redo only unit 2)"
+echo "files written in W: run 1 (all units but 2) $run1_written, run 2 (unit 2 only) $run2_written"
 cmp "$scratch/local.terrain" "$scratch/cluster.terrain" \
   || fail "the cluster archive differs from the one-process cook"
 echo "run 2 (re-run): $run2_secs s; $units of $units tasks COMPLETED; merge COMPLETED"
