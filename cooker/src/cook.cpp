@@ -43,6 +43,9 @@ void finish_timing(const Clock::time_point t_start, CookReport& report) {
   report.source_samples_per_second = double(report.source_samples) / report.seconds_total;
 }
 
+Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
+                       PlanSummary& summary, CookReport& report);
+
 // Block indices in cooking order: row by row, or shuffled by `seed` (tests).
 std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
   std::vector<uint32_t> order(count);
@@ -105,11 +108,13 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   if (!options.work_dir.empty()) {
     // Plan + the units not already valid + merge: after a kill, the same call resumes.
     PlanSummary summary;
-    if (Status st = plan_cook(options, part(progress, 0.0, 0.1), summary, report); !st.ok()) return st;
+    CookSession s;
+    PlanFile plan;
+    if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) return st;
     for (uint32_t i = 0; i < summary.unit_count; ++i) {
-      bool skipped = false;
-      CookReport unit_report;
-      if (Status st = cook_unit(options.work_dir, i, options.threads, skipped, unit_report); !st.ok()) return st;
+      std::string why;
+      if (!unit_file_valid(options.work_dir, plan, i, why))
+        if (Status st = write_unit(s, plan, i, options.work_dir); !st.ok()) return st;
       if (progress && !progress(0.1 + 0.8 * double(i + 1) / summary.unit_count, fmt::format("unit {}/{}", i + 1, summary.unit_count)))
         return Status::failure(Error::cancelled, "cancelled");
     }
@@ -162,16 +167,19 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   return Status::success();
 }
 
-Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSummary& summary, CookReport& report) {
+namespace {
+
+// plan_cook's work, keeping the session and the plan for a caller that cooks the units in this
+// process (cook() with a work dir: no input is opened twice).
+Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
+                       PlanSummary& summary, CookReport& report) {
   summary = PlanSummary{};
   if (options.work_dir.empty()) return Status::failure(Error::invalid_argument, "plan: no --work-dir given");
   std::error_code ec;
   std::filesystem::create_directories(options.work_dir + "/units", ec);
   if (ec)
     return Status::failure(Error::io_write, fmt::format("{}: cannot create the work dir: {}", options.work_dir, ec.message()));
-  CookSession s;
   if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
-  PlanFile plan;
   if (Status st = plan_units(s, plan); !st.ok()) return st;
   summary.plan_path = plan_file(options.work_dir);
   summary.unit_count = uint32_t(plan.units.size());
@@ -203,6 +211,14 @@ Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSum
   return write_plan(s, report, plan, summary.plan_path);
 }
 
+}  // namespace
+
+Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSummary& summary, CookReport& report) {
+  CookSession s;
+  PlanFile plan;
+  return plan_in_session(options, progress, s, plan, summary, report);
+}
+
 Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool& skipped, CookReport& report) {
   skipped = false;
   report = CookReport{};
@@ -217,6 +233,8 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool&
     if (list.find(fmt::format(",{},", index)) != std::string::npos)
       return Status::failure(Error::internal, fmt::format("unit {}: failing on purpose (TERRAIN_COOK_FAIL_UNITS)", index));
   }
+  // A unit file from inputs that changed since the plan is not "complete": refuse before anything.
+  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
   std::string why;
   if (unit_file_valid(work_dir, data.plan, index, why)) {
     skipped = true;
@@ -232,6 +250,8 @@ Status merge_units(const std::string& work_dir, const std::string& output, const
   const auto t_start = Clock::now();
   PlanData data;
   if (Status st = read_plan(work_dir, data); !st.ok()) return st;
+  // Units cooked from inputs that changed since would mix two versions of the data.
+  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
   if (Status st = merge_into(data, work_dir, output, progress, report); !st.ok()) return st;
   finish_timing(t_start, report);
   return Status::success();

@@ -28,7 +28,7 @@ namespace terrain::cook {
 
 // Tile side (samples) of the void plan's first pass; a block's window grows by up to one tile per
 // side to whole tiles (void_plan.h).
-inline constexpr int kVoidPlanTile = 256;
+inline constexpr int kVoidPlanTile = 64;
 
 struct CookSession {
   CookOptions options;

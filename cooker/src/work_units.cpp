@@ -630,12 +630,8 @@ Status read_plan(const std::string& work_dir, PlanData& out) {
   return Status::success();
 }
 
-Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report) {
-  CookOptions o = data.options;
-  o.threads = threads;
-  o.unit_roots = data.unit_roots;
-  // Inputs first: a file changed since the plan is refused before anything is read from it.
-  for (const InputFile& f : data.plan.files) {
+Status check_plan_inputs(const PlanFile& plan) {
+  for (const InputFile& f : plan.files) {
     InputFile now = f;
     if (!stat_file(f.path, now.size, now.mtime_ns))
       return Status::failure(Error::io_open, fmt::format("{}: input of the plan is gone ({}); run `terrain-cook plan` again",
@@ -646,6 +642,15 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s,
                                          "plan` again (it keeps the units the change does not touch)",
                                          f.path, f.size, now.size, f.mtime_ns, now.mtime_ns));
   }
+  return Status::success();
+}
+
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report) {
+  CookOptions o = data.options;
+  o.threads = threads;
+  o.unit_roots = data.unit_roots;
+  // Inputs first: a file changed since the plan is refused before anything is read from it.
+  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
   if (Status st = open_inputs(o, s, report); !st.ok()) return st;
   const Raster& header = s.source.header();
   if (header.width != data.source_width || header.height != data.source_height)

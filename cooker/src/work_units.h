@@ -62,6 +62,8 @@ struct PlanData {
   std::vector<std::pair<std::string, std::string>> descriptions;
 };
 Status read_plan(const std::string& work_dir, PlanData& out);
+// Every input file of the plan is as the plan saw it (size and mtime): else a named error.
+Status check_plan_inputs(const PlanFile& plan);
 // For `unit`: opens the inputs of the plan into a session, checks that no input file changed since
 // the plan (a named error), and restores the plan's decisions (frame, grid, steps, voids).
 Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
