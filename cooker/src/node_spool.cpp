@@ -38,25 +38,36 @@ Status NodeSpool::add(const NodeRecord& record, std::span<const uint8_t> payload
   return Status::success();
 }
 
-Status NodeSpool::drain(ArchiveWriter& writer) {
-  std::sort(entries_.begin(), entries_.end(),
+std::vector<NodeSpool::Entry> NodeSpool::sorted_entries() const {
+  std::vector<Entry> out = entries_;
+  std::sort(out.begin(), out.end(),
             [](const Entry& a, const Entry& b) { return payload_order_less(a.record.key, b.record.key); });
-  std::vector<uint8_t> buf;
-  for (const Entry& e : entries_) {
-    buf.resize(e.size);
-    size_t done = 0;
-    while (done < e.size) {
-      const ssize_t n = ::pread(fd_, buf.data() + done, e.size - done, off_t(e.offset + done));
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0)
-        return Status::failure(Error::io_read, fmt::format("{}: reading the node spool: {}", path_,
-                                                           n < 0 ? std::strerror(errno) : "unexpected end"));
-      done += size_t(n);
-    }
-    if (Status st = writer.add_node(e.record, buf); !st.ok()) return st;
+  return out;
+}
+
+Status NodeSpool::read(const Entry& e, std::vector<uint8_t>& out) const {
+  out.resize(e.size);
+  size_t done = 0;
+  while (done < e.size) {
+    const ssize_t n = ::pread(fd_, out.data() + done, e.size - done, off_t(e.offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return Status::failure(Error::io_read, fmt::format("{}: reading the node spool: {}", path_,
+                                                         n < 0 ? std::strerror(errno) : "unexpected end"));
+    done += size_t(n);
   }
+  return Status::success();
+}
+
+Status NodeSpool::drain(ArchiveWriter& writer) {
+  const std::vector<Entry> sorted = sorted_entries();
   entries_.clear();
   entries_.shrink_to_fit();
+  std::vector<uint8_t> buf;
+  for (const Entry& e : sorted) {
+    if (Status st = read(e, buf); !st.ok()) return st;
+    if (Status st = writer.add_node(e.record, buf); !st.ok()) return st;
+  }
   return Status::success();
 }
 

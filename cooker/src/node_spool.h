@@ -32,12 +32,16 @@ class NodeSpool {
   uint64_t bytes() const { return bytes_; }
   size_t nodes() const { return entries_.size(); }
 
- private:
   struct Entry {
     NodeRecord record;
     uint64_t offset = 0;
     uint32_t size = 0;
   };
+  // The entries in canonical order, and one entry's payload (for writers of other files: units).
+  std::vector<Entry> sorted_entries() const;
+  Status read(const Entry& e, std::vector<uint8_t>& out) const;
+
+ private:
   std::string path_;
   int fd_ = -1;
   uint64_t bytes_ = 0;

@@ -15,6 +15,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 
 #include "terrain/cli_checks.h"
 #include "terrain/cook.h"
@@ -81,7 +82,18 @@ bool write_file_durably(const std::string& path, const std::string& text) {
   return ::close(fd) == 0 && ok;
 }
 
+int run_unit(int argc, char** argv);
+int run_merge(int argc, char** argv);
+
 int run(int argc, char** argv) {
+  // Work-unit commands (issue 14): `unit` and `merge` have their own flags; `plan` takes the cook's.
+  if (argc > 1 && std::strcmp(argv[1], "unit") == 0) return run_unit(argc - 1, argv + 1);
+  if (argc > 1 && std::strcmp(argv[1], "merge") == 0) return run_merge(argc - 1, argv + 1);
+  const bool planning = argc > 1 && std::strcmp(argv[1], "plan") == 0;
+  if (planning) {
+    --argc;
+    ++argv;
+  }
   using terrain::cook::CookOptions;
   namespace cli = terrain::cli;
   CookOptions o;
@@ -96,7 +108,17 @@ int run(int argc, char** argv) {
              "written beside their targets and replace them together at the end (or not at all).");
   app.add_option("inputs", o.inputs, "Input DEM(s); several are mosaicked (same CRS and pixel grid, first listed wins)")
       ->required();
-  app.add_option("-o,--output", o.output, "Archive to write (atomically)")->required();
+  auto* output_opt = app.add_option("-o,--output", o.output, "Archive to write (atomically)");
+  if (!planning) output_opt->required();
+  auto* work_dir_opt = app.add_option(
+      "--work-dir", o.work_dir,
+      planning ? "Work dir of the plan and its units (shared by every machine that runs a unit)"
+               : "Keep the plan and one file per work unit here: run the same command again after a kill and it "
+                 "cooks only the units that are missing (see `terrain-cook plan`, `unit`, `merge`)");
+  if (planning) work_dir_opt->required();
+  app.add_option("--unit-roots", o.unit_roots,
+                 "Work units of N x N root nodes (2 km each; default: the block size, from --memory-limit)")
+      ->check(cli::int_range(1, 1 << 16));
   app.add_option("--tolerance", o.tolerance_m, "Refine nodes while their geometric error exceeds this (metres)")
       ->capture_default_str()
       ->check(cli::number_check("> 0 and <= 10000", [](double v) { return v > 0 && v <= 1e4; }));
@@ -226,7 +248,8 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "terrain-cook: %s\n", st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;
   };
-  std::vector<terrain::NamedPath> inputs, outputs{{"-o", o.output}};
+  std::vector<terrain::NamedPath> inputs, outputs;
+  if (!planning) outputs.push_back({"-o", o.output});
   for (const std::string& p : o.inputs) inputs.push_back({"input", p});
   for (const auto& [flag, p] : {std::pair<const char*, const std::string&>{"--albedo", o.albedo_path},
                                 {"--holes", o.holes_path},
@@ -241,6 +264,27 @@ int run(int argc, char** argv) {
     if (terrain::Status st = terrain::check_input_file(in.flag == "input" ? "" : in.flag, in.path); !st.ok()) return fail(st);
   }
   if (terrain::Status st = terrain::check_output_paths(inputs, outputs); !st.ok()) return fail(st);
+
+  if (planning) {
+    terrain::TerminalProgress bar(!quiet && !json);
+    terrain::cook::PlanSummary summary;
+    terrain::cook::CookReport report;
+    const terrain::Status st =
+        terrain::cook::plan_cook(o, bar.active() ? bar.callback() : terrain::ProgressFn{}, summary, report);
+    bar.done();
+    if (!st.ok()) return fail(st);
+    if (json) {
+      std::printf("{\"plan\": \"%s\", \"units\": %u, \"units_valid\": %u, \"changes\": %zu}\n",
+                  summary.plan_path.c_str(), summary.unit_count, summary.units_valid, summary.changes.size());
+    } else if (!quiet) {
+      std::printf("%s: %u units (%u of them already cooked and still valid, %u to cook)\n", summary.plan_path.c_str(),
+                  summary.unit_count, summary.units_valid, summary.unit_count - summary.units_valid);
+      for (const std::string& c : summary.changes) std::printf("  %s\n", c.c_str());
+    } else {
+      std::printf("%u\n", summary.unit_count);
+    }
+    return 0;
+  }
 
   // ---- cook into staged files beside the targets ----
   const std::string pid = std::to_string(::getpid());
@@ -300,6 +344,97 @@ int run(int argc, char** argv) {
     return 1;
   }
   if (json) std::printf("%s\n", report_text.c_str());
+  else if (!quiet) std::printf("%s", terrain::cook::report_summary(report).c_str());
+  return 0;
+}
+
+// `terrain-cook unit W [INDEX]`: one work unit; INDEX from the argument, SLURM_ARRAY_TASK_ID or
+// JOB_COMPLETION_INDEX (a Kubernetes Indexed Job).
+int run_unit(int argc, char** argv) {
+  std::string work_dir;
+  std::optional<uint32_t> index;
+  int threads = 0;
+  bool quiet = false;
+  CLI::App app{"terrain-cook unit: cooks one work unit of a plan into its file in the work dir (idempotent: a unit "
+               "already complete and valid is not redone)",
+               "terrain-cook unit"};
+  app.footer(terrain::cli::kExitCodes);
+  app.add_option("work_dir", work_dir, "Work dir written by `terrain-cook plan`")->required();
+  app.add_option("index", index, "Unit index (default: $SLURM_ARRAY_TASK_ID, else $JOB_COMPLETION_INDEX)");
+  app.add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(terrain::cli::int_range(0, 1024));
+  app.add_flag("-q,--quiet", quiet, "Print nothing on success");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (!index) {
+    for (const char* var : {"SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"})
+      if (const char* v = std::getenv(var); v && *v) {
+        char* end = nullptr;
+        const unsigned long n = std::strtoul(v, &end, 10);
+        if (*end != 0 || n > UINT32_MAX) {
+          std::fprintf(stderr, "terrain-cook unit: %s=%s is not a unit index\n", var, v);
+          return 2;
+        }
+        index = uint32_t(n);
+        break;
+      }
+    if (!index) {
+      std::fprintf(stderr, "terrain-cook unit: no unit index (give INDEX, or run as a Slurm array task or Kubernetes Indexed Job)\n");
+      return 2;
+    }
+  }
+  bool skipped = false;
+  terrain::cook::CookReport report;
+  const terrain::Status st = terrain::cook::cook_unit(work_dir, *index, threads, skipped, report);
+  if (!st.ok()) {
+    std::fprintf(stderr, "terrain-cook unit %u: %s\n", *index, st.to_string().c_str());
+    return st.code == terrain::Error::invalid_argument ? 2 : 1;
+  }
+  if (!quiet) std::printf("unit %u: %s\n", *index, skipped ? "already complete" : "cooked");
+  return 0;
+}
+
+// `terrain-cook merge W -o ARCHIVE`: every unit checked, the archive written atomically.
+int run_merge(int argc, char** argv) {
+  std::string work_dir, output, report_path;
+  bool quiet = false, json = false;
+  CLI::App app{"terrain-cook merge: checks every unit of the plan (present, complete, checksums, fingerprints) and "
+               "writes the archive atomically; a missing or bad unit is named and nothing is written",
+               "terrain-cook merge"};
+  app.footer(terrain::cli::kExitCodes);
+  app.add_option("work_dir", work_dir, "Work dir of the plan and its units")->required();
+  app.add_option("-o,--output", output, "Archive to write (atomically)")->required();
+  app.add_option("--report", report_path, "Write the cook report (JSON) to this file");
+  app.add_flag("--json", json, "Print the report as JSON on stdout instead of the summary");
+  app.add_flag("-q,--quiet", quiet, "No progress bar and no summary");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  std::vector<terrain::NamedPath> outputs{{"-o", output}};
+  if (!report_path.empty()) outputs.push_back({"--report", report_path});
+  if (terrain::Status st = terrain::check_output_paths({}, outputs); !st.ok()) {
+    std::fprintf(stderr, "terrain-cook merge: %s\n", st.to_string().c_str());
+    return st.code == terrain::Error::invalid_argument ? 2 : 1;
+  }
+  terrain::TerminalProgress bar(!quiet && !json);
+  terrain::cook::CookReport report;
+  const terrain::Status st =
+      terrain::cook::merge_units(work_dir, output, bar.active() ? bar.callback() : terrain::ProgressFn{}, report);
+  bar.done();
+  if (!st.ok()) {
+    std::fprintf(stderr, "terrain-cook merge: %s\n", st.to_string().c_str());
+    return st.code == terrain::Error::invalid_argument ? 2 : 1;
+  }
+  const std::string text = terrain::cook::report_json(report);
+  if (!report_path.empty() && !write_file_durably(report_path, text + "\n")) {
+    std::fprintf(stderr, "terrain-cook merge: cannot write the report %s: %s\n", report_path.c_str(), std::strerror(errno));
+    return 1;
+  }
+  if (json) std::printf("%s\n", text.c_str());
   else if (!quiet) std::printf("%s", terrain::cook::report_summary(report).c_str());
   return 0;
 }

@@ -52,6 +52,11 @@ struct CookOptions {
   // is the seed of a shuffled order (tests: neither changes a byte of the archive).
   uint32_t block_roots = 0;
   uint64_t block_order = 0;
+  // Work units (issue 14; cooker/src/work_units.h): with work_dir set, cook() writes the plan and
+  // one file per unit into it and merges them; run again after a kill it cooks only the units that
+  // are missing or stale. unit_roots: units of N x N roots (0: the block size).
+  std::string work_dir;
+  uint32_t unit_roots = 0;
 
   // Raw heightmaps (.r16/.raw: uint16 little-endian by default, .r32/.f32: float32).
   std::array<int, 2> raw_size{0, 0};  // width, height (required for raw input)
@@ -187,7 +192,27 @@ struct CookReport {
 using ProgressFn = terrain::ProgressFn;
 
 // Cooks options.inputs into options.output. On failure the previous file at output is untouched.
+// With options.work_dir: plan_cook + every unit not already valid + merge_units (a resume).
 Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report);
+
+// ---- Work units (issue 14): the commands a scheduler calls ----
+struct PlanSummary {
+  std::string plan_path;
+  uint32_t unit_count = 0;
+  uint32_t units_valid = 0;          // unit files already in the work dir that this plan keeps
+  std::vector<std::string> changes;  // why units must be cooked again (changed inputs, global decisions)
+};
+// `terrain-cook plan`: decides everything global (frame, grid, steps, voids, options, input
+// fingerprints) and writes options.work_dir/plan.json listing the units; units of an earlier plan
+// in the work dir whose inputs and decisions are unchanged stay valid, the others are removed.
+Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSummary& summary, CookReport& report);
+// `terrain-cook unit`: cooks unit `index` of the plan in `work_dir` into its unit file (atomically).
+// `skipped`: the unit file was already complete and valid (nothing redone).
+Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool& skipped, CookReport& report);
+// `terrain-cook merge`: checks every unit (present, complete, checksum, plan and input fingerprints)
+// and writes the archive atomically, payloads in canonical order.
+Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
+                   CookReport& report);
 
 // --memory-limit: "256M", "2G", "1.5G", "512K" (K/M/G/T are powers of 1024; a trailing B or iB is
 // accepted); false unless it is a finite size of at least 1 MB.

@@ -1,0 +1,371 @@
+#include "cook_session.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "crs.h"
+#include "inputs.h"
+#include "overlays.h"
+#include "parallel.h"
+#include "range_index.h"
+#include "source_raster.h"
+#include "terrain/archive_reader.h"
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kRootSizeM = node_size_m(kRootLevel);
+
+// Finest level allowed by default: vertex spacing at least 1/32 of the source sample spacing.
+// Refinement is error-driven, so this only bounds it: bilinear vertices must come within the
+// tolerance of a Catmull-Rom surface through coarse samples, and on the shared 21-90 m DEMs the
+// tolerance of 0.5 m was met at 2-4 m spacing (1/10 to 1/32 of the source) where the relief is
+// steep; flat areas stop at the roots.
+int finest_level_for(double source_spacing_m) {
+  for (int level = 0; level < kRootLevel; ++level)
+    if (vertex_spacing_m(level) >= source_spacing_m / 32.0) return level;
+  return kRootLevel;
+}
+
+// Nodes stop refining at the finest level allowed, even where the error still exceeds the
+// tolerance (coarse sources: Catmull-Rom between 30-100 m samples is not met by bilinear vertices).
+std::string unmet_tolerance_warning(const CookReport& r) {
+  const int l = r.finest_level;
+  std::string why = fmt::format("level {} ({} m vertex spacing) is the finest level allowed", l, vertex_spacing_m(l));
+  if (l > 0)
+    why += fmt::format(" (from the source spacing {:.3g} m: 1/32 of it, or --finest-level); --finest-level {} lets "
+                       "nodes refine further (at the cost of more nodes)", r.source_spacing_m, l - 1);
+  else
+    why += " and the finest the format has";
+  return fmt::format("--tolerance {} m is not met everywhere: the full-detail error reaches {:.3f} m because {}",
+                     r.tolerance_m, r.leaf_error_max_m, why);
+}
+
+// The root grid and the data footprint, which the report states as the archive's metadata holds
+// them (WorldInfo and CookReport name these members the same): grid_of(report) = grid_of(world).
+template <class T>
+auto grid_of(T& t) {
+  return std::tie(t.origin_x_m, t.origin_y_m, t.roots_x, t.roots_y, t.extent_min_x_m, t.extent_min_y_m,
+                  t.extent_max_x_m, t.extent_max_y_m);
+}
+
+// Blocks of side x side roots: the largest side whose cook window (the roots, their windows'
+// margin, the void plan's tile rounding) fits the window budget at kWindowBytesPerSample.
+uint32_t block_roots_for(uint64_t window_bytes, double sx, double sy, uint32_t roots_x, uint32_t roots_y) {
+  const uint32_t most = std::max(roots_x, roots_y);
+  uint32_t side = 1;
+  while (side < most) {
+    const uint32_t next = side + 1;
+    const double margin_m = 2.0 * kWindowMargin * vertex_spacing_m(kRootLevel);
+    const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 2 * kVoidPlanTile + 16;
+    const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 2 * kVoidPlanTile + 16;
+    if (cols * rows * double(kWindowBytesPerSample) > double(window_bytes)) break;
+    side = next;
+  }
+  return side;
+}
+
+uint64_t peak_rss_bytes() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return uint64_t(u.ru_maxrss) * 1024;
+}
+
+}  // namespace
+
+const char* policy_name(NodataPolicy p) {
+  switch (p) {
+    case NodataPolicy::automatic: return "auto";
+    case NodataPolicy::hole: return "hole";
+    case NodataPolicy::fill: return "fill";
+  }
+  return "?";
+}
+
+// `inputs`: (path, description) of every raster read (a directory input stands for several).
+std::string cook_info(const CookOptions& o, const CookReport& r,
+                      const std::vector<std::pair<std::string, std::string>>& descriptions) {
+  nlohmann::ordered_json j;
+  j["tool"] = "terrain-cook";
+  j["version"] = "0.1.0";
+  nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
+  for (const auto& [path, description] : descriptions)
+    inputs.push_back({{"path", path}, {"description", description}});
+  j["inputs"] = inputs;
+  j["options"] = {{"tolerance_m", o.tolerance_m},
+                  {"finest_level", o.finest_level},
+                  {"crs", o.crs},
+                  {"frame", o.frame},
+                  {"height_scale", o.height_scale},
+                  {"height_offset", o.height_offset},
+                  {"nodata", policy_name(o.nodata)},
+                  {"fill_max_samples", o.fill_max_samples},
+                  {"materials", o.materials_path},
+                  {"albedo", o.albedo_path},
+                  {"holes", o.holes_path},
+                  {"landcover", o.landcover_path},
+                  {"landcover_table", o.landcover_table_path},
+                  {"heights_only", o.heights_only},
+                  {"zstd_level", o.zstd_level},
+                  {"surface_zstd_level", o.surface_zstd_level}};
+  if (o.origin) j["options"]["origin"] = *o.origin;
+  if (o.spacing) j["options"]["spacing"] = *o.spacing;
+  if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
+  j["frame_reason"] = r.frame_reason;
+  j["reconstruction"] = "Catmull-Rom bicubic in source sample space; bilinear over valid taps next to nodata";
+  j["finest_level"] = r.finest_level;
+  j["voids_filled_samples"] = r.voids_filled_samples;
+  j["hole_samples"] = r.hole_samples;
+  return j.dump();
+}
+
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report) {
+  if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
+    return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
+  if (options.finest_level < -1 || options.finest_level > kRootLevel)
+    return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
+  s.options = options;
+  s.threads = resolve_threads(options.threads);
+  report.threads = s.threads;
+  report.tolerance_m = options.tolerance_m;
+  report.memory_limit_bytes = memory_limit_of(options);
+  s.shares = memory_shares(report.memory_limit_bytes);
+  set_gdal_cache_bytes(s.shares.gdal_cache);
+  if (Status st = open_mosaic_source(options, s.shares.inputs, s.source); !st.ok()) return st;
+  const Raster& header = s.source.header();
+  report.source_samples = uint64_t(header.width) * uint64_t(header.height);
+  s.descriptions.clear();
+  report.input_descriptions.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    s.descriptions.emplace_back(in.path, in.description);
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}", in.path, in.description, describe_crs(in.crs)));
+  }
+  return Status::success();
+}
+
+Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
+  const Raster& header = s.source.header();
+  s.source.set_count_implausible(true);
+  const ReadSamples read = [&](int c0, int r0, int w, int h, float* out) { return s.source.read(c0, r0, w, h, out); };
+  if (Status st = plan_voids(header.width, header.height, read, s.options.nodata, s.options.fill_max_samples,
+                             kVoidPlanTile, s.voids, progress);
+      !st.ok())
+    return st;
+  s.source.set_count_implausible(false);
+  s.voids.source_name = header.path;
+  for (const MosaicSource::InputStat& in : s.source.inputs())
+    if (const uint64_t n = in.implausible.out_of_range + in.implausible.sentinel; n) {
+      report.implausible_samples += n;
+      Raster named;
+      named.path = in.path;
+      named.implausible = in.implausible;
+      report.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
+    }
+  if (s.voids.valid_samples == 0)
+    return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
+  report.source_valid_samples = s.voids.valid_samples;
+  report.voids_filled_samples = s.voids.stats.filled_samples;
+  report.voids_filled_regions = s.voids.stats.filled_regions;
+  report.hole_samples = s.voids.stats.hole_samples;
+  report.hole_regions = s.voids.stats.hole_regions;
+  return Status::success();
+}
+
+Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report) {
+  const Raster& header = s.source.header();
+  const CookOptions& options = s.options;
+  // Filling every void (--nodata fill) leaves no nodata: the data then reach the raster's edges.
+  const SampleRect data = options.nodata == NodataPolicy::fill ? SampleRect{0, 0, header.width - 1, header.height - 1}
+                                                               : s.voids.valid_bounds;
+  if (planned) {
+    s.frame = *planned;
+  } else if (Status st = choose_frame(header, options.frame, s.frame, report.frame_reason, &data); !st.ok()) {
+    return st;
+  }
+  report.frame = s.frame;
+  if (Status st = s.mapping.init(header, s.frame, s.threads); !st.ok()) return st;
+  double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
+  // The footprint: pixel areas, or for point samples the samples' hull.
+  s.mapping.frame_bounds(data.c0, data.r0, data.c1, data.r1, header.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
+  CookContext& ctx = s.ctx;
+  ctx.source_width = header.width;
+  ctx.source_height = header.height;
+  ctx.mapping = &s.mapping;
+  ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
+  ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
+  const double roots_x = std::ceil((fx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((fy1 - ctx.origin_y) / kRootSizeM);
+  if (roots_x * roots_y > 1e7)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
+                                       (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
+  if (!options.force && (roots_x * roots_y > double(kMaxPlannedRoots) || roots_x > kStreamerMaxRootsPerSide ||
+                         roots_y > kStreamerMaxRootsPerSide))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the plan needs {:.0f} x {:.0f} root nodes (the data spans {:.0f} x {:.0f} km): "
+                                       "beyond {} roots or {} per side (terrain-view's limit); check --spacing and "
+                                       "the CRS, or give --force", roots_x, roots_y, (fx1 - fx0) / 1000,
+                                       (fy1 - fy0) / 1000, kMaxPlannedRoots, kStreamerMaxRootsPerSide));
+  s.world = WorldInfo{.crs = s.frame,
+                      .origin_x_m = ctx.origin_x,
+                      .origin_y_m = ctx.origin_y,
+                      .roots_x = uint32_t(std::max(1.0, roots_x)),
+                      .roots_y = uint32_t(std::max(1.0, roots_y)),
+                      .extent_min_x_m = fx0,
+                      .extent_min_y_m = fy0,
+                      .extent_max_x_m = fx1,
+                      .extent_max_y_m = fy1};
+  grid_of(report) = grid_of(s.world);
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
+  s.mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin,
+                             ctx.origin_x + report.roots_x * kRootSizeM + margin,
+                             ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads);
+  double sx = 0, sy = 0;
+  s.mapping.spacing_m(sx, sy);
+  report.source_spacing_m = std::min(sx, sy);
+  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(report.source_spacing_m);
+  report.finest_level = ctx.finest_level;
+  ctx.tolerance_m = options.tolerance_m;
+  ctx.source_spacing_m = report.source_spacing_m;
+  ctx.heights_only = options.heights_only;
+  ctx.payload.zstd_level = options.zstd_level;
+  ctx.payload.surface_zstd_level = options.surface_zstd_level;
+  // Where even the finest level's vertices are further apart than half a source sample, widen the
+  // covered band beyond the raster's outer samples to one vertex spacing (reconstruct.h), so the
+  // triangles holding the outer samples are drawn. A function of position only, as hole flags
+  // must be; 0.5 (no change) for sources of 1 m and coarser.
+  {
+    const double sp = vertex_spacing_m(ctx.finest_level);
+    ctx.surface.set_outer_apron(sx > 0 ? sp / sx : 0.5, sy > 0 ? sp / sy : 0.5);
+  }
+  // Blocks (= work units) of roots, each reading only its window of the source.
+  const uint32_t side = options.unit_roots    ? options.unit_roots
+                        : options.block_roots ? options.block_roots
+                                              : block_roots_for(s.shares.window, sx, sy, report.roots_x, report.roots_y);
+  s.grid = BlockGrid{report.roots_x, report.roots_y, side};
+  report.block_roots = s.grid.side;
+  report.blocks = s.grid.count();
+  return Status::success();
+}
+
+Status surface_setup(CookSession& s, CookReport& report) {
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
+  SurfaceOptions so;
+  so.materials_path = s.options.materials_path;
+  so.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
+  s.ctx.bc_quality = so.bc_quality;
+  if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
+  s.ctx.rules = s.rules.get();
+  report.surface_layers = !s.options.heights_only;
+  const CookContext& ctx = s.ctx;
+  if (Status st = load_overlays(s.options, s.frame, palette_of(*s.rules), ctx.origin_x - margin, ctx.origin_y - margin,
+                                ctx.origin_x + report.roots_x * kRootSizeM + margin,
+                                ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads, s.overlays);
+      !st.ok())
+    return st;
+  s.ctx.overlays = s.overlays.get();
+  return Status::success();
+}
+
+namespace {
+
+// A block's window: the samples it needs, grown so that every void reaching into them is filled
+// exactly as over the whole raster (void_plan.h), read from the inputs and filled.
+Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
+  const SampleRect rect = fill_read_rect(s.voids, need);
+  SampleWindow& w = s.window;
+  w.rect = rect;
+  w.source_width = s.ctx.source_width;
+  w.source_height = s.ctx.source_height;
+  w.values.resize(size_t(rect.samples()));
+  w.filled.resize(size_t(rect.samples()));
+  if (Status st = s.source.read(rect.c0, rect.r0, rect.width(), rect.height(), w.values.data()); !st.ok()) return st;
+  double residual = 0;
+  if (Status st = fill_voids_window(s.voids, rect, w.values.data(), w.filled.data(), residual, report.memory_limit_bytes);
+      !st.ok())
+    return st;
+  report.void_fill_residual_m = std::max(report.void_fill_residual_m, residual);
+  report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
+  return Status::success();
+}
+
+}  // namespace
+
+Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
+  std::array<double, kLevelCount> worst{};
+  const uint32_t n = s.grid.count();
+  for (uint32_t i = 0; i < n; ++i) {
+    const RootBlock b = s.grid.block(i);
+    int top = 0;
+    const SampleRect rect = block_range_rect(s.ctx, b, top);
+    if (rect.empty()) continue;
+    if (Status st = read_window(s, rect, report); !st.ok()) return st;
+    RangeIndex index;
+    index.build(s.window, top);
+    block_range_bounds(s.ctx, index, b, s.threads, worst);
+    if (progress && !progress(double(i + 1) / double(n), "steps")) return Status::failure(Error::cancelled, "cancelled");
+  }
+  choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
+  return Status::success();
+}
+
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                             CookReport& report) {
+  const RootBlock b = s.grid.block(index);
+  const SampleRect rect = block_cook_rect(s.ctx, b);
+  if (rect.empty()) return Status::success();
+  if (Status st = read_window(s, rect, report); !st.ok()) return st;
+  s.ctx.set_window(s.window);
+  if (s.overlays) {
+    double bx0 = 0, by0 = 0, bx1 = 0, by1 = 0;
+    block_frame_rect(s.ctx, b, bx0, by0, bx1, by1);
+    if (Status st = prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1); !st.ok()) return st;
+  }
+  return cook_block(s.ctx, b, s.threads, sink, totals, report);
+}
+
+void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report) {
+  finish_pyramid_report(s.ctx, totals, report);
+  // Levels finer than the finest level cooked hold no node; they record its step (as the steps of
+  // a level-by-level cook did).
+  int f = 0;
+  while (f < kRootLevel && report.levels[size_t(f)].nodes == 0) ++f;
+  for (int l = f - 1; l >= 0; --l) {
+    s.ctx.step_log2[size_t(l)] = s.ctx.step_log2[size_t(f)];
+    report.levels[size_t(l)].step_log2 = s.ctx.step_log2[size_t(f)];
+  }
+}
+
+Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report) {
+  if (report.nodes == 0) {
+    writer.abort();
+    return Status::failure(Error::no_data, "no node holds terrain (is the data smaller than a vertex?)");
+  }
+  s.world.step_log2 = s.ctx.step_log2;
+  if (s.rules) s.world.palette = palette_of(*s.rules);
+  s.world.cook_info_json = cook_info(s.options, report, s.descriptions);
+  if (Status st = writer.finish(s.world); !st.ok()) return st;
+  report.archive_bytes = writer.bytes_written();
+  {
+    ArchiveReader reader;
+    SectionBytes sb;
+    if (reader.open(s.options.output).ok() && reader.section_bytes(sb).ok())
+      for (int k = 0; k < 5; ++k) {
+        report.section_stored_bytes[size_t(k)] = sb.stored[k];
+        report.section_raw_bytes[size_t(k)] = sb.raw[k];
+      }
+  }
+  report.input_bytes_read.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) report.input_bytes_read.push_back(in.bytes_read);
+  report.output_vertices = report.nodes * uint64_t(kHeightCount);
+  report.height_samples_per_cpu_second =
+      report.cpu_heights > 0 ? double(report.output_vertices) / report.cpu_heights : 0;
+  report.peak_rss_bytes = peak_rss_bytes();
+  if (report.leaf_error_max_m > s.options.tolerance_m) report.warnings.push_back(unmet_tolerance_warning(report));
+  return Status::success();
+}
+
+}  // namespace terrain::cook

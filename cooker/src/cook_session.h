@@ -1,0 +1,76 @@
+// The state of a cook while it runs, and its stages, shared by the one-process cook, `plan`,
+// `unit` and `merge` (issue 14): each of them runs the same stages, so a plan + units + merge
+// gives the bytes of the one-process cook.
+//
+//   open_inputs -> first_pass (voids, valid bounds, implausible heights) -> frame_and_grid ->
+//   surface_setup -> steps_pass -> per block: cook_block_of_session -> finish_archive
+//
+// A unit restores what the plan decided (restore_plan in work_units.h) instead of running the
+// first pass and the steps pass.
+#pragma once
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "frame.h"
+#include "memory_budget.h"
+#include "mosaic_source.h"
+#include "node_cook.h"
+#include "pyramid.h"
+#include "sample_window.h"
+#include "surface/surface_layers.h"
+#include "terrain/archive_writer.h"
+#include "terrain/cook.h"
+#include "void_plan.h"
+
+namespace terrain::cook {
+
+// Tile side (samples) of the void plan's first pass; a block's window grows by up to one tile per
+// side to whole tiles (void_plan.h).
+inline constexpr int kVoidPlanTile = 64;
+
+struct CookSession {
+  CookOptions options;
+  int threads = 1;
+  MemoryShares shares;
+  MosaicSource source;
+  VoidPlan voids;
+  std::vector<std::pair<std::string, std::string>> descriptions;  // (path, description) per input
+  FrameCrs frame;
+  SourceMapping mapping;
+  CookContext ctx;
+  WorldInfo world;  // frame, grid and footprint (steps, palette and cook info at the end)
+  std::shared_ptr<const MaterialRules> rules;
+  std::unique_ptr<SurfaceOverlays> overlays;
+  BlockGrid grid;
+  SampleWindow window;  // the block being read or cooked
+};
+
+// Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report);
+// Reads every sample once: the void plan, the valid samples, the implausible heights and the
+// inputs' descriptions into the report.
+Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
+// The frame (choose_frame, or `planned` when given), the mapping, the root grid and the footprint,
+// the context's constants and the block grid (unit_roots, else block_roots, else from the budget).
+Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report);
+// Material rules and the overlays (opened; read per block).
+Status surface_setup(CookSession& s, CookReport& report);
+// Every level's step from the range bounds of every node that could exist (s.ctx.step_log2).
+Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
+// Reads and fills block `index`'s window and cooks its nodes into `sink` (key order in the block).
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                             CookReport& report);
+// After every block: levels finer than the finest cooked get its step; the pyramid's report.
+void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report);
+// Writes the metadata (steps, palette, cook info) and renames the archive into place; section
+// bytes, input bytes read, timing totals and warnings into the report.
+Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report);
+
+// The cook's provenance JSON stored in the archive (options, inputs, frame reason, voids).
+std::string cook_info(const CookOptions& o, const CookReport& r,
+                      const std::vector<std::pair<std::string, std::string>>& descriptions);
+const char* policy_name(NodataPolicy p);
+
+}  // namespace terrain::cook

@@ -1,0 +1,807 @@
+#include "work_units.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <gdal_priv.h>
+
+#include "crs.h"
+#include "node_spool.h"
+#include "source_raster.h"
+
+namespace terrain::cook {
+namespace {
+
+using json = nlohmann::ordered_json;
+
+// ---- fingerprints ----
+uint64_t fnv1a(std::string_view s, uint64_t h = 1469598103934665603ull) {
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
+
+json rect_json(const SampleRect& r) { return json::array({r.c0, r.r0, r.c1, r.r1}); }
+SampleRect rect_of(const json& j) { return {j.at(0).get<int>(), j.at(1).get<int>(), j.at(2).get<int>(), j.at(3).get<int>()}; }
+bool meets(const SampleRect& a, const SampleRect& b) { return !a.empty() && !b.empty() && !intersect(a, b).empty(); }
+
+// ---- options: every field, so a unit on another machine cooks with the plan's ----
+json options_json(const CookOptions& o) {
+  json j;
+  j["inputs"] = o.inputs;
+  j["tolerance_m"] = o.tolerance_m;
+  j["finest_level"] = o.finest_level;
+  j["crs"] = o.crs;
+  j["frame"] = o.frame;
+  j["origin"] = o.origin ? json(*o.origin) : json(nullptr);
+  j["spacing"] = o.spacing ? json(*o.spacing) : json(nullptr);
+  j["height_scale"] = o.height_scale;
+  j["height_offset"] = o.height_offset;
+  j["nodata_value"] = o.nodata_value ? json(*o.nodata_value) : json(nullptr);
+  j["valid_range_m"] = o.valid_range_m;
+  j["memory_limit_bytes"] = o.memory_limit_bytes;
+  j["raw_size"] = o.raw_size;
+  j["raw_type"] = o.raw_type;
+  j["raw_big_endian"] = o.raw_big_endian;
+  j["tile_encoding"] = o.tile_encoding;
+  j["nodata"] = policy_name(o.nodata);
+  j["fill_max_samples"] = o.fill_max_samples;
+  j["materials"] = o.materials_path;
+  j["surface_quality"] = int(o.surface_quality);
+  j["albedo"] = o.albedo_path;
+  j["holes"] = o.holes_path;
+  j["landcover"] = o.landcover_path;
+  j["landcover_table"] = o.landcover_table_path;
+  j["heights_only"] = o.heights_only;
+  j["force"] = o.force;
+  j["zstd_level"] = o.zstd_level;
+  j["surface_zstd_level"] = o.surface_zstd_level;
+  return j;
+}
+
+CookOptions options_of(const json& j) {
+  CookOptions o;
+  o.inputs = j.at("inputs").get<std::vector<std::string>>();
+  o.tolerance_m = j.at("tolerance_m");
+  o.finest_level = j.at("finest_level");
+  o.crs = j.at("crs");
+  o.frame = j.at("frame");
+  if (!j.at("origin").is_null()) o.origin = j.at("origin").get<std::array<double, 2>>();
+  if (!j.at("spacing").is_null()) o.spacing = j.at("spacing").get<std::array<double, 2>>();
+  o.height_scale = j.at("height_scale");
+  o.height_offset = j.at("height_offset");
+  if (!j.at("nodata_value").is_null()) o.nodata_value = j.at("nodata_value").get<double>();
+  o.valid_range_m = j.at("valid_range_m").get<std::array<double, 2>>();
+  o.memory_limit_bytes = j.at("memory_limit_bytes");
+  o.raw_size = j.at("raw_size").get<std::array<int, 2>>();
+  o.raw_type = j.at("raw_type");
+  o.raw_big_endian = j.at("raw_big_endian");
+  o.tile_encoding = j.at("tile_encoding");
+  const std::string nodata = j.at("nodata");
+  o.nodata = nodata == "hole" ? NodataPolicy::hole : nodata == "fill" ? NodataPolicy::fill : NodataPolicy::automatic;
+  o.fill_max_samples = j.at("fill_max_samples");
+  o.materials_path = j.at("materials");
+  o.surface_quality = SurfaceQuality(j.at("surface_quality").get<int>());
+  o.albedo_path = j.at("albedo");
+  o.holes_path = j.at("holes");
+  o.landcover_path = j.at("landcover");
+  o.landcover_table_path = j.at("landcover_table");
+  o.heights_only = j.at("heights_only");
+  o.force = j.at("force");
+  o.zstd_level = j.at("zstd_level");
+  o.surface_zstd_level = j.at("surface_zstd_level");
+  return o;
+}
+
+json frame_json(const FrameCrs& f) {
+  return {{"kind", int(f.kind)},          {"epsg", f.epsg},
+          {"semi_major_m", f.semi_major_m}, {"inverse_flattening", f.inverse_flattening},
+          {"lat0_deg", f.lat0_deg},       {"lon0_deg", f.lon0_deg},
+          {"scale_k0", f.scale_k0},       {"false_easting_m", f.false_easting_m},
+          {"false_northing_m", f.false_northing_m}, {"name", f.name},
+          {"definition", f.definition}};
+}
+FrameCrs frame_of(const json& j) {
+  FrameCrs f;
+  f.kind = ProjectionKind(j.at("kind").get<int>());
+  f.epsg = j.at("epsg");
+  f.semi_major_m = j.at("semi_major_m");
+  f.inverse_flattening = j.at("inverse_flattening");
+  f.lat0_deg = j.at("lat0_deg");
+  f.lon0_deg = j.at("lon0_deg");
+  f.scale_k0 = j.at("scale_k0");
+  f.false_easting_m = j.at("false_easting_m");
+  f.false_northing_m = j.at("false_northing_m");
+  f.name = j.at("name");
+  f.definition = j.at("definition");
+  return f;
+}
+
+// ---- input files: fingerprints and footprints ----
+bool stat_file(const std::string& path, uint64_t& size, int64_t& mtime_ns) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return false;
+  size = uint64_t(st.st_size);
+  mtime_ns = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+  return true;
+}
+std::string file_fingerprint(const InputFile& f) {
+  return hex64(fnv1a(fmt::format("{}\n{}\n{}", f.path, f.size, f.mtime_ns)));
+}
+
+// The mosaic samples a raster file covers: its corners through the mosaic's georeferencing, one
+// sample of margin; the whole mosaic when GDAL cannot say (own formats, another CRS).
+SampleRect footprint_of(GDALDataset* ds, const Raster& header, const SampleRect& whole) {
+  double gt[6];
+  if (!ds || ds->GetGeoTransform(gt) != CE_None || header.crs.kind == CrsKind::geographic) return whole;
+  const AffineMap m = AffineMap::from(header.geo);
+  double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
+  for (double px : {0.0, double(ds->GetRasterXSize())})
+    for (double py : {0.0, double(ds->GetRasterYSize())}) {
+      double c = 0, r = 0;
+      m.to_sample(gt[0] + px * gt[1] + py * gt[2], gt[3] + px * gt[4] + py * gt[5], c, r);
+      cmin = std::min(cmin, c);
+      cmax = std::max(cmax, c);
+      rmin = std::min(rmin, r);
+      rmax = std::max(rmax, r);
+    }
+  if (!std::isfinite(cmin + cmax + rmin + rmax)) return whole;
+  const SampleRect r{int(std::max(-1.0, std::floor(cmin) - 1)), int(std::max(-1.0, std::floor(rmin) - 1)),
+                     int(std::min(1e9, std::ceil(cmax) + 1)), int(std::min(1e9, std::ceil(rmax) + 1))};
+  return intersect(r, whole);
+}
+
+Status collect_input_files(const CookSession& s, std::vector<InputFile>& out) {
+  const Raster& header = s.source.header();
+  const SampleRect whole{0, 0, header.width - 1, header.height - 1};
+  std::map<std::string, size_t> seen;
+  auto add = [&](const std::string& path, const SampleRect& footprint) -> Status {
+    if (auto it = seen.find(path); it != seen.end()) {
+      out[it->second].footprint = unite(out[it->second].footprint, footprint);
+      return Status::success();
+    }
+    InputFile f;
+    f.path = path;
+    if (!stat_file(path, f.size, f.mtime_ns))
+      return Status::failure(Error::io_open, fmt::format("{}: cannot stat: {}", path, std::strerror(errno)));
+    f.footprint = footprint;
+    f.fingerprint = file_fingerprint(f);
+    seen[path] = out.size();
+    out.push_back(std::move(f));
+    return Status::success();
+  };
+  init_gdal();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    GDALDataset* ds = GDALDataset::Open(in.path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+    const bool placed = ds && same_crs(in.crs, header.crs);
+    if (Status st = add(in.path, placed ? footprint_of(ds, header, whole) : whole); !st.ok()) {
+      if (ds) GDALClose(ds);
+      return st;
+    }
+    if (ds) {
+      // A VRT's tiles: each its own fingerprint and footprint, so a replaced tile touches only its units.
+      char** list = ds->GetFileList();
+      for (char** p = list; p && *p; ++p) {
+        const std::string f = *p;
+        if (f == in.path || f.ends_with(".aux.xml") || f.ends_with(".ovr")) continue;
+        GDALDataset* t = GDALDataset::Open(f.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+        const Status st = add(f, placed && t ? footprint_of(t, header, whole) : whole);
+        if (t) GDALClose(t);
+        if (!st.ok()) {
+          CSLDestroy(list);
+          GDALClose(ds);
+          return st;
+        }
+      }
+      CSLDestroy(list);
+      GDALClose(ds);
+    }
+  }
+  for (const std::string* p : {&s.options.materials_path, &s.options.albedo_path, &s.options.holes_path,
+                               &s.options.landcover_path, &s.options.landcover_table_path})
+    if (!p->empty())
+      if (Status st = add(*p, whole); !st.ok()) return st;
+  return Status::success();
+}
+
+// The decisions every unit depends on, as text: their hash is the plan's fingerprint.
+std::string decisions_text(const CookOptions& o, const FrameCrs& frame, const WorldInfo& w, int width, int height,
+                           int finest, const std::array<uint8_t, kLevelCount>& steps) {
+  json j;
+  json opt = options_json(o);
+  opt.erase("memory_limit_bytes");  // changes blocks, never bytes
+  j["options"] = opt;
+  j["source"] = {width, height};
+  j["frame"] = frame_json(frame);
+  j["grid"] = {w.origin_x_m, w.origin_y_m, w.roots_x, w.roots_y};
+  j["finest_level"] = finest;
+  j["steps"] = steps;
+  return j.dump();
+}
+
+// ---- unit files (format/SPEC.md "Work units") ----
+constexpr char kUnitMagic[8] = {'T', 'C', 'U', 'N', 'I', 'T', '1', '\0'};
+constexpr char kUnitEnd[4] = {'T', 'C', 'U', 'E'};
+constexpr size_t kUnitHeader = 64, kUnitRecord = 48;
+
+void put_u32(uint8_t* p, uint32_t v) { for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i)); }
+void put_u64(uint8_t* p, uint64_t v) { for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i)); }
+uint32_t get_u32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
+
+uint32_t crc_update(uint32_t crc, const uint8_t* p, size_t n) {
+  uLong c = crc;
+  while (n > 0) {
+    const uInt k = n > (1u << 30) ? (1u << 30) : uInt(n);
+    c = ::crc32(c, p, k);
+    p += k;
+    n -= k;
+  }
+  return uint32_t(c);
+}
+
+json error_json(const ErrorStats& e) { return {e.max_m, e.sum_sq, e.samples, e.uncovered}; }
+ErrorStats error_of(const json& j) {
+  ErrorStats e;
+  e.max_m = j.at(0);
+  e.sum_sq = j.at(1);
+  e.samples = j.at(2);
+  e.uncovered = j.at(3);
+  return e;
+}
+
+json stats_json(const UnitStats& u) {
+  const CookReport& r = u.part;
+  json levels = json::array(), errors = json::array();
+  for (int l = 0; l < kLevelCount; ++l) {
+    levels.push_back({r.levels[size_t(l)].nodes, r.levels[size_t(l)].vertices});
+    errors.push_back(error_json(u.totals.level_error[size_t(l)]));
+  }
+  const SurfaceTotals& t = r.surface;
+  return {{"levels", levels},
+          {"level_error", errors},
+          {"leaf", error_json(u.totals.leaf)},
+          {"cpu", {r.cpu_heights, r.cpu_error, r.cpu_surface, r.cpu_encode}},
+          {"surface",
+           {t.cpu_normals, t.cpu_albedo, t.cpu_splat, t.cpu_cones, t.normal_err_max_deg, t.normal_err_sum_deg,
+            t.normal_samples, t.albedo_sq_err_sum, t.albedo_samples, t.albedo_hole_texels, t.albedo_alpha_mismatches,
+            t.cone_exact_deg_sum, t.cone_encoded_deg_sum, t.cone_patches, t.cone_patches_never_cull}},
+          {"void_fill_residual_m", r.void_fill_residual_m},
+          {"window_samples", r.block_window_samples_max},
+          {"input_bytes_read", r.input_bytes_read}};
+}
+
+// Adds one unit's stats to the cook's (the sums cook_block makes, in unit order).
+void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
+  for (int l = 0; l < kLevelCount; ++l) {
+    r.levels[size_t(l)].nodes += j.at("levels").at(l).at(0).get<uint32_t>();
+    r.levels[size_t(l)].vertices += j.at("levels").at(l).at(1).get<uint64_t>();
+    totals.level_error[size_t(l)].add(error_of(j.at("level_error").at(l)));
+  }
+  totals.leaf.add(error_of(j.at("leaf")));
+  const json& c = j.at("cpu");
+  r.cpu_heights += c.at(0).get<double>();
+  r.cpu_error += c.at(1).get<double>();
+  r.cpu_surface += c.at(2).get<double>();
+  r.cpu_encode += c.at(3).get<double>();
+  const json& s = j.at("surface");
+  SurfaceTotals& t = r.surface;
+  t.cpu_normals += s.at(0).get<double>();
+  t.cpu_albedo += s.at(1).get<double>();
+  t.cpu_splat += s.at(2).get<double>();
+  t.cpu_cones += s.at(3).get<double>();
+  t.normal_err_max_deg = std::max(t.normal_err_max_deg, s.at(4).get<double>());
+  t.normal_err_sum_deg += s.at(5).get<double>();
+  t.normal_samples += s.at(6).get<uint64_t>();
+  t.albedo_sq_err_sum += s.at(7).get<double>();
+  t.albedo_samples += s.at(8).get<uint64_t>();
+  t.albedo_hole_texels += s.at(9).get<uint64_t>();
+  t.albedo_alpha_mismatches += s.at(10).get<uint64_t>();
+  t.cone_exact_deg_sum += s.at(11).get<double>();
+  t.cone_encoded_deg_sum += s.at(12).get<double>();
+  t.cone_patches += s.at(13).get<uint64_t>();
+  t.cone_patches_never_cull += s.at(14).get<uint64_t>();
+  r.void_fill_residual_m = std::max(r.void_fill_residual_m, j.at("void_fill_residual_m").get<double>());
+  r.block_window_samples_max = std::max(r.block_window_samples_max, j.at("window_samples").get<uint64_t>());
+  const auto bytes = j.at("input_bytes_read").get<std::vector<uint64_t>>();
+  if (r.input_bytes_read.size() < bytes.size()) r.input_bytes_read.resize(bytes.size());
+  for (size_t i = 0; i < bytes.size(); ++i) r.input_bytes_read[i] += bytes[i];
+}
+
+Status write_all(int fd, const uint8_t* p, size_t n, const std::string& path) {
+  while (n > 0) {
+    const ssize_t k = ::write(fd, p, n);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0)
+      return Status::failure(Error::io_write, fmt::format("{}: {}", path, k < 0 ? std::strerror(errno) : "short write"));
+    p += k;
+    n -= size_t(k);
+  }
+  return Status::success();
+}
+Status read_at(int fd, uint8_t* p, size_t n, uint64_t off, const std::string& path) {
+  while (n > 0) {
+    const ssize_t k = ::pread(fd, p, n, off_t(off));
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0)
+      return Status::failure(Error::truncated, fmt::format("{}: {}", path, k < 0 ? std::strerror(errno) : "ends early"));
+    p += k;
+    n -= size_t(k);
+    off += uint64_t(k);
+  }
+  return Status::success();
+}
+
+// A unit file's parts, checked: header, node table, stats and the payloads' extent.
+struct UnitContents {
+  std::string plan_fp, unit_fp;
+  std::vector<std::pair<NodeRecord, uint64_t>> nodes;  // record (payload_offset relative), file offset
+  json stats;
+};
+
+// Reads and checks a unit file completely (the CRC covers every byte). `why` on failure.
+bool read_unit(const std::string& path, uint32_t index, const std::string& expected_unit_fp, UnitContents& out,
+               std::string& why) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    why = errno == ENOENT ? "missing" : fmt::format("cannot open: {}", std::strerror(errno));
+    return false;
+  }
+  struct Closer { int fd; ~Closer() { ::close(fd); } } closer{fd};
+  struct stat st {};
+  ::fstat(fd, &st);
+  const uint64_t size = uint64_t(st.st_size);
+  if (size < kUnitHeader + 8) {
+    why = fmt::format("truncated ({} bytes)", size);
+    return false;
+  }
+  uint8_t h[kUnitHeader];
+  if (!read_at(fd, h, kUnitHeader, 0, path).ok() || std::memcmp(h, kUnitMagic, 8) != 0) {
+    why = "not a unit file (bad magic)";
+    return false;
+  }
+  if (get_u32(h + 8) != 1) {
+    why = fmt::format("unit file version {} (this tool reads 1)", get_u32(h + 8));
+    return false;
+  }
+  if (get_u32(h + 12) != index) {
+    why = fmt::format("holds unit {}", get_u32(h + 12));
+    return false;
+  }
+  out.plan_fp.assign(reinterpret_cast<const char*>(h + 16), 16);
+  out.unit_fp.assign(reinterpret_cast<const char*>(h + 32), 16);
+  const uint32_t count = get_u32(h + 48), stats_bytes = get_u32(h + 52);
+  const uint64_t payload_bytes = get_u64(h + 56);
+  const uint64_t expect = kUnitHeader + uint64_t(count) * kUnitRecord + stats_bytes + payload_bytes + 8;
+  if (expect != size) {
+    why = fmt::format("truncated or padded: {} bytes, its header says {}", size, expect);
+    return false;
+  }
+  // The CRC of everything before the trailer, streamed.
+  uint32_t crc = 0;
+  std::vector<uint8_t> buf(size_t(1) << 20);
+  for (uint64_t off = 0; off < size - 8;) {
+    const size_t n = size_t(std::min<uint64_t>(buf.size(), size - 8 - off));
+    if (!read_at(fd, buf.data(), n, off, path).ok()) {
+      why = "unreadable";
+      return false;
+    }
+    crc = crc_update(crc, buf.data(), n);
+    off += n;
+  }
+  uint8_t tail[8];
+  if (!read_at(fd, tail, 8, size - 8, path).ok() || std::memcmp(tail + 4, kUnitEnd, 4) != 0 || get_u32(tail) != crc) {
+    why = "checksum mismatch (damaged or half-written)";
+    return false;
+  }
+  if (out.unit_fp != expected_unit_fp) {
+    why = fmt::format("from another plan or stale inputs (unit fingerprint {}, the plan's {})", out.unit_fp,
+                      expected_unit_fp);
+    return false;
+  }
+  std::vector<uint8_t> table(size_t(count) * kUnitRecord);
+  std::string stats(stats_bytes, '\0');
+  if (!read_at(fd, table.data(), table.size(), kUnitHeader, path).ok() ||
+      !read_at(fd, reinterpret_cast<uint8_t*>(stats.data()), stats.size(), kUnitHeader + table.size(), path).ok()) {
+    why = "unreadable";
+    return false;
+  }
+  out.stats = json::parse(stats, nullptr, false);
+  if (out.stats.is_discarded()) {
+    why = "bad stats";
+    return false;
+  }
+  const uint64_t payload_start = kUnitHeader + table.size() + stats_bytes;
+  out.nodes.clear();
+  for (uint32_t i = 0; i < count; ++i) {
+    const uint8_t* p = &table[size_t(i) * kUnitRecord];
+    NodeRecord r;
+    r.key = {get_u32(p), get_u32(p + 4), get_u32(p + 8)};
+    r.child_mask = p[12];
+    r.flags = p[13];
+    r.height_offset = int32_t(get_u32(p + 16));
+    r.min_height = int32_t(get_u32(p + 20));
+    r.max_height = int32_t(get_u32(p + 24));
+    const uint32_t err = get_u32(p + 28);
+    std::memcpy(&r.geometric_error_m, &err, 4);
+    r.payload_offset = get_u64(p + 32);
+    r.payload_size = get_u32(p + 40);
+    if (r.payload_offset + r.payload_size > payload_bytes || r.key.level >= uint32_t(kLevelCount)) {
+      why = fmt::format("node {} lies outside the unit's payloads", i);
+      return false;
+    }
+    out.nodes.emplace_back(r, payload_start + r.payload_offset);
+  }
+  return true;
+}
+
+}  // namespace
+
+std::string plan_file(const std::string& work_dir) { return work_dir + "/plan.json"; }
+std::string unit_file(const std::string& work_dir, uint32_t index) {
+  return fmt::format("{}/units/unit-{}.tcu", work_dir, index);
+}
+
+Status plan_units(CookSession& s, PlanFile& plan) {
+  plan = PlanFile{};
+  if (Status st = collect_input_files(s, plan.files); !st.ok()) return st;
+  const Raster& header = s.source.header();
+  plan.fingerprint = hex64(fnv1a(decisions_text(s.options, s.frame, s.world, header.width, header.height,
+                                                s.ctx.finest_level, s.ctx.step_log2)));
+  for (uint32_t i = 0; i < s.grid.count(); ++i) {
+    UnitPlan u;
+    u.index = i;
+    u.roots = s.grid.block(i);
+    const SampleRect need = block_cook_rect(s.ctx, u.roots);
+    u.window = need.empty() ? SampleRect{} : fill_read_rect(s.voids, need);
+    std::string text = fmt::format("{}|{},{},{},{}|{},{},{},{}", plan.fingerprint, u.roots.x0, u.roots.y0, u.roots.x1,
+                                   u.roots.y1, u.window.c0, u.window.r0, u.window.c1, u.window.r1);
+    for (const InputFile& f : plan.files)
+      if (meets(f.footprint, u.window)) text += "|" + f.fingerprint;
+    u.fingerprint = hex64(fnv1a(text));
+    plan.units.push_back(u);
+  }
+  return Status::success();
+}
+
+Status write_plan(const CookSession& s, const CookReport& report, const PlanFile& plan, const std::string& path) {
+  json j;
+  j["format"] = "terrain-cook-plan";
+  j["version"] = 1;
+  j["fingerprint"] = plan.fingerprint;
+  j["options"] = options_json(s.options);
+  json files = json::array();
+  for (const InputFile& f : plan.files)
+    files.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
+                     {"footprint", rect_json(f.footprint)}});
+  j["files"] = files;
+  const Raster& header = s.source.header();
+  j["source"] = {{"width", header.width}, {"height", header.height}};
+  j["frame"] = frame_json(s.frame);
+  const WorldInfo& w = s.world;
+  j["grid"] = {{"origin_x_m", w.origin_x_m}, {"origin_y_m", w.origin_y_m}, {"roots_x", w.roots_x},
+               {"roots_y", w.roots_y}, {"extent", {w.extent_min_x_m, w.extent_min_y_m, w.extent_max_x_m, w.extent_max_y_m}},
+               {"unit_roots", s.grid.side}};
+  j["finest_level"] = s.ctx.finest_level;
+  j["steps"] = s.ctx.step_log2;
+  json fills = json::array();
+  for (const SampleRect& r : s.voids.spanning_fills) fills.push_back(rect_json(r));
+  const VoidStats& vs = s.voids.stats;
+  j["voids"] = {{"tile", s.voids.tile},
+                {"valid_samples", s.voids.valid_samples},
+                {"valid_bounds", rect_json(s.voids.valid_bounds)},
+                {"stats", {vs.filled_samples, vs.filled_regions, vs.hole_samples, vs.hole_regions}},
+                {"spanning_fills", fills}};
+  json descriptions = json::array();
+  for (const auto& [p, d] : s.descriptions) descriptions.push_back({p, d});
+  j["report"] = {{"descriptions", descriptions},
+                 {"input_descriptions", report.input_descriptions},
+                 {"frame_reason", report.frame_reason},
+                 {"source_samples", report.source_samples},
+                 {"source_spacing_m", report.source_spacing_m},
+                 {"implausible_samples", report.implausible_samples},
+                 {"warnings", report.warnings}};
+  j["unit_count"] = plan.units.size();
+  json units = json::array();
+  for (const UnitPlan& u : plan.units)
+    units.push_back({{"index", u.index},
+                     {"roots", {u.roots.x0, u.roots.y0, u.roots.x1, u.roots.y1}},
+                     {"window", rect_json(u.window)},
+                     {"fingerprint", u.fingerprint}});
+  j["units"] = units;
+  // Atomically: a plan is either the old one or the new one.
+  const std::string temp = fmt::format("{}.tmp-{}", path, ::getpid());
+  const std::string text = j.dump(1) + "\n";
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
+  Status st = write_all(fd, reinterpret_cast<const uint8_t*>(text.data()), text.size(), temp);
+  if (st.ok() && ::fsync(fd) != 0) st = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp, std::strerror(errno)));
+  ::close(fd);
+  if (st.ok() && ::rename(temp.c_str(), path.c_str()) != 0)
+    st = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
+  if (!st.ok()) ::unlink(temp.c_str());
+  return st;
+}
+
+Status read_plan(const std::string& work_dir, PlanData& out) {
+  const std::string path = plan_file(work_dir);
+  std::ifstream f(path);
+  if (!f) return Status::failure(Error::io_open, fmt::format("{}: no plan (run `terrain-cook plan ... --work-dir {}` first)", path, work_dir));
+  const json j = json::parse(f, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-plan")
+    return Status::failure(Error::invalid_argument, fmt::format("{}: not a terrain-cook plan", path));
+  if (j.value("version", 0) != 1)
+    return Status::failure(Error::unsupported_version, fmt::format("{}: plan version {} (this tool reads 1)", path, j.value("version", 0)));
+  try {
+    out = PlanData{};
+    out.options = options_of(j.at("options"));
+    out.plan.fingerprint = j.at("fingerprint");
+    for (const json& fj : j.at("files")) {
+      InputFile fi;
+      fi.path = fj.at("path");
+      fi.size = fj.at("size");
+      fi.mtime_ns = fj.at("mtime_ns");
+      fi.fingerprint = fj.at("fingerprint");
+      fi.footprint = rect_of(fj.at("footprint"));
+      out.plan.files.push_back(fi);
+    }
+    out.source_width = j.at("source").at("width");
+    out.source_height = j.at("source").at("height");
+    out.frame = frame_of(j.at("frame"));
+    const json& g = j.at("grid");
+    out.world.crs = out.frame;
+    out.world.origin_x_m = g.at("origin_x_m");
+    out.world.origin_y_m = g.at("origin_y_m");
+    out.world.roots_x = g.at("roots_x");
+    out.world.roots_y = g.at("roots_y");
+    out.world.extent_min_x_m = g.at("extent").at(0);
+    out.world.extent_min_y_m = g.at("extent").at(1);
+    out.world.extent_max_x_m = g.at("extent").at(2);
+    out.world.extent_max_y_m = g.at("extent").at(3);
+    out.unit_roots = g.at("unit_roots");
+    out.steps = j.at("steps").get<std::array<uint8_t, kLevelCount>>();
+    const json& v = j.at("voids");
+    out.voids.width = out.source_width;
+    out.voids.height = out.source_height;
+    out.voids.tile = v.at("tile");
+    out.voids.policy = out.options.nodata;
+    out.voids.max_fill_samples = out.options.fill_max_samples;
+    out.voids.valid_samples = v.at("valid_samples");
+    out.voids.valid_bounds = rect_of(v.at("valid_bounds"));
+    out.voids.stats.filled_samples = v.at("stats").at(0);
+    out.voids.stats.filled_regions = v.at("stats").at(1);
+    out.voids.stats.hole_samples = v.at("stats").at(2);
+    out.voids.stats.hole_regions = v.at("stats").at(3);
+    for (const json& r : v.at("spanning_fills")) out.voids.spanning_fills.push_back(rect_of(r));
+    const json& r = j.at("report");
+    for (const json& d : r.at("descriptions")) out.descriptions.emplace_back(d.at(0), d.at(1));
+    CookReport& rep = out.report;
+    rep.input_descriptions = r.at("input_descriptions").get<std::vector<std::string>>();
+    rep.frame_reason = r.at("frame_reason");
+    rep.source_samples = r.at("source_samples");
+    rep.source_spacing_m = r.at("source_spacing_m");
+    rep.implausible_samples = r.at("implausible_samples");
+    rep.warnings = r.at("warnings").get<std::vector<std::string>>();
+    rep.frame = out.frame;
+    rep.source_valid_samples = out.voids.valid_samples;
+    rep.voids_filled_samples = out.voids.stats.filled_samples;
+    rep.voids_filled_regions = out.voids.stats.filled_regions;
+    rep.hole_samples = out.voids.stats.hole_samples;
+    rep.hole_regions = out.voids.stats.hole_regions;
+    rep.origin_x_m = out.world.origin_x_m;
+    rep.origin_y_m = out.world.origin_y_m;
+    rep.roots_x = out.world.roots_x;
+    rep.roots_y = out.world.roots_y;
+    rep.extent_min_x_m = out.world.extent_min_x_m;
+    rep.extent_min_y_m = out.world.extent_min_y_m;
+    rep.extent_max_x_m = out.world.extent_max_x_m;
+    rep.extent_max_y_m = out.world.extent_max_y_m;
+    rep.finest_level = j.at("finest_level");
+    rep.tolerance_m = out.options.tolerance_m;
+    rep.block_roots = out.unit_roots;
+    rep.blocks = j.at("unit_count");
+    for (const json& u : j.at("units")) {
+      UnitPlan up;
+      up.index = u.at("index");
+      up.roots = {u.at("roots").at(0), u.at("roots").at(1), u.at("roots").at(2), u.at("roots").at(3)};
+      up.window = rect_of(u.at("window"));
+      up.fingerprint = u.at("fingerprint");
+      if (up.index != out.plan.units.size())
+        return Status::failure(Error::invalid_argument, fmt::format("{}: units out of order at {}", path, up.index));
+      out.plan.units.push_back(up);
+    }
+  } catch (const std::exception& e) {
+    return Status::failure(Error::invalid_argument, fmt::format("{}: malformed plan ({})", path, e.what()));
+  }
+  return Status::success();
+}
+
+Status check_plan_inputs(const PlanFile& plan) {
+  for (const InputFile& f : plan.files) {
+    InputFile now = f;
+    if (!stat_file(f.path, now.size, now.mtime_ns))
+      return Status::failure(Error::io_open, fmt::format("{}: input of the plan is gone ({}); run `terrain-cook plan` again",
+                                                         f.path, std::strerror(errno)));
+    if (file_fingerprint(now) != f.fingerprint)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{}: changed since the plan (size {} -> {}, mtime {} -> {}); run `terrain-cook "
+                                         "plan` again (it keeps the units the change does not touch)",
+                                         f.path, f.size, now.size, f.mtime_ns, now.mtime_ns));
+  }
+  return Status::success();
+}
+
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report) {
+  CookOptions o = data.options;
+  o.threads = threads;
+  o.unit_roots = data.unit_roots;
+  // Inputs first: a file changed since the plan is refused before anything is read from it.
+  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
+  if (Status st = open_inputs(o, s, report); !st.ok()) return st;
+  const Raster& header = s.source.header();
+  if (header.width != data.source_width || header.height != data.source_height)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the inputs are {}x{} samples, the plan's {}x{}; run `terrain-cook plan` again",
+                                       header.width, header.height, data.source_width, data.source_height));
+  s.voids = data.voids;
+  s.voids.source_name = header.path;
+  if (Status st = frame_and_grid(s, &data.frame, report); !st.ok()) return st;
+  if (s.world.origin_x_m != data.world.origin_x_m || s.world.origin_y_m != data.world.origin_y_m ||
+      s.world.roots_x != data.world.roots_x || s.world.roots_y != data.world.roots_y)
+    return Status::failure(Error::internal, "the plan's root grid does not follow from its inputs");
+  s.ctx.step_log2 = data.steps;
+  return surface_setup(s, report);
+}
+
+Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const std::string& work_dir) {
+  const std::string path = unit_file(work_dir, index);
+  std::error_code ec;
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
+  const std::string temp = fmt::format("{}.tmp-{}", path, ::getpid());
+  NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
+  if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
+  UnitStats stats;
+  stats.part.memory_limit_bytes = memory_limit_of(s.options);
+  std::vector<uint64_t> read_before;
+  for (const MosaicSource::InputStat& in : s.source.inputs()) read_before.push_back(in.bytes_read);
+  const NodeSink sink = [&](NodeResult& r) { return spool.add(r.record, r.payload); };
+  if (Status st = cook_block_of_session(s, index, sink, stats.totals, stats.part); !st.ok()) return st;
+  for (size_t i = 0; i < s.source.inputs().size(); ++i)
+    stats.part.input_bytes_read.push_back(s.source.inputs()[i].bytes_read - (i < read_before.size() ? read_before[i] : 0));
+  // The spool's entries in canonical order, their payloads copied behind the table.
+  std::vector<NodeSpool::Entry> entries = spool.sorted_entries();
+  const std::string stats_text = stats_json(stats).dump();
+  uint64_t payload_bytes = 0;
+  for (const auto& e : entries) payload_bytes += e.size;
+  std::vector<uint8_t> head(kUnitHeader + entries.size() * kUnitRecord, 0);
+  std::memcpy(head.data(), kUnitMagic, 8);
+  put_u32(&head[8], 1);
+  put_u32(&head[12], index);
+  std::memcpy(&head[16], plan.fingerprint.data(), 16);
+  std::memcpy(&head[32], plan.units[index].fingerprint.data(), 16);
+  put_u32(&head[48], uint32_t(entries.size()));
+  put_u32(&head[52], uint32_t(stats_text.size()));
+  put_u64(&head[56], payload_bytes);
+  uint64_t off = 0;
+  for (size_t i = 0; i < entries.size(); ++i) {
+    uint8_t* p = &head[kUnitHeader + i * kUnitRecord];
+    const NodeRecord& r = entries[i].record;
+    put_u32(p, r.key.level);
+    put_u32(p + 4, r.key.x);
+    put_u32(p + 8, r.key.y);
+    p[12] = r.child_mask;
+    p[13] = r.flags;
+    put_u32(p + 16, uint32_t(r.height_offset));
+    put_u32(p + 20, uint32_t(r.min_height));
+    put_u32(p + 24, uint32_t(r.max_height));
+    uint32_t err = 0;
+    std::memcpy(&err, &r.geometric_error_m, 4);
+    put_u32(p + 28, err);
+    put_u64(p + 32, off);
+    put_u32(p + 40, entries[i].size);
+    off += entries[i].size;
+  }
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
+  uint32_t crc = crc_update(0, head.data(), head.size());
+  crc = crc_update(crc, reinterpret_cast<const uint8_t*>(stats_text.data()), stats_text.size());
+  Status st = write_all(fd, head.data(), head.size(), temp);
+  if (st.ok()) st = write_all(fd, reinterpret_cast<const uint8_t*>(stats_text.data()), stats_text.size(), temp);
+  std::vector<uint8_t> buf;
+  for (size_t i = 0; st.ok() && i < entries.size(); ++i) {
+    st = spool.read(entries[i], buf);
+    if (st.ok()) {
+      crc = crc_update(crc, buf.data(), buf.size());
+      st = write_all(fd, buf.data(), buf.size(), temp);
+    }
+  }
+  uint8_t tail[8];
+  put_u32(tail, crc);
+  std::memcpy(tail + 4, kUnitEnd, 4);
+  if (st.ok()) st = write_all(fd, tail, 8, temp);
+  if (st.ok() && ::fsync(fd) != 0) st = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp, std::strerror(errno)));
+  ::close(fd);
+  if (st.ok() && ::rename(temp.c_str(), path.c_str()) != 0)
+    st = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
+  if (!st.ok()) ::unlink(temp.c_str());
+  return st;
+}
+
+bool unit_file_valid(const std::string& work_dir, const PlanFile& plan, uint32_t index, std::string& why) {
+  UnitContents c;
+  return read_unit(unit_file(work_dir, index), index, plan.units[index].fingerprint, c, why);
+}
+
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, ArchiveWriter& writer,
+                        PyramidTotals& totals, CookReport& report, const ProgressFn& progress) {
+  struct Entry {
+    NodeRecord record;
+    uint32_t unit;
+    uint64_t offset;
+  };
+  std::vector<Entry> entries;
+  for (const UnitPlan& u : plan.units) {
+    UnitContents c;
+    std::string why;
+    if (!read_unit(unit_file(work_dir, u.index), u.index, u.fingerprint, c, why))
+      return Status::failure(Error::no_data, fmt::format("unit {} ({}): {}; nothing merged (run `terrain-cook unit {} {}`)",
+                                                         u.index, unit_file(work_dir, u.index), why, work_dir, u.index));
+    for (const auto& [r, off] : c.nodes) entries.push_back({r, u.index, off});
+    try {
+      add_stats(c.stats, totals, report);
+    } catch (const std::exception& e) {
+      return Status::failure(Error::invalid_argument, fmt::format("unit {}: bad stats ({})", u.index, e.what()));
+    }
+    if (progress && !progress(0.5 * double(u.index + 1) / double(plan.units.size()), "checking units"))
+      return Status::failure(Error::cancelled, "cancelled");
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return payload_order_less(a.record.key, b.record.key); });
+  // Payloads in canonical order; a few files open at a time (thousands of units would exceed the
+  // descriptor limit).
+  std::map<uint32_t, int> open_fds;
+  auto fd_of = [&](uint32_t unit) -> int {
+    if (auto it = open_fds.find(unit); it != open_fds.end()) return it->second;
+    if (open_fds.size() >= 64) {
+      ::close(open_fds.begin()->second);
+      open_fds.erase(open_fds.begin());
+    }
+    const int fd = ::open(unit_file(work_dir, unit).c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) open_fds[unit] = fd;
+    return fd;
+  };
+  std::vector<uint8_t> buf;
+  Status st = Status::success();
+  for (size_t i = 0; i < entries.size() && st.ok(); ++i) {
+    const Entry& e = entries[i];
+    const int fd = fd_of(e.unit);
+    if (fd < 0) {
+      st = Status::failure(Error::io_open, fmt::format("unit {}: {}", e.unit, std::strerror(errno)));
+      break;
+    }
+    buf.resize(e.record.payload_size);
+    st = read_at(fd, buf.data(), buf.size(), e.offset, unit_file(work_dir, e.unit));
+    if (st.ok()) st = writer.add_node(e.record, buf);
+    if (st.ok() && progress && i % 4096 == 0 &&
+        !progress(0.5 + 0.5 * double(i + 1) / double(entries.size()), "merging"))
+      st = Status::failure(Error::cancelled, "cancelled");
+  }
+  for (auto& [u, fd] : open_fds) ::close(fd);
+  return st;
+}
+
+}  // namespace terrain::cook

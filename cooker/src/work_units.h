@@ -1,0 +1,89 @@
+// Work units (issue 14): the plan file, the unit files and their merge.
+//
+// A work dir W holds W/plan.json (every global decision of the cook, the input fingerprints and the
+// list of units: root-aligned blocks of roots, pyramid.h) and W/units/unit-<i>.tcu, one file per
+// unit written atomically (temp file + rename). format/SPEC.md section "Work units" specifies the
+// unit file so another tool could merge them.
+//
+// Fingerprints are 64-bit FNV-1a hashes, written as 16 hex digits: of a file, its path, size and
+// modification time (a changed tile has a new mtime; contents are never hashed: national inputs are
+// terabytes); of a unit, the plan's global decisions, its roots, its source window and the
+// fingerprints of the input files whose footprint meets that window. A unit file is valid for a
+// plan when its unit fingerprint is the plan's for that unit, so re-planning after a change keeps
+// every unit the change does not touch.
+#pragma once
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cook_session.h"
+
+namespace terrain::cook {
+
+std::string plan_file(const std::string& work_dir);
+std::string unit_file(const std::string& work_dir, uint32_t index);
+
+struct UnitPlan {
+  uint32_t index = 0;
+  RootBlock roots;
+  SampleRect window;        // the source samples the unit reads (its cook window, void-plan grown)
+  std::string fingerprint;  // hex
+};
+
+struct InputFile {
+  std::string path, fingerprint;
+  uint64_t size = 0;
+  int64_t mtime_ns = 0;
+  SampleRect footprint;  // mosaic samples it may contribute to (the whole mosaic when unknown)
+};
+
+struct PlanFile {
+  std::string fingerprint;  // of the global decisions (not of the unit list)
+  std::vector<InputFile> files;
+  std::vector<UnitPlan> units;
+};
+
+// The plan of a session whose steps are decided: input files and units with their fingerprints.
+Status plan_units(CookSession& s, PlanFile& plan);
+Status write_plan(const CookSession& s, const CookReport& report, const PlanFile& plan, const std::string& path);
+
+// What plan.json holds, read back without opening any input (the merge needs none).
+struct PlanData {
+  CookOptions options;
+  PlanFile plan;
+  FrameCrs frame;
+  WorldInfo world;  // frame, grid, footprint
+  std::array<uint8_t, kLevelCount> steps{};
+  uint32_t unit_roots = 0;
+  int source_width = 0, source_height = 0;
+  VoidPlan voids;
+  CookReport report;  // the plan's part: inputs, voids, frame, grid, finest level, warnings
+  std::vector<std::pair<std::string, std::string>> descriptions;
+};
+Status read_plan(const std::string& work_dir, PlanData& out);
+// Every input file of the plan is as the plan saw it (size and mtime): else a named error.
+Status check_plan_inputs(const PlanFile& plan);
+// For `unit`: opens the inputs of the plan into a session, checks that no input file changed since
+// the plan (a named error), and restores the plan's decisions (frame, grid, steps, voids).
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
+
+// Statistics a unit adds to the cook's report, stored in its file for the merge.
+struct UnitStats {
+  PyramidTotals totals;
+  CookReport part;  // the fields cook_block and the window reads fill
+};
+
+// Cooks unit `index` of the session into its unit file (atomically: temp file, fsync, rename).
+Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const std::string& work_dir);
+
+// Checks unit `index`'s file against the plan: present, complete, checksum, fingerprints.
+// `why` says what is wrong (empty when valid).
+bool unit_file_valid(const std::string& work_dir, const PlanFile& plan, uint32_t index, std::string& why);
+
+// Merges every unit of the plan into `writer` in canonical order and sums their stats (in unit
+// order) into `totals` and `report`. Fails naming the first unit that is missing or bad.
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, ArchiveWriter& writer,
+                        PyramidTotals& totals, CookReport& report, const ProgressFn& progress);
+
+}  // namespace terrain::cook

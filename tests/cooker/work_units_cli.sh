@@ -1,0 +1,170 @@
+#!/usr/bin/env bash
+# Work units of issue 14: work_units_cli.sh CASE BIN_DIR SCRATCH_PARENT [DATA_DIR]. Every case compares
+# whole archives byte for byte with the one-process cook of the same inputs and flags.
+set -u
+case_name=$1 bin=$2 work=$3/work-units-$1 data=${4:-}
+cook="$bin/terrain-cook"
+fail() { echo "FAIL ($case_name): $*"; exit 1; }
+dem=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
+[ -f "$dem" ] || { echo "SKIP: $dem absent (python3-matplotlib-data)"; exit 0; }
+rm -rf "$work"; mkdir -p "$work"; cd "$work" || exit 1
+flags=(--crs EPSG:4326 --heights-only -q)
+# No staged or spooled file may survive a finished command.
+no_leftovers() {
+  local left
+  left=$(find . \( -name '*.tmp-*' -o -name '*.spool-*' -o -name '*.payloads' \) -print)
+  [ -z "$left" ] || fail "left behind: $left"
+}
+# Runs every unit of work dir $1 in an order shuffled by seed $2.
+units_shuffled() {
+  local n i
+  n=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['unit_count'])" "$1/plan.json")
+  # Two at a time, as two machines sharing the work dir would.
+  python3 -c "import random,sys; l=list(range(int(sys.argv[1]))); random.Random(int(sys.argv[2])).shuffle(l); print(*l, sep='\n')" "$n" "$2" |
+    xargs -P 2 -I{} "$cook" unit "$1" {} -q --threads 1 || fail "a unit of $1 failed"
+}
+
+case $case_name in
+  any_split_any_order)
+    # Units of 1, 3 and 7 roots per side (256, 36 and 9 units of the 16 x 16 roots), run in shuffled
+    # orders two at a time, merge to the one-process bytes.
+    "$cook" "$dem" "${flags[@]}" -o ref.terrain || fail "reference cook"
+    for roots in 1 3 7; do
+      n=$("$cook" plan "$dem" "${flags[@]}" --work-dir "w$roots" --unit-roots $roots) || fail "plan $roots"
+      echo "unit roots $roots: $n units"
+      units_shuffled "w$roots" $roots
+      "$cook" merge "w$roots" -o "m$roots.terrain" -q || fail "merge $roots"
+      cmp ref.terrain "m$roots.terrain" || fail "units of $roots roots: not the one-process bytes"
+    done
+    n1=$(python3 -c "import json; print(json.load(open('w1/plan.json'))['unit_count'])")
+    n7=$(python3 -c "import json; print(json.load(open('w7/plan.json'))['unit_count'])")
+    [ "$n1" -ge 8 ] && [ "$n7" -lt "$n1" ] || fail "expected >= 8 units of 1 root and fewer of 7 (got $n1, $n7)"
+    # A second run of a unit redoes nothing.
+    out=$("$cook" unit w1 0) || fail "unit 0 again"
+    [ "$out" = "unit 0: already complete" ] || fail "unit 0 again: '$out'"
+    no_leftovers ;;
+
+  kill_resume)
+    # SIGKILL at 12 points spread over a cook with --work-dir (planning, units, merge), each time
+    # resumed by the same command; the last run completes. The old archive stays until then.
+    full=(--crs EPSG:4326 -q --threads 2 --tolerance 1)
+    "$cook" "$dem" "${full[@]}" -o ref.terrain || fail "reference cook"
+    echo old > out.terrain
+    cp out.terrain old.txt
+    start=$(date +%s%N)
+    "$cook" "$dem" "${full[@]}" -o timing.terrain --work-dir wt --unit-roots 2 || fail "timing cook"
+    total_ms=$(( ($(date +%s%N) - start) / 1000000 ))
+    echo "uninterrupted cook with --work-dir: $total_ms ms"
+    for k in $(seq 1 12); do
+      delay_ms=$(( total_ms * k / 13 ))
+      "$cook" "$dem" "${full[@]}" -o out.terrain --work-dir w --unit-roots 2 &
+      pid=$!
+      sleep "$(printf '%d.%03d' $((delay_ms / 1000)) $((delay_ms % 1000)))"
+      kill -9 $pid 2>/dev/null
+      wait $pid 2>/dev/null
+      units=$(ls w/units 2>/dev/null | grep -c '\.tcu$')
+      echo "kill $k after $delay_ms ms: $units unit files"
+      cmp -s out.terrain old.txt || cmp -s out.terrain ref.terrain || fail "out.terrain is neither the old file nor the result after kill $k"
+    done
+    "$cook" "$dem" "${full[@]}" -o out.terrain --work-dir w --unit-roots 2 || fail "resume"
+    cmp ref.terrain out.terrain || fail "resumed archive differs from the one-process cook"
+    cmp ref.terrain timing.terrain || fail "uninterrupted --work-dir archive differs"
+    rm -f w/units/*.tmp-* out.terrain.tmp-* out.terrain.spool-*  # what the KILLED runs left
+    "$cook" "$dem" "${full[@]}" -o out2.terrain --work-dir w --unit-roots 2 || fail "second resume"
+    cmp ref.terrain out2.terrain || fail "a finished work dir merges again to other bytes"
+    no_leftovers ;;
+
+  recook_one_tile)
+    # A 16-tile VRT cut from Kilauea; one tile replaced by a changed copy: plan keeps every unit the
+    # tile's footprint does not meet, and the result equals a from-scratch cook of the new inputs.
+    kil="$data/kilauea_utm5n.tif"
+    [ -n "$data" ] && [ -f "$kil" ] || { echo "SKIP: $kil absent (set TERRAIN_DATA_DIR)"; exit 0; }
+    command -v gdalbuildvrt > /dev/null || { echo "SKIP: gdalbuildvrt absent (gdal-bin)"; exit 0; }
+    mkdir tiles
+    for ty in 0 1 2 3; do for tx in 0 1 2 3; do
+      gdal_translate -q -srcwin $((tx * 215)) $((ty * 199)) 215 199 "$kil" "tiles/t${ty}${tx}.tif" || fail "tile"
+    done; done
+    gdalbuildvrt -q mosaic.vrt tiles/*.tif || fail "gdalbuildvrt"
+    kf=(-q --heights-only)
+    "$cook" plan mosaic.vrt "${kf[@]}" --work-dir w --unit-roots 2 > /dev/null || fail "plan"
+    units_shuffled w 1
+    "$cook" merge w -o before.terrain -q || fail "merge before"
+    n=$(python3 -c "import json; print(json.load(open('w/plan.json'))['unit_count'])")
+    # tile t12 (row 1, column 2): +5 m over a 40 x 40 patch in its middle
+    /usr/bin/python3 - tiles/t12.tif <<'PY' || fail "changing the tile"
+import sys
+from osgeo import gdal
+ds = gdal.Open(sys.argv[1], gdal.GA_Update)
+b = ds.GetRasterBand(1)
+a = b.ReadAsArray()
+a[80:120, 90:130] += 5
+b.WriteArray(a)
+ds = None
+PY
+    out=$("$cook" plan mosaic.vrt --heights-only --work-dir w --unit-roots 2) || fail "re-plan"
+    echo "$out"
+    echo "$out" | grep -q "tiles/t12.tif: changed" || fail "the re-plan does not name the changed tile"
+    expected=$(python3 - w/plan.json <<'PY'
+import json, sys
+p = json.load(open(sys.argv[1]))
+tile = [f for f in p["files"] if f["path"].endswith("t12.tif")][0]["footprint"]
+meets = lambda a, b: a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3] and a[0] <= a[2] and b[0] <= b[2]
+print(sum(1 for u in p["units"] if meets(u["window"], tile)))
+PY
+)
+    cooked=0
+    for i in $(seq 0 $((n - 1))); do
+      r=$("$cook" unit w "$i") || fail "unit $i"
+      [ "$r" = "unit $i: cooked" ] && cooked=$((cooked + 1))
+    done
+    echo "units: $n, cooked again: $cooked, whose window meets the tile: $expected"
+    [ "$cooked" -gt 0 ] && [ "$cooked" -lt "$n" ] && [ "$cooked" = "$expected" ] || fail "re-cooked $cooked of $n units, expected $expected"
+    "$cook" merge w -o after.terrain -q || fail "merge after"
+    "$cook" mosaic.vrt "${kf[@]}" -o scratch.terrain || fail "from-scratch cook"
+    cmp after.terrain scratch.terrain || fail "the re-cooked archive differs from a from-scratch cook"
+    ! cmp -s before.terrain after.terrain || fail "the change did not reach the archive"
+    no_leftovers ;;
+
+  bad_states)
+    # A unit of another plan, a truncated unit, a missing unit, a changed input behind the plan: each
+    # a named error, exit 1, and nothing merged (the old archive stays).
+    cp "$dem" in.npz
+    "$cook" plan in.npz "${flags[@]}" --work-dir w --unit-roots 4 > /dev/null || fail "plan"
+    units_shuffled w 3
+    "$cook" plan in.npz "${flags[@]}" --work-dir other --unit-roots 4 --tolerance 2 > /dev/null || fail "other plan"
+    units_shuffled other 4
+    echo old > out.terrain
+    expect_merge() {  # REGEX
+      "$cook" merge w -o out.terrain -q 2> err.txt
+      rc=$?
+      echo "exit $rc: $(cat err.txt)"
+      [ $rc = 1 ] || fail "merge exit $rc, expected 1"
+      grep -Eq -- "$1" err.txt || fail "message does not match '$1'"
+      [ "$(cat out.terrain)" = old ] || fail "out.terrain was replaced"
+    }
+    cp w/units/unit-0.tcu keep0
+    cp other/units/unit-0.tcu w/units/unit-0.tcu
+    expect_merge "unit 0 .*from another plan"
+    cp keep0 w/units/unit-0.tcu
+    head -c 1000 w/units/unit-1.tcu > t && mv t w/units/unit-1.tcu
+    expect_merge "unit 1 .*truncated"
+    "$cook" unit w 1 -q || fail "redo unit 1"
+    printf 'X' | dd of=w/units/unit-1.tcu bs=1 seek=200 conv=notrunc status=none
+    expect_merge "unit 1 .*checksum"
+    "$cook" unit w 1 -q || fail "redo unit 1"
+    rm w/units/unit-2.tcu
+    expect_merge "unit 2 .*missing"
+    "$cook" unit w 2 -q || fail "redo unit 2"
+    touch in.npz
+    expect_merge "in.npz: changed since the plan"
+    "$cook" unit w 2 -q 2> err.txt && fail "unit of a changed input ran"
+    grep -q "in.npz: changed since the plan" err.txt || fail "unit: $(cat err.txt)"
+    "$cook" plan in.npz "${flags[@]}" --work-dir w --unit-roots 4 || fail "re-plan"
+    units_shuffled w 5
+    "$cook" merge w -o out.terrain -q || fail "merge after re-plan"
+    "$cook" in.npz "${flags[@]}" -o ref.terrain || fail "reference"
+    cmp ref.terrain out.terrain || fail "merged archive differs from the one-process cook"
+    no_leftovers ;;
+  *) fail "unknown case" ;;
+esac
+echo "ok ($case_name)"
