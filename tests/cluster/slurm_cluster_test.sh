@@ -40,10 +40,14 @@ scratch=$(cd "$scratch" && pwd)
 # munged refuses group/world-writable folders on the way to its key, socket and logs.
 chmod 0755 "$scratch"
 mkdir -m 0755 "$scratch/munge"   # the socket folder must be searchable by all
-mkdir -p "$scratch/state" "$scratch/spool" "$scratch/log" "$scratch/work"
+mkdir -p "$scratch/state" "$scratch/log" "$scratch/work"
+# Unix sockets (MUNGE's, slurmd's and each job step's, in the spool) take paths of at most 107 bytes, and
+# a build tree can be deep: they live in a short folder of their own, removed at exit.
+sockets=$(mktemp -d /tmp/terrain-slurm.XXXXXX)
+chmod 0755 "$sockets"
 conf=$scratch/slurm.conf
 key=$scratch/munge/munge.key
-socket=$scratch/munge/munge.socket
+socket=$sockets/munge.socket
 
 # Two free TCP ports on the loopback (bound then released; Slurm re-binds them at once).
 read -r ctld_port slurmd_port < <(python3 - <<'PY'
@@ -75,6 +79,7 @@ cleanup() {
   done
   # The last job steps' slurmstepd (daemons of their own) end once their job is gone: wait for them.
   for _ in $(seq 1 20); do pgrep -x slurmstepd >/dev/null || break; sleep 0.5; done
+  rm -rf "$sockets"
   if [ $rc -ne 0 ]; then
     for f in "$scratch"/log/*.log "$scratch"/work/slurm-logs/*; do
       [ -f "$f" ] && { echo "---- tail of $f"; tail -n 15 "$f"; }
@@ -106,9 +111,9 @@ AuthType=auth/munge
 AuthInfo=socket=$socket
 CredType=cred/munge
 StateSaveLocation=$scratch/state
-SlurmdSpoolDir=$scratch/spool/slurmd-%n
+SlurmdSpoolDir=$sockets/spool
 SlurmctldPidFile=$scratch/state/slurmctld.pid
-SlurmdPidFile=$scratch/spool/slurmd-%n.pid
+SlurmdPidFile=$scratch/state/slurmd.pid
 SlurmctldLogFile=$scratch/log/slurmctld.log
 SlurmdLogFile=$scratch/log/slurmd.log
 SlurmctldDebug=info
