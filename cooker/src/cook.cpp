@@ -46,10 +46,11 @@ void finish_timing(const Clock::time_point t_start, CookReport& report) {
 Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
                        PlanSummary& summary, CookReport& report);
 
-// Block indices in cooking order: row by row, or shuffled by `seed` (tests).
+// Block indices in cooking order: the last one first (the steps pass ends with it: its window is
+// still in memory), then row by row; or shuffled by `seed` (tests).
 std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
   std::vector<uint32_t> order(count);
-  for (uint32_t i = 0; i < count; ++i) order[i] = i;
+  for (uint32_t i = 0; i < count; ++i) order[i] = i == 0 ? count - 1 : i - 1;
   if (seed) {
     uint64_t x = seed;
     for (uint32_t i = count; i > 1; --i) {

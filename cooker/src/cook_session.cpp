@@ -275,7 +275,11 @@ namespace {
 // A block's window: the samples it needs, grown so that every void reaching into them is filled
 // exactly as over the whole raster (void_plan.h), read from the inputs and filled.
 Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
+  // The window read last already holds these samples exactly (the steps pass reads each block's
+  // cook rect too, so the block it ends with is cooked without a second read).
+  if (!s.window.values.empty() && s.window_need.contains(need)) return Status::success();
   const SampleRect rect = fill_read_rect(s.voids, need);
+  s.window_need = SampleRect{};
   SampleWindow& w = s.window;
   w.rect = rect;
   w.source_width = s.ctx.source_width;
@@ -289,6 +293,7 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
     return st;
   report.void_fill_residual_m = std::max(report.void_fill_residual_m, residual);
   report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
+  s.window_need = need;
   return Status::success();
 }
 
@@ -300,9 +305,10 @@ Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report
   for (uint32_t i = 0; i < n; ++i) {
     const RootBlock b = s.grid.block(i);
     int top = 0;
-    const SampleRect rect = block_range_rect(s.ctx, b, top);
-    if (rect.empty()) continue;
-    if (Status st = read_window(s, rect, report); !st.ok()) return st;
+    const SampleRect range = block_range_rect(s.ctx, b, top);
+    if (range.empty()) continue;
+    // With the block's cook rect: the last block's window then serves its cook as well.
+    if (Status st = read_window(s, unite(range, block_cook_rect(s.ctx, b)), report); !st.ok()) return st;
     RangeIndex index;
     index.build(s.window, top);
     block_range_bounds(s.ctx, index, b, s.threads, worst);

@@ -45,6 +45,7 @@ struct CookSession {
   std::unique_ptr<SurfaceOverlays> overlays;
   BlockGrid grid;
   SampleWindow window;  // the block being read or cooked
+  SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
 };
 
 // Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.

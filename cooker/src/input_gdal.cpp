@@ -216,6 +216,14 @@ class GdalSource final : public SourceRaster {
                                                            y0 + h - 1, QuietErrors::last()));
       info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
       const size_t n = size_t(w) * size_t(h);
+      if (type == GDT_Float32 && info_.scale == 1.0 && info_.offset == 0.0) {
+        // Float32 in metres: convert() is the identity but for the nodata value (NaN stays NaN).
+        if (info_.nodata) {
+          const float nd = float(*info_.nodata);
+          for (size_t i = 0; i < n; ++i) out[i] = out[i] == nd ? NAN : out[i];
+        }
+        return Status::success();
+      }
       uint8_t* slots = reinterpret_cast<uint8_t*>(out);
       for (size_t i = 0; i < n; ++i) out[i] = convert(native(slots + i * 4, type));
       return Status::success();

@@ -84,6 +84,20 @@ void finish_window(float* values, int w, int h, int ix0, int iy0, int iw, int ih
         }
       }
   const bool affine = rules.scale != 1.0 || rules.offset != 0.0;
+  if (!affine) {
+    // Heights already in metres: values change only where one is out of range (rare). A vectorisable
+    // scan first (NaN compares false: not out of range); the loop below only when one is.
+    float lo = INFINITY, hi = -INFINITY;
+    for (int row = iy0; row < iy0 + ih; ++row) {
+      const float* p = values + size_t(row) * size_t(w);
+      for (int col = ix0; col < ix0 + iw; ++col) {
+        const float v = p[col];
+        lo = v < lo ? v : lo;  // NaN keeps lo and hi
+        hi = v > hi ? v : hi;
+      }
+    }
+    if (!(double(lo) < rules.valid_range_m[0] || double(hi) > rules.valid_range_m[1])) return;
+  }
   for (int row = iy0; row < iy0 + ih; ++row) {
     float* p = values + size_t(row) * size_t(w);
     for (int col = ix0; col < ix0 + iw; ++col) {

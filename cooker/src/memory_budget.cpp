@@ -70,9 +70,16 @@ MemoryShares memory_shares(uint64_t limit_bytes) {
   MemoryShares s;
   s.reserve = std::min<uint64_t>(limit_bytes / 2, uint64_t(200) << 20);
   const uint64_t rest = limit_bytes - s.reserve;
-  s.gdal_cache = std::min<uint64_t>(rest / 8, uint64_t(256) << 20);
+  // GDAL's cache holds what the next pass reads again: all of a mid-size input (8 km of 1 m float
+  // lidar is 256 MB: its second and third reads then decode nothing), a few block rows of a large one.
+  s.gdal_cache = std::min<uint64_t>(rest / 4, uint64_t(320) << 20);
   s.inputs = (rest - s.gdal_cache) / 4;
-  s.window = rest - s.gdal_cache - s.inputs;
+  // The window: blocks of 2 x 2 roots of 1 m data (23 M samples) at the default 2 GB, so memory
+  // stays flat from a few km to a country; a larger --memory-limit buys larger blocks (fewer
+  // window margins read twice).
+  const uint64_t base = uint64_t(384) << 20, two_gb = uint64_t(2) << 30;
+  const uint64_t want = base + (limit_bytes > two_gb ? (limit_bytes - two_gb) / 2 : 0);
+  s.window = std::min(rest - s.gdal_cache - s.inputs, want);
   return s;
 }
 

@@ -123,8 +123,21 @@ Status MosaicSource::assemble(std::vector<Layer> layers, std::vector<InputStat> 
 Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
   if (w < 0 || h < 0)
     return Status::failure(Error::invalid_argument, fmt::format("mosaic window {}x{}: negative size", w, h));
-  std::fill_n(out, size_t(w) * size_t(h), NAN);
   const int64_t wc0 = c0, wr0 = r0, wc1 = wc0 + w, wr1 = wr0 + h;
+  // One input holding the whole window (the common case): read straight into `out`.
+  if (layers_.size() == 1 && layers_[0].input.source) {
+    Layer& l = layers_[0];
+    const Raster& r = l.input.raster;
+    if (wc0 >= l.col && wr0 >= l.row && wc1 <= l.col + r.width && wr1 <= l.row + r.height && w > 0 && h > 0) {
+      if (Status st = read_layer_window(l.input, int(wc0 - l.col), int(wr0 - l.row), w, h, out, scratch_,
+                                        count_implausible_ ? &stats_[0].implausible : nullptr);
+          !st.ok())
+        return st;
+      stats_[0].bytes_read = l.input.source->info().bytes_read;
+      return Status::success();
+    }
+  }
+  std::fill_n(out, size_t(w) * size_t(h), NAN);
   for (size_t i = 0; i < layers_.size(); ++i) {
     Layer& l = layers_[i];
     const Raster& r = l.input.raster;
