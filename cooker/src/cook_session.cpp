@@ -138,6 +138,15 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   if (Status st = open_mosaic_source(options, s.shares.inputs, s.source); !st.ok()) return st;
   const Raster& header = s.source.header();
   report.source_samples = uint64_t(header.width) * uint64_t(header.height);
+  // GDAL's cache: the whole decoded source when it fits the share (the steps and cook passes then
+  // decode nothing again), else enough for a row of GDAL blocks across a wide input (the first pass
+  // reads tile rows shorter than a block row) and a block's window: 128 MB. A larger cache buys
+  // nothing on a source it cannot hold (each pass reads it once, in order).
+  {
+    const uint64_t decoded = report.source_samples * sizeof(float);
+    const uint64_t want = decoded + decoded / 8;
+    set_gdal_cache_bytes(want <= s.shares.gdal_cache ? want : std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20));
+  }
   s.descriptions.clear();
   report.input_descriptions.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
