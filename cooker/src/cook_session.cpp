@@ -318,9 +318,8 @@ Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report
     if (range.empty()) continue;
     // With the block's cook rect: the last block's window then serves its cook as well.
     if (Status st = read_window(s, unite(range, block_cook_rect(s.ctx, b)), report); !st.ok()) return st;
-    RangeIndex index;
-    index.build(s.window, top);
-    block_range_bounds(s.ctx, index, b, s.threads, worst);
+    s.range_index.build(s.window, top);
+    block_range_bounds(s.ctx, s.range_index, b, s.threads, worst);
     if (progress && !progress(double(i + 1) / double(n), "steps")) return Status::failure(Error::cancelled, "cancelled");
   }
   choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);

@@ -18,6 +18,7 @@
 #include "mosaic_source.h"
 #include "node_cook.h"
 #include "pyramid.h"
+#include "range_index.h"
 #include "sample_window.h"
 #include "surface/surface_layers.h"
 #include "terrain/archive_writer.h"
@@ -45,6 +46,7 @@ struct CookSession {
   std::unique_ptr<SurfaceOverlays> overlays;
   BlockGrid grid;
   SampleWindow window;  // the block being read or cooked
+  RangeIndex range_index;  // the steps pass's, rebuilt per block in the same arrays
   SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
 };
 

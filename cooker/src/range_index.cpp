@@ -82,14 +82,25 @@ void RangeIndex::build(const Raster& r) {
 }
 
 void RangeIndex::build(const SampleWindow& win, int top) {
-  levels_.clear();
+  // The previous build's arrays are reused (a cook builds one index per block: no new pages).
+  std::vector<Level> old;
+  old.swap(levels_);
+  auto recycled = [&](size_t k) {
+    Level l;
+    if (k < old.size()) {
+      l.lo = std::move(old[k].lo);
+      l.hi = std::move(old[k].hi);
+      l.local = std::move(old[k].local);
+    }
+    return l;
+  };
   const int w = win.source_width, h = win.source_height;
   w_ = w;
   h_ = h;
   top = std::min(top, level_count(w, h) - 1);
   // Level 0 holds the blocks whose samples and taps (clipped to the source) lie in the window;
   // level k the blocks all of whose level k-1 children are held, so no block is ever partial.
-  Level base;
+  Level base = recycled(0);
   base.gw = blocks(w, 0);
   base.gh = blocks(h, 0);
   auto first = [](int lo) { return lo <= 0 ? 0 : (lo + 1 + kBase - 1) / kBase; };
@@ -104,7 +115,7 @@ void RangeIndex::build(const SampleWindow& win, int top) {
   levels_.push_back(std::move(base));
   for (int k = 1; k <= top; ++k) {
     const Level& f = levels_.back();
-    Level c;
+    Level c = recycled(size_t(k));
     c.gw = blocks(w, k);
     c.gh = blocks(h, k);
     const int fx1 = f.bx0 + f.w - 1, fy1 = f.by0 + f.h - 1;

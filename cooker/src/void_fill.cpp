@@ -94,7 +94,8 @@ Status fill_complete_voids_as(const FillWindow& win, float* z, uint8_t* filled, 
   // Window edges inside the raster: a void reaching one may continue beyond the window.
   const bool open_left = win.c0 > 0, open_right = win.c0 + w < rw;
   const bool open_top = win.r0 > 0, open_bottom = win.r0 + h < rh;
-  std::vector<uint8_t> seen(n, 0);
+  thread_local std::vector<uint8_t> seen;  // reused: a cook fills one window per block and pass
+  seen.assign(n, 0);
   std::vector<Index> stack;
   Samples<Index> samples;
   for (size_t start = 0; start < n; ++start) {

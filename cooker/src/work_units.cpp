@@ -671,7 +671,11 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
   const std::string path = unit_file(work_dir, index);
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
-  const std::string temp = fmt::format("{}.tmp-{}", path, ::getpid());
+  // Host and pid in the temporary name: the same unit re-run on another machine of a shared work
+  // dir (a requeued array task) never writes into this one's file.
+  char host[256] = "host";
+  ::gethostname(host, sizeof host - 1);
+  const std::string temp = fmt::format("{}.tmp-{}-{}", path, host, ::getpid());
   NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
   if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
   UnitStats stats;
