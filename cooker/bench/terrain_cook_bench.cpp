@@ -629,6 +629,127 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
   return failed ? 1 : 0;
 }
 
+
+// ---- --units: work units + merge against the one-process cook (issue 14) -------------------------
+
+struct UnitRun {
+  double wall_s = 0, cpu_s = 0;
+};
+
+// Runs `terrain-cook unit W i` for every unit with `workers` processes in flight; per-unit times.
+bool run_units(const std::string& tool, const std::string& work, uint32_t units, int workers, std::vector<UnitRun>& out,
+               double& wall_s) {
+  out.assign(units, UnitRun{});
+  std::map<pid_t, std::pair<uint32_t, std::chrono::steady_clock::time_point>> running;
+  uint32_t next = 0;
+  bool ok = true;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (next < units || !running.empty()) {
+    while (next < units && int(running.size()) < workers) {
+      const pid_t pid = fork();
+      if (pid == 0) {
+        const std::string idx = std::to_string(next);
+        execl(tool.c_str(), tool.c_str(), "unit", work.c_str(), idx.c_str(), "-q", "--threads", "1", nullptr);
+        _exit(127);
+      }
+      running[pid] = {next++, std::chrono::steady_clock::now()};
+    }
+    int status = 0;
+    rusage usage{};
+    const pid_t pid = wait4(-1, &status, 0, &usage);
+    if (pid <= 0) break;
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    UnitRun& r = out[it->second.first];
+    r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    r.cpu_s = double(usage.ru_utime.tv_sec) + 1e-6 * double(usage.ru_utime.tv_usec) + double(usage.ru_stime.tv_sec) +
+              1e-6 * double(usage.ru_stime.tv_usec);
+    ok = ok && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    running.erase(it);
+  }
+  wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return ok;
+}
+
+bool same_file(const std::string& a, const std::string& b) {
+  std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
+  return std::equal(std::istreambuf_iterator<char>(fa), std::istreambuf_iterator<char>(),
+                    std::istreambuf_iterator<char>(fb), std::istreambuf_iterator<char>());
+}
+
+// Longest-processing-time-first schedule of `times` on `machines`: the busiest machine's load.
+double lpt_makespan(std::vector<double> times, int machines) {
+  std::sort(times.rbegin(), times.rend());
+  std::vector<double> load(size_t(machines), 0.0);
+  for (double t : times) *std::min_element(load.begin(), load.end()) += t;
+  return *std::max_element(load.begin(), load.end());
+}
+
+int units_main(const std::string& tool, const std::string& dem, uint32_t unit_roots, bool heights_only,
+               const std::string& work_root) {
+  std::error_code ec;
+  std::filesystem::create_directories(work_root, ec);
+  if (!std::filesystem::exists(dem)) {
+    fmt::print(stderr, "terrain-cook-bench --units: {} not found (make it with --scale --sizes 8)\n", dem);
+    return 1;
+  }
+  std::vector<std::string> flags;
+  if (heights_only) flags.push_back("--heights-only");
+  fmt::print("terrain-cook-bench --units: {} ({}), units of {} roots, work {}\n", dem,
+             heights_only ? "heights only" : "full", unit_roots, work_root);
+  const std::string one = work_root + "/one.terrain";
+  std::vector<std::string> argv = {tool, dem, "-o", one, "-q"};
+  argv.insert(argv.end(), flags.begin(), flags.end());
+  const Run base = run(argv);
+  if (!base.ok) return 1;
+  const uint64_t bytes = std::filesystem::file_size(one);
+  fmt::print("\n{:<28} {:>8} {:>8} {:>10}\n", "step", "wall_s", "cpu_s", "MB/s");
+  fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", "one-process cook", base.wall_s, base.cpu_s, "-");
+  int failures = 0;
+  for (int workers : {1, 2}) {
+    const std::string w = fmt::format("{}/w{}", work_root, workers);
+    std::filesystem::remove_all(w, ec);
+    std::vector<std::string> pa = {tool, "plan", dem, "--work-dir", w, "--unit-roots", std::to_string(unit_roots), "-q"};
+    pa.insert(pa.end(), flags.begin(), flags.end());
+    const Run plan = run(pa);
+    if (!plan.ok) return 1;
+    const uint32_t units = uint32_t(std::stoul(plan.out));
+    std::vector<UnitRun> per_unit;
+    double units_wall = 0;
+    if (!run_units(tool, w, units, workers, per_unit, units_wall)) return 1;
+    const std::string merged = w + "/merged.terrain";
+    const Run merge = run({tool, "merge", w, "-o", merged, "-q"});
+    if (!merge.ok) return 1;
+    const Run cp = run({"cp", merged, w + "/copy.terrain"});
+    double units_cpu = 0;
+    std::vector<double> unit_cpu;
+    for (const UnitRun& u : per_unit) {
+      units_cpu += u.cpu_s;
+      unit_cpu.push_back(u.cpu_s);
+    }
+    const double total_cpu = plan.cpu_s + units_cpu + merge.cpu_s;
+    const bool same = same_file(one, merged);
+    failures += same ? 0 : 1;
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", fmt::format("plan ({} units)", units), plan.wall_s, plan.cpu_s, "-");
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", fmt::format("units, {} worker{}", workers, workers > 1 ? "s" : ""),
+               units_wall, units_cpu, "-");
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge", merge.wall_s, merge.cpu_s, double(bytes) / 1e6 / merge.wall_s);
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "cp of the archive", cp.wall_s, cp.cpu_s, double(bytes) / 1e6 / cp.wall_s);
+    fmt::print("  {} workers: CPU of plan + units + merge {:.2f} s = {:+.1f} % over the one-process cook (target <= +5 %); "
+               "merge at {:.2f} x the speed of cp (target >= 0.5); archive {} the one-process bytes\n",
+               workers, total_cpu, 100.0 * (total_cpu / base.cpu_s - 1.0), cp.wall_s / merge.wall_s,
+               same ? "equals" : "DIFFERS FROM");
+    if (workers == 2) {
+      // 16 machines, on paper: the measured per-unit CPU seconds scheduled longest first.
+      const double makespan = plan.wall_s + lpt_makespan(unit_cpu, 16) + merge.wall_s;
+      fmt::print("  16 machines (simulated from the per-unit times): makespan {:.2f} s = plan {:.2f} + units {:.2f} + "
+                 "merge {:.2f} ({:.0f} % in the merge); one process on one core would take {:.2f} s\n",
+                 makespan, plan.wall_s, lpt_makespan(unit_cpu, 16), merge.wall_s, 100.0 * merge.wall_s / makespan,
+                 total_cpu);
+    }
+  }
+  return failures ? 1 : 0;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -665,6 +786,14 @@ int main(int argc, char** argv) {
   app.add_option("--source", so.source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
   app.add_option("--python", so.python, "--scale: Python with GDAL and numpy")->capture_default_str();
   app.add_option("--script", so.script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
+  bool units = false;
+  uint32_t unit_roots = 2;
+  std::string units_dem;
+  app.add_flag("--units", units,
+               "Instead of the sweep: plan + units (1 and 2 worker processes) + merge against the one-process cook "
+               "of --units-dem (default: the 8 km square of --scale), merge MB/s next to cp, a 16-machine makespan");
+  app.add_option("--units-dem", units_dem, "--units: the DEM to cook");
+  app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots")->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -677,6 +806,11 @@ int main(int argc, char** argv) {
   if (!std::filesystem::exists(tool)) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
+  }
+  if (units) {
+    const std::string root = so.work.empty() ? (self.parent_path() / "bench-scale").string() : so.work;
+    return units_main(tool, units_dem.empty() ? root + "/lidar_like_8km.tif" : units_dem, unit_roots, so.heights_only,
+                      root + "/units");
   }
   if (scale) {
     so.runs = app.count("--runs") ? runs : 1;
