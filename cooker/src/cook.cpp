@@ -108,10 +108,21 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   if (options.output.empty()) return Status::failure(Error::invalid_argument, "no output archive given");
   if (!options.work_dir.empty()) {
     // Plan + the units not already valid + merge: after a kill, the same call resumes.
+    // A plan already in the work dir for these options and unchanged inputs is resumed as it is
+    // (re-planning would read the whole input again); otherwise plan now.
     PlanSummary summary;
     CookSession s;
     PlanFile plan;
-    if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) return st;
+    PlanData existing;
+    if (std::filesystem::exists(plan_file(options.work_dir)) && read_plan(options.work_dir, existing).ok() &&
+        same_plan_options(existing.options, options) &&
+        (options.unit_roots == 0 || options.unit_roots == existing.unit_roots) && check_plan_inputs(existing.plan).ok()) {
+      if (Status st = open_session_from_plan(existing, options.threads, s, report); !st.ok()) return st;
+      plan = existing.plan;
+      summary.unit_count = uint32_t(plan.units.size());
+    } else if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) {
+      return st;
+    }
     for (uint32_t i = 0; i < summary.unit_count; ++i) {
       std::string why;
       if (!unit_file_valid(options.work_dir, plan, i, why))

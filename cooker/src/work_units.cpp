@@ -630,6 +630,13 @@ Status read_plan(const std::string& work_dir, PlanData& out) {
   return Status::success();
 }
 
+bool same_plan_options(const CookOptions& planned, const CookOptions& given) {
+  json a = options_json(planned), b = options_json(given);
+  a.erase("memory_limit_bytes");
+  b.erase("memory_limit_bytes");
+  return a == b;
+}
+
 Status check_plan_inputs(const PlanFile& plan) {
   for (const InputFile& f : plan.files) {
     InputFile now = f;

@@ -62,6 +62,9 @@ struct PlanData {
   std::vector<std::pair<std::string, std::string>> descriptions;
 };
 Status read_plan(const std::string& work_dir, PlanData& out);
+// True when a plan made with `planned` is the plan `given` would make from the same inputs (every
+// option that changes a byte; threads, the memory limit and the output path do not).
+bool same_plan_options(const CookOptions& planned, const CookOptions& given);
 // Every input file of the plan is as the plan saw it (size and mtime): else a named error.
 Status check_plan_inputs(const PlanFile& plan);
 // For `unit`: opens the inputs of the plan into a session, checks that no input file changed since
