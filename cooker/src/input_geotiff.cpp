@@ -58,20 +58,6 @@ struct GtifCloser {
   void operator()(GTIF* g) const { GTIFFree(g); }
 };
 
-// Converts one decoded sample to double; `format`: 1 uint, 2 int, 3 float.
-double sample_value(const uint8_t* p, int bits, int format) {
-  switch (format * 100 + bits) {
-    case 108: return p[0];
-    case 208: return int8_t(p[0]);
-    case 116: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case 216: { int16_t v; std::memcpy(&v, p, 2); return v; }
-    case 132: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case 232: { int32_t v; std::memcpy(&v, p, 4); return v; }
-    case 332: { float v; std::memcpy(&v, p, 4); return v; }
-    case 364: { double v; std::memcpy(&v, p, 8); return v; }
-    default: return NAN;
-  }
-}
 
 const char* type_name(int bits, int format) {
   switch (format * 100 + bits) {
@@ -104,6 +90,20 @@ const char* compression_name(uint16_t c) {
 }
 
 }  // namespace
+
+double sample_value(const uint8_t* p, int bits, int format) {
+  switch (format * 100 + bits) {
+    case 108: return p[0];
+    case 208: return int8_t(p[0]);
+    case 116: { uint16_t v; std::memcpy(&v, p, 2); return v; }
+    case 216: { int16_t v; std::memcpy(&v, p, 2); return v; }
+    case 132: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+    case 232: { int32_t v; std::memcpy(&v, p, 4); return v; }
+    case 332: { float v; std::memcpy(&v, p, 4); return v; }
+    case 364: { double v; std::memcpy(&v, p, 8); return v; }
+    default: return NAN;
+  }
+}
 
 Status read_geotiff(const std::string& path, const ReadOptions& options, Raster& out) {
   register_tags_once();

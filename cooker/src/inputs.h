@@ -38,6 +38,9 @@ Status check_raster_memory(const std::string& path, uint64_t width, uint64_t hei
 // GeoTIFF (libtiff + libgeotiff): Int8..Int32, UInt8..UInt32, Float32/64; strips or tiles;
 // GDAL_NODATA; PixelIsArea / PixelIsPoint; CRS from the geokeys.
 Status read_geotiff(const std::string& path, const ReadOptions& options, Raster& out);
+// One decoded TIFF sample as a double (`format`: SampleFormat 1 uint, 2 int, 3 float; `bits` 8..64),
+// NaN for a combination read_geotiff refuses; shared with the overlay windows (overlays.cpp).
+double sample_value(const uint8_t* p, int bits, int format);
 // SRTM HGT (1" 3601 or 3" 1201 samples per side), plain, .zip or .gz; position from the file name.
 Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out);
 // PNG (8/16-bit grey) and EXR (first channel) heightmaps through OpenImageIO; no georeferencing.

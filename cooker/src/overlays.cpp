@@ -43,20 +43,6 @@ int on_tiff_error(TIFF*, void* user, const char* module, const char* fmt_, va_li
 }
 int on_tiff_warning(TIFF*, void*, const char*, const char*, va_list) { return 1; }
 
-// Band 1's sample at p as read_geotiff converts it; `format`: 1 uint, 2 int, 3 float.
-double band1_value(const uint8_t* p, int bits, int format) {
-  switch (format * 100 + bits) {
-    case 108: return p[0];
-    case 208: return int8_t(p[0]);
-    case 116: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case 216: { int16_t v; std::memcpy(&v, p, 2); return v; }
-    case 132: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case 232: { int32_t v; std::memcpy(&v, p, 4); return v; }
-    case 332: { float v; std::memcpy(&v, p, 4); return v; }
-    case 364: { double v; std::memcpy(&v, p, 8); return v; }
-    default: return NAN;
-  }
-}
 
 // One overlay raster, its exact mapping from frame metres to its samples (frame.h), so a vertex
 // shared by neighbouring nodes samples the same value in each, and the window of it in memory.
@@ -113,7 +99,7 @@ Status read_block_band1(OverlayRaster& o, uint32_t bx, uint32_t by, uint32_t row
   const float nodata_f = o.nodata ? float(*o.nodata) : 0.0f;
   out.resize(size_t(o.block_w) * rows);
   for (size_t i = 0; i < out.size(); ++i) {
-    const double v = band1_value(buf.data() + i * pixel_stride, o.bits, o.format);
+    const double v = sample_value(buf.data() + i * pixel_stride, o.bits, o.format);
     bool missing = std::isnan(v);
     if (o.nodata) missing = missing || (is_float ? float(v) == nodata_f : v == *o.nodata);
     out[i] = missing ? NAN : float(v);
