@@ -212,9 +212,12 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
     }
     for (const auto& [p, fp] : old_fp) summary.changes.push_back(fmt::format("{}: no longer an input", p));
   }
+  // Structure and fingerprints only: re-reading every unit's payloads for their CRC would cost a
+  // read of the whole archive per plan; a unit damaged inside is redone by `unit` (which checks
+  // its CRC before skipping) and named by the merge.
   for (const UnitPlan& u : plan.units) {
     std::string why;
-    if (unit_file_valid(options.work_dir, plan, u.index, why)) ++summary.units_valid;
+    if (unit_file_usable(options.work_dir, plan, u.index, why)) ++summary.units_valid;
     else std::filesystem::remove(unit_file(options.work_dir, u.index), ec);  // stale or broken: redo
   }
   // Unit files beyond the new unit count belong to no unit any more.

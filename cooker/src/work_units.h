@@ -83,9 +83,14 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
 // Checks unit `index`'s file against the plan: present, complete, checksum, fingerprints.
 // `why` says what is wrong (empty when valid).
 bool unit_file_valid(const std::string& work_dir, const PlanFile& plan, uint32_t index, std::string& why);
+// The same without the payloads' CRC (reads the header, table, stats and trailer only): for a plan
+// deciding which units of an earlier plan to keep. A unit damaged inside its payloads passes; the
+// unit command (unit_file_valid) redoes it and the merge names it.
+bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_t index, std::string& why);
 
 // Merges every unit of the plan into `writer` in canonical order and sums their stats (in unit
-// order) into `totals` and `report`. Fails naming the first unit that is missing or bad.
+// order) into `totals` and `report`, reading each unit file once (its CRC checked as its payloads
+// are copied). Fails naming a unit that is missing or bad; the caller then aborts the writer.
 Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, ArchiveWriter& writer,
                         PyramidTotals& totals, CookReport& report, const ProgressFn& progress);
 

@@ -163,6 +163,33 @@ PY
     printf 'X' | dd of=w/units/unit-1.tcu bs=1 seek=200 conv=notrunc status=none
     expect_merge "unit 1 .*checksum"
     "$cook" unit w 1 -q || fail "redo unit 1"
+    # Damage inside the payloads: the merge finds it while it copies (one read of each unit), fails,
+    # and leaves neither an archive nor its temporary file; `unit` (a full check) redoes the unit.
+    cp w/units/unit-1.tcu keep1
+    size=$(stat -c %s w/units/unit-1.tcu)
+    printf 'X' | dd of=w/units/unit-1.tcu bs=1 seek=$((size - 20)) conv=notrunc status=none
+    cmp -s keep1 w/units/unit-1.tcu && fail "the damage changed nothing"
+    expect_merge "unit 1 .*checksum"
+    no_leftovers
+    cp w/units/unit-1.tcu damaged1
+    "$cook" unit w 1 -q || fail "redo unit 1"
+    ! cmp -s damaged1 w/units/unit-1.tcu || fail "unit 1 was not redone after damage inside its payloads"
+    "$cook" merge w -o mid.terrain -q || fail "merge after redoing unit 1"
+    cp w/units/unit-1.tcu keep1
+    # A foreign writer's unit with a valid CRC but its table out of canonical order: named, refused.
+    python3 - w/units/unit-1.tcu <<'PY' || fail "swap"
+import struct, sys, zlib
+p = sys.argv[1]
+b = bytearray(open(p, 'rb').read())
+n = struct.unpack_from('<I', b, 48)[0]
+assert n >= 2
+e0, e1 = bytes(b[64:112]), bytes(b[112:160])
+b[64:112], b[112:160] = e1, e0
+struct.pack_into('<I', b, len(b) - 8, zlib.crc32(bytes(b[:-8])) & 0xffffffff)
+open(p, 'wb').write(b)
+PY
+    expect_merge "unit 1 .*canonical order"
+    cp keep1 w/units/unit-1.tcu
     rm w/units/unit-2.tcu
     expect_merge "unit 2 .*missing"
     "$cook" unit w 2 -q || fail "redo unit 2"
