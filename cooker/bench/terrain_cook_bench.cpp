@@ -696,7 +696,8 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   std::vector<std::string> flags;
   if (heights_only) flags.push_back("--heights-only");
   fmt::print("terrain-cook-bench --units: {} ({}), units of {} roots, work {}\n", dem,
-             heights_only ? "heights only" : "full", unit_roots, work_root);
+             heights_only ? "heights only" : "full",
+             unit_roots ? std::to_string(unit_roots) : std::string("the plan's default"), work_root);
   const std::string one = work_root + "/one.terrain";
   std::vector<std::string> argv = {tool, dem, "-o", one, "-q"};
   argv.insert(argv.end(), flags.begin(), flags.end());
@@ -705,11 +706,19 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   const uint64_t bytes = std::filesystem::file_size(one);
   fmt::print("\n{:<28} {:>8} {:>8} {:>10}\n", "step", "wall_s", "cpu_s", "MB/s");
   fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", "one-process cook", base.wall_s, base.cpu_s, "-");
+  // A process start of terrain-cook (its shared libraries), which every unit and the merge pay:
+  // the median of 3 runs of `terrain-cook merge --help`.
+  std::vector<Run> starts;
+  for (int i = 0; i < 3; ++i) starts.push_back(run({tool, "merge", "--help"}));
+  std::sort(starts.begin(), starts.end(), [](const Run& a, const Run& b) { return a.cpu_s < b.cpu_s; });
+  const Run start = starts[1];
+  fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", "process start-up", start.wall_s, start.cpu_s, "-");
   int failures = 0;
   for (int workers : {1, 2}) {
     const std::string w = fmt::format("{}/w{}", work_root, workers);
     std::filesystem::remove_all(w, ec);
-    std::vector<std::string> pa = {tool, "plan", dem, "--work-dir", w, "--unit-roots", std::to_string(unit_roots), "-q"};
+    std::vector<std::string> pa = {tool, "plan", dem, "--work-dir", w, "-q"};
+    if (unit_roots) pa.insert(pa.end(), {"--unit-roots", std::to_string(unit_roots)});
     pa.insert(pa.end(), flags.begin(), flags.end());
     const Run plan = run(pa);
     if (!plan.ok) return 1;
@@ -734,7 +743,14 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
     fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", fmt::format("units, {} worker{}", workers, workers > 1 ? "s" : ""),
                units_wall, units_cpu, "-");
     fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge", merge.wall_s, merge.cpu_s, double(bytes) / 1e6 / merge.wall_s);
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge less its start-up", merge.wall_s - start.wall_s,
+               merge.cpu_s - start.cpu_s, double(bytes) / 1e6 / std::max(1e-3, merge.wall_s - start.wall_s));
     fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "cp of the archive", cp.wall_s, cp.cpu_s, double(bytes) / 1e6 / cp.wall_s);
+    std::sort(unit_cpu.begin(), unit_cpu.end());
+    if (!unit_cpu.empty())
+      fmt::print("  per-unit CPU: min {:.2f} s, median {:.2f} s, max {:.2f} s; {} process starts = {:.2f} s of CPU\n",
+                 unit_cpu.front(), unit_cpu[unit_cpu.size() / 2], unit_cpu.back(), units + 2,
+                 double(units + 2) * start.cpu_s);
     fmt::print("  {} workers: CPU of plan + units + merge {:.2f} s = {:+.1f} % over the one-process cook (target <= +5 %); "
                "merge at {:.2f} x the speed of cp (target >= 0.5); archive {} the one-process bytes\n",
                workers, total_cpu, 100.0 * (total_cpu / base.cpu_s - 1.0), cp.wall_s / merge.wall_s,
@@ -793,7 +809,7 @@ int main(int argc, char** argv) {
                "Instead of the sweep: plan + units (1 and 2 worker processes) + merge against the one-process cook "
                "of --units-dem (default: the 8 km square of --scale), merge MB/s next to cp, a 16-machine makespan");
   app.add_option("--units-dem", units_dem, "--units: the DEM to cook");
-  app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots")->capture_default_str();
+  app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots (0: the plan's default size)")->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
