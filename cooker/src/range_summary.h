@@ -30,7 +30,9 @@ namespace terrain::cook {
 
 class RangeSummary {
  public:
-  static constexpr uint64_t kMaxCells = uint64_t(1) << 18;  // at most ~7 MB of state
+  // At most ~7 MB of cells and levels; while the first pass runs, also one row of its tiles
+  // (64 rows x the source width) and 8 rows of per-block minima and maxima.
+  static constexpr uint64_t kMaxCells = uint64_t(1) << 18;
   // The cell side for a w x h source: the smallest power of two >= 4 giving at most kMaxCells cells.
   static int cell_for(int w, int h);
   // The level a query of rectangle q uses in a source of w x h samples (blocks of 4 << level).

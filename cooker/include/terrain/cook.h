@@ -172,7 +172,8 @@ struct CookReport {
   double seconds_read = 0, seconds_prepare = 0, seconds_pyramid = 0, seconds_finish = 0, seconds_total = 0;
   double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
   // Process CPU seconds (user + system, all threads) of the stages of a one-process cook: the
-  // first pass over the source, the steps pass, the blocks (read, fill, cook, spool), and the whole.
+  // first pass over the source, the steps from its summary (no read), the blocks (read, fill, cook,
+  // spool), and the whole.
   double cpu_first_pass = 0, cpu_steps = 0, cpu_blocks = 0, cpu_total = 0;
   int threads = 0;
   uint64_t output_vertices = 0;      // vertices computed for nodes (129x129 each)
