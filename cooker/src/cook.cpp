@@ -1,6 +1,7 @@
 // The public entry points: cook() in one process, and the work-unit commands plan_cook(),
 // cook_unit() and merge_units() (issue 14). All run the stages of cook_session.h, so a plan +
 // units + merge gives the bytes of the one-process cook.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,6 +21,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+// CPU seconds (user + system) of the whole process so far.
+double process_cpu() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 ProgressFn part(const ProgressFn& p, double lo, double hi) { return p ? scaled_progress(p, lo, hi) : ProgressFn{}; }
 
@@ -30,27 +37,32 @@ Status prepare(const CookOptions& options, const ProgressFn& progress, CookSessi
   if (Status st = open_inputs(options, s, report); !st.ok()) return st;
   report.seconds_read = seconds_since(t0);
   const auto t1 = Clock::now();
-  if (Status st = first_pass(s, part(progress, 0.0, 0.04), report); !st.ok()) return st;
+  const double c1 = process_cpu();
+  if (Status st = first_pass(s, part(progress, 0.0, 0.1), report); !st.ok()) return st;
+  const double c2 = process_cpu();
+  report.cpu_first_pass = c2 - c1;
   if (Status st = frame_and_grid(s, nullptr, report); !st.ok()) return st;
   if (Status st = surface_setup(s, report); !st.ok()) return st;
-  if (Status st = steps_pass(s, part(progress, 0.04, 0.1), report); !st.ok()) return st;
+  const double c3 = process_cpu();
+  choose_session_steps(s, report);
+  report.cpu_steps = process_cpu() - c3;
   report.seconds_prepare = seconds_since(t1);
   return Status::success();
 }
 
 void finish_timing(const Clock::time_point t_start, CookReport& report) {
   report.seconds_total = seconds_since(t_start);
+  report.cpu_total = process_cpu();
   report.source_samples_per_second = double(report.source_samples) / report.seconds_total;
 }
 
 Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
                        PlanSummary& summary, CookReport& report);
 
-// Block indices in cooking order: the last one first (the steps pass ends with it: its window is
-// still in memory), then row by row; or shuffled by `seed` (tests).
+// Block indices in cooking order: row by row; or shuffled by `seed` (tests).
 std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
   std::vector<uint32_t> order(count);
-  for (uint32_t i = 0; i < count; ++i) order[i] = i == 0 ? count - 1 : i - 1;
+  for (uint32_t i = 0; i < count; ++i) order[i] = i;
   if (seed) {
     uint64_t x = seed;
     for (uint32_t i = count; i > 1; --i) {
@@ -143,6 +155,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
 
   // ---- pyramid: block by block ----
   const auto t_pyr = Clock::now();
+  const double c_pyr = process_cpu();
   ArchiveWriter writer;
   if (Status st = writer.open(options.output); !st.ok()) return st;
   NodeSpool spool;
@@ -169,6 +182,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   }
   finish_levels(s, totals, report);
   report.seconds_pyramid = seconds_since(t_pyr);
+  report.cpu_blocks = process_cpu() - c_pyr;
 
   // ---- finish ----
   const auto t_fin = Clock::now();

@@ -11,7 +11,6 @@
 #include "inputs.h"
 #include "overlays.h"
 #include "parallel.h"
-#include "range_index.h"
 #include "source_raster.h"
 #include "terrain/archive_reader.h"
 
@@ -138,8 +137,8 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   if (Status st = open_mosaic_source(options, s.shares.inputs, s.source); !st.ok()) return st;
   const Raster& header = s.source.header();
   report.source_samples = uint64_t(header.width) * uint64_t(header.height);
-  // GDAL's cache: the whole decoded source when it fits the share (the steps and cook passes then
-  // decode nothing again), else enough for a row of GDAL blocks across a wide input (the first pass
+  // GDAL's cache: the whole decoded source when it fits the share (the cook then decodes nothing
+  // again), else enough for a row of GDAL blocks across a wide input (the first pass
   // reads tile rows shorter than a block row) and a block's window: 128 MB. A larger cache buys
   // nothing on a source it cannot hold (each pass reads it once, in order).
   {
@@ -160,10 +159,12 @@ Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report
   const Raster& header = s.source.header();
   s.source.set_count_implausible(true);
   const ReadSamples read = [&](int c0, int r0, int w, int h, float* out) { return s.source.read(c0, r0, w, h, out); };
+  s.ranges.start(header.width, header.height);
   if (Status st = plan_voids(header.width, header.height, read, s.options.nodata, s.options.fill_max_samples,
-                             kVoidPlanTile, s.voids, progress);
+                             kVoidPlanTile, s.voids, progress, &s.ranges);
       !st.ok())
     return st;
+  s.ranges.finish();
   s.source.set_count_implausible(false);
   s.voids.source_name = header.path;
   for (const MosaicSource::InputStat& in : s.source.inputs())
@@ -284,8 +285,7 @@ namespace {
 // A block's window: the samples it needs, grown so that every void reaching into them is filled
 // exactly as over the whole raster (void_plan.h), read from the inputs and filled.
 Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
-  // The window read last already holds these samples exactly (the steps pass reads each block's
-  // cook rect too, so the block it ends with is cooked without a second read).
+  // The window read last already holds these samples exactly.
   if (!s.window.values.empty() && s.window_need.contains(need)) return Status::success();
   const SampleRect rect = fill_read_rect(s.voids, need);
   s.window_need = SampleRect{};
@@ -308,22 +308,12 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
 
 }  // namespace
 
-Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
+void choose_session_steps(CookSession& s, CookReport& report) {
   std::array<double, kLevelCount> worst{};
-  const uint32_t n = s.grid.count();
-  for (uint32_t i = 0; i < n; ++i) {
-    const RootBlock b = s.grid.block(i);
-    int top = 0;
-    const SampleRect range = block_range_rect(s.ctx, b, top);
-    if (range.empty()) continue;
-    // With the block's cook rect: the last block's window then serves its cook as well.
-    if (Status st = read_window(s, unite(range, block_cook_rect(s.ctx, b)), report); !st.ok()) return st;
-    s.range_index.build(s.window, top);
-    block_range_bounds(s.ctx, s.range_index, b, s.threads, worst);
-    if (progress && !progress(double(i + 1) / double(n), "steps")) return Status::failure(Error::cancelled, "cancelled");
-  }
+  level_range_bounds(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, s.threads, worst);
+  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].range_bound_m = worst[size_t(l)];
   choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
-  return Status::success();
+  s.ranges = RangeSummary{};
 }
 
 Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,

@@ -2,11 +2,12 @@
 // `unit` and `merge` (issue 14): each of them runs the same stages, so a plan + units + merge
 // gives the bytes of the one-process cook.
 //
-//   open_inputs -> first_pass (voids, valid bounds, implausible heights) -> frame_and_grid ->
-//   surface_setup -> steps_pass -> per block: cook_block_of_session -> finish_archive
+//   open_inputs -> first_pass (voids, valid bounds, implausible heights, range summary) ->
+//   frame_and_grid -> surface_setup -> choose_session_steps -> per block: cook_block_of_session ->
+//   finish_archive
 //
-// A unit restores what the plan decided (restore_plan in work_units.h) instead of running the
-// first pass and the steps pass.
+// The source is read twice: by the first pass, and by the blocks' windows. A unit restores what
+// the plan decided (restore_plan in work_units.h) instead of running the first pass.
 #pragma once
 #include <memory>
 #include <string>
@@ -18,7 +19,7 @@
 #include "mosaic_source.h"
 #include "node_cook.h"
 #include "pyramid.h"
-#include "range_index.h"
+#include "range_summary.h"
 #include "sample_window.h"
 #include "surface/surface_layers.h"
 #include "terrain/archive_writer.h"
@@ -46,22 +47,24 @@ struct CookSession {
   std::unique_ptr<SurfaceOverlays> overlays;
   BlockGrid grid;
   SampleWindow window;  // the block being read or cooked
-  RangeIndex range_index;  // the steps pass's, rebuilt per block in the same arrays
+  RangeSummary ranges;   // the first pass's, for the steps (freed once they are chosen)
   SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
 };
 
 // Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.
 Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report);
-// Reads every sample once: the void plan, the valid samples, the implausible heights and the
-// inputs' descriptions into the report.
+// Reads every sample once: the void plan, the valid samples, the implausible heights, the range
+// summary (range_summary.h) and the inputs' descriptions into the report.
 Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
 // The frame (choose_frame, or `planned` when given), the mapping, the root grid and the footprint,
 // the context's constants and the block grid (unit_roots, else block_roots, else from the budget).
 Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report);
 // Material rules and the overlays (opened; read per block).
 Status surface_setup(CookSession& s, CookReport& report);
-// Every level's step from the range bounds of every node that could exist (s.ctx.step_log2).
-Status steps_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
+// Every level's step from the range bounds of every node that could exist (s.ctx.step_log2), from
+// the first pass's summary: reads nothing.
+// The levels' worst bounds go to the report.
+void choose_session_steps(CookSession& s, CookReport& report);
 // Reads and fills block `index`'s window and cooks its nodes into `sink` (key order in the block).
 Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
                              CookReport& report);

@@ -20,17 +20,6 @@ SampleRect node_query_rect(const CookContext& ctx, const NodeKey& key) {
   return {int(std::floor(cmin)) - 2, int(std::floor(rmin)) - 2, int(std::floor(cmax)) + 3, int(std::floor(rmax)) + 3};
 }
 
-// Every node of the block at levels finest .. 5, coarsest first.
-std::vector<NodeKey> block_nodes(const CookContext& ctx, const RootBlock& b) {
-  std::vector<NodeKey> keys;
-  for (int level = kRootLevel; level >= ctx.finest_level; --level) {
-    const uint32_t f = 1u << (kRootLevel - level);
-    for (uint32_t y = b.y0 * f; y < b.y1 * f; ++y)
-      for (uint32_t x = b.x0 * f; x < b.x1 * f; ++x) keys.push_back({uint32_t(level), x, y});
-  }
-  return keys;
-}
-
 // One node's surface statistics into the cook's totals (every field of SurfaceStats).
 void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
   t.cpu_normals += n.seconds_normals;
@@ -55,19 +44,6 @@ double rms_of(const ErrorStats& e) { return e.samples ? std::sqrt(e.sum_sq / dou
 SampleRect source_rect(const CookContext& ctx) { return {0, 0, ctx.source_width - 1, ctx.source_height - 1}; }
 
 }  // namespace
-
-SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top) {
-  SampleRect r;
-  top = 0;
-  for (const NodeKey& key : block_nodes(ctx, b)) {
-    const SampleRect q = node_query_rect(ctx, key);
-    const int k = RangeIndex::level_for(q, ctx.source_width, ctx.source_height);
-    top = std::max(top, k);
-    if (q.c1 < 0 || q.r1 < 0 || q.c0 >= ctx.source_width || q.r0 >= ctx.source_height) continue;
-    r = unite(r, RangeIndex::window_for(q, k, ctx.source_width, ctx.source_height));
-  }
-  return r;
-}
 
 void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1) {
   const double margin = kWindowMargin * vertex_spacing_m(kRootLevel);
@@ -103,17 +79,20 @@ SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b) {
   return intersect(r, source_rect(ctx));
 }
 
-void block_range_bounds(const CookContext& ctx, const RangeIndex& index, const RootBlock& b, int threads,
-                        std::array<double, kLevelCount>& worst) {
-  const std::vector<NodeKey> keys = block_nodes(ctx, b);
-  std::vector<double> bound(keys.size(), 0.0);
-  parallel_for(keys.size(), resolve_threads(threads), [&](size_t i) {
-    const SampleRect q = node_query_rect(ctx, keys[i]);
-    bound[i] = index.surface_range_bound(q.c0, q.r0, q.c1, q.r1);
-  });
-  for (size_t i = 0; i < keys.size(); ++i) {
-    double& w = worst[keys[i].level];
-    w = std::max(w, bound[i]);
+void level_range_bounds(const CookContext& ctx, const RangeSummary& ranges, uint32_t roots_x, uint32_t roots_y,
+                        int threads, std::array<double, kLevelCount>& worst) {
+  for (int level = kRootLevel; level >= ctx.finest_level; --level) {
+    const uint32_t f = 1u << (kRootLevel - level), nx = roots_x * f, ny = roots_y * f;
+    std::vector<double> row_worst(ny, 0.0);  // one row of nodes per task; the max over rows after
+    parallel_for(ny, resolve_threads(threads), [&](size_t y) {
+      double w = 0;
+      for (uint32_t x = 0; x < nx; ++x) {
+        const SampleRect q = node_query_rect(ctx, {uint32_t(level), x, uint32_t(y)});
+        w = std::max(w, ranges.surface_range_bound(q.c0, q.r0, q.c1, q.r1));
+      }
+      row_worst[y] = w;
+    });
+    for (double w : row_worst) worst[size_t(level)] = std::max(worst[size_t(level)], w);
   }
 }
 

@@ -2,10 +2,12 @@
 // nodes (its roots and all their descendants) read only a window of source samples around it, so
 // memory follows the block, never the input.
 //
-// Two passes over the blocks, each independent of the others and of the block size and order:
+// Steps first, then one pass over the blocks, each independent of the others and of the block size
+// and order:
 //  1. steps: every node of every level that could exist (its sample rectangle holds data) bounds
-//     its surface range (range_index.h); a level's quantization step comes from the worst bound
-//     of the level (quantize.h), so it is known before any node is cooked.
+//     its surface range from the first pass's summary (range_summary.h); a level's quantization
+//     step comes from the worst bound of the level (quantize.h), so it is known before any node
+//     is cooked.
 //  2. cook: per block, the level loop (roots with terrain, then the children the parents' error
 //     asks for), nodes in parallel batches; results in key order (level 5 first, then y, x)
 //     within the block. The caller restores the global key order (node_spool.h).
@@ -14,7 +16,7 @@
 #include <functional>
 
 #include "node_cook.h"
-#include "range_index.h"
+#include "range_summary.h"
 #include "sample_window.h"
 #include "terrain/cook.h"
 
@@ -37,9 +39,6 @@ struct BlockGrid {
   }
 };
 
-// Source samples the step pass of block `b` reads (the range index's blocks of every node query).
-// `top`: the coarsest range-index level those queries use.
-SampleRect block_range_rect(const CookContext& ctx, const RootBlock& b, int& top);
 // Frame rectangle (metres) every vertex of block `b`'s node windows lies in: its roots' square
 // grown by the root windows' margin (kWindowMargin root vertex spacings).
 void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1);
@@ -47,10 +46,10 @@ void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, do
 // measurement's ring, clipped to the source.
 SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b);
 
-// Pass 1 for one block: raises worst[level] to the range bound of every node of the block at
-// levels ctx.finest_level .. 5 (index built over block_range_rect()).
-void block_range_bounds(const CookContext& ctx, const RangeIndex& index, const RootBlock& b, int threads,
-                        std::array<double, kLevelCount>& worst);
+// Step 1: worst[level] = the largest range bound of every node of the roots_x x roots_y root grid
+// at levels ctx.finest_level .. 5 (a max: independent of threads and of any order).
+void level_range_bounds(const CookContext& ctx, const RangeSummary& ranges, uint32_t roots_x, uint32_t roots_y,
+                        int threads, std::array<double, kLevelCount>& worst);
 // The levels' steps from the worst bounds: the range's step or the tolerance's, whichever is
 // coarser; each level capped by the next coarser one's, so steps never decrease towards the roots.
 // Levels finer than ctx.finest_level get the finest level's step.

@@ -54,6 +54,7 @@ std::string report_json(const CookReport& r) {
                       {"vertex_spacing_m", vertex_spacing_m(l)},
                       {"nodes", s.nodes},
                       {"step_log2", s.step_log2},
+                      {"range_bound_m", s.range_bound_m},
                       {"step_m", std::ldexp(1.0, s.step_log2) * kHeightUnitM},
                       {"vertices", s.vertices},
                       {"error_samples", s.error_samples},
@@ -74,7 +75,9 @@ std::string report_json(const CookReport& r) {
                  {"surface_layers", r.surface_layers}};
   j["time_s"] = {{"read", r.seconds_read},       {"prepare", r.seconds_prepare}, {"pyramid", r.seconds_pyramid},
                  {"finish", r.seconds_finish},   {"total", r.seconds_total},     {"cpu_heights", r.cpu_heights},
-                 {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode}};
+                 {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode},
+                 {"cpu_first_pass", r.cpu_first_pass}, {"cpu_steps", r.cpu_steps}, {"cpu_blocks", r.cpu_blocks},
+                 {"cpu_total", r.cpu_total}};
   j["speed"] = {{"threads", r.threads},
                 {"source_samples_per_s", r.source_samples_per_second},
                 {"output_vertices", r.output_vertices},
@@ -154,7 +157,7 @@ std::string report_summary(const CookReport& r) {
                    r.source_samples_per_second / 1e6, r.height_samples_per_cpu_second / 1e6, r.peak_rss_bytes >> 20);
   uint64_t read = 0;
   for (uint64_t b : r.input_bytes_read) read += b;
-  if (read) s += fmt::format("read: {} bytes of samples from {} inputs (3 passes: voids, steps, cook)\n", read,
+  if (read) s += fmt::format("read: {} bytes of samples from {} inputs (2 passes: the first pass, the blocks)\n", read,
                              r.input_bytes_read.size());
   s += fmt::format("blocks: {} of {}x{} roots, largest source window {} samples, {} bytes spooled; memory limit {} MB\n",
                    r.blocks, r.block_roots, r.block_roots, r.block_window_samples_max, r.spool_bytes,

@@ -40,6 +40,16 @@ double fill_one(float* z, int w, int h, const Samples<Index>& samples, uint8_t* 
     }
   }
   auto value_of = [&](int64_t code) -> float { return z[size_t(-code - 3)]; };
+  // The rim: the valid samples next to the void. The harmonic solution lies within their
+  // [min, max]; the fill is clamped to it so that an unconverged over-relaxation cannot leave it
+  // either (range_summary.h bounds the filled values by it).
+  float rim_lo = INFINITY, rim_hi = -INFINITY;
+  for (const auto& n4 : nbr)
+    for (int64_t c : n4)
+      if (c <= -3) {
+        rim_lo = std::min(rim_lo, value_of(c));
+        rim_hi = std::max(rim_hi, value_of(c));
+      }
   std::vector<Index> queue;
   for (Index i = 0; i < samples.size(); ++i)
     for (int64_t c : nbr[i])
@@ -79,6 +89,8 @@ double fill_one(float* z, int w, int h, const Samples<Index>& samples, uint8_t* 
     last = change;
     if (change < 1e-4) break;
   }
+  if (rim_lo <= rim_hi)
+    for (Index idx : samples) z[idx] = std::clamp(z[idx], rim_lo, rim_hi);
   for (Index idx : samples) filled[idx] = 1;
   return last;
 }

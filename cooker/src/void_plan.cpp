@@ -16,7 +16,13 @@ struct VoidRecord {
   int64_t samples = 0;
   SampleRect bbox;
   bool touches_border = false;
+  float rim_lo = INFINITY, rim_hi = -INFINITY;  // the valid samples next to it (NaN-free)
 };
+
+void take(float v, float& lo, float& hi) {
+  if (v < lo) lo = v;
+  if (v > hi) hi = v;
+}
 
 // fill_voids()'s rule (void_fill.cpp): the whole raster as one void is never filled.
 bool will_fill(const VoidPlan& plan, int64_t samples, bool touches_border) {
@@ -25,9 +31,12 @@ bool will_fill(const VoidPlan& plan, int64_t samples, bool touches_border) {
   return fill && uint64_t(samples) < uint64_t(plan.width) * uint64_t(plan.height);
 }
 
-// A whole void is known: count it, and keep its box when it is filled across tiles.
-void finish_void(VoidPlan& plan, int64_t samples, const SampleRect& bbox, bool touches_border) {
+// A whole void is known: count it, and keep its box when it is filled across tiles; the summary
+// hears of every void that will be filled.
+void finish_void(VoidPlan& plan, RangeSummary* summary, int64_t samples, const SampleRect& bbox, bool touches_border,
+                 float rim_lo, float rim_hi) {
   if (will_fill(plan, samples, touches_border)) {
+    if (summary) summary->add_filled_void(bbox, rim_lo, rim_hi);
     plan.stats.filled_samples += uint64_t(samples);
     plan.stats.filled_regions += 1;
     const int t = plan.tile;
@@ -59,11 +68,13 @@ struct OpenVoids {
     ra.samples += rb.samples;
     ra.bbox = unite(ra.bbox, rb.bbox);
     ra.touches_border = ra.touches_border || rb.touches_border;
+    take(rb.rim_lo, ra.rim_lo, ra.rim_hi);
+    take(rb.rim_hi, ra.rim_lo, ra.rim_hi);
     records[size_t(b)].parent = a;
   }
   // After a row of tiles: finishes every void no label in `above` refers to (it cannot grow any
   // more) and keeps only the others, renumbering `above`.
-  void close_unreferenced(VoidPlan& plan, std::vector<int64_t>& above) {
+  void close_unreferenced(VoidPlan& plan, RangeSummary* summary, std::vector<int64_t>& above) {
     std::vector<int64_t> renumber(records.size(), -1);
     for (int64_t& a : above)
       if (a >= 0) a = find(a);
@@ -76,7 +87,8 @@ struct OpenVoids {
       }
     for (size_t i = 0; i < records.size(); ++i)
       if (records[i].parent == int64_t(i) && renumber[i] < 0)
-        finish_void(plan, records[i].samples, records[i].bbox, records[i].touches_border);
+        finish_void(plan, summary, records[i].samples, records[i].bbox, records[i].touches_border, records[i].rim_lo,
+                    records[i].rim_hi);
     for (int64_t& a : above)
       if (a >= 0) a = renumber[size_t(a)];
     records = std::move(kept);
@@ -86,7 +98,7 @@ struct OpenVoids {
 }  // namespace
 
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out, const ProgressFn& progress) {
+                  int tile, VoidPlan& out, const ProgressFn& progress, RangeSummary* summary) {
   out = VoidPlan{};
   if (width < 0 || height < 0 || tile <= 0 || int64_t(tile) * tile > INT32_MAX)  // tile indices are 32-bit
     return Status::failure(Error::invalid_argument,
@@ -101,16 +113,20 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
   // Record (or -1) of the last sample read in each column (the bottom row of the tiles read last
   // there), and of the right column of the tile read last in this row of tiles.
   std::vector<int64_t> above(size_t(width), -1), left;
+  // The samples beside them (NaN = nodata): rims across tile edges.
+  std::vector<float> above_z(size_t(width), NAN), left_z;
   std::vector<float> z;
   std::vector<int32_t> label;        // per tile sample: its void in the tile, -1 valid
   std::vector<int64_t> record_of;    // per void of the tile: its record, -1 when it reaches no inner edge
   std::vector<int32_t> stack;
-  struct TileVoid { int64_t samples; SampleRect bbox; bool border, inner_edge; };
+  std::vector<uint8_t> filled_scratch;
+  struct TileVoid { int64_t samples; SampleRect bbox; bool border, inner_edge; float rim_lo, rim_hi; };
   std::vector<TileVoid> tile_voids;
 
   for (int ty = 0; ty < height; ty += tile) {
     const int th = std::min(tile, height - ty);
     left.assign(size_t(th), -1);
+    left_z.assign(size_t(th), NAN);
     for (int tx = 0; tx < width; tx += tile) {
       const int tw = std::min(tile, width - tx);
       z.resize(size_t(tw) * size_t(th));
@@ -132,7 +148,7 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
       for (size_t s = 0; s < z.size(); ++s) {
         if (!std::isnan(z[s]) || label[s] >= 0) continue;
         const int32_t id = int32_t(tile_voids.size());
-        TileVoid v{0, {}, false, false};
+        TileVoid v{0, {}, false, false, INFINITY, -INFINITY};
         stack.assign(1, int32_t(s));
         label[s] = id;
         while (!stack.empty()) {
@@ -148,6 +164,8 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
           const int32_t cand[4] = {x > 0 ? i - 1 : -1, x + 1 < tw ? i + 1 : -1, y > 0 ? i - tw : -1,
                                    y + 1 < th ? i + tw : -1};
           for (int32_t c : cand)
+            if (c >= 0 && !std::isnan(z[size_t(c)])) take(z[size_t(c)], v.rim_lo, v.rim_hi);
+          for (int32_t c : cand)
             if (c >= 0 && label[size_t(c)] < 0 && std::isnan(z[size_t(c)])) {
               label[size_t(c)] = id;
               stack.push_back(c);
@@ -156,20 +174,38 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
         tile_voids.push_back(v);
       }
       // Voids inside the tile are finished; those reaching an inner edge become records.
+      // (The summary gets those voids filled, in the tile, below.)
       record_of.assign(tile_voids.size(), -1);
+      bool fill_here = false;
       for (size_t v = 0; v < tile_voids.size(); ++v) {
         const TileVoid& tv = tile_voids[v];
         if (!tv.inner_edge) {
-          finish_void(out, tv.samples, tv.bbox, tv.border);
+          fill_here = fill_here || will_fill(out, tv.samples, tv.border);
+          finish_void(out, nullptr, tv.samples, tv.bbox, tv.border, tv.rim_lo, tv.rim_hi);
           continue;
         }
         record_of[v] = int64_t(open.records.size());
-        open.records.push_back({record_of[v], tv.samples, tv.bbox, tv.border});
+        open.records.push_back({record_of[v], tv.samples, tv.bbox, tv.border, tv.rim_lo, tv.rim_hi});
       }
       auto record_at = [&](int x, int y) -> int64_t {
         const int32_t l = label[size_t(y) * size_t(tw) + size_t(x)];
         return l >= 0 ? record_of[size_t(l)] : -1;
       };
+      // Rims across the top and left edges: a void on one side, a valid sample on the other.
+      auto rim = [&](int64_t r, float v) {
+        VoidRecord& rec = open.records[size_t(open.find(r))];
+        take(v, rec.rim_lo, rec.rim_hi);
+      };
+      for (int x = 0; x < tw && ty > 0; ++x) {
+        const float a = above_z[size_t(tx + x)], b = z[size_t(x)];
+        if (std::isnan(b) && !std::isnan(a)) rim(record_at(x, 0), a);
+        else if (!std::isnan(b) && std::isnan(a) && above[size_t(tx + x)] >= 0) rim(above[size_t(tx + x)], b);
+      }
+      for (int y = 0; y < th && tx > 0; ++y) {
+        const float a = left_z[size_t(y)], b = z[size_t(y) * size_t(tw)];
+        if (std::isnan(b) && !std::isnan(a)) rim(record_at(0, y), a);
+        else if (!std::isnan(b) && std::isnan(a) && left[size_t(y)] >= 0) rim(left[size_t(y)], b);
+      }
       // Join across the top and left edges.
       for (int x = 0; x < tw; ++x)
         if (const int64_t r = record_at(x, 0); r >= 0 && above[size_t(tx + x)] >= 0) open.join(r, above[size_t(tx + x)]);
@@ -179,8 +215,24 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
       const bool last_row = ty + th == height, last_col = tx + tw == width;
       for (int x = 0; x < tw; ++x) above[size_t(tx + x)] = last_row ? -1 : record_at(x, th - 1);
       for (int y = 0; y < th; ++y) left[size_t(y)] = last_col ? -1 : record_at(tw - 1, y);
+      for (int x = 0; x < tw; ++x) above_z[size_t(tx + x)] = z[size_t(th - 1) * size_t(tw) + size_t(x)];
+      for (int y = 0; y < th; ++y) left_z[size_t(y)] = z[size_t(y) * size_t(tw) + size_t(tw - 1)];
+      if (summary) {
+        // The voids inside the tile filled as the cook fills them (the same bits: void_plan.h),
+        // so the summary holds their values, not only their rims'.
+        if (fill_here) {
+          filled_scratch.resize(z.size());
+          VoidStats unused;
+          const FillWindow fw{width, height, tx, ty, tw, th};
+          if (Status st = fill_complete_voids(fw, z.data(), filled_scratch.data(), policy, max_fill_samples, 0,
+                                              "source", unused, UINT64_MAX);
+              !st.ok())
+            return st;
+        }
+        summary->add_tile(tx, ty, tw, th, z.data());
+      }
     }
-    open.close_unreferenced(out, above);
+    open.close_unreferenced(out, summary, above);
     if (progress && !progress(double(ty + th) / double(std::max(height, 1)), "voids"))
       return Status::failure(Error::cancelled, "cancelled");
   }

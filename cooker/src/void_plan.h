@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "range_summary.h"
 #include "sample_window.h"
 #include "terrain/cook.h"
 #include "terrain/progress.h"
@@ -50,9 +51,11 @@ struct VoidPlan {
 // rule. Memory: one tile, two raster rows of labels and the records of the voids still open,
 // plus spanning_fills; never the raster. The tile size changes no result of fill_voids_window()
 // (tile: 1..46340, tile * tile samples indexed with 32 bits; invalid_argument otherwise).
-// `progress` (optional) hears the fraction of rows done after each row of tiles.
+// `progress` (optional) hears the fraction of rows done after each row of tiles. `summary`
+// (optional, started for this raster) is handed every tile read and every void that will be
+// filled, with its rim's [min, max] (the valid samples 4-adjacent to it); the caller finishes it.
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out, const ProgressFn& progress = {});
+                  int tile, VoidPlan& out, const ProgressFn& progress = {}, RangeSummary* summary = nullptr);
 
 // The rectangle a block must read so that its `need` rectangle can be filled exactly: `need`
 // grown to whole tiles plus a one-sample ring, plus the bounding box and a one-sample ring of

@@ -3,7 +3,10 @@
 // window of the source. Each case compares whole files against the cook in one block.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -99,6 +102,68 @@ TEST(BlockCook, BlockSizeAndOrderDoNotChangeAByteOnSyntheticVoidsAndCliffs) {
   o.threads = 2;
   o.heights_only = true;
   expect_same_bytes_for_every_block_split(o, {{1, 0}, {1, 3}, {2, 5}}, 4);
+}
+
+// The steps' range bound (range_summary.h, format/SPEC.md section 7), taken in the first pass
+// from cells of the source and from the rims of filled voids, holds for every cooked node: its
+// quantized range is at most the level's bound plus one root step (values are rounded at coarser
+// levels by up to half a step each way), so it fits the level's step in 16 bits. Returns the
+// widest quantized range per level (units).
+std::array<int64_t, kLevelCount> expect_range_bound_holds(const cook::CookOptions& o, cook::CookReport& r) {
+  std::array<int64_t, kLevelCount> widest{};
+  const Status st = cook::cook(o, nullptr, r);
+  EXPECT_TRUE(st.ok()) << st.message;
+  ArchiveReader reader;
+  EXPECT_TRUE(reader.open(o.output).ok());
+  for (const NodeRecord& n : reader.nodes()) {
+    int64_t& w = widest[n.key.level];
+    w = std::max(w, int64_t(n.max_height) - int64_t(n.min_height));
+  }
+  const double root_step = std::ldexp(1.0, r.levels[kRootLevel].step_log2);
+  for (int l = 0; l < kLevelCount; ++l)
+    if (r.levels[size_t(l)].nodes)
+      std::printf("level %d: bound %.3f m, widest node %.3f m, step 2^%d\n", l, r.levels[size_t(l)].range_bound_m,
+                  double(widest[size_t(l)]) / 1024.0, r.levels[size_t(l)].step_log2);
+  for (int l = 0; l < kLevelCount; ++l) {
+    const cook::LevelStats& ls = r.levels[size_t(l)];
+    if (ls.nodes == 0) continue;
+    EXPECT_GT(ls.range_bound_m, 0.0) << "level " << l;
+    EXPECT_LE(double(widest[size_t(l)]), ls.range_bound_m * 1024.0 + root_step) << "level " << l;
+    EXPECT_LE(widest[size_t(l)] >> ls.step_log2, 65535) << "level " << l;
+  }
+  return widest;
+}
+
+TEST(BlockCook, RangeBoundHoldsOverACliffAndFilledVoids) {
+  cook::CookOptions o;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-bound"), "blocky", blocky_dem(), true, o));
+  o.threads = 2;
+  o.heights_only = true;
+  cook::CookReport r;
+  const auto widest = expect_range_bound_holds(o, r);
+  EXPECT_GT(r.voids_filled_samples, 700u);  // the void across a tile and root edge is filled
+  // The 140 m cliff and the hills: a root spans ~400 m of relief; the bound is conservative but
+  // not wild (measured: 487 m against 386 m at the roots).
+  EXPECT_GT(double(widest[kRootLevel]) / 1024.0, 300.0);
+  EXPECT_LT(r.levels[kRootLevel].range_bound_m, 1.5 * double(widest[kRootLevel]) / 1024.0);
+}
+
+// Kauai: voids on the Na Pali cliffs, filled across void-plan tiles (their rims span up to 1216 m):
+// measured bound 1998 m at levels 3..5 (the steps pass bounded 1502..1632 m) against 724..1125 m.
+TEST(BlockCook, RangeBoundHoldsOnRealCliffsWithVoids) {
+  const auto dem = data_file("N22W160.hgt.zip");
+  TERRAIN_REQUIRE_DATA(dem);
+  cook::CookOptions o;
+  o.inputs = {dem.string()};
+  o.output = (scratch_dir("block-bound-kauai") / "kauai.terrain").string();
+  o.threads = 2;
+  o.heights_only = true;
+  cook::CookReport r;
+  const auto widest = expect_range_bound_holds(o, r);
+  EXPECT_EQ(r.voids_filled_samples, 4279u);
+  EXPECT_GT(double(widest[kRootLevel]) / 1024.0, 1000.0);
+  EXPECT_LT(r.levels[kRootLevel].range_bound_m, 2048.0);  // the step of 2^5 units holds it
+  for (int l = 3; l <= kRootLevel; ++l) EXPECT_EQ(r.levels[size_t(l)].step_log2, 5) << "level " << l;
 }
 
 TEST(BlockCook, SurfaceLayersToo) {

@@ -101,6 +101,7 @@ inline constexpr uint64_t kMaxPlannedRoots = 1000000;
 struct LevelStats {
   uint32_t nodes = 0;
   uint8_t step_log2 = 0;             // quantization step of the level: 2^step_log2 units of 2^-10 m
+  double range_bound_m = 0;          // the step rule's bound: the largest range bound of a node of the level
   uint64_t vertices = 0;             // non-hole vertices of the level's nodes (129x129 per node)
   uint64_t error_samples = 0;        // source samples measured against the level's nodes
   double error_max_m = 0;            // max |node surface - source| over those samples
@@ -170,6 +171,10 @@ struct CookReport {
   // Time (wall seconds per stage; CPU seconds for the per-node work summed over threads)
   double seconds_read = 0, seconds_prepare = 0, seconds_pyramid = 0, seconds_finish = 0, seconds_total = 0;
   double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
+  // Process CPU seconds (user + system, all threads) of the stages of a one-process cook: the
+  // first pass over the source, the steps from its summary (no read), the blocks (read, fill, cook,
+  // spool), and the whole.
+  double cpu_first_pass = 0, cpu_steps = 0, cpu_blocks = 0, cpu_total = 0;
   int threads = 0;
   uint64_t output_vertices = 0;      // vertices computed for nodes (129x129 each)
   double source_samples_per_second = 0;       // source samples / total seconds
