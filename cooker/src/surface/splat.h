@@ -21,7 +21,9 @@ struct SplatLattice {
 // Returns false when the vertex has no data.
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out);
 
-void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out);
+// fields_seconds (optional): CPU seconds spent on the filtered height fields (the report's split).
+void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
+                           double* fields_seconds = nullptr);
 void copy_node_splat(const SplatLattice& lattice, std::array<uint8_t, kSplatCount>& splat);
 
 // 132x132 RGBA8 (sRGB colour, alpha 0 = hole at the texel's south-west vertex): the bilinear blend
