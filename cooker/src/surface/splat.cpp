@@ -121,6 +121,8 @@ static_assert(kMaxFilterRadius >= 2, "the window margin leaves no room for the s
 // the vertex. The radius is 2 sigma, capped by the window margin (sigma is then radius / 2), so at
 // fine levels the largest scale is kMaxFilterRadius / 2 spacings. Returns false (use the raw
 // heights) when sigma is under half a spacing.
+}  // namespace
+
 bool filter_heights(const float* h, double scale_m, double spacing_m, std::vector<float>& out) {
   double sigma = scale_m / spacing_m;
   if (sigma < 0.5) return false;
@@ -202,6 +204,8 @@ bool filter_heights(const float* h, double scale_m, double spacing_m, std::vecto
   }
   return true;
 }
+
+namespace {
 
 // Most common class material in the (2r+1)^2 box around window vertex (i, j); ties keep the
 // centre's value when it is among the most common, else the lowest index. Shared boundaries of

@@ -2,6 +2,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "materials.h"
 #include "surface_layers.h"
@@ -20,6 +21,12 @@ struct SplatLattice {
 // Attributes of node vertex (i, j) measured from the window (format/SPEC.md section 16.4).
 // Returns false when the vertex has no data.
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out);
+
+// Gaussian-filtered heights of the window (sigma scale_m, radius 2 sigma capped by the margin) at
+// the vertices the splat lattice measures (-8 .. 136; the rest of `out` is NaN): a normalized
+// convolution in a fixed summation order (splat.cpp). False (out untouched) when sigma is under
+// half a spacing: the lattice then reads the raw heights.
+bool filter_heights(const float* h, double scale_m, double spacing_m, std::vector<float>& out);
 
 // fields_seconds (optional): CPU seconds spent on the filtered height fields (the report's split).
 void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
