@@ -26,6 +26,7 @@ void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
   t.cpu_albedo += n.seconds_albedo;
   t.cpu_splat += n.seconds_splat;
   t.cpu_cones += n.seconds_cones;
+  for (size_t k = 0; k < kCpuParts; ++k) t.cpu_parts[k] += n.seconds_parts[k];
   t.normal_err_max_deg = std::max(t.normal_err_max_deg, n.normal_err_max_deg);
   t.normal_err_sum_deg += n.normal_err_sum_deg;
   t.normal_samples += n.normal_samples;

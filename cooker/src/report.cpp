@@ -4,12 +4,17 @@
 #include <nlohmann/json.hpp>
 
 #include "crs.h"
+#include "surface/surface_layers.h"
 #include "terrain/cook.h"
 
 namespace terrain::cook {
 namespace {
 
 constexpr const char* kSectionNames[5] = {"heights", "normals", "albedo", "splat", "cones"};
+static_assert(std::tuple_size_v<decltype(SurfaceTotals::cpu_parts)> == kCpuParts, "cook.h lists every CpuPart");
+
+// CPU milliseconds per cooked node of one stage or part.
+double ms_per_node(const CookReport& r, double seconds) { return r.nodes ? 1e3 * seconds / double(r.nodes) : 0.0; }
 
 }  // namespace
 
@@ -78,6 +83,18 @@ std::string report_json(const CookReport& r) {
                  {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode},
                  {"cpu_first_pass", r.cpu_first_pass}, {"cpu_steps", r.cpu_steps}, {"cpu_blocks", r.cpu_blocks},
                  {"cpu_total", r.cpu_total}};
+  // The per-layer / per-encoder / per-section split of cpu_surface and cpu_encode, and every stage
+  // and part in CPU ms per node (the unit of the cook-throughput budget).
+  nlohmann::ordered_json parts, per_node;
+  for (size_t k = 0; k < kCpuParts; ++k) parts[cpu_part_name(CpuPart(k))] = r.surface.cpu_parts[k];
+  j["time_s"]["cpu_parts"] = parts;
+  per_node["heights"] = ms_per_node(r, r.cpu_heights);
+  per_node["error"] = ms_per_node(r, r.cpu_error);
+  per_node["surface"] = ms_per_node(r, r.cpu_surface);
+  per_node["encode"] = ms_per_node(r, r.cpu_encode);
+  per_node["total"] = ms_per_node(r, r.cpu_heights + r.cpu_error + r.cpu_surface + r.cpu_encode);
+  for (size_t k = 0; k < kCpuParts; ++k) per_node[cpu_part_name(CpuPart(k))] = ms_per_node(r, r.surface.cpu_parts[k]);
+  j["time_s"]["cpu_ms_per_node"] = per_node;
   j["speed"] = {{"threads", r.threads},
                 {"source_samples_per_s", r.source_samples_per_second},
                 {"output_vertices", r.output_vertices},
@@ -150,6 +167,13 @@ std::string report_summary(const CookReport& r) {
                    "error {:.2f}, surface {:.2f}, encode {:.2f}) on {} threads\n",
                    r.seconds_read, r.seconds_prepare, r.seconds_pyramid, r.seconds_finish, r.cpu_heights, r.cpu_error,
                    r.cpu_surface, r.cpu_encode, r.threads);
+  if (r.nodes) {
+    s += fmt::format("cpu ms/node: heights {:.3f}, error {:.3f}, surface {:.3f}, encode {:.3f}; parts:", ms_per_node(r, r.cpu_heights),
+                     ms_per_node(r, r.cpu_error), ms_per_node(r, r.cpu_surface), ms_per_node(r, r.cpu_encode));
+    for (size_t k = 0; k < kCpuParts; ++k)
+      s += fmt::format(" {} {:.3f}", cpu_part_name(CpuPart(k)), ms_per_node(r, r.surface.cpu_parts[k]));
+    s += "\n";
+  }
   s += fmt::format("{} nodes, {} source samples -> {} bytes ({:.2f} bytes/sample), {:.2f} s, {:.2f} M source samples/s, "
                    "{:.1f} M height samples per cpu-second, peak memory {} MB\n",
                    r.nodes, r.source_samples, r.archive_bytes,

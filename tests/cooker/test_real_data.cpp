@@ -425,6 +425,24 @@ TEST_P(RealData, ReportStatesTheSurfaceStatistics) {
     layer_cpu += s;
   }
   EXPECT_LE(layer_cpu, report["time_s"]["cpu_surface"].get<double>() + 1e-3);
+  // The finer split: the parts of each layer add up to its time, the parts of the encode stage (zstd
+  // per section) to cpu_encode, and the per-node figures are the totals over the node count.
+  const auto& parts = report["time_s"]["cpu_parts"];
+  auto part = [&](const char* name) { return parts[name].get<double>(); };
+  const double eps = 1e-9 * nodes + 1e-6;
+  EXPECT_NEAR(part("splat_fields") + part("splat_rules"), surface["cpu_s"]["splat"].get<double>(), eps);
+  EXPECT_NEAR(part("cones_normals") + part("cones_fit") + part("cones_bc3"), surface["cpu_s"]["cones"].get<double>(), eps);
+  EXPECT_NEAR(part("normals_texels") + part("normals_bc3"), surface["cpu_s"]["normals"].get<double>(), eps);
+  EXPECT_NEAR(part("albedo_bake") + part("albedo_bc1"), surface["cpu_s"]["albedo"].get<double>(), eps);
+  EXPECT_GT(part("checks"), 0.0);
+  EXPECT_LE(layer_cpu + part("checks"), report["time_s"]["cpu_surface"].get<double>() + 1e-3);
+  double zstd = 0;
+  for (const char* s : {"zstd_heights", "zstd_normals", "zstd_albedo", "zstd_splat", "zstd_cones"}) {
+    EXPECT_GT(part(s), 0.0) << s;
+    zstd += part(s);
+  }
+  EXPECT_NEAR(zstd, report["time_s"]["cpu_encode"].get<double>(), 1e-6);
+  EXPECT_NEAR(report["time_s"]["cpu_ms_per_node"]["zstd_heights"].get<double>(), 1e3 * part("zstd_heights") / nodes, 1e-9);
 }
 
 // Every shared edge and parent/child vertex of the archive: bit-identical float heights and

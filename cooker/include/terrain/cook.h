@@ -114,6 +114,10 @@ struct LevelStats {
 struct SurfaceTotals {
   // CPU seconds per layer, compression included, summed over threads (parts of cpu_surface).
   double cpu_normals = 0, cpu_albedo = 0, cpu_splat = 0, cpu_cones = 0;
+  // Finer split (report "cpu_parts"): splat fields, splat rules, cone normals, cone fit, cone BC3,
+  // normal texels, normal BC3, albedo bake, albedo BC1, error checks (the rest of cpu_surface), then
+  // zstd of the heights, normals, albedo, splat and cones sections (cpu_encode). Names: report.cpp.
+  std::array<double, 15> cpu_parts{};
   // Decoded BC3 normals against the float normals, per texel.
   double normal_err_max_deg = 0, normal_err_sum_deg = 0;
   uint64_t normal_samples = 0;

@@ -21,6 +21,19 @@ inline double fast_atan2_pos(double y, double x) {
   return x > 0 ? a : 3.141592653589793 - a;
 }
 
+// fast_atan2_pos() as selects (no branches, so a loop of it vectorises): the same operations on
+// every path that fast_atan2_pos() takes, hence the same doubles.
+inline double fast_atan2_pos_select(double y, double x) {
+  const double q = y / std::fabs(x);  // x == 0: inf or NaN, replaced below
+  const bool inv = q > 1.0;
+  const double t = inv ? 1.0 / q : q, t2 = t * t;
+  const double p =
+      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+  const double a = inv ? 1.5707963267948966 - p : p;
+  const double r = x > 0 ? a : 3.141592653589793 - a;
+  return x == 0 ? (y == 0 ? 0.0 : 1.5707963267948966) : r;
+}
+
 // Angle between unit vectors a and b (radians), error < 2e-5 rad, accurate for tiny angles.
 inline double fast_angle(const double a[3], const double b[3]) {
   const double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2], cz = a[0] * b[1] - a[1] * b[0];

@@ -113,20 +113,36 @@ Status read_range(const json& rule, const char* key, double lo_limit, double hi_
 
 }  // namespace
 
-double mask_value(const MaskRange& m, double v) {
+namespace {
+// Inlined into the per-sample rule loop (the public mask_value() is the same function).
+inline double mask_of(const MaskRange& m, double v) {
   if (!m.active) return 1.0;
   if (m.fade <= 0) return (v >= m.lo && v <= m.hi) ? 1.0 : 0.0;
   const double a = (v - m.lo) * m.inv_fade + 0.5;
   const double b = (m.hi - v) * m.inv_fade + 0.5;
   return std::clamp(std::min(a, b), 0.0, 1.0);
 }
+}  // namespace
+
+double mask_value(const MaskRange& m, double v) { return mask_of(m, v); }
+
+namespace {
+// fmod(fmod(x, 360) + 360, 360) without the library calls for |x| < 360 (every aspect rule's
+// case): there fmod(x, 360) is x, and for u = x + 360 in [360, 720) fmod(u, 360) is u - 360 exactly
+// (Sterbenz), so the results are the same doubles.
+inline double wrap360(double x) {
+  if (!(x > -360.0 && x < 360.0)) return std::fmod(std::fmod(x, 360.0) + 360.0, 360.0);
+  const double u = x + 360.0;
+  return u < 360.0 ? u : u < 720.0 ? u - 360.0 : std::fmod(u, 360.0);
+}
+}  // namespace
 
 double aspect_mask_value(const MaskRange& m, double aspect_deg) {
   if (!m.active) return 1.0;
   // Distance outside the (possibly wrapping) arc [lo, hi], in degrees along the circle.
-  const double lo = std::fmod(std::fmod(m.lo, 360.0) + 360.0, 360.0);
-  const double width = std::fmod(std::fmod(m.hi - m.lo, 360.0) + 360.0, 360.0);
-  const double into = std::fmod(std::fmod(aspect_deg - lo, 360.0) + 360.0, 360.0);  // 0..360 from lo
+  const double lo = wrap360(m.lo);
+  const double width = wrap360(m.hi - m.lo);
+  const double into = wrap360(aspect_deg - lo);  // 0..360 from lo
   double outside = 0;  // 0 inside the arc, else the angular distance to the nearer end
   if (into > width) outside = std::min(into - width, 360.0 - into);
   if (m.fade <= 0) return outside > 0 ? 0.0 : 1.0;
@@ -137,9 +153,9 @@ double aspect_mask_value(const MaskRange& m, double aspect_deg) {
 namespace {
 // Score of one rule on one sample: true when it claims the sample.
 bool rule_matches(const MaterialRule& r, const SurfaceSample& s) {
-    double mask = mask_value(r.height_m, s.height_m);
-    if (mask > 0) mask *= mask_value(r.slope_deg, s.slope_deg);
-    if (mask > 0) mask *= mask_value(r.curvature, s.curvature);
+    double mask = mask_of(r.height_m, s.height_m);
+    if (mask > 0) mask *= mask_of(r.slope_deg, s.slope_deg);
+    if (mask > 0) mask *= mask_of(r.curvature, s.curvature);
     if (mask > 0 && s.slope_deg >= 1.0) mask *= aspect_mask_value(r.aspect_deg, s.aspect_deg);
     const double amp = r.noise.amplitude;
     // The noise only matters inside the transition band, so it is evaluated lazily there.

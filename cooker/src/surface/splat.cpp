@@ -59,8 +59,11 @@ constexpr uint32_t kAlbedoNoiseSeed = 0xA1BED0u;
 
 namespace {
 
+// Attributes a rule reads (measure_field skips the others: their values would never be looked at).
+constexpr unsigned kNeedAspect = 1, kNeedCurvature = 2, kNeedAll = 3;
+
 // Attributes of vertex (i, j) read from a window-shaped field h (raw or filtered heights).
-bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out) {
+bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out, unsigned needs = kNeedAll) {
   const double s = in.spacing_m;
   out.x_m = in.x0_m + i * s;
   out.y_m = in.y0_m + j * s;
@@ -90,7 +93,8 @@ bool measure_field(const SurfaceInput& in, const float* h, int i, int j, Surface
     gy = one_axis(z[0][1], z[2][1]);
   }
   out.slope_deg = fast_atan(std::sqrt(gx * gx + gy * gy)) * kRadToDeg;
-  out.aspect_deg = bearing_deg(-gx, -gy);  // the downhill direction
+  if (needs & kNeedAspect) out.aspect_deg = bearing_deg(-gx, -gy);  // the downhill direction
+  if (!(needs & kNeedCurvature)) return true;
   // Laplacian over +-2 spacings (the splat spacing); missing neighbours contribute nothing.
   const float e = wh(h, i + 2, j), w = wh(h, i - 2, j), n = wh(h, i, j + 2), so = wh(h, i, j - 2);
   double lap = 0;
@@ -117,6 +121,8 @@ static_assert(kMaxFilterRadius >= 2, "the window margin leaves no room for the s
 // the vertex. The radius is 2 sigma, capped by the window margin (sigma is then radius / 2), so at
 // fine levels the largest scale is kMaxFilterRadius / 2 spacings. Returns false (use the raw
 // heights) when sigma is under half a spacing.
+}  // namespace
+
 bool filter_heights(const float* h, double scale_m, double spacing_m, std::vector<float>& out) {
   double sigma = scale_m / spacing_m;
   if (sigma < 0.5) return false;
@@ -128,34 +134,78 @@ bool filter_heights(const float* h, double scale_m, double spacing_m, std::vecto
   float w[2 * kMaxFilterRadius + 1];
   for (int d = -radius; d <= radius; ++d) w[d + radius] = float(std::exp(-0.5 * d * d / (sigma * sigma)));
   const int lo = -kFieldReach, hi = kHeightSamples - 1 + kFieldReach;  // vertices -8 .. 136
-  out.assign(size_t(kWindowCount), NAN);
+  constexpr int kSpan = kHeightSamples + 2 * kFieldReach;             // 145 vertices per row
+  // Only lo..hi of `out` is written (the lattice reads nothing else); the rest stays NaN.
+  if (out.size() != size_t(kWindowCount)) out.assign(size_t(kWindowCount), NAN);
   static thread_local std::vector<float> sum, weight;  // horizontal pass, rows lo - radius .. hi + radius
-  sum.assign(size_t(kWindowCount), 0.0f);
-  weight.assign(size_t(kWindowCount), 0.0f);
-  for (int j = lo - radius; j <= hi + radius; ++j)
-    for (int i = lo; i <= hi; ++i) {
-      float sv = 0, sw = 0;
-      for (int d = -radius; d <= radius; ++d) {
-        const float v = wh(h, i + d, j);
-        if (!std::isnan(v)) { sv += w[d + radius] * v; sw += w[d + radius]; }
-      }
-      const size_t k = size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin);
-      sum[k] = sv;
-      weight[k] = sw;
+  sum.resize(size_t(kWindowCount));
+  weight.resize(size_t(kWindowCount));
+  const auto at = [](int i, int j) { return size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin); };
+  // Weight sum of a tap run with data everywhere, accumulated in the per-tap order of the general path.
+  float wsum = 0;
+  for (int d = -radius; d <= radius; ++d) wsum += w[d + radius];
+  // Every accumulation below runs its taps in the order d = -radius .. radius from 0, as the plain
+  // per-vertex loops did, so the sums are the same floats; loops over i (independent vertices) let
+  // the compiler use SIMD without reordering any one sum.
+  // A tap without data adds w * 0 to the sum and w * 0 to the weight: adding +0 leaves a float
+  // unchanged (the sums start at +0 and can never be -0), so this is the skip of the plain loop.
+  constexpr int kRun = kSpan + 2 * kMaxFilterRadius;
+  float vals[kRun], ones[kRun];
+  bool all_full = true;
+  for (int j = lo - radius; j <= hi + radius; ++j) {
+    const float* row = h + at(lo - radius, j);
+    const int n = kSpan + 2 * radius;
+    int missing = 0;
+    for (int i = 0; i < n; ++i) {
+      const bool bad = std::isnan(row[i]);
+      missing += bad;
+      vals[i] = bad ? 0.0f : row[i];
+      ones[i] = bad ? 0.0f : 1.0f;
     }
-  for (int j = lo; j <= hi; ++j)
-    for (int i = lo; i <= hi; ++i) {
-      if (std::isnan(wh(h, i, j))) continue;
-      float sv = 0, sw = 0;
-      for (int d = -radius; d <= radius; ++d) {
-        const size_t k = size_t((j + d + kWindowMargin) * kWindowSize + i + kWindowMargin);
-        sv += w[d + radius] * sum[k];
-        sw += w[d + radius] * weight[k];
-      }
-      out[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] = sv / sw;
+    float* sv = &sum[at(lo, j)];
+    float* sw = &weight[at(lo, j)];
+    for (int i = 0; i < kSpan; ++i) sv[i] = 0.0f;
+    for (int d = 0; d <= 2 * radius; ++d) {
+      const float wd = w[d];
+      const float* src = vals + d;
+      for (int i = 0; i < kSpan; ++i) sv[i] += wd * src[i];
     }
+    if (missing == 0) {
+      for (int i = 0; i < kSpan; ++i) sw[i] = wsum;
+      continue;
+    }
+    all_full = false;
+    for (int i = 0; i < kSpan; ++i) sw[i] = 0.0f;
+    for (int d = 0; d <= 2 * radius; ++d) {
+      const float wd = w[d];
+      const float* src = ones + d;
+      for (int i = 0; i < kSpan; ++i) sw[i] += wd * src[i];
+    }
+  }
+  // Vertical pass. With data everywhere every vertex's weight is the same sum.
+  float wtotal = 0;
+  for (int d = 0; d <= 2 * radius; ++d) wtotal += w[d] * wsum;
+  float acc[kSpan], accw[kSpan];
+  for (int j = lo; j <= hi; ++j) {
+    for (int i = 0; i < kSpan; ++i) acc[i] = accw[i] = 0.0f;
+    for (int d = 0; d <= 2 * radius; ++d) {
+      const float wd = w[d];
+      const float* src = &sum[at(lo, j + d - radius)];
+      for (int i = 0; i < kSpan; ++i) acc[i] += wd * src[i];
+      if (!all_full) {
+        const float* srcw = &weight[at(lo, j + d - radius)];
+        for (int i = 0; i < kSpan; ++i) accw[i] += wd * srcw[i];
+      }
+    }
+    const float* centre = h + at(lo, j);
+    float* dst = &out[at(lo, j)];
+    for (int i = 0; i < kSpan; ++i)
+      dst[i] = std::isnan(centre[i]) ? NAN : acc[i] / (all_full ? wtotal : accw[i]);
+  }
   return true;
 }
+
+namespace {
 
 // Most common class material in the (2r+1)^2 box around window vertex (i, j); ties keep the
 // centre's value when it is among the most common, else the lowest index. Shared boundaries of
@@ -203,13 +253,21 @@ bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
   return measure_field(in, in.heights_m, i, j, out);
 }
 
-void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out) {
+void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
+                           double* fields_seconds) {
   // One height field per distinct rule scale (index 0.. of rules.scales).
   static thread_local std::vector<float> fields[kMaxRuleScales];
   const float* field[kMaxRuleScales] = {};
   const size_t scales = rules.scales.size();
+  const double t0 = fields_seconds ? thread_cpu_seconds() : 0.0;
   for (size_t k = 0; k < scales; ++k)
     field[k] = filter_heights(in.heights_m, rules.scales[k], in.spacing_m, fields[k]) ? fields[k].data() : in.heights_m;
+  if (fields_seconds) *fields_seconds = thread_cpu_seconds() - t0;
+  // Per scale, the attributes some rule at that scale reads (e.g. the built-in 1 m cliff rule only
+  // reads slope): the others are not measured.
+  unsigned needs[kMaxRuleScales] = {};
+  for (const MaterialRule& r : rules.rules)
+    needs[r.scale_index] |= (r.aspect_deg.active ? kNeedAspect : 0u) | (r.curvature.active ? kNeedCurvature : 0u);
   // Class raster (--landcover): mode filter over the document scale (one radius per level).
   const int class_radius = std::min(kWindowMargin + kFirstVertex,
                                     int(std::lround(rules.scale_m / in.spacing_m)));
@@ -222,7 +280,7 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
       SurfaceSample per_scale[kMaxRuleScales];
       bool data = !std::isnan(wh(in.heights_m, i, j));
       for (size_t s = 0; s < scales && data; ++s) {
-        data = measure_field(in, field[s], i, j, per_scale[s]);
+        data = measure_field(in, field[s], i, j, per_scale[s], needs[s]);
         if (rules.band_limit_noise) per_scale[s].min_noise_wavelength_m = 4.0 * in.spacing_m;
       }
       has[e] = data;

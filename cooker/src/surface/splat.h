@@ -2,6 +2,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "materials.h"
 #include "surface_layers.h"
@@ -21,7 +22,15 @@ struct SplatLattice {
 // Returns false when the vertex has no data.
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out);
 
-void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out);
+// Gaussian-filtered heights of the window (sigma scale_m, radius 2 sigma capped by the margin) at
+// the vertices the splat lattice measures (-8 .. 136; the rest of `out` is NaN): a normalized
+// convolution in a fixed summation order (splat.cpp). False (out untouched) when sigma is under
+// half a spacing: the lattice then reads the raw heights.
+bool filter_heights(const float* h, double scale_m, double spacing_m, std::vector<float>& out);
+
+// fields_seconds (optional): CPU seconds spent on the filtered height fields (the report's split).
+void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
+                           double* fields_seconds = nullptr);
 void copy_node_splat(const SplatLattice& lattice, std::array<uint8_t, kSplatCount>& splat);
 
 // 132x132 RGBA8 (sRGB colour, alpha 0 = hole at the texel's south-west vertex): the bilinear blend

@@ -16,17 +16,20 @@
 #include "terrain/surface_contract.h"
 
 namespace terrain::cook {
-namespace {
-
 // Stage times are CPU time of the calling thread (the cooker runs nodes on several threads; a
 // per-core budget is what matters, and wall time would include other threads' work).
-double thread_seconds() {
+double thread_cpu_seconds() {
   timespec t;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
-}  // namespace
+const char* cpu_part_name(CpuPart p) {
+  static constexpr const char* kNames[kCpuParts] = {
+      "splat_fields", "splat_rules", "cones_normals", "cones_fit",   "cones_bc3",   "normals_texels", "normals_bc3", "albedo_bake",
+      "albedo_bc1",   "checks",      "zstd_heights",  "zstd_normals", "zstd_albedo", "zstd_splat",     "zstd_cones"};
+  return size_t(p) < kCpuParts ? kNames[size_t(p)] : "?";
+}
 
 Bc1Method albedo_method(BcQuality q) {
   switch (q) {
@@ -145,39 +148,54 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   if (in.overlays) return cook_with_overlays(in, node_heights, height_offset, step_log2, out, stats);
   const MaterialRules& rules = *in.rules;
 
+  // Each layer's steps are laps of one clock (CpuPart order); the four layer times are their sums.
+  std::array<double, kCpuParts> lap{};
+  double t = thread_cpu_seconds();
+  auto next_lap = [&](CpuPart part) {
+    const double now = thread_cpu_seconds();
+    lap[size_t(part)] = now - t;
+    t = now;
+  };
+
   // Splat (first: the albedo is baked from it).
-  double t0 = thread_seconds();
   SplatLattice lattice;
-  compute_splat_lattice(in, rules, lattice);
+  compute_splat_lattice(in, rules, lattice, &lap[size_t(CpuPart::splat_fields)]);
   copy_node_splat(lattice, out.splat);
-  const double t_splat = thread_seconds() - t0;
+  next_lap(CpuPart::splat_rules);
+  lap[size_t(CpuPart::splat_rules)] -= lap[size_t(CpuPart::splat_fields)];
 
   // Cones (from the node's quantized heights, before `out` may overwrite them: out may alias).
-  t0 = thread_seconds();
   static thread_local PatchNormals patch_normals;
   collect_patch_normals(node_heights, height_offset, step_log2, in.spacing_m, in.holes, patch_normals);
+  next_lap(CpuPart::cones_normals);
   Cone cones[kPatchCount];
   for (int k = 0; k < kPatchCount; ++k) cones[k] = smallest_enclosing_cone(patch_normals.patch(k));
+  next_lap(CpuPart::cones_fit);
   ConeStats cone_stats;
   if (!encode_patch_cones(patch_normals, cones, out.cones_bc3.data(), &cone_stats))
     return Status::failure(Error::internal, "node " + node_name(in.key) + ": a decoded patch cone does not contain its normals");
-  const double t_cones = thread_seconds() - t0;
+  next_lap(CpuPart::cones_bc3);
 
   // Normals.
-  t0 = thread_seconds();
   static thread_local NormalTexels normals;
   static thread_local std::array<uint8_t, kTexelCount * 4> normal_rgba;
   compute_normal_texels(in, normals);
   pack_normal_texels(normals, normal_rgba);
+  next_lap(CpuPart::normals_texels);
   encode_bc3_image(normal_rgba.data(), normals_method(in.bc_quality), out.normals_bc3.data());
-  const double t_normals = thread_seconds() - t0;
+  next_lap(CpuPart::normals_bc3);
 
   // Albedo.
-  t0 = thread_seconds();
   static thread_local std::array<uint8_t, kTexelCount * 4> albedo_rgba;
   bake_albedo(in, rules, lattice, albedo_rgba.data());
+  next_lap(CpuPart::albedo_bake);
   encode_bc1_image(albedo_rgba.data(), albedo_method(in.bc_quality), out.albedo_bc1.data());
-  const double t_albedo = thread_seconds() - t0;
+  next_lap(CpuPart::albedo_bc1);
+  const auto sum = [&](CpuPart a, CpuPart b) { return lap[size_t(a)] + lap[size_t(b)]; };
+  const double t_splat = sum(CpuPart::splat_fields, CpuPart::splat_rules);
+  const double t_cones = sum(CpuPart::cones_normals, CpuPart::cones_fit) + lap[size_t(CpuPart::cones_bc3)];
+  const double t_normals = sum(CpuPart::normals_texels, CpuPart::normals_bc3);
+  const double t_albedo = sum(CpuPart::albedo_bake, CpuPart::albedo_bc1);
 
   if (stats) {
     stats->seconds_splat += t_splat;
@@ -197,6 +215,8 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
     stats->cone_encoded_deg_sum += cone_stats.mean_encoded_deg * cone_stats.patches;
     stats->cone_patches += uint64_t(cone_stats.patches);
     stats->cone_patches_never_cull += uint64_t(cone_stats.patches_never_cull);
+    next_lap(CpuPart::checks);
+    for (size_t k = 0; k < kCpuParts; ++k) stats->seconds_parts[k] += lap[k];
   }
   return Status::success();
 }

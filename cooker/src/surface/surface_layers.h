@@ -1,6 +1,7 @@
 // Contract between the height pyramid (cooker/src) and the surface layers (cooker/src/surface):
 // everything of a node's payload except its heights, cooked from the canonical quantized heights.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -75,10 +76,33 @@ struct SurfaceInput {
   const SurfaceOverlays* overlays = nullptr;
 };
 
+// Finer split of a node's CPU time for the cook report: the parts of the four layer times (per step
+// and per block encoder), the error checks below, and zstd per payload section (the parts of the
+// cooker's encode time, filled by node_cook.cpp). Contiguous laps of one thread CPU clock.
+enum class CpuPart : uint8_t {
+  splat_fields,    // Gaussian-filtered height fields of the rule scales
+  splat_rules,     // per-sample attributes, rules, despeckle
+  cones_normals,   // triangle normals incl. stitching variants
+  cones_fit,       // smallest enclosing cones
+  cones_bc3,       // conservative BC3 encoding and its checks
+  normals_texels,  // texel normals, AO, channel packing
+  normals_bc3,     // BC3 encoder
+  albedo_bake,     // splat-baked (or orthophoto) colours
+  albedo_bc1,      // BC1 encoder
+  checks,          // error statistics (decode and compare) for the report
+  zstd_heights, zstd_normals, zstd_albedo, zstd_splat, zstd_cones,
+  count
+};
+inline constexpr size_t kCpuParts = size_t(CpuPart::count);
+const char* cpu_part_name(CpuPart p);
+// Seconds of the calling thread's CPU clock (a system call: call it a few times per node only).
+double thread_cpu_seconds();
+
 struct SurfaceStats {  // summed over nodes by the caller
   // CPU time of the calling thread per stage (compression included; the error statistics below are
   // measured outside these times).
   double seconds_normals = 0, seconds_albedo = 0, seconds_splat = 0, seconds_cones = 0;
+  std::array<double, kCpuParts> seconds_parts{};  // by CpuPart (checks and zstd outside the four above)
   double normal_err_max_deg = 0, normal_err_sum_deg = 0;  // decoded BC3 vs float normals
   uint64_t normal_samples = 0;
   double albedo_sq_err_sum = 0;  // decoded BC1 vs uncompressed, over opaque texels (for PSNR)

@@ -4,6 +4,7 @@
 // A writer destroyed or failed before finish() removes its temp file: any earlier archive at
 // `path` stays untouched.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -29,7 +30,13 @@ struct PayloadOptions {
 
 // Encodes one node's payload (section table + zstd sections) into `out` (replaced).
 // Thread-safe; deterministic for the same inputs and options.
-Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out);
+// timing (optional): the calling thread's CPU clock (CLOCK_THREAD_CPUTIME_ID, seconds) read after
+// each section is encoded, in section order (heights, normals, albedo, splat, cones).
+struct PayloadTiming {
+  std::array<double, 5> section_end_s{};
+};
+Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out,
+                           PayloadTiming* timing = nullptr);
 
 // Decodes `bytes` (one node's stored payload, checksum already verified or not) into `out`.
 // Only the sections in `sections` are written. Safe on any bytes: bounds-checked, never trusts sizes.

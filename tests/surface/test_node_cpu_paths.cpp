@@ -1,0 +1,154 @@
+// The node-CPU rewrites (cooker/src/surface) against the plain loops they replaced, value for value:
+// the splat height filter on real DEM nodes (inner nodes and data-edge nodes with NaN in the window),
+// the aspect mask's wrap without fmod, and the branch-free atan2 of the normal-error statistics.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "fast_math.h"
+#include "materials.h"
+#include "splat.h"
+#include "surface_test_support.h"
+#include "test_data.h"
+
+using namespace terrain;
+using namespace terrain::cook;
+
+namespace {
+
+// The per-vertex filter as it was before the SIMD-friendly restatement (splat.cpp at 0aabd17).
+bool reference_filter(const float* h, double scale_m, double spacing_m, std::vector<float>& out) {
+  auto wh = [&](int i, int j) { return h[size_t((j + kWindowMargin) * kWindowSize + (i + kWindowMargin))]; };
+  constexpr int kReach = 8, kMaxRadius = kWindowMargin - kReach;
+  double sigma = scale_m / spacing_m;
+  if (sigma < 0.5) return false;
+  int radius = int(std::ceil(2.0 * sigma));
+  if (radius > kMaxRadius) {
+    radius = kMaxRadius;
+    sigma = radius / 2.0;
+  }
+  float w[2 * kMaxRadius + 1];
+  for (int d = -radius; d <= radius; ++d) w[d + radius] = float(std::exp(-0.5 * d * d / (sigma * sigma)));
+  const int lo = -kReach, hi = kHeightSamples - 1 + kReach;
+  out.assign(size_t(kWindowCount), NAN);
+  std::vector<float> sum(size_t(kWindowCount), 0.0f), weight(size_t(kWindowCount), 0.0f);
+  for (int j = lo - radius; j <= hi + radius; ++j)
+    for (int i = lo; i <= hi; ++i) {
+      float sv = 0, sw = 0;
+      for (int d = -radius; d <= radius; ++d) {
+        const float v = wh(i + d, j);
+        if (!std::isnan(v)) { sv += w[d + radius] * v; sw += w[d + radius]; }
+      }
+      const size_t k = size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin);
+      sum[k] = sv;
+      weight[k] = sw;
+    }
+  for (int j = lo; j <= hi; ++j)
+    for (int i = lo; i <= hi; ++i) {
+      if (std::isnan(wh(i, j))) continue;
+      float sv = 0, sw = 0;
+      for (int d = -radius; d <= radius; ++d) {
+        const size_t k = size_t((j + d + kWindowMargin) * kWindowSize + i + kWindowMargin);
+        sv += w[d + radius] * sum[k];
+        sw += w[d + radius] * weight[k];
+      }
+      out[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] = sv / sw;
+    }
+  return true;
+}
+
+// Compares the lattice's region (-8 .. 136) bit for bit; returns the number of differing vertices.
+int differing(const std::vector<float>& a, const std::vector<float>& b) {
+  int n = 0;
+  for (int j = -8; j <= kHeightSamples - 1 + 8; ++j)
+    for (int i = -8; i <= kHeightSamples - 1 + 8; ++i) {
+      const size_t k = size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin);
+      n += std::memcmp(&a[k], &b[k], sizeof(float)) != 0;
+    }
+  return n;
+}
+
+}  // namespace
+
+TEST(NodeCpuPaths, SplatFilterMatchesThePerVertexLoopOnRealNodes) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  int inner = 0, edge = 0;
+  std::vector<float> fast, slow;
+  for (uint32_t level : {0u, 2u, 4u}) {
+    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+    const uint32_t step_x = std::max(1u, nx / 5), step_y = std::max(1u, ny / 5);
+    for (uint32_t y = 0; y < ny; y += step_y)
+      for (uint32_t x = 0; x < nx; x += step_x) {
+        bench::DemNode n;
+        bench::make_dem_node(dem, level, x, y, 2, n);
+        if (n.data_vertices == 0) continue;
+        bool any_nan = false;
+        for (float v : n.window) any_nan = any_nan || std::isnan(v);
+        (any_nan ? edge : inner) += 1;
+        // The built-in rule scales (16 m, 1 m) and one whose radius is not capped at any level here.
+        for (double scale : {16.0, 1.0, 3.0}) {
+          fast.clear();
+          const bool f = filter_heights(n.window.data(), scale, n.spacing_m, fast);
+          const bool s = reference_filter(n.window.data(), scale, n.spacing_m, slow);
+          ASSERT_EQ(f, s) << "level " << level << " scale " << scale;
+          if (f) EXPECT_EQ(differing(fast, slow), 0) << "level " << level << " node " << x << "," << y << " scale " << scale;
+        }
+      }
+  }
+  // Both paths of the filter ran: windows with data everywhere and windows cut by the sea (NaN).
+  EXPECT_GT(inner, 5);
+  EXPECT_GT(edge, 5);
+}
+
+TEST(NodeCpuPaths, AspectMaskEqualsTheFmodFormula) {
+  // aspect_mask_value() as written with fmod before.
+  auto reference = [](const MaskRange& m, double aspect) {
+    const double lo = std::fmod(std::fmod(m.lo, 360.0) + 360.0, 360.0);
+    const double width = std::fmod(std::fmod(m.hi - m.lo, 360.0) + 360.0, 360.0);
+    const double into = std::fmod(std::fmod(aspect - lo, 360.0) + 360.0, 360.0);
+    double outside = 0;
+    if (into > width) outside = std::min(into - width, 360.0 - into);
+    if (m.fade <= 0) return outside > 0 ? 0.0 : 1.0;
+    const double inside_depth = outside > 0 ? -outside : std::min(into, width - into);
+    return std::clamp(inside_depth * m.inv_fade + 0.5, 0.0, 1.0);
+  };
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> deg(0.0, 360.0);
+  const double edges[] = {0.0, -0.0, 1e-300, 359.99999999999994, 360.0, 180.0, 90.0, 1e-13, 359.9999999999999};
+  int checked = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    MaskRange m;
+    m.active = true;
+    m.lo = trial < 81 ? edges[trial % 9] : deg(rng);
+    m.hi = trial < 81 ? edges[trial / 9] : deg(rng);
+    m.fade = trial % 3 == 0 ? 0.0 : 40.0;
+    m.inv_fade = m.fade > 0 ? 1.0 / m.fade : 0.0;
+    for (int k = 0; k < 20; ++k) {
+      const double a = k < 9 ? edges[k] : deg(rng);
+      const double got = aspect_mask_value(m, a), want = reference(m, a);
+      ASSERT_EQ(std::memcmp(&got, &want, sizeof got), 0) << m.lo << " " << m.hi << " " << a;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 80000);
+}
+
+TEST(NodeCpuPaths, BranchFreeAtan2EqualsTheBranchyOne) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double specials[] = {0.0, -0.0, 1e-300, 1.0, 2.0, 1e300, 0.5};
+  int n = 0;
+  for (int k = 0; k < 200000; ++k) {
+    double y = std::fabs(u(rng)), x = u(rng);
+    if (k < 49) y = specials[k % 7], x = (k / 7) % 2 ? -specials[k / 7] : specials[k / 7];
+    const double a = fast_atan2_pos(y, x), b = fast_atan2_pos_select(y, x);
+    ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0) << y << " " << x;
+    ++n;
+  }
+  EXPECT_EQ(n, 200000);
+}
