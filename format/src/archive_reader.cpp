@@ -28,8 +28,8 @@ struct ArchiveReader::Impl {
   detail::Header header;
   WorldInfo world;
   std::vector<NodeRecord> nodes;
-  std::array<uint32_t, kLevelCount> per_level{};
-  std::array<size_t, kLevelCount + 1> level_begin{};
+  std::array<uint32_t, kMaxLevels> per_level{};
+  std::array<size_t, kMaxLevels + 1> level_begin{};
 
   ~Impl() {
     if (mapped && map) ::munmap(const_cast<uint8_t*>(map), size);
@@ -51,7 +51,7 @@ struct ArchiveReader::Impl {
     per_level.fill(0);
     for (const NodeRecord& r : nodes) ++per_level[r.key.level];
     level_begin[0] = 0;
-    for (int l = 0; l < kLevelCount; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
+    for (int l = 0; l < kMaxLevels; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
     return Status::success();
   }
 };
@@ -123,7 +123,7 @@ std::span<const NodeRecord> ArchiveReader::nodes() const {
 }
 
 int64_t ArchiveReader::find(const NodeKey& key) const {
-  if (!impl_ || key.level >= uint32_t(kLevelCount)) return -1;
+  if (!impl_ || key.level >= uint32_t(terrain::level_count(impl_->world))) return -1;
   const auto begin = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level]);
   const auto end = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level + 1]);
   const auto it = std::lower_bound(begin, end, key, [](const NodeRecord& r, const NodeKey& k) { return key_less(r.key, k); });
@@ -131,8 +131,15 @@ int64_t ArchiveReader::find(const NodeKey& key) const {
   return it - impl_->nodes.begin();
 }
 
-std::array<uint32_t, kLevelCount> ArchiveReader::nodes_per_level() const {
-  return impl_ ? impl_->per_level : std::array<uint32_t, kLevelCount>{};
+std::vector<uint32_t> ArchiveReader::nodes_per_level() const {
+  if (!impl_) return {};
+  return {impl_->per_level.begin(), impl_->per_level.begin() + terrain::level_count(impl_->world)};
+}
+int ArchiveReader::level_count() const { return impl_ ? terrain::level_count(impl_->world) : 0; }
+int ArchiveReader::top_level() const { return impl_ ? terrain::top_level(impl_->world) : -1; }
+std::span<const NodeRecord> ArchiveReader::level_nodes(int level) const {
+  if (!impl_ || level < 0 || level >= level_count()) return {};
+  return std::span<const NodeRecord>(impl_->nodes).subspan(impl_->level_begin[size_t(level)], impl_->per_level[size_t(level)]);
 }
 
 std::span<const uint8_t> ArchiveReader::payload(size_t index) const {
@@ -188,7 +195,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
     NodeData& d = *node_data;
     if (Status s = decode_node(index, d, sections); !s.ok()) return s;
     const NodeRecord& r = nodes[index];
-    const int step = world.step_log2[r.key.level];
+    const int step = level_step_log2(world, int(r.key.level));
     for (size_t k = 0; k < size_t(kHeightCount); ++k) g.units[k] = vertex_units(r.height_offset, d.heights[k], step);
     decode_hole_mask(d, g.holes.data());
     return Status::success();
@@ -250,7 +257,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
                              [](int u, int v, int& ou, int& ov) { ou = u; ov = kQuadsPerSide; return v == 0; }, "south neighbour");
           !s.ok())
         return s;
-    if (r.key.level < uint32_t(kRootLevel)) {
+    if (r.key.level < uint32_t(terrain::top_level(world))) {  // overview levels too (SPEC 19)
       const int cx = int(r.key.x & 1) * 64, cy = int(r.key.y & 1) * 64;
       if (Status s = compare(parent_of(r.key),
                              [cx, cy](int u, int v, int& ou, int& ov) {

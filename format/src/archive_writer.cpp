@@ -133,7 +133,7 @@ Status ArchiveWriter::finish(const WorldInfo& world) {
   for (const NodeRecord& r : w.records)
     if (Status s = detail::validate_record(r, &world); !s.ok()) return w.fail(s);
   const uint64_t payload_size = w.offset - layout::kHeaderSize;
-  if (Status s = detail::validate_directory(w.records, layout::kHeaderSize, payload_size); !s.ok()) return w.fail(s);
+  if (Status s = detail::validate_directory(w.records, layout::kHeaderSize, payload_size, top_level(world)); !s.ok()) return w.fail(s);
 
   std::vector<uint8_t> directory(w.records.size() * layout::kEntrySize);
   for (size_t i = 0; i < w.records.size(); ++i) detail::encode_entry(w.records[i], directory.data() + i * layout::kEntrySize);

@@ -207,6 +207,18 @@ Status validate_world(const WorldInfo& w) {
   for (int l = 0; l < kLevelCount; ++l)
     if (w.step_log2[l] > layout::kMaxStepLog2)
       return bad("step_log2[" + std::to_string(l) + "] = " + std::to_string(w.step_log2[l]) + " exceeds 14");
+  if (w.overview_step_log2.size() > size_t(kMaxOverviewLevels))
+    return bad("overview_levels declares " + std::to_string(w.overview_step_log2.size()) + " levels, more than 14");
+  for (size_t k = 0; k < w.overview_step_log2.size(); ++k) {
+    const int level = kLevelCount + int(k);
+    if (w.overview_step_log2[k] > layout::kMaxStepLog2)
+      return bad("overview_levels: step_log2 of level " + std::to_string(level) + " = " + std::to_string(w.overview_step_log2[k]) + " exceeds 14");
+    // Section 7's crack-free rule needs a coarser level's step to be a multiple of every finer one.
+    if (w.overview_step_log2[k] < level_step_log2(w, level - 1))
+      return bad("overview_levels: step_log2 of level " + std::to_string(level) + " (" + std::to_string(w.overview_step_log2[k]) +
+                 ") is below level " + std::to_string(level - 1) + "'s (" + std::to_string(level_step_log2(w, level - 1)) +
+                 "): steps never decrease upward");
+  }
   if (w.palette.size() > layout::kMaxPaletteCount) return bad("palette has more than 256 materials");
   for (size_t i = 0; i < w.palette.size(); ++i) {
     const Material& m = w.palette[i];
@@ -237,6 +249,11 @@ std::vector<uint8_t> encode_extensions(const WorldInfo& w) {
     std::memcpy(out.data() + at + layout::kExtensionHeaderSize, bytes.data(), bytes.size());
   };
   if (w.crs.kind == ProjectionKind::proj) add(layout::kExtensionFrameDefinition, w.crs.definition);
+  if (!w.overview_step_log2.empty()) {
+    std::string record(1, char(w.overview_step_log2.size()));
+    record.append(w.overview_step_log2.begin(), w.overview_step_log2.end());
+    add(layout::kExtensionOverviewLevels, record);
+  }
   return out;
 }
 
@@ -257,6 +274,11 @@ Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
     if (tag == layout::kExtensionFrameDefinition) {
       if (size == 0 || size > layout::kMaxFrameDefinitionSize) return bad("frame_definition size " + std::to_string(size));
       w.crs.definition.assign(text, size);
+    } else if (tag == layout::kExtensionOverviewLevels) {
+      const uint8_t* data = bytes.data() + body;
+      if (size < 2 || size != 1u + data[0] || data[0] == 0)
+        return bad("overview_levels record of " + std::to_string(size) + " bytes: expected 1 + K bytes with K >= 1");
+      w.overview_step_log2.assign(data + 1, data + size);  // ranges: validate_world
     } else if (!(tag & layout::kExtensionOptional)) {
       return bad("unknown required tag " + std::to_string(tag) + " (written by a newer writer)");
     }
@@ -267,7 +289,8 @@ Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
 }  // namespace
 
 uint32_t required_format_version(const WorldInfo& w) {
-  return w.crs.kind == ProjectionKind::proj ? layout::kFormatVersionV2 : layout::kFormatVersion;
+  const bool v2 = w.crs.kind == ProjectionKind::proj || !w.overview_step_log2.empty();
+  return v2 ? layout::kFormatVersionV2 : layout::kFormatVersion;
 }
 
 void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
@@ -367,10 +390,13 @@ void encode_entry(const NodeRecord& r, uint8_t out[layout::kEntrySize]) {
 Status validate_record(const NodeRecord& r, const WorldInfo* world) {
   const std::string where = "node " + node_name(r.key) + ": ";
   auto bad = [&](std::string msg) { return fail(Error::directory_invalid, where + msg); };
-  if (r.key.level >= uint32_t(kLevelCount)) return bad("level must be 0..5");
+  const int levels = world ? level_count(*world) : kMaxLevels;
+  if (r.key.level >= uint32_t(levels))
+    return bad("level must be 0.." + std::to_string(levels - 1) +
+               (world && levels == kLevelCount ? " (the archive declares no overview levels)" : ""));
   if (world) {
-    const uint64_t nx = uint64_t(world->roots_x) << (kRootLevel - int(r.key.level));
-    const uint64_t ny = uint64_t(world->roots_y) << (kRootLevel - int(r.key.level));
+    const uint64_t nx = level_grid_cells(world->roots_x, int(r.key.level));
+    const uint64_t ny = level_grid_cells(world->roots_y, int(r.key.level));
     if (r.key.x >= nx || r.key.y >= ny)
       return bad("outside the level's node grid " + std::to_string(nx) + " x " + std::to_string(ny));
   }
@@ -405,10 +431,10 @@ Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, con
       return fail(Error::payload_out_of_bounds, "node " + node_name(r.key) + ": payload [" + std::to_string(r.payload_offset) +
                                                     ", +" + std::to_string(r.payload_size) + ") is outside the payload section");
   }
-  return validate_directory(out, header.payload_offset, header.payload_size);
+  return validate_directory(out, header.payload_offset, header.payload_size, top_level(world));
 }
 
-Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size) {
+Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size, int top) {
   for (size_t i = 1; i < nodes.size(); ++i)
     if (!key_less(nodes[i - 1].key, nodes[i].key))
       return fail(Error::directory_invalid, "entry " + std::to_string(i) + " (node " + node_name(nodes[i].key) +
@@ -443,8 +469,15 @@ Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_of
                                                     (has ? " is clear but child " : " is set but child ") +
                                                     node_name(child_of(r.key, c)) + (has ? " exists" : " is absent"));
       }
-    if (r.key.level < uint32_t(kRootLevel) && !exists(parent_of(r.key)))
-      return fail(Error::directory_invalid, "node " + node_name(r.key) + ": parent " + node_name(parent_of(r.key)) + " is absent");
+    if (r.key.level < uint32_t(top) && !exists(parent_of(r.key)))
+      return fail(Error::directory_invalid, "node " + node_name(r.key) + ": parent " + node_name(parent_of(r.key)) + " is absent" +
+                                                (r.key.level >= uint32_t(kRootLevel) ? " (overview levels are closed upward, SPEC 19)" : ""));
+  }
+  if (top > kRootLevel) {  // SPEC 19: a small top that a runtime can keep resident
+    const auto top_nodes = size_t(std::count_if(nodes.begin(), nodes.end(), [top](const NodeRecord& r) { return r.key.level == uint32_t(top); }));
+    if (top_nodes > kMaxTopNodes)
+      return fail(Error::directory_invalid, "the top level " + std::to_string(top) + " has " + std::to_string(top_nodes) +
+                                                " nodes, more than " + std::to_string(kMaxTopNodes) + " (SPEC 19)");
   }
   return Status::success();
 }

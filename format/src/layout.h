@@ -40,8 +40,9 @@ Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, con
 // Checks one record's own fields (no cross-node checks). `where` prefixes messages.
 Status validate_record(const NodeRecord& r, const WorldInfo* world);
 // Cross-node checks of a key-sorted directory: strict order, payloads tile the payload region,
-// child masks match the directory, every non-root node has its parent.
-Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size);
+// child masks match the directory, every node below `top` (the archive's top_level()) has its
+// parent, and with overview levels the top level holds at most kMaxTopNodes nodes.
+Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size, int top);
 
 
 }  // namespace terrain::detail

@@ -33,8 +33,8 @@ std::string key_text(const NodeKey& k) { return fmt::format("{}/{}/{}", k.level,
 
 struct Facts {
   SectionBytes sections;
-  std::array<uint32_t, kLevelCount> per_level{};
-  std::array<float, kLevelCount> max_error{};
+  std::vector<uint32_t> per_level;  // levels 0 .. top (overview levels included, SPEC 19)
+  std::array<float, kMaxLevels> max_error{};
   int32_t min_units = 0, max_units = 0;
   bool any = false;
 };
@@ -73,9 +73,13 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
                    w.extent_min_y_m, w.extent_max_y_m, (w.extent_max_x_m - w.extent_min_x_m) / 1000,
                    (w.extent_max_y_m - w.extent_min_y_m) / 1000);
   o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m\n";
-  for (int l = kLevelCount - 1; l >= 0; --l)
-    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}\n", l, node_size_m(l), vertex_spacing_m(l),
-                     1000.0 * double(1 << w.step_log2[size_t(l)]) * kHeightUnitM, f.per_level[size_t(l)], f.max_error[size_t(l)]);
+  for (int l = level_count(w) - 1; l >= 0; --l)
+    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}{}\n", l, node_size_m(l), vertex_spacing_m(l),
+                     1000.0 * double(1 << level_step_log2(w, l)) * kHeightUnitM, f.per_level[size_t(l)], f.max_error[size_t(l)],
+                     l > kRootLevel ? "  overview" : "");
+  if (level_count(w) > kLevelCount)
+    o << fmt::format("overview   {} levels above the roots (6..{}), top level {} holds {} nodes\n", level_count(w) - kLevelCount,
+                     top_level(w), top_level(w), f.per_level[size_t(top_level(w))]);
   if (f.any)
     o << fmt::format("heights    {:.3f} .. {:.3f} m\n", units_to_metres(f.min_units), units_to_metres(f.max_units));
   o << "sections   section     stored_bytes      raw_bytes  ratio\n";
@@ -113,10 +117,12 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   j["origin_m"] = {w.origin_x_m, w.origin_y_m};
   j["roots"] = {w.roots_x, w.roots_y};
   j["extent_m"] = {{"min_x", w.extent_min_x_m}, {"min_y", w.extent_min_y_m}, {"max_x", w.extent_max_x_m}, {"max_y", w.extent_max_y_m}};
-  for (int l = 0; l < kLevelCount; ++l)
+  for (int l = 0; l < level_count(w); ++l)
     j["levels"].push_back({{"level", l}, {"node_size_m", node_size_m(l)}, {"vertex_spacing_m", vertex_spacing_m(l)},
-                           {"step_log2", w.step_log2[size_t(l)]}, {"nodes", f.per_level[size_t(l)]},
-                           {"max_geometric_error_m", f.max_error[size_t(l)]}});
+                           {"step_log2", level_step_log2(w, l)}, {"nodes", f.per_level[size_t(l)]},
+                           {"max_geometric_error_m", f.max_error[size_t(l)]}, {"overview", l > kRootLevel}});
+  j["overview_levels"] = level_count(w) - kLevelCount;
+  j["top_level"] = top_level(w);
   if (f.any) j["height_range_m"] = {units_to_metres(f.min_units), units_to_metres(f.max_units)};
   uint64_t st = 0, rw = 0;
   for (size_t s = 0; s < layout::kSectionCount; ++s) {
@@ -250,7 +256,7 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
   if (ec) return Status::failure(Error::io_write, dir + ": cannot create: " + ec.message());
   const NodeRecord& r = reader.nodes()[size_t(index)];
   const WorldInfo& w = reader.world();
-  const int step = w.step_log2[key.level];
+  const int step = level_step_log2(w, int(key.level));
   std::vector<uint8_t> holes(static_cast<size_t>(kHeightCount));
   decode_hole_mask(*d, holes.data());
   auto file = [&](const char* name) {

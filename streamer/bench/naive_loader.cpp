@@ -4,7 +4,7 @@ namespace terrain::bench {
 
 NaiveLoader::NaiveLoader(const ArchiveReader& reader, const StreamerConfig& config)
     : reader_(reader), config_(config), tree_(detail::build_node_tree(reader)) {
-  params_ = detail::make_wanted_params(config, uint32_t(tree_.roots.size()));
+  params_ = detail::make_wanted_params(config, uint32_t(tree_.tops.size()));
   data_.resize(tree_.nodes.size());
   failed_.assign(tree_.nodes.size(), 0);
   wanted_flag_.assign(tree_.nodes.size(), 0);

@@ -269,7 +269,7 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
   }
   std::vector<NodeKey> roots;
   for (const NodeRecord& r : s.archive().nodes())
-    if (r.key.level == uint32_t(kRootLevel)) roots.push_back(r.key);
+    if (r.key.level == uint32_t(s.archive().top_level())) roots.push_back(r.key);  // the top nodes: always resident
   Pacer pacer(fps);
   auto frame = [&](const View& v, Result& res) {
     const auto t0 = Clock::now();

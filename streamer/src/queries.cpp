@@ -21,7 +21,7 @@ std::shared_ptr<const NodeSurface> make_node_surface(const ArchiveReader& reader
   const NodeRecord& r = reader.nodes()[index];
   n->key = r.key;
   n->child_mask = r.child_mask;
-  const int step = reader.world().step_log2[r.key.level];
+  const int step = level_step_log2(reader.world(), int(r.key.level));
   n->h.resize(size_t(kHeightCount));
   for (size_t k = 0; k < size_t(kHeightCount); ++k)
     n->h[k] = float(vertex_units(r.height_offset, data.heights[k], step)) * float(kHeightUnitM);  // exact
@@ -90,7 +90,10 @@ void SurfacePublisher::publish(uint64_t frame, const ArchiveReader& reader) {
   snap->origin_y = world.origin_y_m;
   snap->roots_x = world.roots_x;
   snap->roots_y = world.roots_y;
-  snap->root_grid.assign(size_t(world.roots_x) * world.roots_y, -1);
+  snap->top_level = top_level(world);
+  snap->top_x = uint32_t(level_grid_cells(world.roots_x, snap->top_level));
+  snap->top_y = uint32_t(level_grid_cells(world.roots_y, snap->top_level));
+  snap->top_grid.assign(size_t(snap->top_x) * snap->top_y, -1);
   snap->owned.reserve(live_.size());
   snap->nodes.reserve(live_.size());
   for (const auto& [index, s] : live_) {  // directory order: finer levels first
@@ -105,8 +108,8 @@ void SurfacePublisher::publish(uint64_t frame, const ArchiveReader& reader) {
   for (size_t i = 0; i < snap->nodes.size(); ++i) {
     const SnapshotNode& n = snap->nodes[i];
     const NodeKey& k = n.s->key;
-    if (k.level == uint32_t(kRootLevel)) {
-      if (k.x < world.roots_x && k.y < world.roots_y) snap->root_grid[size_t(k.y) * world.roots_x + k.x] = int32_t(i);
+    if (k.level == uint32_t(snap->top_level)) {
+      if (k.x < snap->top_x && k.y < snap->top_y) snap->top_grid[size_t(k.y) * snap->top_x + k.x] = int32_t(i);
       continue;
     }
     const int32_t p = snap->find(parent_of(k));
@@ -136,9 +139,9 @@ using detail::SurfaceSnapshot;
 // Node sizes and vertex spacings are powers of two, so x / size == x * (1 / size) exactly: the
 // multiplications below give SurfaceSampler's divisions bit for bit, at a fraction of the cost.
 struct LevelScales {
-  std::array<double, kLevelCount> inv_size{}, inv_spacing{};
+  std::array<double, kMaxLevels> inv_size{}, inv_spacing{};
   constexpr LevelScales() {
-    for (int l = 0; l < kLevelCount; ++l) {
+    for (int l = 0; l < kMaxLevels; ++l) {
       inv_size[size_t(l)] = 1.0 / node_size_m(l);
       inv_spacing[size_t(l)] = 1.0 / vertex_spacing_m(l);
     }
@@ -189,12 +192,12 @@ bool node_height(const NodeSurface& n, double rx, double ry, double cx, double c
 // point answers, with its neighbours across a shared edge as further candidates.
 // lookup(key, const NodeSurface*&) -> Status; nullptr = no node.
 template <class Lookup>
-Status sample_levels(double rx, double ry, uint32_t roots_x, uint32_t roots_y, Lookup&& lookup, SurfacePoint& out) {
-  for (int level = 0; level < kLevelCount; ++level) {
+Status sample_levels(double rx, double ry, uint32_t roots_x, uint32_t roots_y, int top, Lookup&& lookup, SurfacePoint& out) {
+  for (int level = 0; level <= top; ++level) {  // overview levels answer where no root is resident
     const double size = node_size_m(level);
     const double fx = rx / size, fy = ry / size;
-    const double grid_x = double(uint64_t(roots_x) << (kRootLevel - level));
-    const double grid_y = double(uint64_t(roots_y) << (kRootLevel - level));
+    const double grid_x = double(level_grid_cells(roots_x, level));
+    const double grid_y = double(level_grid_cells(roots_y, level));
     if (fx < 0 || fy < 0 || fx > grid_x || fy > grid_y) return Status::success();
     NodeKey holding[4];
     const int holding_count = nodes_holding_point(level, fx, fy, grid_x, grid_y, holding);
@@ -224,7 +227,7 @@ SurfacePoint resident_height_on_edge(const SurfaceSnapshot& S, double rx, double
     n = i >= 0 ? S.nodes[size_t(i)].s : nullptr;
     return Status::success();
   };
-  (void)sample_levels(rx, ry, S.roots_x, S.roots_y, lookup, out);
+  (void)sample_levels(rx, ry, S.roots_x, S.roots_y, S.top_level, lookup, out);
   if (!(out.hit || out.hole)) return out;
   // Finer data: an archive node of a finer level whose closed square holds the point (none of
   // them is resident, or the level loop would have answered there).
@@ -368,8 +371,8 @@ RayHit resident_raycast(const SurfaceSnapshot& S, const Ray& ray) {
             ray.direction[2] / len,
             ray.max_distance_m,
             {}};
-  // Clip the segment to the root grid's footprint (slabs in x and y).
-  const double R = node_size_m(kRootLevel);
+  // Clip the segment to the root grid's footprint (slabs in x and y), walk the top level's grid.
+  const double R = node_size_m(kRootLevel), T = node_size_m(S.top_level);
   double t0 = 0, t1 = ray.max_distance_m;
   const double o[2] = {w.ox, w.oy}, d[2] = {w.dx, w.dy}, hi[2] = {S.roots_x * R, S.roots_y * R};
   for (int a = 0; a < 2; ++a) {
@@ -383,9 +386,9 @@ RayHit resident_raycast(const SurfaceSnapshot& S, const Ray& ray) {
     t1 = std::min(t1, tb);
   }
   if (t0 > t1) return {};
-  w.walk_grid(0, 0, R, int(S.roots_x), int(S.roots_y), t0, t1, [&](int ix, int iy, double te, double tx) {
-    const int32_t root = S.root_grid[size_t(iy) * S.roots_x + size_t(ix)];
-    if (root >= 0) w.walk_node(root, te, tx);
+  w.walk_grid(0, 0, T, int(S.top_x), int(S.top_y), t0, t1, [&](int ix, int iy, double te, double tx) {
+    const int32_t top = S.top_grid[size_t(iy) * S.top_x + size_t(ix)];
+    if (top >= 0) w.walk_node(top, te, tx);
   });
   if (!w.hit.hit) return {};
   RayHit h = w.hit;
@@ -415,15 +418,18 @@ SurfacePoint ResidentSurface::height_at(double x, double y) const {
   if (!s_ || !std::isfinite(x) || !std::isfinite(y)) return out;
   const SurfaceSnapshot& S = *s_;
   const double rx = x - S.origin_x, ry = y - S.origin_y;
-  // Fast path: descend from the root holding the point through resident children. A point on a
-  // node edge at any level is shared by several nodes: the level loop decides as SurfaceSampler.
-  const double fx = rx * kScales.inv_size[kRootLevel], fy = ry * kScales.inv_size[kRootLevel];
-  if (!(fx >= 0 && fy >= 0 && fx <= S.roots_x && fy <= S.roots_y)) return out;
+  // Fast path: descend from the top node holding the point (a root without overview levels)
+  // through resident children. A point on a node edge at any level is shared by several nodes:
+  // the level loop decides as SurfaceSampler.
+  const double rfx = rx * kScales.inv_size[kRootLevel], rfy = ry * kScales.inv_size[kRootLevel];
+  if (!(rfx >= 0 && rfy >= 0 && rfx <= S.roots_x && rfy <= S.roots_y)) return out;
+  const double fx = rx * kScales.inv_size[size_t(S.top_level)], fy = ry * kScales.inv_size[size_t(S.top_level)];
   double nx = std::floor(fx), ny = std::floor(fy);
   if (nx == fx || ny == fy) return resident_height_on_edge(S, rx, ry);
-  int32_t index = S.root_grid[size_t(ny) * S.roots_x + size_t(nx)];
+  if (nx >= S.top_x || ny >= S.top_y) return out;
+  int32_t index = S.top_grid[size_t(ny) * S.top_x + size_t(nx)];
   if (index < 0) return out;
-  for (int level = kRootLevel; level > 0; --level) {
+  for (int level = S.top_level; level > 0; --level) {
     const SnapshotNode& N = S.nodes[size_t(index)];
     const double inv = kScales.inv_size[size_t(level - 1)];
     const double gx = rx * inv, gy = ry * inv;
@@ -501,7 +507,7 @@ Status ArchiveSurface::height_at(double x, double y, SurfacePoint& out) {
   if (!std::isfinite(x) || !std::isfinite(y)) return Status::failure(Error::invalid_argument, "query point is not finite");
   const WorldInfo& w = impl_->reader.world();
   auto lookup = [&](const NodeKey& k, const NodeSurface*& n) { return impl_->get(k, n); };
-  return sample_levels(x - w.origin_x_m, y - w.origin_y_m, w.roots_x, w.roots_y, lookup, out);
+  return sample_levels(x - w.origin_x_m, y - w.origin_y_m, w.roots_x, w.roots_y, top_level(w), lookup, out);
 }
 
 Status ArchiveSurface::heights_at(std::span<const std::array<double, 2>> points, std::span<SurfacePoint> out) {

@@ -51,12 +51,12 @@ void grow(DirtyRect& r, uint32_t x, uint32_t y) {
 }  // namespace
 
 namespace detail {
-WantedParams make_wanted_params(const StreamerConfig& c, uint32_t roots) {
+WantedParams make_wanted_params(const StreamerConfig& c, uint32_t tops) {
   WantedParams p;
   p.budget_nodes = c.budget_nodes;
   p.error_target_px = c.error_target_px;
   p.prefetch_ratio = c.prefetch_ratio;
-  p.required_budget = std::max(roots, uint32_t(std::floor(double(c.budget_nodes) * (1.0 - c.prefetch_reserve))));
+  p.required_budget = std::max(tops, uint32_t(std::floor(double(c.budget_nodes) * (1.0 - c.prefetch_reserve))));
   p.default_pixels_per_radian = c.default_pixels_per_radian;
   p.outside_frustum_error_scale = c.outside_frustum_error_scale;
   return p;
@@ -64,7 +64,6 @@ WantedParams make_wanted_params(const StreamerConfig& c, uint32_t roots) {
 }  // namespace detail
 
 struct Streamer::Impl {
-  static constexpr uint64_t kNever = ~uint64_t(0);  // frame stamp of "not in any wanted set yet"
   ArchiveReader reader;
   StreamerConfig config;
   detail::WantedParams wanted_params;
@@ -76,12 +75,14 @@ struct Streamer::Impl {
   std::vector<Phase> phase;
   std::vector<uint16_t> slot_of;
   std::vector<NodeData*> data;
-  std::vector<uint64_t> wanted_frame;    // == frame: in the current wanted set
-  std::vector<uint64_t> required_frame;  // == frame: in the current required set
+  std::vector<uint8_t> in_set;           // kWanted | kRequired: in the current wanted / required set
   std::vector<uint32_t> order;           // position in the current wanted set (priority rank)
   std::vector<uint8_t> failed;
+  static constexpr uint8_t kWanted = 1, kRequired = 2;
 
   // GPU-side state.
+  // Index grids of the six FC5 levels only (overview nodes have slots but no cells); empty when
+  // config.index_grids is false.
   std::array<GridSize, kLevelCount> grid_size{};
   std::array<std::vector<uint16_t>, kLevelCount> grids;
   std::vector<SlotDescriptor> slot_table;
@@ -97,7 +98,7 @@ struct Streamer::Impl {
   std::vector<detail::WantedNode> wanted;
   std::vector<uint32_t> resident;  // directory indices
   std::vector<uint32_t> decoded;   // nodes in Phase::decoded
-  uint32_t root_count = 0;
+  uint32_t top_count = 0;  // nodes of the archive's top level: always resident
   detail::SurfacePublisher surfaces;  // terrain/queries.h: snapshots of the resident surface
 
   // Per-frame output.
@@ -124,20 +125,22 @@ struct Streamer::Impl {
   }
 
   void set_cell(const NodeKey& k, uint16_t value) {
+    if (!config.index_grids || k.level >= uint32_t(kLevelCount)) return;
     const GridSize& g = grid_size[k.level];
     grids[k.level][size_t(k.y) * g.width + k.x] = value;
     grow(update.dirty_index[k.level], k.x, k.y);
   }
 
-  Status validate_config(uint32_t roots) {
+  Status validate_config(uint32_t tops, int top) {
     StreamerConfig& c = config;
     auto bad = [](const std::string& what) { return Status::failure(Error::invalid_argument, "streamer config: " + what); };
     if (c.budget_nodes < 1 || c.budget_nodes > kMaxSlots)
       return bad("budget_nodes " + std::to_string(c.budget_nodes) + " is outside 1.." + std::to_string(kMaxSlots));
-    if (c.budget_nodes < roots)
-      return bad("budget_nodes " + std::to_string(c.budget_nodes) + " is smaller than the archive's " +
-                 std::to_string(roots) + " roots (level " + std::to_string(kRootLevel) +
-                 " nodes), which are always resident; raise budget_nodes to at least " + std::to_string(roots));
+    if (c.budget_nodes < tops)
+      return bad("budget_nodes " + std::to_string(c.budget_nodes) + " is smaller than the archive's " + std::to_string(tops) +
+                 (top == kRootLevel ? " roots (level 5 nodes, no overview levels above them: format/SPEC.md section 19)"
+                                    : " top-level nodes (level " + std::to_string(top) + ")") +
+                 ", which are always resident; raise budget_nodes to at least " + std::to_string(tops));
     if (c.fence_frames < 1) return bad("fence_frames must be at least 1");
     if (c.max_deliveries_per_frame < 1) return bad("max_deliveries_per_frame must be at least 1");
     if (!(c.error_target_px > 0) || !std::isfinite(c.error_target_px))
@@ -167,34 +170,34 @@ struct Streamer::Impl {
     if (Status s = reader.open(path); !s.ok()) return s;
     records = reader.nodes();
     const WorldInfo& world = reader.world();
-    if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||
-        world.roots_y > kStreamerMaxRootsPerSide)
+    if (world.roots_x == 0 || world.roots_y == 0 ||
+        (config.index_grids && (world.roots_x > kStreamerMaxRootsPerSide || world.roots_y > kStreamerMaxRootsPerSide)))
       return Status::failure(Error::unsupported_input,
                              "streamer: " + path + ": root grid " + std::to_string(world.roots_x) + "x" +
                                  std::to_string(world.roots_y) + " is outside the streamer's 1.." +
                                  std::to_string(kStreamerMaxRootsPerSide) +
                                  " roots per side (16-bit index grids; format/SPEC.md section 12)");
     tree = detail::build_node_tree(reader);
-    root_count = uint32_t(tree.roots.size());
-    if (root_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
-    if (Status s = validate_config(root_count); !s.ok()) return s;
-    wanted_params = detail::make_wanted_params(config, root_count);
+    top_count = uint32_t(tree.tops.size());
+    if (top_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
+    if (Status s = validate_config(top_count, reader.top_level()); !s.ok()) return s;
+    wanted_params = detail::make_wanted_params(config, top_count);
 
     const size_t n = records.size();
     phase.assign(n, Phase::idle);
     slot_of.assign(n, 0);
     data.assign(n, nullptr);
-    wanted_frame.assign(n, kNever);
-    required_frame.assign(n, kNever);
+    in_set.assign(n, 0);
     order.assign(n, 0);
     failed.assign(n, 0);
 
-    for (int level = 0; level < kLevelCount; ++level) {
+    for (int level = 0; level < kLevelCount && config.index_grids; ++level) {
       const int shift = kRootLevel - level;
       grid_size[size_t(level)] = {world.roots_x << shift, world.roots_y << shift};
       grids[size_t(level)].assign(size_t(grid_size[size_t(level)].width) * grid_size[size_t(level)].height, kIndexNoNode);
     }
     for (const NodeRecord& r : records) {
+      if (!config.index_grids || r.key.level >= uint32_t(kLevelCount)) continue;
       const GridSize& g = grid_size[r.key.level];
       if (r.key.x >= g.width || r.key.y >= g.height)
         return Status::failure(Error::directory_invalid, "streamer: node " + node_name(r.key) +
@@ -206,16 +209,17 @@ struct Streamer::Impl {
     slot_owner.assign(config.slot_count, -1);
     for (uint32_t s = 0; s < config.slot_count; ++s) free_slots.push(uint16_t(s));
 
-    // Roots: loaded by the workers while this thread waits (it never decodes).
+    // Top nodes (roots without overview levels): loaded by the workers while this thread waits
+    // (it never decodes).
     loader = std::make_unique<detail::LoadQueue>(reader, config.sections, config.worker_threads,
                                                  config.budget_nodes + config.max_in_flight);
     std::vector<uint32_t> dropped;
-    loader->publish(tree.roots, dropped);
-    for (uint32_t r : tree.roots) phase[r] = Phase::requested;
+    loader->publish(tree.tops, dropped);
+    for (uint32_t r : tree.tops) phase[r] = Phase::requested;
     std::vector<detail::LoadQueue::Result> results;
     uint32_t done = 0;
     std::optional<Status> first_error;
-    while (done < root_count) {
+    while (done < top_count) {
       results.clear();
       loader->collect(results, /*wait=*/true);
       for (auto& r : results) {
@@ -224,8 +228,10 @@ struct Streamer::Impl {
           loader->free_buffers({&r.data, 1});
           loader->release(1);
           if (!first_error)
-            first_error = Status::failure(r.status.code, "streamer: root node " + node_name(records[r.node].key) +
-                                                             " cannot be loaded (roots are always resident): " +
+            first_error = Status::failure(r.status.code, std::string("streamer: ") +
+                                                             (reader.top_level() == kRootLevel ? "root node " : "top node ") +
+                                                             node_name(records[r.node].key) +
+                                                             " cannot be loaded (top nodes are always resident): " +
                                                              r.status.to_string());
           continue;
         }
@@ -271,17 +277,17 @@ struct Streamer::Impl {
       last_views.assign(views.begin(), views.end());
       have_views = true;
     }
+    for (const detail::WantedNode& w : wanted) in_set[w.index] = 0;  // the previous set: O(wanted), not O(nodes)
     detail::compute_wanted_set(tree, failed, have_views ? std::span<const View>(last_views) : std::span<const View>(),
                                wanted_params, wanted);
     for (uint32_t i = 0; i < wanted.size(); ++i) {
       const uint32_t node = wanted[i].index;
-      wanted_frame[node] = frame;
-      if (wanted[i].required) required_frame[node] = frame;
+      in_set[node] = uint8_t(kWanted | (wanted[i].required ? kRequired : 0));
       order[node] = i;
     }
   }
 
-  bool is_wanted(uint32_t node) const { return wanted_frame[node] == frame; }
+  bool is_wanted(uint32_t node) const { return in_set[node] & kWanted; }
 
   // The wanted nodes of `nodes`, in order; `drop(node)` is called for each of the others.
   template <class Drop>
@@ -326,7 +332,7 @@ struct Streamer::Impl {
       ++to_release;
     });
     std::sort(waiting.begin(), waiting.end(), [&](uint32_t a, uint32_t b) { return order[a] < order[b]; });
-    const uint32_t cap = frame == 1 ? std::max(config.max_deliveries_per_frame, root_count)
+    const uint32_t cap = frame == 1 ? std::max(config.max_deliveries_per_frame, top_count)
                                     : config.max_deliveries_per_frame;
     decoded.clear();
     for (uint32_t node : waiting) {
@@ -408,7 +414,7 @@ struct Streamer::Impl {
     dirty_slots.clear();
     update = FrameUpdate{};
     update.frame = frame;
-    if (frame == 1)  // the caller's first upload: every grid in full
+    if (frame == 1 && config.index_grids)  // the caller's first upload: every grid in full
       for (int level = 0; level < kLevelCount; ++level)
         update.dirty_index[size_t(level)] = {0, 0, grid_size[size_t(level)].width, grid_size[size_t(level)].height};
 
@@ -532,7 +538,7 @@ std::vector<NodeKey> Streamer::wanted_nodes() const {
 }
 std::vector<NodeKey> Streamer::required_nodes() const {
   if (!impl_) return {};
-  return keys_where(impl_->records, [&](uint32_t i) { return impl_->required_frame[i] == impl_->frame; });
+  return keys_where(impl_->records, [&](uint32_t i) { return (impl_->in_set[i] & Impl::kRequired) != 0; });
 }
 
 }  // namespace terrain

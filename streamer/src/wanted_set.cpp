@@ -10,20 +10,15 @@ NodeTree build_node_tree(const ArchiveReader& reader) {
   NodeTree tree;
   const WorldInfo& world = reader.world();
   std::span<const NodeRecord> records = reader.nodes();
+  tree.records = records;
+  tree.origin_x = world.origin_x_m;
+  tree.origin_y = world.origin_y_m;
   tree.nodes.resize(records.size());
+  const auto top = uint32_t(reader.top_level());
   for (size_t i = 0; i < records.size(); ++i) {
     const NodeRecord& r = records[i];
     NodeTree::Node& n = tree.nodes[i];
-    n.level = r.key.level;
-    const double size = node_size_m(int(r.key.level));
-    n.x0 = world.origin_x_m + double(r.key.x) * size;
-    n.y0 = world.origin_y_m + double(r.key.y) * size;
-    n.x1 = n.x0 + size;
-    n.y1 = n.y0 + size;
-    n.z0 = units_to_metres(r.min_height);
-    n.z1 = units_to_metres(r.max_height);
-    n.error_m = double(r.geometric_error_m);
-    if (r.key.level == uint32_t(kRootLevel)) tree.roots.push_back(uint32_t(i));
+    if (r.key.level == top) tree.tops.push_back(uint32_t(i));
     if (r.key.level == 0) continue;
     for (int c = 0; c < 4; ++c) {
       // The child mask is a claim of the record; the directory decides what exists.
@@ -40,8 +35,18 @@ namespace {
 
 double squared(double v) { return v * v; }
 
+struct Box {
+  double x0, y0, x1, y1, z0, z1;
+};
+Box box_of(const NodeTree& tree, uint32_t index) {
+  const NodeRecord& r = tree.records[index];
+  const double size = node_size_m(int(r.key.level));
+  const double x0 = tree.origin_x + double(r.key.x) * size, y0 = tree.origin_y + double(r.key.y) * size;
+  return {x0, y0, x0 + size, y0 + size, units_to_metres(r.min_height), units_to_metres(r.max_height)};
+}
+
 // Distance from a point to an axis-aligned box (0 inside).
-double box_distance(const NodeTree::Node& n, double px, double py, double pz) {
+double box_distance(const Box& n, double px, double py, double pz) {
   const double dx = std::max({n.x0 - px, 0.0, px - n.x1});
   const double dy = std::max({n.y0 - py, 0.0, py - n.y1});
   const double dz = std::max({n.z0 - pz, 0.0, pz - n.z1});
@@ -49,7 +54,7 @@ double box_distance(const NodeTree::Node& n, double px, double py, double pz) {
 }
 
 // True when the box lies entirely on the outer side of some plane.
-bool box_outside_frustum(const NodeTree::Node& n, const View& v) {
+bool box_outside_frustum(const Box& n, const View& v) {
   for (const FrustumPlane& pl : v.frustum) {
     // The corner that maximises the plane function ("p-vertex"), relative to the eye.
     const double qx = (pl.nx >= 0 ? n.x1 : n.x0) - v.x;
@@ -62,12 +67,14 @@ bool box_outside_frustum(const NodeTree::Node& n, const View& v) {
 
 }  // namespace
 
-double projected_error_px(const NodeTree::Node& n, std::span<const View> views, const WantedParams& p) {
+double projected_error_px(const NodeTree& tree, uint32_t index, std::span<const View> views, const WantedParams& p) {
+  const Box n = box_of(tree, index);
+  const double error_m = double(tree.records[index].geometric_error_m);
   double best = 0;
   for (const View& v : views) {
     const double ppr = v.pixels_per_radian > 0 ? v.pixels_per_radian : p.default_pixels_per_radian;
     const double distance = std::max(box_distance(n, v.x, v.y, v.z), 1e-3);
-    double e = n.error_m * ppr / distance;
+    double e = error_m * ppr / distance;
     if (v.has_frustum && box_outside_frustum(n, v)) e *= p.outside_frustum_error_scale;
     best = std::max(best, e);
   }
@@ -100,16 +107,16 @@ void compute_wanted_set(const NodeTree& tree, std::span<const uint8_t> failed, s
     return count;
   };
   auto consider = [&](uint32_t index, double parent_priority, size_t slot_in_out) {
-    const NodeTree::Node& n = tree.nodes[index];
-    if (n.level == 0 || live_children(index) == 0) return;
-    const double e = projected_error_px(n, views, params);
+    const uint32_t level = tree.records[index].key.level;
+    if (level == 0 || live_children(index) == 0) return;
+    const double e = projected_error_px(tree, index, views, params);
     if (!(e > split_threshold)) return;
-    queue.push({std::min(e, parent_priority), n.level, index, slot_in_out, e});
+    queue.push({std::min(e, parent_priority), level, index, slot_in_out, e});
   };
 
-  for (uint32_t root : tree.roots) {
-    if (failed[root]) continue;
-    out.push_back({root, true});
+  for (uint32_t top : tree.tops) {
+    if (failed[top]) continue;
+    out.push_back({top, true});
   }
   if (views.empty()) return;
   for (size_t i = 0; i < out.size(); ++i) consider(out[i].index, INFINITY, i);

@@ -10,18 +10,19 @@
 
 namespace terrain::detail {
 
-// Directory in a form the per-frame computation can walk quickly. Built once at open.
+// Directory in a form the per-frame computation can walk quickly. Built once at open. Per archive
+// node it holds only the links (20 bytes); footprint, heights and error are read from the
+// reader's directory record when a node is considered.
 struct NodeTree {
   struct Node {
     int32_t parent = -1;
     std::array<int32_t, 4> children{-1, -1, -1, -1};  // directory indices, -1 = no child
-    uint32_t level = 0;
-    double x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // footprint, frame metres
-    double z0 = 0, z1 = 0;                  // min/max height, metres
-    double error_m = 0;
   };
-  std::vector<Node> nodes;     // by directory index
-  std::vector<uint32_t> roots; // directory indices of the level-kRootLevel nodes, ascending
+  std::vector<Node> nodes;      // by directory index
+  std::vector<uint32_t> tops;   // directory indices of the top level's nodes, ascending: the roots,
+                                // or the top overview level's nodes (format/SPEC.md section 19)
+  std::span<const NodeRecord> records;  // the reader's directory
+  double origin_x = 0, origin_y = 0;
 };
 
 NodeTree build_node_tree(const ArchiveReader& reader);
@@ -35,18 +36,18 @@ struct WantedParams {
   double outside_frustum_error_scale = 0;
 };
 
-// The parameters of a resolved streamer config (`roots`: the archive's root count).
-WantedParams make_wanted_params(const StreamerConfig& config, uint32_t roots);
+// The parameters of a resolved streamer config (`tops`: the archive's top-level node count).
+WantedParams make_wanted_params(const StreamerConfig& config, uint32_t tops);
 
-// Projected error of node `n` in pixels, max over views (streamer.h formula).
-double projected_error_px(const NodeTree::Node& n, std::span<const View> views, const WantedParams& p);
+// Projected error of node `index` in pixels, max over views (streamer.h formula).
+double projected_error_px(const NodeTree& tree, uint32_t index, std::span<const View> views, const WantedParams& p);
 
 struct WantedNode {
   uint32_t index = 0;     // directory index
   bool required = false;  // in the required set (error target itself, required_budget)
 };
 
-// Fills `out` with the wanted set in split order (roots first in directory order, then the
+// Fills `out` with the wanted set in split order (top nodes first in directory order, then the
 // children of each split in child order): this is also the request priority order.
 // `failed[i]` != 0 excludes node i (and so its subtree).
 void compute_wanted_set(const NodeTree& tree, std::span<const uint8_t> failed, std::span<const View> views,

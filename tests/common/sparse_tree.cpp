@@ -47,6 +47,111 @@ struct Generator {
     return r;
   }
 
+  bool root_exists(uint64_t x, uint64_t y) const {
+    if (x >= spec.roots_x || y >= spec.roots_y) return false;
+    return unit(hash(spec.seed, 1, x, y)) < spec.root_fill || (x == 0 && y == 0);
+  }
+
+  // The units a root stores at its vertex (i, j): what make_payload() writes, without the rest.
+  // The per-node offset is a multiple of the step, so it does not change the rounded value.
+  struct RootVertices {
+    const Generator& gen;
+    uint32_t rx = 0, ry = 0;
+    double h00 = 0, h10 = 0, h01 = 0, h11 = 0;
+    RootVertices(const Generator& g, uint32_t x, uint32_t y) : gen(g), rx(x), ry(y) {
+      const double size = node_size_m(kRootLevel);
+      const double x0 = g.world.origin_x_m + double(x) * size, y0 = g.world.origin_y_m + double(y) * size;
+      h00 = g.height_m(x0, y0);
+      h10 = g.height_m(x0 + size, y0);
+      h01 = g.height_m(x0, y0 + size);
+      h11 = g.height_m(x0 + size, y0 + size);
+    }
+    int32_t units(int i, int j) const {
+      const int step = gen.world.step_log2[kRootLevel];
+      const auto round = [step](int32_t u) { return ((u + ((1 << step) >> 1)) >> step) << step; };
+      if (gen.spec.realistic_payload) {
+        const double s = vertex_spacing_m(kRootLevel), size = node_size_m(kRootLevel);
+        const double x0 = gen.world.origin_x_m + double(rx) * size, y0 = gen.world.origin_y_m + double(ry) * size;
+        return round(int32_t(std::lround(gen.height_m(x0 + i * s, y0 + j * s) * 1024.0)));
+      }
+      return round(bilinear_units(h00, h10, h01, h11, i, j));
+    }
+  };
+
+  static int32_t bilinear_units(double h00, double h10, double h01, double h11, int i, int j) {
+    const double v = double(j) / kQuadsPerSide;
+    const double a = h00 * (1 - v) + h01 * v, b = h10 * (1 - v) + h11 * v;
+    const double u = double(i) / kQuadsPerSide;
+    return int32_t((a * (1 - u) + b * u) * 1024.0);
+  }
+
+  // An overview node (level >= 6): its vertices are the roots' vertices at the same points (the
+  // crack-free rule with the roots' step), holes where no root holds a point; constant surface
+  // layers with the holes marked in the albedo's alpha.
+  void make_overview_payload(NodeRecord& r, NodeData& d) const {
+    const int level = int(r.key.level);
+    const int step = level_step_log2(world, level);
+    const uint64_t f = uint64_t(1) << (level - kRootLevel);  // root-vertex units per vertex of this level
+    std::vector<int32_t> units(kHeightCount);
+    std::vector<uint8_t> hole(kHeightCount, 1);
+    std::vector<std::unique_ptr<RootVertices>> cache;
+    auto root_at = [&](uint32_t x, uint32_t y) -> const RootVertices* {
+      if (!root_exists(x, y)) return nullptr;
+      for (const auto& c : cache)
+        if (c->rx == x && c->ry == y) return c.get();
+      if (cache.size() > 64) cache.erase(cache.begin());
+      cache.push_back(std::make_unique<RootVertices>(*this, x, y));
+      return cache.back().get();
+    };
+    int32_t lo = 0, hi = 0;
+    bool any = false;
+    for (int j = 0; j < kHeightSamples; ++j)
+      for (int i = 0; i < kHeightSamples; ++i) {
+        const uint64_t gx = uint64_t(r.key.x) * 128 * f + uint64_t(i) * f, gy = uint64_t(r.key.y) * 128 * f + uint64_t(j) * f;
+        const RootVertices* holder = nullptr;
+        uint64_t hx = 0, hy = 0;
+        const bool edge_x = gx % 128 == 0 && gx > 0, edge_y = gy % 128 == 0 && gy > 0;
+        for (int c = 0; c < 4 && !holder; ++c) {  // a point on a root edge is held by up to 4 roots
+          if (((c & 1) && !edge_x) || ((c >> 1) && !edge_y)) continue;
+          const uint64_t cx = gx / 128 - uint64_t(c & 1), cy = gy / 128 - uint64_t(c >> 1);
+          holder = root_at(uint32_t(cx), uint32_t(cy));
+          hx = cx;
+          hy = cy;
+        }
+        if (!holder) continue;
+        const size_t k = size_t(j * kHeightSamples + i);
+        units[k] = holder->units(int(gx - hx * 128), int(gy - hy * 128));
+        hole[k] = 0;
+        lo = any ? std::min(lo, units[k]) : units[k];
+        hi = any ? std::max(hi, units[k]) : units[k];
+        any = true;
+      }
+    const int32_t offset = any ? lo : 0;  // a multiple of the step: every value is
+    r.height_offset = offset;
+    r.min_height = any ? lo : offset;
+    r.max_height = any ? hi : offset;
+    d.albedo_bc1.fill(0x11);  // 3-colour BC1 blocks (colour0 <= colour1): index 3 is transparent
+    bool holes = false;
+    for (size_t k = 0; k < units.size(); ++k) {
+      d.heights[k] = hole[k] ? 0 : uint16_t((units[k] - offset) >> step);
+      if (!hole[k]) continue;
+      holes = true;
+      const int tx = int(k % kHeightSamples) + kApron, ty = int(k / kHeightSamples) + kApron;
+      uint8_t& row = d.albedo_bc1[size_t((ty / 4) * kTexelBlocks + tx / 4) * 8 + 4 + size_t(ty % 4)];
+      row = uint8_t(row | (3u << (2 * (tx % 4))));
+    }
+    r.flags = holes ? kNodeFlagHasHoles : 0;
+    d.normals_bc3.fill(0);
+    d.splat.fill(0);
+    d.cones_bc3.fill(0);
+    d.splat[0] = 0x5E;
+    d.splat[1] = uint8_t(r.key.level);
+    d.splat[2] = uint8_t(r.key.x);
+    d.splat[3] = uint8_t(r.key.x >> 8);
+    d.splat[4] = uint8_t(r.key.y);
+    d.splat[5] = uint8_t(r.key.y >> 8);
+  }
+
   // Fills heights (quantized with the level's step), normals/albedo/splat/cones, and the record's heights.
   void make_payload(NodeRecord& r, NodeData& d) const {
     const int level = int(r.key.level);
@@ -76,12 +181,8 @@ struct Generator {
       const auto lo = int32_t(std::min({h00, h10, h01, h11}) * 1024.0);
       offset = (lo >> step) << step;
       for (int j = 0; j < kHeightSamples; ++j) {
-        const double v = double(j) / kQuadsPerSide;
-        const double a = h00 * (1 - v) + h01 * v, b = h10 * (1 - v) + h11 * v;
-        for (int i = 0; i < kHeightSamples; ++i) {
-          const double u = double(i) / kQuadsPerSide;
-          d.heights[size_t(j * kHeightSamples + i)] = quantize(offset, int32_t((a * (1 - u) + b * u) * 1024.0));
-        }
+        for (int i = 0; i < kHeightSamples; ++i)
+          d.heights[size_t(j * kHeightSamples + i)] = quantize(offset, bilinear_units(h00, h10, h01, h11, i, j));
       }
     }
     for (uint16_t r16 : d.heights) {
@@ -176,11 +277,32 @@ Status generate_sparse_tree(const Spec& spec, const WorldInfo& world, const Node
     frontier.swap(next);
   }
   std::sort(records.begin(), records.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+  // Overview levels (SPEC 19): the parents of the level below, up to the top; sorted per level.
+  for (int level = kLevelCount; level < level_count(world); ++level) {
+    std::vector<NodeRecord> parents;
+    for (const NodeRecord& c : records) {
+      if (c.key.level != uint32_t(level - 1)) continue;
+      const NodeKey pk = parent_of(c.key);
+      auto it = std::find_if(parents.rbegin(), parents.rend(), [&](const NodeRecord& p) { return p.key == pk; });
+      if (it == parents.rend()) {
+        parents.push_back(gen.make_record(pk, 0));
+        it = parents.rbegin();
+      }
+      it->child_mask = uint8_t(it->child_mask | (1u << ((c.key.x & 1) | ((c.key.y & 1) << 1))));
+      it->geometric_error_m = std::max(it->geometric_error_m, c.geometric_error_m);  // never below a child's
+    }
+    std::sort(parents.begin(), parents.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+    records.insert(records.end(), parents.begin(), parents.end());
+  }
 
   auto data = std::make_unique<NodeData>();
-  data->albedo_bc1.fill(0x11);  // constant sections of fast payloads (normals, splat, cones stay 0)
   for (NodeRecord& r : records) {
-    gen.make_payload(r, *data);
+    if (r.key.level > uint32_t(kRootLevel)) {
+      gen.make_overview_payload(r, *data);
+    } else {
+      data->albedo_bc1.fill(0x11);  // constant sections of fast payloads (normals, splat, cones stay 0)
+      gen.make_payload(r, *data);
+    }
     if (Status s = sink(r, *data); !s.ok()) return s;
   }
   return Status::success();

@@ -36,6 +36,8 @@ WorldInfo world_info(const Spec& spec) {
   if (spec.shape == Shape::sparse_tree) {
     w.crs.name = "synthetic local frame";
     for (int l = 0; l < kLevelCount; ++l) w.step_log2[size_t(l)] = uint8_t(l + 2);
+    const int k = spec.overview_levels < 0 ? overview_levels_needed(spec.roots_x, spec.roots_y) : spec.overview_levels;
+    w.overview_step_log2.assign(size_t(k), w.step_log2[kRootLevel]);
     Material m;
     m.name = "synthetic";
     w.palette = {m};

@@ -36,6 +36,11 @@ struct Spec {
   double error_scale = 1.0;        // geometric error ~ error_scale * vertex spacing
   uint64_t seed = 1;
   bool realistic_payload = false;  // fractal heights and noisy BC blocks (decode cost like real data)
+  // Overview levels above the roots (format v2, SPEC 19): 0 = none (a version-1 file, as before),
+  // -1 = overview_levels_needed(roots), K > 0 = K levels. Their step is the roots' step and their
+  // heights are the even vertices of their children (holes where no root holds a vertex), so the
+  // crack-free rule holds between roots and overview levels; their albedo is the fast constant one.
+  int overview_levels = 0;
 
   // analytic_surface
   // A node exists when its parent exists and this returns true (default: every node down to level 2).

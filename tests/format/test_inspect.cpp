@@ -10,6 +10,7 @@
 #include "archive_fixture.h"
 #include "inspect.h"
 #include "scratch_archive_test.h"
+#include "synthetic_archive.h"
 #include "test_data.h"
 
 namespace terrain {
@@ -111,6 +112,21 @@ TEST_F(Inspect, SummaryJsonCarriesTheFacts) {
   EXPECT_NE(text.find("\"epsg\": 32605"), std::string::npos);
   EXPECT_NE(text.find("\"nodes\": 6"), std::string::npos);
   EXPECT_NE(text.find("\"tool\": \"test\""), std::string::npos);
+}
+
+TEST_F(Inspect, SummaryShowsOverviewLevels) {
+  synthetic::Spec spec;  // 6 x 6 roots: 36 > 16, one overview level of 3 x 3
+  spec.min_level = 5;
+  spec.overview_levels = -1;
+  ASSERT_TRUE(synthetic::write_archive(path_, spec).ok());
+  ASSERT_TRUE(reader_.open(path_).ok());
+  std::string text;
+  ASSERT_TRUE(inspect::summary_text(reader_, path_, text).ok());
+  EXPECT_NE(text.find("overview   1 levels above the roots (6..6), top level 6 holds 9 nodes"), std::string::npos) << text;
+  EXPECT_NE(text.find("4096"), std::string::npos) << text;
+  ASSERT_TRUE(inspect::summary_json(reader_, path_, text).ok());
+  EXPECT_NE(text.find("\"overview_levels\": 1"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"top_level\": 6"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -22,7 +22,8 @@ std::string synthetic_archive(const synthetic::Spec& spec) {
   std::ostringstream name;
   name << "synthetic-v4-" << spec.roots_x << "x" << spec.roots_y << "-f" << spec.root_fill << "-p" << spec.child_probability
        << "-m" << spec.min_level << "-e" << spec.error_scale << "-s" << spec.seed << (spec.realistic_payload ? "-real" : "")
-       << "-z" << spec.zstd_level << ".terrain";
+       << "-z" << spec.zstd_level << (spec.overview_levels ? "-o" + std::to_string(spec.overview_levels) : std::string())
+       << ".terrain";
   const std::filesystem::path dir = bin_dir().parent_path() / "streamer-test-archives";
   std::filesystem::create_directories(dir);
   const std::string path = (dir / name.str()).string();
@@ -108,10 +109,11 @@ std::set<Key> reference_wanted(const ArchiveReader& reader, const StreamerConfig
     if (it != error.end()) return it->second;
     return error[k] = reference_error(w, *record(k), config, views);
   };
-  auto priority = [&](const Key& k) {  // min of the errors along the path from the root
+  const auto top = uint32_t(reader.top_level());  // the roots, or the top overview level
+  auto priority = [&](const Key& k) {  // min of the errors along the path from the top
     double p = err(k);
     NodeKey n = node_key(k);
-    while (n.level < uint32_t(kRootLevel)) {
+    while (n.level < top) {
       n = parent_of(n);
       p = std::min(p, err(key_of(n)));
     }
@@ -132,7 +134,7 @@ std::set<Key> reference_wanted(const ArchiveReader& reader, const StreamerConfig
     std::vector<Key> set;
     std::set<Key> split;
     for (const NodeRecord& r : reader.nodes())
-      if (r.key.level == uint32_t(kRootLevel) && !failed.count(key_of(r.key))) set.push_back(key_of(r.key));
+      if (r.key.level == top && !failed.count(key_of(r.key))) set.push_back(key_of(r.key));
     while (!views.empty()) {
       std::optional<Key> best;
       double best_p = 0;
@@ -158,8 +160,8 @@ std::set<Key> reference_wanted(const ArchiveReader& reader, const StreamerConfig
     }
     return std::set<Key>(set.begin(), set.end());
   };
-  uint64_t roots = 0;
-  for (const NodeRecord& r : reader.nodes()) roots += r.key.level == uint32_t(kRootLevel);
+  uint64_t roots = 0;  // top nodes
+  for (const NodeRecord& r : reader.nodes()) roots += r.key.level == top;
   if (required)
     *required = run(config.error_target_px,
                     std::max<uint64_t>(roots, uint64_t(std::floor(config.budget_nodes * (1.0 - config.prefetch_reserve)))));
@@ -175,9 +177,12 @@ StreamChecker::StreamChecker(const Streamer& streamer, bool check_markers)
     grids_[size_t(level)].assign(size_t(g.width) * g.height, 0x1234);  // garbage until the first upload
     exists_[size_t(level)].assign(size_t(g.width) * g.height, 0);
   }
+  grids_checked_ = streamer.config().index_grids;
+  top_ = uint32_t(reader_.top_level());
   for (const NodeRecord& r : reader_.nodes()) {
-    exists_[r.key.level][size_t(r.key.y) * streamer.index_grid_size(int(r.key.level)).width + r.key.x] = 1;
-    if (r.key.level == uint32_t(kRootLevel)) roots_.push_back(key_of(r.key));
+    if (grids_checked_ && r.key.level < uint32_t(kLevelCount))  // overview nodes have no index cells
+      exists_[r.key.level][size_t(r.key.y) * streamer.index_grid_size(int(r.key.level)).width + r.key.x] = 1;
+    if (r.key.level == top_) roots_.push_back(key_of(r.key));
   }
   slots_.assign(streamer.slot_count(), SlotDescriptor{});
   slot_evicted_frame_.assign(streamer.slot_count(), 0);
@@ -212,7 +217,7 @@ std::string StreamChecker::check(const FrameUpdate& u) {
     auto it = resident_.find(k);
     if (it == resident_.end()) return fail("evicted node " + key_name(k) + " was not resident");
     if (it->second != e.slot) return fail("eviction of " + key_name(k) + " names slot " + std::to_string(e.slot));
-    if (e.key.level == uint32_t(kRootLevel)) return fail("root " + key_name(k) + " evicted");
+    if (e.key.level == top_) return fail("top node " + key_name(k) + " evicted");
     resident_.erase(it);
     data_.erase(k);
     for (int c = 0; c < 4 && e.key.level > 0; ++c)
@@ -237,7 +242,7 @@ std::string StreamChecker::check(const FrameUpdate& u) {
                     " reused before its fence (" + std::to_string(cfg.fence_frames) + " frames)");
       ++slot_reuses_;
     }
-    if (d.key.level < uint32_t(kRootLevel) && !resident_.count(key_of(parent_of(d.key))))
+    if (d.key.level < top_ && !resident_.count(key_of(parent_of(d.key))))
       return fail("node " + key_name(k) + " delivered before its parent");
     if (!d.record || !(d.record->key == d.key)) return fail("delivery of " + key_name(k) + " carries the wrong record");
     if (!d.data) return fail("delivery of " + key_name(k) + " has no data");
@@ -283,11 +288,13 @@ std::string StreamChecker::check(const FrameUpdate& u) {
     for (size_t i = 0; i < e.size(); ++i) e[i] = exists_[size_t(level)][i] ? kIndexNotResident : kIndexNoNode;
   }
   for (const auto& [k, n] : failure_count_)
+    if (grids_checked_ && std::get<0>(k) < uint32_t(kLevelCount))
     expected[std::get<0>(k)][size_t(std::get<2>(k)) * streamer_.index_grid_size(int(std::get<0>(k))).width + std::get<1>(k)] =
         kIndexNoNode;
   for (const auto& [k, slot] : resident_)
+    if (grids_checked_ && std::get<0>(k) < uint32_t(kLevelCount))
     expected[std::get<0>(k)][size_t(std::get<2>(k)) * streamer_.index_grid_size(int(std::get<0>(k))).width + std::get<1>(k)] = slot;
-  for (int level = 0; level < kLevelCount; ++level) {
+  for (int level = 0; level < kLevelCount && grids_checked_; ++level) {
     std::span<const uint16_t> actual = streamer_.index_grid(level);
     const auto& mirror = grids_[size_t(level)];
     const auto& want = expected[size_t(level)];
@@ -310,19 +317,19 @@ std::string StreamChecker::check(const FrameUpdate& u) {
     if (!resident_.count(key_of(k))) return fail("resident_nodes() lists " + key_name(key_of(k)) + " which was never delivered");
   if (resident_.size() > cfg.budget_nodes) return fail(std::to_string(resident_.size()) + " resident nodes exceed the budget");
   for (const Key& r : roots_)
-    if (!resident_.count(r)) return fail("root " + key_name(r) + " is not resident");
+    if (!resident_.count(r)) return fail("top node " + key_name(r) + " is not resident");
   const StreamerStats st = streamer_.stats();
   if (st.resident != resident_.size()) return fail("stats().resident disagrees");
   for (const auto& [k, slot] : resident_) {
     const NodeKey nk = node_key(k);
-    if (nk.level < uint32_t(kRootLevel) && !resident_.count(key_of(parent_of(nk))))
+    if (nk.level < top_ && !resident_.count(key_of(parent_of(nk))))
       return fail("node " + key_name(k) + " is resident without its parent");
     if (streamer_.slot_of(nk) != slot) return fail("slot_of(" + key_name(k) + ") disagrees");
     const NodeRecord& r = reader_.nodes()[size_t(reader_.find(nk))];
     const SlotDescriptor& d = slots_[slot];
     if (d.min_height != r.min_height || d.max_height != r.max_height || d.height_offset != r.height_offset ||
         d.geometric_error_m != r.geometric_error_m || d.x != nk.x || d.y != nk.y || d.level != nk.level ||
-        d.step_log2 != reader_.world().step_log2[nk.level] || d.flags != r.flags || d.child_mask != r.child_mask)
+        d.step_log2 != level_step_log2(reader_.world(), int(nk.level)) || d.flags != r.flags || d.child_mask != r.child_mask)
       return fail("slot " + std::to_string(slot) + " descriptor does not describe " + key_name(k));
     const NodeData* data = streamer_.resident_data(nk);
     if (data != data_[k]) return fail("resident_data(" + key_name(k) + ") moved while resident");

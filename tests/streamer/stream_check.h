@@ -85,7 +85,9 @@ class StreamChecker {
   std::map<Key, uint16_t> resident_;
   std::map<Key, const NodeData*> data_;
   std::map<Key, int> failure_count_;
-  std::vector<Key> roots_;
+  std::vector<Key> roots_;  // the top nodes (roots without overview levels): always resident
+  uint32_t top_ = kRootLevel;
+  bool grids_checked_ = true;  // config.index_grids
   uint64_t deliveries_ = 0, evictions_ = 0, slot_reuses_ = 0;
 };
 

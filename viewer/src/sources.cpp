@@ -22,6 +22,13 @@ class StreamSource final : public NodeSource {
     {
       ArchiveReader reader;
       if (Status st = reader.open(path); !st.ok()) return st;
+      // The GPU traversal starts at the roots, which the streamer keeps resident only without
+      // overview levels (format/SPEC.md section 19): refuse rather than draw holes.
+      if (reader.top_level() > kRootLevel)
+        return Status::failure(Error::unsupported_input,
+                               "the archive has " + std::to_string(reader.level_count() - kLevelCount) +
+                                   " overview levels above the roots (format v2, SPEC section 19), which terrain-view "
+                                   "does not draw yet");
       const uint64_t roots = uint64_t(reader.world().roots_x) * reader.world().roots_y;
       if (o.budget_nodes < roots)
         return Status::failure(Error::invalid_argument,

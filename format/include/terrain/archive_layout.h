@@ -95,6 +95,7 @@ inline constexpr uint32_t extension_size = 164;     // v2: bytes of extension re
 inline constexpr uint32_t kExtensionHeaderSize = 8;
 inline constexpr uint32_t kExtensionOptional = 0x80000000u;
 inline constexpr uint32_t kExtensionFrameDefinition = 1;  // UTF-8 PROJ WKT2:2019 of a projection_kind 2 frame
+inline constexpr uint32_t kExtensionOverviewLevels = 2;  // SPEC 19: u8 K, then u8 step_log2 of levels 6 .. 5+K
 inline constexpr uint32_t kMaxFrameDefinitionSize = 64 * 1024;
 inline constexpr uint32_t kMaxExtensionSize = 16u << 20;
 

@@ -39,8 +39,14 @@ class ArchiveReader {
   std::span<const NodeRecord> nodes() const;
   // Index into nodes(), or -1 when no node (level, x, y) exists. O(log n), reads no payload.
   int64_t find(const NodeKey& key) const;
-  // Number of nodes per level.
-  std::array<uint32_t, kLevelCount> nodes_per_level() const;
+  // Number of nodes per level, level_count() entries (levels 0 .. top_level()).
+  std::vector<uint32_t> nodes_per_level() const;
+  // Levels of the tree: 6, or 6 + K with K overview levels (SPEC 19); 0 when not open.
+  int level_count() const;
+  // The coarsest level: 5 (the roots) without overview levels, else 5 + K; -1 when not open.
+  int top_level() const;
+  // The directory entries of one level (a contiguous run of nodes()); empty for other levels.
+  std::span<const NodeRecord> level_nodes(int level) const;
 
   // Stored payload bytes of node `index` (bounds already validated at open()).
   std::span<const uint8_t> payload(size_t index) const;

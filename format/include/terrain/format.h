@@ -13,6 +13,12 @@ namespace terrain {
 // ---- Quadtree geometry ------------------------------------------------------------------------
 inline constexpr int kLevelCount = 6;          // level 0 = finest (64 m nodes), level 5 = roots (2048 m)
 inline constexpr int kRootLevel = kLevelCount - 1;
+// Overview levels (format v2, SPEC section 19): levels 6 .. 5+K above the roots (4096 m, 8192 m,
+// ... nodes), declared by the overview_levels extension record. kLevelCount stays the six FC5
+// levels; arrays that must hold overview levels too use kMaxLevels.
+inline constexpr int kMaxOverviewLevels = 14;  // 2^14 roots per overview node side: 65536 roots -> 4 x 4
+inline constexpr int kMaxLevels = kLevelCount + kMaxOverviewLevels;
+inline constexpr uint32_t kMaxTopNodes = 16;   // directory entries at the top level of an archive with overview levels
 // The reference streamer (terrain-view) holds level-0 node indices in 16-bit grids: at most 2047
 // roots per side, below the format's 65536 (SPEC section 12); terrain-cook refuses more unless --force.
 inline constexpr uint32_t kStreamerMaxRootsPerSide = 0xFFFFu >> kRootLevel;
@@ -95,7 +101,33 @@ struct WorldInfo {
   std::array<uint8_t, kLevelCount> step_log2{};   // quantization step exponent per level (units)
   std::vector<Material> palette;          // at most 256 entries
   std::string cook_info_json;             // cook options and input provenance (UTF-8 JSON object)
+  // Format v2, SPEC section 19: step_log2 of the overview levels 6, 7, ... (K = size(), 0..14;
+  // empty = none, the roots are the top of the tree). Never decreasing upward from step_log2[5].
+  std::vector<uint8_t> overview_step_log2;
 };
+
+// Levels of the archive's tree: 6 + K (K overview levels).
+inline int level_count(const WorldInfo& w) { return kLevelCount + int(w.overview_step_log2.size()); }
+// The coarsest level: kRootLevel without overview levels, else 5 + K.
+inline int top_level(const WorldInfo& w) { return level_count(w) - 1; }
+// step_log2 of any level 0 .. top_level(w).
+inline int level_step_log2(const WorldInfo& w, int level) {
+  const auto l = size_t(unsigned(level));
+  return l < size_t(kLevelCount) ? w.step_log2[l] : w.overview_step_log2[l - size_t(kLevelCount)];
+}
+// Node grid of a level (SPEC 3 and 19): roots << (5 - L) below the roots, ceil(roots / 2^(L-5)) above.
+inline uint64_t level_grid_cells(uint32_t roots, int level) {
+  if (level <= kRootLevel) return uint64_t(roots) << (kRootLevel - level);
+  const uint64_t span = uint64_t(1) << (level - kRootLevel);
+  return (uint64_t(roots) + span - 1) / span;
+}
+// The fewest overview levels whose top level grid holds at most kMaxTopNodes nodes (0 when the
+// root grid itself is that small).
+inline int overview_levels_needed(uint32_t roots_x, uint32_t roots_y) {
+  for (int k = 0; k < kMaxOverviewLevels; ++k)
+    if (level_grid_cells(roots_x, kRootLevel + k) * level_grid_cells(roots_y, kRootLevel + k) <= kMaxTopNodes) return k;
+  return kMaxOverviewLevels;
+}
 
 // ---- Nodes ------------------------------------------------------------------------------------
 struct NodeKey {

@@ -81,7 +81,7 @@ inline SlotDescriptor slot_descriptor_of(const NodeRecord& r, const WorldInfo& w
   d.x = r.key.x;
   d.y = r.key.y;
   d.level = uint8_t(r.key.level);
-  d.step_log2 = world.step_log2[r.key.level];
+  d.step_log2 = uint8_t(level_step_log2(world, int(r.key.level)));
   d.flags = r.flags;
   d.child_mask = r.child_mask;
   return d;

@@ -1,6 +1,6 @@
 // Streaming runtime: keeps the right nodes of a terrain archive resident while cameras move.
 //
-// The FC5 scheme (Far Cry 5 terrain talk, GDC 2018, sections 2-4): roots always resident, about 500 nodes
+// The FC5 scheme (Far Cry 5 terrain talk, GDC 2018, sections 2-4): top nodes always resident, about 500 nodes
 // chosen by screen-space error, loaded by background threads, handed to the caller one bounded
 // batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (per-level
 // uint16 index grids + node descriptor table) maintained incrementally with dirty regions.
@@ -14,6 +14,13 @@
 //     for (auto slot : u.dirty_slots) upload(streamer.slots()[slot], slot);
 //     for (int L = 0; L < kLevelCount; ++L) upload(streamer.index_grid(L), u.dirty_index[L]);
 //
+// Memory (besides the resident payloads, budget + max_in_flight NodeData buffers): per archive
+// node 54 bytes of the streamer's own (tree links 20, state 1+1+1, slot 2, data pointer 8, rank 4,
+// load queue 5, the snapshot's key list 12: update() touches only the wanted nodes' entries, so its
+// CPU does not grow with the archive), plus the ArchiveReader's decoded directory (sizeof(NodeRecord)
+// = 56 bytes per node) and, with config.index_grids, the dense uint16 index grids: 2 * 1365 bytes
+// per root (levels 0..5), the one cost that grows with the root grid rather than the node count.
+//
 // Units: positions in frame metres (the archive's projected frame: x east, y north, z up, the
 // same vertical datum as the heights), always double on the CPU. Heights in the slot table are
 // integer height units (1 unit = 2^-10 m, see format.h). Errors in metres (geometric) and
@@ -25,10 +32,15 @@
 // computes the wanted set, moves finished work into place and edits the index state, so its
 // cost is independent of payload sizes. The destructor cancels outstanding work and joins.
 //
+// Top nodes: the nodes of the archive's top level (ArchiveReader::top_level()): the roots (level
+// kRootLevel) of an archive without overview levels, exactly as in FC5; with K overview levels
+// (format/SPEC.md section 19) the at most 16 nodes of level 5 + K. Below the top nothing differs:
+// roots are nodes like any other, wanted when their parent splits.
+//
 // Invariants, true after open() and after every update() returns:
-//  - every root (level kRootLevel node of the archive) is resident (from the first update() on);
+//  - every top node is resident (from the first update() on);
 //  - a node is resident only if its parent is resident (so the resident set always covers
-//    everything the roots cover: there is never an area without a resident node);
+//    everything the top nodes cover: there is never an area without a resident node);
 //  - resident nodes <= config.budget_nodes;
 //  - a slot evicted in update() number F receives a new node no earlier than update() number
 //    F + config.fence_frames (so GPU frames still in flight never see its contents change);
@@ -42,7 +54,7 @@
 //    multiplied by outside_frustum_error_scale when V has a frustum and box(N) lies outside it;
 //    e(N) = max over views. priority(N) = e(N), but never above priority(parent(N)) (so
 //    ancestors always rank at least as high as their descendants).
-//  - start with every root; repeatedly split the wanted node of highest priority (ties: coarser
+//  - start with every top node; repeatedly split the wanted node of highest priority (ties: coarser
 //    level, then key order) that has e(N) > error_target_px * prefetch_ratio and at least one
 //    child that exists and has not failed: its existing, non-failed children join the set. Stop
 //    at the first split whose children would exceed budget_nodes.
@@ -70,8 +82,8 @@ class ResidentSurface;  // terrain/queries.h
 // ---- Configuration ----------------------------------------------------------------------------
 
 struct StreamerConfig {
-  // Most nodes resident at once, roots included. open() fails (invalid_argument) when the
-  // archive has more roots than this. At most kMaxSlots.
+  // Most nodes resident at once, top nodes included. open() fails (invalid_argument) when the
+  // archive has more top nodes than this (roots, when it has no overview levels). At most kMaxSlots.
   uint32_t budget_nodes = 512;
   // GPU atlas slots (layers) the caller allocates; slot ids are 0 .. slot_count-1.
   // 0 = automatic: budget_nodes + fence_frames * max_deliveries_per_frame (capped at kMaxSlots),
@@ -101,7 +113,7 @@ struct StreamerConfig {
   // Frames an evicted slot stays untouched (GPU frames in flight). >= 1.
   uint32_t fence_frames = 3;
   // Most nodes delivered by one update() (bounds the caller's per-frame upload). The first
-  // update() delivers all roots even if there are more. >= 1.
+  // update() delivers all top nodes even if there are more. >= 1.
   uint32_t max_deliveries_per_frame = 128;
   // Decode buffers beyond the budget: resident nodes + loads in flight (taken by a worker, or
   // decoded and waiting for delivery) never exceed budget_nodes + max_in_flight, so memory stays
@@ -114,6 +126,12 @@ struct StreamerConfig {
   uint32_t max_in_flight = 0;
   // Payload sections decoded for the caller (terrain::Section bits); others stay untouched.
   unsigned sections = kSectionAll;
+  // Maintain the dense per-level uint16 index grids of levels 0..5 (index_grid(), dirty_index):
+  // 2730 bytes per root, 273 MB at 10^5 roots. Callers that do not upload them (queries, CPU
+  // consumers, the benchmarks of huge worlds) set false: index_grid() is then empty, dirty_index
+  // stays empty and the 2047-roots-per-side limit of the 16-bit grids does not apply. Overview
+  // nodes (levels 6..) never have index cells: their slots and descriptors are all a GPU gets.
+  bool index_grids = true;
 };
 
 // ---- Views ------------------------------------------------------------------------------------
@@ -175,7 +193,7 @@ struct NodeFailure {
 // or destruction. The caller must apply every FrameUpdate (dirty regions are per update, not
 // accumulated): upload delivered data and dirty descriptors, then the dirty index rectangles.
 // The first update() marks every index grid dirty in full (the initial upload) and delivers the
-// roots; before it nothing is resident.
+// top nodes; before it nothing is resident.
 struct FrameUpdate {
   uint64_t frame = 0;                            // 1 for the first update()
   std::span<const NodeDelivery> delivered;       // parents before children
@@ -193,7 +211,7 @@ struct StreamerStats {
   uint32_t required = 0;             // nodes the error target itself requires (subset of wanted)
   uint32_t required_missing = 0;     // required but not resident: > 0 is a "gap" frame: somewhere
                                      // a coarser resident ancestor is drawn with an error above
-                                     // the target (coverage itself never breaks: roots resident)
+                                     // the target (coverage itself never breaks: top nodes resident)
   uint32_t pending = 0;              // wanted, not resident, not failed: queued or in flight
   uint32_t in_flight = 0;            // taken by a worker (decoding or decoded awaiting delivery)
   uint32_t failed = 0;               // nodes marked failed so far
@@ -228,10 +246,11 @@ class Streamer {
   Streamer& operator=(const Streamer&) = delete;
 
   // Opens the archive (memory-mapped; validated by ArchiveReader::open), checks the config,
-  // starts the workers and has them load every root; returns when the roots are decoded (the
-  // caller's thread waits, it does not decode). Errors: the archive's own (io_open, truncated,
-  // bad checksums, ...); invalid_argument for a budget below the root count or a bad config;
-  // a root whose payload is corrupt fails open() (there is no parent to cover it).
+  // starts the workers and has them load every top node; returns when they are decoded (the
+  // caller's thread waits, it does not decode). Any root count opens when the archive has
+  // overview levels (their top level holds at most 16 nodes). Errors: the archive's own (io_open,
+  // truncated, bad checksums, ...); invalid_argument for a budget below the top-node count or a
+  // bad config; a top node whose payload is corrupt fails open() (there is no parent to cover it).
   // Reopening closes first.
   Status open(const std::string& archive_path, const StreamerConfig& config = {});
   void close();
