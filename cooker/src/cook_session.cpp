@@ -54,12 +54,13 @@ auto grid_of(T& t) {
 
 // Blocks of side x side roots: the largest side whose cook window (the roots, their windows'
 // margin, the void plan's tile rounding) fits the window budget at kWindowBytesPerSample.
-uint32_t block_roots_for(uint64_t window_bytes, double sx, double sy, uint32_t roots_x, uint32_t roots_y) {
+uint32_t block_roots_for(uint64_t window_bytes, int margin_vertices, double sx, double sy, uint32_t roots_x,
+                         uint32_t roots_y) {
   const uint32_t most = std::max(roots_x, roots_y);
   uint32_t side = 1;
   while (side < most) {
     const uint32_t next = side + 1;
-    const double margin_m = 2.0 * kWindowMargin * vertex_spacing_m(kRootLevel);
+    const double margin_m = 2.0 * margin_vertices * vertex_spacing_m(kRootLevel);
     const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 2 * kVoidPlanTile + 16;
     const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 2 * kVoidPlanTile + 16;
     if (cols * rows * double(kWindowBytesPerSample) > double(window_bytes)) break;
@@ -254,7 +255,8 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
   // Blocks (= work units) of roots, each reading only its window of the source.
   const uint32_t side = options.unit_roots    ? options.unit_roots
                         : options.block_roots ? options.block_roots
-                                              : block_roots_for(s.shares.window, sx, sy, report.roots_x, report.roots_y);
+                                              : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy,
+                                                                report.roots_x, report.roots_y);
   s.grid = BlockGrid{report.roots_x, report.roots_y, side};
   report.block_roots = s.grid.side;
   report.blocks = s.grid.count();

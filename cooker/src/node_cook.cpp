@@ -46,6 +46,13 @@ void encode_hole_albedo(const NodeWindow& w, std::array<uint8_t, kAlbedoBytes>& 
 }  // namespace
 
 Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w) {
+  // Window elements [lo, hi) per axis are evaluated (the block's window holds their taps, and
+  // nothing reads the rest); the rest are holes. Each vertex's bits do not depend on the range.
+  const int lo = kWindowMargin - ctx.window_margin(), hi = kWindowSize - lo;
+  if (lo > 0) {
+    w.hole.fill(1);
+    w.units.fill(0);
+  }
   std::array<double, kWindowSize> xs, cols, rows;
   std::array<int64_t, kWindowSize> gxs;
   std::array<double, kLevelCount> scale;
@@ -82,14 +89,14 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   thread_local std::vector<double> cache;
   thread_local std::vector<uint8_t> cached;
   if (shared_columns) {
-    for (int j = 0; j < kWindowSize; ++j) {
+    for (int j = lo; j < hi; ++j) {
       double c = 0, r = 0;
       const double y = ctx.lattice_y(lattice_index(key.y, j - kWindowMargin, key.level));
       ctx.mapping->map_frame_row(y, xs.data(), 1, &c, &r);
       row_axes[size_t(j)] = ctx.surface.row(r);
     }
-    const Surface::Axis& south = row_axes[0];
-    const Surface::Axis& north = row_axes[kWindowSize - 1];
+    const Surface::Axis& south = row_axes[size_t(lo)];
+    const Surface::Axis& north = row_axes[size_t(hi - 1)];
     if (south.in && north.in && std::abs(south.i - north.i) < kWindowSize) {
       cache_r0 = std::min(south.i, north.i) - 1;
       cache_rows = std::abs(south.i - north.i) + 4;
@@ -97,7 +104,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       cached.assign(size_t(cache_rows), 0);
     }
   }
-  for (int j = 0; j < kWindowSize; ++j) {
+  for (int j = lo; j < hi; ++j) {
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
     if (anchors)
@@ -112,7 +119,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
         const int slot = row_axis.i - 1 + t - cache_r0;
         if (!cached[size_t(slot)]) {
           double* line = &cache[size_t(slot) * kWindowSize];
-          for (int i = 0; i < kWindowSize; ++i)
+          for (int i = lo; i < hi; ++i)
             if (x_in[size_t(i)])
               line[i] = ctx.surface.horizontal(column_axes[size_t(i)], row_axis.i - 1 + t);
           cached[size_t(slot)] = 1;
@@ -128,7 +135,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       const double* r2 = source_rows[2];
       const double* r3 = source_rows[3];
       const double w0 = row_axis.w[0], w1 = row_axis.w[1], w2 = row_axis.w[2], w3 = row_axis.w[3];
-      for (int i = 0; i < kWindowSize; ++i) {
+      for (int i = lo; i < hi; ++i) {
         double sum = 0;
         sum += w0 * r0[i];
         sum += w1 * r1[i];
@@ -138,7 +145,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       }
     }
     const int row_level = vertex_level(0, gy);
-    for (int i = 0; i < kWindowSize; ++i) {
+    for (int i = lo; i < hi; ++i) {
       const size_t k = size_t(j) * kWindowSize + size_t(i);
       double h = 0;
       bool ok = false;

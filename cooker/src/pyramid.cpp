@@ -47,7 +47,7 @@ SampleRect source_rect(const CookContext& ctx) { return {0, 0, ctx.source_width 
 }  // namespace
 
 void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1) {
-  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel);
+  const double margin = ctx.window_margin() * vertex_spacing_m(kRootLevel);
   x0 = ctx.origin_x + b.x0 * kRootSizeM - margin;
   x1 = ctx.origin_x + b.x1 * kRootSizeM + margin;
   y0 = ctx.origin_y + b.y0 * kRootSizeM - margin;

@@ -40,7 +40,7 @@ struct BlockGrid {
 };
 
 // Frame rectangle (metres) every vertex of block `b`'s node windows lies in: its roots' square
-// grown by the root windows' margin (kWindowMargin root vertex spacings).
+// grown by the root windows' margin (ctx.window_margin() root vertex spacings).
 void block_frame_rect(const CookContext& ctx, const RootBlock& b, double& x0, double& y0, double& x1, double& y1);
 // Source samples the cook of block `b` reads: its nodes' windows, Catmull-Rom taps and the error
 // measurement's ring, clipped to the source.

@@ -174,6 +174,54 @@ TEST(BlockCook, SurfaceLayersToo) {
   expect_same_bytes_for_every_block_split(o, {{1, 11}}, 4);
 }
 
+// A heights-only cook evaluates only the vertices its payload needs (the node and the hole
+// albedo's apron of kApron vertices), so its blocks read windows narrower than a full cook's by
+// the surface filters' margin, and its nodes' heights, ranges and errors are the full cook's.
+TEST(BlockCook, HeightsOnlyReadsNarrowerWindowsAndCooksTheSameHeights) {
+  cook::CookOptions o;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-heights-only"), "blocky", blocky_dem(), true, o));
+  o.threads = 2;
+  o.tolerance_m = 2.0;
+  o.block_roots = 1;
+  const std::string full_path = o.output + ".full", heights_path = o.output + ".heights";
+  cook::CookReport full, heights;
+  o.output = full_path;
+  ASSERT_TRUE(cook::cook(o, nullptr, full).ok());
+  o.output = heights_path;
+  o.heights_only = true;
+  ASSERT_TRUE(cook::cook(o, nullptr, heights).ok());
+  // Windows of one 2048 m root of 4 m samples: the full cook's margin is the surface filters' 18
+  // root vertices (288 m) per side, the heights-only one's the albedo apron's 2 (32 m); plus the
+  // Catmull-Rom taps and the error ring (4 samples per side) and one sample of rounding.
+  const double root_samples = 2048.0 / 4.0, taps = 2 * 4 + 1;
+  const double full_side = root_samples + 2 * 288.0 / 4.0 + taps;
+  const double heights_side = root_samples + 2 * 32.0 / 4.0 + taps;
+  std::printf("window samples: full %llu, heights-only %llu\n", (unsigned long long)full.block_window_samples_max,
+              (unsigned long long)heights.block_window_samples_max);
+  EXPECT_LT(double(heights.block_window_samples_max), double(full.block_window_samples_max));
+  // Bounds from the geometry above, not from the code: a window is at most the margin square,
+  // grown by the void plan's 64-sample tiles where a filled void reaches in.
+  EXPECT_LE(double(full.block_window_samples_max), (full_side + 2 * 64) * (full_side + 2 * 64));
+  EXPECT_LE(double(heights.block_window_samples_max), (heights_side + 2 * 64) * (heights_side + 2 * 64));
+  EXPECT_LT(double(heights.block_window_samples_max), 0.8 * double(full.block_window_samples_max));
+  ArchiveReader a, b;
+  ASSERT_TRUE(a.open(full_path).ok());
+  ASSERT_TRUE(b.open(heights_path).ok());
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  NodeData da, db;
+  for (size_t i = 0; i < a.nodes().size(); ++i) {
+    const NodeRecord &na = a.nodes()[i], &nb = b.nodes()[i];
+    ASSERT_EQ(na.key, nb.key);
+    EXPECT_EQ(na.min_height, nb.min_height);
+    EXPECT_EQ(na.max_height, nb.max_height);
+    EXPECT_EQ(na.geometric_error_m, nb.geometric_error_m);
+    EXPECT_EQ(na.child_mask, nb.child_mask);
+    ASSERT_TRUE(a.decode_node(i, da, kSectionHeights).ok());
+    ASSERT_TRUE(b.decode_node(i, db, kSectionHeights).ok());
+    EXPECT_TRUE(da.heights == db.heights) << "node " << i;
+  }
+}
+
 // Geographic input: the frame -> sample mapping goes through the anchors (not affine), and the
 // Debian DEM needs no shared data.
 TEST(BlockCook, GeographicInputThroughTheAnchors) {
