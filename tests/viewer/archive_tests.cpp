@@ -143,7 +143,7 @@ void check_archive_without_cracks(const std::string& name, size_t min_levels, bo
         std::sort(a.begin(), a.end());
         std::sort(b.begin(), b.end());
         EXPECT_EQ(a, b) << name << " view " << v << " frame " << f;
-        const auto ref_lod = reference_lod_map(s->state, ref);
+        const auto ref_lod = reference_lod_map(s->state, s->renderer.uniforms(), ref);
         EXPECT_EQ(lod, ref_lod);
         const PatchList ref_patches =
             reference_patches(s->state, u, ref, ref_lod, s->renderer.slot_cpu(), s->renderer.cone_sin2_table());

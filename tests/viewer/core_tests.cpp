@@ -54,7 +54,9 @@ FrameUniforms uniforms_for(const Camera& c, const WorldInfo& w, double error_px,
   u.world[1] = w.roots_y;
   u.world[2] = w.roots_x << kRootLevel;
   u.world[3] = w.roots_y << kRootLevel;
+  u.misc[0] = uint32_t(top_level(w));
   u.misc[1] = flags;
+  lod_window(w, c.position[0], c.position[1], u.lodwin);
   return u;
 }
 
@@ -243,7 +245,7 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   for (double target : {0.01, 0.02, 0.03, 0.06, 0.1, 0.2, 0.4, 3.0, 30.0}) {
     const FrameUniforms u = uniforms_for(cam, sw.world, target, 0);
     const NodeList list = reference_traverse(st, u, cpu);
-    const auto lod = reference_lod_map(st, list);
+    const auto lod = reference_lod_map(st, u, list);
     const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
     for (const auto& p : patches.patches) {
       levels.insert(patch_level(p));
@@ -287,7 +289,7 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
       cam.position[2] = h;
       const FrameUniforms u = uniforms_for(cam, sw.world, target, TV_FLAG_DECIMATE);
       const NodeList list = reference_traverse(st, u, cpu);
-      const auto lod = reference_lod_map(st, list);
+      const auto lod = reference_lod_map(st, u, list);
       const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
       for (const auto& p : patches.patches) {
         const uint32_t e = patch_decimation(p);
@@ -295,7 +297,7 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
         if (e > 0 && patch_px(p) == 7) {
           const GpuNodeDesc& d = st.descriptor(patch_slot(p));
           const uint32_t east = (d.x + 1) << kRootLevel, row = (d.y << kRootLevel) + patch_py(p) * 4;
-          if (east < st.grid_width(0) && lod[size_t(row) * st.grid_width(0) + east] > kRootLevel + 1) ++beside_coarsened;
+          if (east < st.grid_width(0) && lod[size_t(lod_index(u, east, row))] > kRootLevel + 1) ++beside_coarsened;
         }
         if (e > 0) {
           ASSERT_EQ(patch_level(p), uint32_t(kRootLevel)) << "only uncoarsened roots decimate";
@@ -348,7 +350,7 @@ TEST(ViewerReference, LodMapMatchesCoverage) {
     cam.yaw = double(rng() % 360) * M_PI / 180;
     const FrameUniforms u = uniforms_for(cam, sw.world, 0.5 + double(rng() % 4));
     const NodeList list = reference_traverse(st, u, cpu);
-    const auto lod = reference_lod_map(st, list);
+    const auto lod = reference_lod_map(st, u, list);
     const auto cover = coverage(st, list);
     for (size_t i = 0; i < cover.size(); ++i) {
       ASSERT_EQ(cover[i], 1) << "sector " << i;

@@ -181,7 +181,7 @@ TEST(ViewerGpu, ListsEqualCpuReference) {
     EXPECT_EQ(sorted(gpu_nodes.entries), sorted(ref_nodes.entries));
     EXPECT_EQ(gpu_nodes.level_counts, ref_nodes.level_counts);
     EXPECT_EQ(gpu_nodes.overflow, 0u);
-    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, ref_nodes);
+    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, gpu->renderer.uniforms(), ref_nodes);
     EXPECT_EQ(gpu_lod, ref_lod);
     const PatchList ref_patches = reference_patches(gpu->state, u, ref_nodes, ref_lod, gpu->renderer.slot_cpu(),
                                                     gpu->renderer.cone_sin2_table());
@@ -266,7 +266,7 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
     const FrameUniforms& u = gpu->renderer.uniforms();
     const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
     EXPECT_EQ(sorted(nodes.entries), sorted(ref_nodes.entries));
-    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, ref_nodes);
+    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, gpu->renderer.uniforms(), ref_nodes);
     EXPECT_EQ(lod, ref_lod);
     const PatchList ref = reference_patches(gpu->state, u, ref_nodes, ref_lod, gpu->renderer.slot_cpu(),
                                             gpu->renderer.cone_sin2_table());

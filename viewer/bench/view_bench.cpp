@@ -61,13 +61,16 @@ double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, cons
                     double ly) {
   const TerrainState& st = s.state;
   if (lx < 0 || ly < 0) return NAN;
-  const uint32_t sx = uint32_t(lx / 64.0), sy = uint32_t(ly / 64.0);
-  if (sx >= st.grid_width(0) || sy >= st.grid_height(0)) return NAN;
-  const uint32_t v = lod_map[size_t(sy) * st.grid_width(0) + sx];
+  const int64_t k = lod_index(s.renderer.uniforms(), int64_t(lx / 64.0), int64_t(ly / 64.0));
+  if (k < 0) return NAN;
+  const uint32_t v = lod_map[size_t(k)];
   if (v == 0) return NAN;
   const uint32_t geo = v - 1;
-  uint32_t c = coarsening_of(geo);
-  const int level = node_level_of(geo);
+  // Levels 6+ of an archive with overview levels may be an overview node or a coarsened root:
+  // the LOD map does not say which, so such points are not sampled.
+  if (geo > uint32_t(terrain::kRootLevel) && st.top_level() > terrain::kRootLevel) return NAN;
+  uint32_t c = geo > uint32_t(terrain::kRootLevel) ? geo - uint32_t(terrain::kRootLevel) : 0u;
+  const int level = int(std::min<uint32_t>(geo, uint32_t(terrain::kRootLevel)));
   const double size = node_size_m(level);
   const uint32_t nx = uint32_t(lx / size), ny = uint32_t(ly / size);
   const uint16_t slot = st.index(level, nx, ny);
@@ -231,7 +234,7 @@ int main(int argc, char** argv) {
         const auto t0 = std::chrono::steady_clock::now();
         const FrameUniforms& u = s.renderer.uniforms();
         const NodeList list = reference_traverse(s.state, u, s.renderer.slot_cpu());
-        const auto lod = reference_lod_map(s.state, list);
+        const auto lod = reference_lod_map(s.state, u, list);
         const PatchList pl = reference_patches(s.state, u, list, lod, s.renderer.slot_cpu(), s.renderer.cone_sin2_table());
         cpu.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
         if (pl.patches.size() != rec.gpu.patches_drawn)

@@ -8,13 +8,14 @@ layout(std140, set = 0, binding = 0) uniform Frame {
   vec4 cam_frac;    // x, y remainder (m); z camera height (m); w pixels per radian
   vec4 lod;         // x error target px; y cone margin; z, w near-shading start, end (m)
   uvec4 world;      // roots_x, roots_y, sectors_x, sectors_y
-  uvec4 misc;       // unused, flags, debug view, patch capacity
+  uvec4 misc;       // top level (5, or 5 + K overview levels), flags, debug view, patch capacity
   vec4 sun_dir;
   vec4 sun_color;   // w: ambient strength
   vec4 sky_color;
   vec4 fog;         // rgb, density per metre
   vec4 viewport;
   vec4 wrap_origin;
+  uvec4 lodwin;     // LOD map window around the camera: x0, y0, width, height in sectors (config.h)
 } frame;
 
 // The streamer's SlotDescriptor (terrain/streamer.h), uploaded as it is.
@@ -49,4 +50,17 @@ float rel_y(int half_metres) { precise float r = float(half_metres - frame.cam_h
 float rel_z(int units) { precise float r = float(units) * (1.0 / 1024.0) - frame.cam_frac.z; return r; }
 int half_metres(uint node_coord, uint level, uint node_index) {
   return int((node_coord * uint(TV_QUADS_PER_NODE) + node_index) << level);
+}
+
+// Index into the LOD map buffer (config.h "LOD map") of sector (sx, sy); -1 outside the world.
+int lod_index(int sx, int sy) {
+  if (sx < 0 || sy < 0 || sx >= int(frame.world.z) || sy >= int(frame.world.w)) return -1;
+  int lx = sx - int(frame.lodwin.x), ly = sy - int(frame.lodwin.y);
+  if (lx >= 0 && ly >= 0 && lx < int(frame.lodwin.z) && ly < int(frame.lodwin.w)) return ly * int(frame.lodwin.z) + lx;
+  return int(frame.lodwin.z * frame.lodwin.w) + (sy >> TV_ROOT_LEVEL) * int(frame.world.x) + (sx >> TV_ROOT_LEVEL);
+}
+// Whether root (x, y) lies inside the LOD map window (only those may split, config.h).
+bool root_in_window(uint x, uint y) {
+  uint wx = frame.lodwin.x >> TV_ROOT_LEVEL, wy = frame.lodwin.y >> TV_ROOT_LEVEL;
+  return x >= wx && y >= wy && x < wx + (frame.lodwin.z >> TV_ROOT_LEVEL) && y < wy + (frame.lodwin.w >> TV_ROOT_LEVEL);
 }

@@ -6,6 +6,9 @@
 // ---- Quadtree geometry (mirrors terrain/format.h; static_asserts in src/gpu_types.h check it) ----
 #define TV_LEVELS 6
 #define TV_ROOT_LEVEL 5
+// Levels 6 .. 5+K: overview levels above the roots (format/SPEC.md section 19), nodes like any other
+// at 32 m, 64 m, ... vertex spacing. TV_MAX_LEVELS bounds every per-level array.
+#define TV_MAX_LEVELS 20
 #define TV_QUADS_PER_NODE 128     // 8 patches x 16 quads
 #define TV_PATCHES_PER_SIDE 8
 #define TV_PATCHES_PER_NODE 64
@@ -36,12 +39,19 @@
 #define TV_CONE_G_CENTRE 130
 #define TV_CONE_G_SCALE 125
 
-// ---- Traversal (one workgroup, lists in shared memory, FC5 section 4.2) ----
+// ---- Traversal (one workgroup, FC5 section 4.2) ----
 // Group size: more threads finish a wide level in fewer steps; lavapipe caps a group at 1024.
 #define TV_TRAVERSE_GROUP 64
-// Longest node list one level pass may hold (2 lists of uints in 32 KiB shared memory). A bigger
-// resident set still renders: nodes beyond the cap are not split (counted as overflow).
-#define TV_MAX_LIST 2048
+// The traversal starts at the top level's resident nodes (at most 16 with overview levels, the
+// roots without), listed by the CPU in the tree buffer, and walks down one level per pass with
+// two ping-pong lists in a storage buffer of 2 x slot_count uints. A list holds distinct resident
+// slots, so it cannot overflow: the bound is the atlas, not the world (TV_NL_OVERFLOW counts
+// entries that did not fit anyway and the viewer warns when it is ever non-zero).
+// Tree buffer (uints): [0] start count, [1] slot count, then the start slots from
+// TV_TREE_START, then per slot 2 words of child slots (4 x u16, child c in word c >> 1, half
+// c & 1) from TV_TREE_START + slot count, filled for overview nodes only (levels >= 6: they have no
+// index texture cells; a level-6 node's children are roots, level 5 of the index).
+#define TV_TREE_START 4
 
 // Node-list entry: slot in bits 0..15, quadrant mask (bit c = child c's quarter is drawn by this
 // node, c as terrain::child_of: bit 0 east, bit 1 north) in bits 16..19, coarsening in bits 20..21.
@@ -58,16 +68,25 @@
 // (its nodes are then level >= 5: d <= 3); levels 6 and 7 give d <= 7 against any level.
 #define TV_MAX_COARSEN 3
 
-// LOD map: one uint per sector, geometric level + 1 of the node drawing it (1..9), 0 = nothing
-// drawn (never stitches). Written by one workgroup of TV_LODMAP_GROUP threads per listed node.
+// LOD map: geometric level + 1 of the node drawing a place (1..20), 0 = nothing drawn (never
+// stitches). Written by one workgroup of TV_LODMAP_GROUP threads per listed node. Two parts, so
+// it is bounded near the camera and not dense over the world:
+//  - fine: one uint per 64 m sector in a window of at most TV_LODMAP_WINDOW_ROOTS roots per side
+//    (512 x 512 sectors, 1 MiB, 32.8 km) around the camera, aligned to roots
+//    (FrameUniforms.lodwin: x0, y0, width, height in sectors);
+//  - coarse: one uint per root cell (2048 m) of the world after it (4 bytes per root).
+// Nodes below the roots are drawn only inside the window (a root outside it never splits), so
+// outside it every root cell is drawn by one node of level >= 5 and its coarse cell says which.
 #define TV_LODMAP_GROUP 64
+#define TV_LODMAP_WINDOW_ROOTS 16
 
 // ---- Patch list ----
 // The traversal lists one work item per patch of a drawn quadrant (node-list index in bits 0..15,
 // px << 16, py << 19); the patch pass runs one thread per item in groups of TV_PATCH_GROUP, so
 // coarsened roots (1..16 patches) and partly drawn nodes cost no idle workgroups.
 #define TV_PATCH_GROUP 64
-// Patch entry (uvec4): x = slot | px << 16 | py << 19 | geometric level << 22 (4 bits, 0..8);
+// Patch entry (uvec4): x = slot | px << 16 | py << 19 | geometric level << 22 (5 bits, 0..19)
+// | decimation << 27 | coarsening << 30 (node level = geometric level - coarsening);
 // y = edge deltas (4 bits each: south, west, north, east); z, w = node x, y at its own level
 // (min(geometric level, 5)). Patch (px, py) of a coarsened root covers its (1 << c)^2 root patches.
 #define TV_PATCH_PX_SHIFT 16
@@ -88,7 +107,9 @@
 // per edge stays exact; the exception, a coarsened root's patch spanning several root patches, is
 // never the finer side (a root patch facing it keeps e <= its coarsening). The cap
 // 5 + e <= 7 + finest drawn level keeps every collapse d <= 7.
-#define TV_PATCH_DECIM_SHIFT 26   // e in bits 26..28 of the patch entry's x
+#define TV_PATCH_DECIM_SHIFT 27   // e in bits 27..29 of the patch entry's x
+#define TV_PATCH_COARSE_SHIFT 30  // coarsening c in bits 30..31 (a root drawn at level 5 + c)
+#define TV_PATCH_LEVEL_MASK 31u
 #define TV_MAX_DECIMATE 4
 
 // Shading groups (FC5 section 3, step 4): patches whose box is within the near-shading distance
@@ -104,17 +125,20 @@
 #define TV_CNT_CONSIDERED (10 * TV_MESHES)  // patches of drawn quadrants
 #define TV_CNT_FRUSTUM (TV_CNT_CONSIDERED + 1)  // culled by the frustum
 #define TV_CNT_CONE (TV_CNT_CONSIDERED + 2)     // culled by the patch cone
+#define TV_CNT_DEEP (TV_CNT_CONSIDERED + 3)     // patch edges facing a neighbour coarser by d > 7
+                                                // (collapse clamped to 7: may crack; warned)
+#define TV_MAX_DELTA 7
 #define TV_DRAW_UINTS (TV_CNT_CONSIDERED + 4)
 #define TV_PATCH_RANGES (2 * TV_MESHES)
 
 // Traversal output header (uints) in the node-list buffer, before the entries.
 #define TV_NL_DISPATCH 0          // x, y, z of the indirect LOD-map dispatch (x = node count)
 #define TV_NL_COUNT 3             // nodes in the final list
-#define TV_NL_LEVEL_COUNTS 4      // 6 counts, nodes per level
-#define TV_NL_OVERFLOW 10         // nodes not split because a list was full
-#define TV_NL_PATCH_DISPATCH 11   // x, y, z of the indirect patch-pass dispatch (x = work items / group)
-#define TV_NL_PATCH_ITEMS 14      // patch work items (patches of drawn quadrants)
-#define TV_NL_HEADER 16
+#define TV_NL_LEVEL_COUNTS 4      // TV_MAX_LEVELS counts, nodes per level
+#define TV_NL_OVERFLOW 24         // list entries that did not fit (0 by construction, see above)
+#define TV_NL_PATCH_DISPATCH 25   // x, y, z of the indirect patch-pass dispatch (x = work items / group)
+#define TV_NL_PATCH_ITEMS 28      // patch work items (patches of drawn quadrants)
+#define TV_NL_HEADER 32
 
 // ---- Frame flags (FrameUniforms.misc.y) ----
 #define TV_FLAG_FRUSTUM_CULL 1u

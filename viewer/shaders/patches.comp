@@ -16,12 +16,20 @@ layout(set = 0, binding = 13) uniform sampler2DArray cones_tex;
 layout(std430, set = 0, binding = 16) readonly buffer PatchErrors { vec4 patch_error[]; };
 
 uint lod_at(int sx, int sy) {
-  if (sx < 0 || sy < 0 || sx >= int(frame.world.z) || sy >= int(frame.world.w)) return 0u;
-  return lod_map[uint(sy) * frame.world.z + uint(sx)];
+  int k = lod_index(sx, sy);
+  return k < 0 ? 0u : lod_map[k];
 }
 // A neighbour drawn coarser than this patch (effective level `own`): collapse by its level
-// minus this node's geometric level.
-uint delta_of(uint v, uint own, uint geo) { return v > own + 1u ? v - 1u - geo : 0u; }
+// minus this node's geometric level. Collapsing needs 2^d <= 128 (a node edge): a larger d is
+// clamped to TV_MAX_DELTA and counted (the edge may crack there; the viewer warns).
+uint delta_of(uint v, uint own, uint geo) {
+  uint d = v > own + 1u ? v - 1u - geo : 0u;
+  if (d > uint(TV_MAX_DELTA)) {
+    atomicAdd(draw[TV_CNT_DEEP], 1u);
+    d = uint(TV_MAX_DELTA);
+  }
+  return d;
+}
 
 bool frustum_visible(vec3 mn, vec3 mx) {
   for (int p = 0; p < 6; ++p) {
@@ -204,6 +212,6 @@ void main() {
   uint range = (near ? 0u : uint(TV_MESHES)) + dec;
   uint k = frame.misc.w * range + atomicAdd(draw[range * 5u + 1u], 1u);
   patches[k] = uvec4(slot | (px << TV_PATCH_PX_SHIFT) | (py << TV_PATCH_PY_SHIFT) | (geo << TV_PATCH_LEVEL_SHIFT) |
-                         (dec << TV_PATCH_DECIM_SHIFT),
+                         (dec << TV_PATCH_DECIM_SHIFT) | (c << TV_PATCH_COARSE_SHIFT),
                      deltas | (near ? TV_PATCH_NEAR_BIT : 0u), d.x, d.y);
 }

@@ -54,10 +54,13 @@ float value_noise(vec2 p, uint seed) {
   return mix(mix(a, b, u.x), mix(cc, d, u.x), u.y);
 }
 
+// Geometric levels 0..5 (roots: violet), 6.. (coarsened roots and overview levels, 32 m, 64 m, ...
+// vertex spacing): light violet, lavender, then teal, cyan, grey-blue and darker greys upward.
 vec3 level_color(uint level) {
-  const vec3 c[8] = vec3[](vec3(0.9, 0.2, 0.2), vec3(0.95, 0.6, 0.1), vec3(0.9, 0.9, 0.2), vec3(0.2, 0.8, 0.3),
-                           vec3(0.2, 0.5, 0.95), vec3(0.6, 0.3, 0.9), vec3(0.75, 0.55, 0.95), vec3(0.9, 0.8, 1.0));
-  return c[min(level, 7u)];
+  const vec3 c[12] = vec3[](vec3(0.9, 0.2, 0.2), vec3(0.95, 0.6, 0.1), vec3(0.9, 0.9, 0.2), vec3(0.2, 0.8, 0.3),
+                            vec3(0.2, 0.5, 0.95), vec3(0.6, 0.3, 0.9), vec3(0.75, 0.55, 0.95), vec3(0.9, 0.8, 1.0),
+                            vec3(0.2, 0.65, 0.6), vec3(0.45, 0.85, 0.9), vec3(0.55, 0.6, 0.75), vec3(0.4, 0.4, 0.45));
+  return c[min(level, 11u)];
 }
 
 // Normals atlas (terrain/surface_contract.h): x in A, y in G as (v8 - 128) / 127, z rebuilt;
@@ -76,7 +79,7 @@ void main() {
   }
   if (kHoleDiscard && v_hole > 0.0) discard;  // defined hole method: any triangle touching a hole vertex
   uint slot = v_patch.x & 0xFFFFu;
-  uint level = (v_patch.x >> TV_PATCH_LEVEL_SHIFT) & 15u;  // geometric level
+  uint level = (v_patch.x >> TV_PATCH_LEVEL_SHIFT) & TV_PATCH_LEVEL_MASK;  // geometric level
   vec3 uvw = vec3((v_node + float(TV_APRON)) / float(TV_TEXELS), float(slot));
   vec4 normal_texel = texture(normals_tex, uvw);
   vec3 n = baked_normal(normal_texel);
@@ -95,7 +98,7 @@ void main() {
     if (kNearGroup && near_w > 0.0) {
       // World xy modulo 4096 m for the noise (stable under camera motion). Node origins are
       // multiples of their size, which divides 4096 m: wrap the origin, then add the offset.
-      uint node_level = min(level, uint(TV_ROOT_LEVEL));
+      uint node_level = level - (v_patch.x >> TV_PATCH_COARSE_SHIFT);
       vec2 v_wrap = mod(vec2(v_patch.zw) * float(64u << node_level), 4096.0) + v_node * (0.5 * float(1u << node_level));
       // Splat sample (a, b) sits on node vertex (2a, 2b): bilinear over the 4 surrounding ids.
       vec2 sc = v_node * 0.5;

@@ -21,9 +21,8 @@ layout(location = 3) flat out uvec4 v_patch;  // the patch entry
 void main() {
   uvec4 p = patches[gl_InstanceIndex];  // includes firstInstance: the far list starts at capacity
   uint slot = p.x & 0xFFFFu;
-  uint geo = (p.x >> TV_PATCH_LEVEL_SHIFT) & 15u;  // geometric level (6, 7: a coarsened root)
-  uint level = min(geo, uint(TV_ROOT_LEVEL));
-  uint c = geo - level;
+  uint c = p.x >> TV_PATCH_COARSE_SHIFT;  // coarsening of a root drawn at level 5 + c
+  uint level = ((p.x >> TV_PATCH_LEVEL_SHIFT) & TV_PATCH_LEVEL_MASK) - c;  // the node's own level (6+: overview)
   // Stitching: terrain::stitched_vertex() (format/include/terrain/surface_contract.h) in stitch.glsl.
   uint deltas = (frame.misc.y & TV_FLAG_NO_STITCH) != 0u ? 0u : p.y;
   uvec2 node_vertex = stitched_vertex(p.x, deltas, uint(gl_VertexIndex));

@@ -1,7 +1,8 @@
 #version 450
-// Breadth-first quadtree traversal in one workgroup with ping-pong lists in shared memory
-// (FC5 section 4.2): a node splits when its screen-space error asks for it and no child is
-// waiting to stream in (children that do not exist leave their quarter to the parent).
+// Breadth-first quadtree traversal in one workgroup with ping-pong lists (FC5 section 4.2), from
+// the top level's resident nodes (overview levels, format/SPEC.md section 19, or the roots): a
+// node splits when its screen-space error asks for it and no child is waiting to stream in
+// (children that do not exist leave their quarter to the parent).
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -10,13 +11,26 @@ layout(local_size_x = TV_TRAVERSE_GROUP) in;
 layout(std430, set = 0, binding = 4) buffer NodeList { uint node_list[]; };  // header + entries
 layout(std430, set = 0, binding = 5) writeonly buffer PatchWork { uint patch_work[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
+// Two lists of `cap` (slot count) entries each: a level holds distinct resident slots.
+layout(std430, set = 0, binding = 17) coherent buffer Lists { uint lists[]; };
+layout(std430, set = 0, binding = 18) readonly buffer Tree { uint tree[]; };  // config.h "Tree buffer"
 
-shared uint lists[2][TV_MAX_LIST];
 shared uint counts[2];
 shared uint final_count;
 shared uint item_count;
-shared uint level_counts[TV_LEVELS];
+shared uint level_counts[TV_MAX_LEVELS];
 shared uint overflow;
+
+// Child c of the node in `slot` at `level`: overview nodes from the tree buffer, others from the
+// index texture (TV_SLOT_EMPTY: exists, not resident; TV_SLOT_INVALID: no such node).
+uint child_slot(uint slot, NodeDesc d, int level, int c, uint cap) {
+  if (level > TV_ROOT_LEVEL) {
+    uint w = tree[TV_TREE_START + cap + 2u * slot + uint(c >> 1)];
+    return (w >> (16u * uint(c & 1))) & 0xFFFFu;
+  }
+  ivec2 cxy = ivec2(d.x * 2u + uint(c & 1), d.y * 2u + uint(c >> 1));
+  return texelFetch(index_tex, cxy, level - 1).r;
+}
 
 // Same operations, in the same order, as wants_split() in src/reference.cpp.
 bool wants_split(NodeDesc n, float error_m) {
@@ -45,7 +59,8 @@ bool neighbour_root_splits(NodeDesc d) {
     ivec2 p = ivec2(d.x, d.y) + offsets[k];
     if (p.x < 0 || p.y < 0 || p.x >= int(frame.world.x) || p.y >= int(frame.world.y)) continue;
     uint s = texelFetch(index_tex, p, TV_ROOT_LEVEL).r;
-    if (s < TV_SLOT_INVALID && wants_split(nodes[s], nodes[s].geometric_error)) return true;
+    if (s < TV_SLOT_INVALID && root_in_window(uint(p.x), uint(p.y)) && wants_split(nodes[s], nodes[s].geometric_error))
+      return true;
   }
   return false;
 }
@@ -75,36 +90,33 @@ void main() {
     final_count = 0u;
     item_count = 0u;
     overflow = 0u;
-    for (int l = 0; l < TV_LEVELS; ++l) level_counts[l] = 0u;
+    for (int l = 0; l < TV_MAX_LEVELS; ++l) level_counts[l] = 0u;
   }
   barrier();
-  // Roots: every resident node of the coarsest level.
-  uint roots = frame.world.x * frame.world.y;
-  for (uint r = t; r < roots; r += TV_TRAVERSE_GROUP) {
-    uint s = texelFetch(index_tex, ivec2(r % frame.world.x, r / frame.world.x), TV_ROOT_LEVEL).r;
-    if (s < TV_SLOT_INVALID) {
-      uint k = atomicAdd(counts[0], 1u);
-      if (k < TV_MAX_LIST) lists[0][k] = s;
-    }
-  }
+  // Start: the top level's resident nodes, listed by the CPU.
+  uint cap = tree[1];
+  uint starts = min(tree[0], cap);
+  for (uint r = t; r < starts; r += TV_TRAVERSE_GROUP) lists[r] = tree[TV_TREE_START + r];
+  if (t == 0u) counts[0] = starts;
+  memoryBarrierBuffer();
   barrier();
   uint cur = 0u;
-  for (int level = TV_ROOT_LEVEL; level >= 0; --level) {
+  for (int level = int(frame.misc.x); level >= 0; --level) {
     uint nxt = cur ^ 1u;
-    uint n = min(counts[cur], uint(TV_MAX_LIST));
+    uint n = min(counts[cur], cap);
     for (uint i = t; i < n; i += TV_TRAVERSE_GROUP) {
-      uint slot = lists[cur][i];
+      uint slot = lists[cur * cap + i];
       if (slot == 0xFFFFFFFFu) continue;  // a reservation that did not fit
       NodeDesc d = nodes[slot];
       uint mask = 15u, coarse = 0u;
-      bool wants = level > 0 && wants_split(d, d.geometric_error);
+      // Below the roots only inside the LOD map window (config.h "LOD map").
+      bool wants = level > 0 && wants_split(d, d.geometric_error) && (level != TV_ROOT_LEVEL || root_in_window(d.x, d.y));
       if (wants) {
         uint child[4];
         bool any_empty = false, any_resident = false;
         uint resident = 0u;
         for (int c = 0; c < 4; ++c) {
-          ivec2 cxy = ivec2(d.x * 2u + uint(c & 1), d.y * 2u + uint(c >> 1));
-          child[c] = texelFetch(index_tex, cxy, level - 1).r;
+          child[c] = child_slot(slot, d, level, c, cap);
           any_empty = any_empty || child[c] == TV_SLOT_EMPTY;
           bool res = child[c] < TV_SLOT_INVALID;
           any_resident = any_resident || res;
@@ -112,14 +124,14 @@ void main() {
         }
         if (!any_empty && any_resident) {
           uint k = atomicAdd(counts[nxt], resident);
-          if (k + resident <= TV_MAX_LIST) {
+          if (k + resident <= cap) {
             for (int c = 0; c < 4; ++c)
               if (child[c] < TV_SLOT_INVALID) {
-                lists[nxt][k++] = child[c];
+                lists[nxt * cap + k++] = child[c];
                 mask &= ~(1u << uint(c));
               }
           } else {
-            for (uint q = k; q < min(k + resident, uint(TV_MAX_LIST)); ++q) lists[nxt][q] = 0xFFFFFFFFu;
+            for (uint q = k; q < min(k + resident, cap); ++q) lists[nxt * cap + q] = 0xFFFFFFFFu;
             atomicAdd(overflow, 1u);
           }
         }
@@ -134,6 +146,7 @@ void main() {
       }
       if (mask != 0u) emit_final(slot, mask, coarse, d);
     }
+    memoryBarrierBuffer();
     barrier();
     if (t == 0u) counts[cur] = 0u;
     barrier();
@@ -146,7 +159,7 @@ void main() {
     node_list[TV_NL_DISPATCH + 1] = 1u;
     node_list[TV_NL_DISPATCH + 2] = 1u;
     node_list[TV_NL_COUNT] = final_count;
-    for (int l = 0; l < TV_LEVELS; ++l) node_list[TV_NL_LEVEL_COUNTS + l] = level_counts[l];
+    for (int l = 0; l < TV_MAX_LEVELS; ++l) node_list[TV_NL_LEVEL_COUNTS + l] = level_counts[l];
     node_list[TV_NL_OVERFLOW] = overflow;
     node_list[TV_NL_PATCH_DISPATCH + 0] = (item_count + uint(TV_PATCH_GROUP) - 1u) / uint(TV_PATCH_GROUP);
     node_list[TV_NL_PATCH_DISPATCH + 1] = 1u;

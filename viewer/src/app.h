@@ -25,7 +25,7 @@ struct ViewerOptions {
   std::string path_file;       // camera path: "X Y Z LX LY LZ" or "X Y Z YAW PITCH" per line (degrees)
   std::string stats_json;
   FrameSettings settings;      // error target, culling, holes, debug view, clear colour ...
-  uint32_t budget_nodes = 512;
+  uint32_t budget_nodes = 0;  // 0 = automatic: 512, or roots + 512 without overview levels
   uint32_t worker_threads = 0;
   uint32_t max_deliveries = 128;  // nodes the streamer hands over per frame
   bool load_all = false;       // decode every node up front instead of streaming

@@ -1,5 +1,6 @@
 #include "camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace terrain::view {
@@ -118,6 +119,29 @@ bool project(const FrameUniforms& u, const float p[3], double& px, double& py, d
   py = (clip[1] / clip[3] * 0.5 + 0.5) * u.viewport[1];
   depth = clip[2] / clip[3];
   return true;
+}
+
+}  // namespace terrain::view
+
+namespace terrain::view {
+
+void lod_window(const WorldInfo& world, double cam_x, double cam_y, uint32_t out[4]) {
+  auto axis = [](uint32_t roots, double local_m, uint32_t& origin, uint32_t& size) {
+    const uint32_t w = std::min<uint32_t>(roots, TV_LODMAP_WINDOW_ROOTS);
+    const double r = std::floor(local_m / node_size_m(kRootLevel)) - double(w / 2);
+    const uint32_t o = uint32_t(std::clamp(r, 0.0, double(roots - w)));
+    origin = o << kRootLevel;
+    size = w << kRootLevel;
+  };
+  axis(world.roots_x, cam_x - world.origin_x_m, out[0], out[2]);
+  axis(world.roots_y, cam_y - world.origin_y_m, out[1], out[3]);
+}
+
+int64_t lod_index(const FrameUniforms& u, int64_t sx, int64_t sy) {
+  if (sx < 0 || sy < 0 || sx >= int64_t(u.world[2]) || sy >= int64_t(u.world[3])) return -1;
+  const int64_t lx = sx - int64_t(u.lodwin[0]), ly = sy - int64_t(u.lodwin[1]);
+  if (lx >= 0 && ly >= 0 && lx < int64_t(u.lodwin[2]) && ly < int64_t(u.lodwin[3])) return ly * u.lodwin[2] + lx;
+  return int64_t(u.lodwin[2]) * u.lodwin[3] + (sy >> kRootLevel) * int64_t(u.world[0]) + (sx >> kRootLevel);
 }
 
 }  // namespace terrain::view

@@ -9,7 +9,7 @@
 
 namespace terrain::view {
 
-static_assert(TV_LEVELS == kLevelCount && TV_ROOT_LEVEL == kRootLevel);
+static_assert(TV_LEVELS == kLevelCount && TV_ROOT_LEVEL == kRootLevel && TV_MAX_LEVELS == kMaxLevels);
 static_assert(TV_QUADS_PER_NODE == kQuadsPerSide && TV_HEIGHT_SAMPLES == kHeightSamples);
 static_assert(TV_TEXELS == kTexels && TV_APRON == kApron && TV_SPLAT_SAMPLES == kSplatSamples);
 static_assert(TV_PATCHES_PER_SIDE == kPatchesPerSide && TV_QUADS_PER_PATCH == kQuadsPerPatch);
@@ -45,7 +45,10 @@ static_assert(sizeof(GpuPatch) == 16);
 inline uint32_t patch_slot(const GpuPatch& p) { return p.slot_patch_level & 0xFFFFu; }
 inline uint32_t patch_px(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PX_SHIFT) & 7u; }
 inline uint32_t patch_py(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_PY_SHIFT) & 7u; }
-inline uint32_t patch_level(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_LEVEL_SHIFT) & 15u; }
+// Geometric level (vertex spacing 2^level / 2 m); the node's own level is that minus the coarsening.
+inline uint32_t patch_level(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_LEVEL_SHIFT) & TV_PATCH_LEVEL_MASK; }
+inline uint32_t patch_coarsening(const GpuPatch& p) { return p.slot_patch_level >> TV_PATCH_COARSE_SHIFT; }
+inline int patch_node_level(const GpuPatch& p) { return int(patch_level(p) - patch_coarsening(p)); }
 inline uint32_t patch_decimation(const GpuPatch& p) { return (p.slot_patch_level >> TV_PATCH_DECIM_SHIFT) & 7u; }
 inline uint32_t patch_quads(const GpuPatch& p) { return uint32_t(TV_QUADS_PER_PATCH) >> patch_decimation(p); }  // per side
 inline uint32_t edge_delta(const GpuPatch& p, int shift) { return (p.edge_deltas >> shift) & 0xFu; }
@@ -59,13 +62,14 @@ struct FrameUniforms {
   float cam_frac[4] = {};     // x, y remainder in metres [0, 0.5); z camera height m; w pixels per radian
   float lod[4] = {};          // x error target px, y cone margin (sin), z near-shading start m, w end m
   uint32_t world[4] = {};     // roots_x, roots_y, sectors_x, sectors_y
-  uint32_t misc[4] = {};      // unused (0), flags (TV_FLAG_*), debug view (TV_DEBUG_*), patch capacity
+  uint32_t misc[4] = {};      // top level, flags (TV_FLAG_*), debug view (TV_DEBUG_*), patch capacity
   float sun_dir[4] = {};      // towards the sun, w unused
   float sun_color[4] = {};    // linear rgb, w ambient strength
   float sky_color[4] = {};    // linear rgb, w unused
   float fog[4] = {};          // linear rgb, w density per metre
   float viewport[4] = {};     // width, height, 1/width, 1/height
   float wrap_origin[4] = {};  // xy: camera position modulo the detail period (m), for noise
+  uint32_t lodwin[4] = {};    // LOD map window: x0, y0, width, height in sectors (config.h "LOD map")
 };
 static_assert(sizeof(FrameUniforms) % 16 == 0);
 
@@ -77,5 +81,15 @@ struct GpuMaterial {
 static_assert(sizeof(GpuMaterial) == 32);
 
 inline constexpr uint32_t level_grid_width(uint32_t roots, int level) { return roots << (kRootLevel - level); }
+
+// The LOD map window (config.h "LOD map") for a camera at frame point (x, y): at most
+// TV_LODMAP_WINDOW_ROOTS roots per side, centred on the camera's root, clamped to the world.
+void lod_window(const WorldInfo& world, double cam_x, double cam_y, uint32_t out[4]);
+// Index into the LOD map of sector (sx, sy) (the shaders' lod_index()), or -1 outside the world.
+int64_t lod_index(const FrameUniforms& u, int64_t sx, int64_t sy);
+// Size of the LOD map in uints: window plus one cell per root.
+inline size_t lod_map_size(const FrameUniforms& u) {
+  return size_t(u.lodwin[2]) * u.lodwin[3] + size_t(u.world[0]) * u.world[1];
+}
 
 }  // namespace terrain::view

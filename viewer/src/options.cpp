@@ -47,7 +47,7 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
       ->check(CLI::IsMember({"none", "lod", "nodes", "patches", "cones", "holes", "normals", "splat", "wire"}));
   app.add_option("--error", o.settings.error_target_px, "screen-space error target, pixels")
       ->capture_default_str()->check(terrain::cli::number_check("> 0 and <= 1000", [](double v) { return v > 0 && v <= 1000; }));
-  app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer (at least the archive's roots)")
+  app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer; 0 = automatic (512, or roots + 512 for an archive without overview levels)")
       ->capture_default_str()->check(terrain::cli::int_range(1, 65534));
   app.add_option("--threads", o.worker_threads, "streamer worker threads (0 = all cores)")->check(terrain::cli::int_range(0, 256));
   app.add_option("--deliveries", o.max_deliveries, "most nodes uploaded per frame (small values show the streaming frontier)")

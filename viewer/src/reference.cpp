@@ -96,30 +96,28 @@ bool wants_split(const GpuNodeDesc& n, float error_m, const FrameUniforms& u) {
 
 NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots) {
   NodeList out;
-  std::vector<uint32_t> current, next;
-  for (uint32_t y = 0; y < state.grid_height(kRootLevel); ++y)
-    for (uint32_t x = 0; x < state.grid_width(kRootLevel); ++x) {
-      const uint16_t s = state.index(kRootLevel, x, y);
-      if (s < TV_SLOT_INVALID) current.push_back(s);
-    }
-  for (int level = kRootLevel; level >= 0; --level) {
+  // From the top level's resident nodes; lists bounded by the slot count (distinct resident slots).
+  std::vector<uint32_t> current = state.start_slots(), next;
+  const size_t cap = state.slot_count();
+  for (int level = state.top_level(); level >= 0; --level) {
     next.clear();
     for (uint32_t slot : current) {
       const GpuNodeDesc& d = state.descriptor(slot);
       uint32_t mask = 0xF, coarse = 0;
-      const bool wants = level > 0 && wants_split(d, u);
+      const bool wants = level > 0 && wants_split(d, u) && (level != kRootLevel || root_in_window(u, d.x, d.y));
       if (wants) {
         uint16_t child[4];
         bool any_empty = false, any_resident = false;
         for (int c = 0; c < 4; ++c) {
-          child[c] = state.index_or_invalid(level - 1, int64_t(d.x) * 2 + (c & 1), int64_t(d.y) * 2 + (c >> 1));
+          child[c] = level > kRootLevel ? state.child(slot, c)
+                                        : state.index_or_invalid(level - 1, int64_t(d.x) * 2 + (c & 1), int64_t(d.y) * 2 + (c >> 1));
           any_empty |= child[c] == TV_SLOT_EMPTY;
           any_resident |= child[c] < TV_SLOT_INVALID;
         }
         if (!any_empty && any_resident) {
           uint32_t resident = 0;
           for (int c = 0; c < 4; ++c) resident += child[c] < TV_SLOT_INVALID;
-          if (next.size() + resident <= TV_MAX_LIST) {
+          if (next.size() + resident <= cap) {
             for (int c = 0; c < 4; ++c)
               if (child[c] < TV_SLOT_INVALID) {
                 next.push_back(child[c]);
@@ -136,7 +134,9 @@ NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, c
           const int64_t off[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
           for (const auto& o : off) {
             const uint16_t s = state.index_or_invalid(kRootLevel, int64_t(d.x) + o[0], int64_t(d.y) + o[1]);
-            if (s < TV_SLOT_INVALID && wants_split(state.descriptor(s), u)) return true;
+            if (s < TV_SLOT_INVALID && root_in_window(u, uint32_t(int64_t(d.x) + o[0]), uint32_t(int64_t(d.y) + o[1])) &&
+                wants_split(state.descriptor(s), u))
+              return true;
           }
           return false;
         };
@@ -156,9 +156,9 @@ NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, c
   return out;
 }
 
-std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeList& list) {
-  const uint32_t sx_count = state.grid_width(0), sy_count = state.grid_height(0);
-  std::vector<uint32_t> map(size_t(sx_count) * sy_count, 0);
+std::vector<uint32_t> reference_lod_map(const TerrainState& state, const FrameUniforms& u, const NodeList& list) {
+  std::vector<uint32_t> map(lod_map_size(u), 0);
+  const size_t base = size_t(u.lodwin[2]) * u.lodwin[3];
   // Paint coarse to fine: a finer node always covers area its (partial) parent does not draw.
   std::vector<uint32_t> sorted = list.entries;
   std::sort(sorted.begin(), sorted.end(), [&](uint32_t a, uint32_t b) {
@@ -168,12 +168,25 @@ std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeLis
     const GpuNodeDesc& d = state.descriptor(e & TV_ENTRY_SLOT_MASK);
     const uint32_t mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu, coarse = (e >> TV_ENTRY_COARSE_SHIFT) & 3u;
     const int level = d.level;
-    const uint32_t size = 1u << level, half = size >> 1;
-    for (uint32_t j = 0; j < size; ++j)
-      for (uint32_t i = 0; i < size; ++i) {
-        const uint32_t quadrant = level == 0 ? 0u : uint32_t(i >= half) | uint32_t(j >= half) << 1;
+    const uint32_t value = uint32_t(level) + coarse + 1;
+    if (level >= kRootLevel) {  // root cells
+      const uint32_t rs = 1u << (level - kRootLevel), rhalf = rs >> 1;
+      const uint32_t rx0 = d.x << (level - kRootLevel), ry0 = d.y << (level - kRootLevel);
+      for (uint32_t j = 0; j < rs && ry0 + j < u.world[1]; ++j)
+        for (uint32_t i = 0; i < rs && rx0 + i < u.world[0]; ++i) {
+          const uint32_t quadrant = uint32_t(i >= rhalf) | uint32_t(j >= rhalf) << 1;
+          if (rs > 1 && !(mask & (1u << quadrant))) continue;
+          map[base + size_t(ry0 + j) * u.world[0] + rx0 + i] = value;
+        }
+    }
+    const int64_t size = int64_t(1) << level, half = size >> 1;
+    const int64_t x0 = int64_t(d.x) << level, y0 = int64_t(d.y) << level;
+    for (int64_t sy = std::max<int64_t>(y0, u.lodwin[1]); sy < std::min<int64_t>(y0 + size, int64_t(u.lodwin[1]) + u.lodwin[3]); ++sy)
+      for (int64_t sx = std::max<int64_t>(x0, u.lodwin[0]); sx < std::min<int64_t>(x0 + size, int64_t(u.lodwin[0]) + u.lodwin[2]);
+           ++sx) {
+        const uint32_t quadrant = level == 0 ? 0u : uint32_t(sx - x0 >= half) | uint32_t(sy - y0 >= half) << 1;
         if (level > 0 && !(mask & (1u << quadrant))) continue;
-        map[size_t((d.y << level) + j) * sx_count + (d.x << level) + i] = uint32_t(level) + coarse + 1;
+        map[size_t(sy - u.lodwin[1]) * u.lodwin[2] + size_t(sx - u.lodwin[0])] = value;
       }
   }
   return map;
@@ -198,8 +211,9 @@ uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u
   const int64_t spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
   const int64_t mx = rx + int64_t(px) * spp + spp / 2, my = ry + int64_t(py) * spp + spp / 2;
   auto cap = [&](int64_t sx, int64_t sy) {
-    if (sx < 0 || sy < 0 || sx >= int64_t(u.world[2]) || sy >= int64_t(u.world[3])) return;
-    const uint32_t v = lod_map[size_t(sy) * u.world[2] + size_t(sx)];
+    const int64_t k = lod_index(u, sx, sy);
+    if (k < 0) return;
+    const uint32_t v = lod_map[size_t(k)];
     if (v >= kRootLevel + 2) max_e = std::min(max_e, v - (kRootLevel + 1));
   };
   if (px == 0) cap(rx - 1, my);
@@ -229,10 +243,9 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
                             const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
                             const float* sin2_table) {
   PatchList out;
-  const uint32_t sx_count = u.world[2], sy_count = u.world[3];
   auto lod_at = [&](int64_t sx, int64_t sy) -> uint32_t {
-    if (sx < 0 || sy < 0 || sx >= sx_count || sy >= sy_count) return 0;
-    return lod_map[size_t(sy) * sx_count + size_t(sx)];
+    const int64_t k = lod_index(u, sx, sy);
+    return k < 0 ? 0u : lod_map[size_t(k)];
   };
   const uint32_t max_e = max_decimation(u, list);
   // Effective level + 1 of the surface drawn at a sector: the LOD map's, plus the decimation of
@@ -267,7 +280,9 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
         auto start = [&](int64_t node_s, uint32_t p) { return node_s + (int64_t(p) << level) / pps; };
         const int64_t mid_x = node_sx + ((int64_t(px) * 2 + 1) << level) / (2 * pps);
         const int64_t mid_y = node_sy + ((int64_t(py) * 2 + 1) << level) / (2 * pps);
-        auto delta = [&](uint32_t v) -> uint32_t { return v > geo + dec + 1 ? v - 1 - geo : 0u; };
+        auto delta = [&](uint32_t v) -> uint32_t {
+          return v > geo + dec + 1 ? std::min<uint32_t>(v - 1 - geo, TV_MAX_DELTA) : 0u;  // clamped: see config.h
+        };
         const uint32_t ds = py == 0 || root_patch ? delta(eff_at(mid_x, start(node_sy, py) - 1)) : 0u;
         const uint32_t dw = px == 0 || root_patch ? delta(eff_at(start(node_sx, px) - 1, mid_y)) : 0u;
         const uint32_t dn = py == pps - 1 || root_patch ? delta(eff_at(mid_x, start(node_sy, py + 1))) : 0u;
@@ -312,7 +327,7 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
         }
         GpuPatch p;
         p.slot_patch_level = slot | px << TV_PATCH_PX_SHIFT | py << TV_PATCH_PY_SHIFT | geo << TV_PATCH_LEVEL_SHIFT |
-                             dec << TV_PATCH_DECIM_SHIFT;
+                             dec << TV_PATCH_DECIM_SHIFT | c << TV_PATCH_COARSE_SHIFT;
         p.edge_deltas = deltas | (near ? TV_PATCH_NEAR_BIT : 0u);
         p.node_x = d.x;
         p.node_y = d.y;
@@ -341,8 +356,8 @@ void stitch_vertex(const GpuPatch& p, int i, int j, int& ni, int& nj) {
 void patch_vertex(const GpuPatch& p, int i, int j, int64_t& hx, int64_t& hy, int& ti, int& tj) {
   int ni, nj;
   stitch_vertex(p, i, j, ni, nj);
-  const uint32_t geo = patch_level(p), c = coarsening_of(geo);
-  const int level = node_level_of(geo);
+  const uint32_t c = patch_coarsening(p);
+  const int level = patch_node_level(p);
   ti = ni << c;
   tj = nj << c;
   hx = vertex_half_metres(p.node_x, level, ti);

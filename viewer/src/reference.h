@@ -15,7 +15,7 @@ namespace terrain::view {
 
 struct NodeList {
   std::vector<uint32_t> entries;  // slot | quadrant mask << 16 | coarsening << 20 (unordered on the GPU)
-  std::array<uint32_t, kLevelCount> level_counts{};
+  std::array<uint32_t, kMaxLevels> level_counts{};
   uint32_t overflow = 0;
 };
 
@@ -43,9 +43,9 @@ inline bool wants_split(const GpuNodeDesc& node, const FrameUniforms& u) {
 
 NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots);
 
-// One uint per sector (sectors_x * sectors_y, row-major): geometric level + 1 of the node drawing
-// it, 0 if none.
-std::vector<uint32_t> reference_lod_map(const TerrainState& state, const NodeList& list);
+// The LOD map of config.h (lod_map_size(u) uints: the window's sectors row-major, then one cell
+// per root): geometric level + 1 of the node drawing it, 0 if none. Read it with lod_index().
+std::vector<uint32_t> reference_lod_map(const TerrainState& state, const FrameUniforms& u, const NodeList& list);
 
 struct PatchList {
   std::vector<GpuPatch> patches;
@@ -81,8 +81,11 @@ inline int64_t vertex_half_metres(uint32_t node_coord, int level, int node_index
   return (int64_t(node_coord) * TV_QUADS_PER_NODE + node_index) << level;
 }
 
-inline uint32_t coarsening_of(uint32_t geometric_level) { return geometric_level > 5 ? geometric_level - 5 : 0; }
-inline int node_level_of(uint32_t geometric_level) { return int(std::min<uint32_t>(geometric_level, 5)); }
+// Whether root (x, y) lies in the LOD map window (only those split: config.h "LOD map").
+inline bool root_in_window(const FrameUniforms& u, uint32_t x, uint32_t y) {
+  const uint32_t wx = u.lodwin[0] >> kRootLevel, wy = u.lodwin[1] >> kRootLevel;
+  return x >= wx && y >= wy && x < wx + (u.lodwin[2] >> kRootLevel) && y < wy + (u.lodwin[3] >> kRootLevel);
+}
 
 // Drawn position of patch vertex (i, j): half metres from the world origin, and the height texel
 // (0..128) of the node it reads.

@@ -33,7 +33,9 @@ enum Binding : uint32_t {
   kBindPalette = 14,
   kBindCoarseErrors = 15,
   kBindPatchErrors = 16,
-  kBindCount = 17,
+  kBindLists = 17,
+  kBindTree = 18,
+  kBindCount = 19,
 };
 
 // The patch meshes of every decimation e, one after the other: (16 >> e)^2 quads each.
@@ -61,19 +63,15 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   ctx_ = &ctx;
   world_ = world;
   config_ = config;
-  // The GPU traversal starts from a list of every root and holds TV_MAX_LIST entries: roots past it
-  // would be dropped from the picture without a word, so such an archive is refused.
-  if (uint64_t(world.roots_x) * world.roots_y > TV_MAX_LIST)
-    return Status::failure(Error::unsupported_input,
-                           "the archive has " + std::to_string(uint64_t(world.roots_x) * world.roots_y) + " roots (" +
-                               std::to_string(world.roots_x) + " x " + std::to_string(world.roots_y) +
-                               "); this viewer traverses at most " + std::to_string(TV_MAX_LIST) +
-                               " roots: cook a smaller area or view a part of it");
   if (config.slot_count == 0 || config.slot_count > TV_SLOT_INVALID)
     return Status::failure(Error::invalid_argument, "renderer: slot_count must be 1..65534");
   if (world.roots_x == 0 || world.roots_y == 0) return Status::failure(Error::invalid_argument, "renderer: empty world");
+  top_level_ = uint32_t(top_level(world));
   sectors_x_ = level_grid_width(world.roots_x, 0);
   sectors_y_ = level_grid_width(world.roots_y, 0);
+  lod_map_uints_ = size_t(std::min<uint32_t>(world.roots_x, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) *
+                       (std::min<uint32_t>(world.roots_y, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) +
+                   size_t(world.roots_x) * world.roots_y;
   const uint32_t slots = config.slot_count;
   slot_cpu_.assign(slots, SlotCpuData{});
 
@@ -118,7 +116,9 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(sectors_x_) * sectors_y_ * 4, storage, lod_map_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(lod_map_uints_) * 4, storage, lod_map_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 2 * 4, storage, lists_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_TREE_START + 3 * size_t(slots)) * 4, storage, tree_));
   TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
   // Patch range r (shading group x decimation) from instance r * capacity (config.h, shading groups).
   const VkDeviceSize patch_list_bytes = TV_PATCH_RANGES * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
@@ -127,7 +127,7 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
                               index_buffer_));
   TV_TRY(create_host_buffer(ctx, (TV_NL_HEADER + TV_DRAW_UINTS) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, stats_readback_));
   TV_TRY(create_host_buffer(ctx,
-                            VkDeviceSize(TV_NL_HEADER + slots) * 4 + VkDeviceSize(sectors_x_) * sectors_y_ * 4 +
+                            VkDeviceSize(TV_NL_HEADER + slots) * 4 + VkDeviceSize(lod_map_uints_) * 4 +
                                 patch_list_bytes,
                             VK_BUFFER_USAGE_TRANSFER_DST_BIT, lists_readback_));
   TV_TRY(create_host_buffer(ctx, 8u << 20, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, staging_));
@@ -238,6 +238,8 @@ Status TerrainRenderer::create_pipelines() {
   buf(kBindCoarseErrors, coarse_errors_);
   buf(kBindPatchErrors, patch_errors_);
   buf(kBindPatchWork, patch_work_);
+  buf(kBindLists, lists_);
+  buf(kBindTree, tree_);
   auto img = [&](uint32_t binding, const Image& image, VkSampler sampler) {
     ii[binding] = {sampler, image.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   };
@@ -391,7 +393,7 @@ void TerrainRenderer::destroy() {
   linear_ = nearest_ = VK_NULL_HANDLE;
   for (Image& i : images_) destroy_image(ctx, i);
   for (Buffer* b : {&uniforms_buf_, &palette_buf_, &node_desc_, &patch_bounds_, &coarse_errors_, &patch_errors_, &patch_work_, &node_list_, &lod_map_,
-                    &draw_, &patches_, &index_buffer_, &stats_readback_, &lists_readback_, &staging_})
+                    &lists_, &tree_, &draw_, &patches_, &index_buffer_, &stats_readback_, &lists_readback_, &staging_})
     destroy_buffer(ctx, *b);
   images_initialised_ = false;
   pending_images_.clear();
@@ -462,6 +464,14 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         {patch_errors_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.patch_error), sizeof(cpu.patch_error)}});
   }
   TerrainState::Dirty dirty = state.take_dirty();
+  // The traversal's start list and the overview nodes' children (small: 12 bytes per slot).
+  {
+    const std::vector<uint32_t> tree = state.tree_buffer();
+    VkDeviceSize off;
+    TV_TRY(stage_bytes(tree.data(), tree.size() * 4, 16, off));
+    pending_buffers_.push_back({tree_.buffer, {off, 0, tree.size() * 4}});
+    top_level_ = uint32_t(state.top_level());
+  }
   // Descriptors: contiguous runs of dirty slots become one copy each.
   for (size_t i = 0; i < dirty.slots.size();) {
     size_t j = i + 1;
@@ -512,7 +522,8 @@ void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, ui
   if (s.splat && (s.debug == TV_DEBUG_NONE || s.debug == TV_DEBUG_WIRE)) flags |= TV_FLAG_SPLAT;
   if (!s.stitch) flags |= TV_FLAG_NO_STITCH;
   if (s.decimate) flags |= TV_FLAG_DECIMATE;
-  u.misc[0] = 0;
+  u.misc[0] = top_level_;
+  lod_window(world_, camera.position[0], camera.position[1], u.lodwin);
   u.misc[1] = flags;
   u.misc[2] = uint32_t(s.debug);
   u.misc[3] = config_.slot_count * TV_PATCHES_PER_NODE;
@@ -670,7 +681,7 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
   lists_captured_ = capture_lists;
   if (capture_lists) {
     const VkDeviceSize nl = VkDeviceSize(TV_NL_HEADER + config_.slot_count) * 4;
-    const VkDeviceSize lm = VkDeviceSize(sectors_x_) * sectors_y_ * 4;
+    const VkDeviceSize lm = VkDeviceSize(lod_map_uints_) * 4;
     const VkDeviceSize pl = TV_PATCH_RANGES * VkDeviceSize(config_.slot_count) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
     c = {0, 0, nl};
     vkCmdCopyBuffer(cmd, node_list_.buffer, lists_readback_.buffer, 1, &c);
@@ -689,8 +700,9 @@ FrameStats TerrainRenderer::read_stats() const {
   const uint32_t* nl = static_cast<const uint32_t*>(stats_readback_.mapped);
   const uint32_t* dr = nl + TV_NL_HEADER;
   s.nodes = nl[TV_NL_COUNT];
-  for (int l = 0; l < kLevelCount; ++l) s.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
+  for (int l = 0; l < kMaxLevels; ++l) s.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
   s.traversal_overflow = nl[TV_NL_OVERFLOW];
+  s.stitch_clamped = dr[TV_CNT_DEEP];
   for (uint32_t r = 0; r < TV_PATCH_RANGES; ++r) {
     const uint32_t count = dr[r * 5 + 1], e = r % TV_MESHES;
     if (r < TV_MESHES) s.patches_near += count;
@@ -723,12 +735,12 @@ void TerrainRenderer::read_lists(NodeList& nodes, std::vector<uint32_t>& lod_map
   nodes = NodeList{};
   const uint32_t count = std::min(nl[TV_NL_COUNT], config_.slot_count);
   nodes.entries.assign(nl + TV_NL_HEADER, nl + TV_NL_HEADER + count);
-  for (int l = 0; l < kLevelCount; ++l) nodes.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
+  for (int l = 0; l < kMaxLevels; ++l) nodes.level_counts[size_t(l)] = nl[TV_NL_LEVEL_COUNTS + l];
   nodes.overflow = nl[TV_NL_OVERFLOW];
   const size_t nl_bytes = size_t(TV_NL_HEADER + config_.slot_count) * 4;
   const uint32_t* lm = reinterpret_cast<const uint32_t*>(base + nl_bytes);
-  lod_map.assign(lm, lm + size_t(sectors_x_) * sectors_y_);
-  const GpuPatch* pl = reinterpret_cast<const GpuPatch*>(base + nl_bytes + size_t(sectors_x_) * sectors_y_ * 4);
+  lod_map.assign(lm, lm + lod_map_uints_);
+  const GpuPatch* pl = reinterpret_cast<const GpuPatch*>(base + nl_bytes + lod_map_uints_ * 4);
   const uint32_t* dr = static_cast<const uint32_t*>(stats_readback_.mapped) + TV_NL_HEADER;
   const size_t capacity = size_t(config_.slot_count) * TV_PATCHES_PER_NODE;
   patches.clear();

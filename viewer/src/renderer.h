@@ -50,8 +50,9 @@ struct FrameSettings {
 
 struct FrameStats {
   uint32_t nodes = 0;
-  std::array<uint32_t, kLevelCount> level_counts{};
-  uint32_t traversal_overflow = 0;
+  std::array<uint32_t, kMaxLevels> level_counts{};  // levels 6+: coarsened roots are counted at 5
+  uint32_t traversal_overflow = 0;  // list entries that did not fit (0 by construction; warned)
+  uint32_t stitch_clamped = 0;      // patch edges facing a neighbour coarser by d > 7 (may crack; warned)
   uint32_t patches_considered = 0, patches_drawn = 0, culled_frustum = 0, culled_cone = 0;
   uint32_t patches_near = 0;  // of patches_drawn, in the near (splat) shading group
   std::array<uint32_t, TV_MESHES> patches_decimated{};  // of patches_drawn, per decimation e
@@ -107,6 +108,8 @@ class TerrainRenderer {
   WorldInfo world_;
   RendererConfig config_;
   uint32_t sectors_x_ = 0, sectors_y_ = 0;
+  size_t lod_map_uints_ = 0;
+  uint32_t top_level_ = kRootLevel;  // of the state last uploaded  // LOD map window (at most 512 x 512 sectors) + one cell per root
 
   // Atlases: 0 heights R16_UINT, 1 normals BC3, 2 albedo BC1 sRGB, 3 splat R8_UINT, 4 cones BC3, 5 index.
   std::array<Image, 6> images_;
@@ -114,7 +117,7 @@ class TerrainRenderer {
   VkSampler linear_ = VK_NULL_HANDLE, nearest_ = VK_NULL_HANDLE;
 
   Buffer uniforms_buf_, palette_buf_, node_desc_, patch_bounds_, coarse_errors_, patch_errors_, patch_work_, node_list_, lod_map_, draw_, patches_,
-      index_buffer_, stats_readback_, lists_readback_;
+      lists_, tree_, index_buffer_, stats_readback_, lists_readback_;
   bool lists_captured_ = false;
   Buffer staging_;
   VkDeviceSize staging_used_ = 0;

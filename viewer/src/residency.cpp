@@ -15,7 +15,7 @@ void StaticResidency::init(const WorldInfo& world, std::vector<MemoryNode> nodes
   state.init(world, slot_count);
   for (const MemoryNode& n : nodes_) {
     const NodeKey& k = n.record.key;
-    if (k.x < state.grid_width(int(k.level)) && k.y < state.grid_height(int(k.level)))
+    if (k.level <= uint32_t(kRootLevel) && k.x < state.grid_width(int(k.level)) && k.y < state.grid_height(int(k.level)))
       state.set_index(int(k.level), k.x, k.y, uint16_t(TV_SLOT_EMPTY));
   }
 }
@@ -28,7 +28,7 @@ Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& residen
   for (const MemoryNode& n : nodes_) {
     const NodeKey& k = n.record.key;
     bool want = resident(k);
-    if (want && k.level < uint32_t(kRootLevel)) {
+    if (want && int(k.level) < top_level(world_)) {
       auto p = keep.find(key_of(parent_of(k)));
       want = p != keep.end() && p->second;
     }
@@ -41,7 +41,10 @@ Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& residen
     if (it == slot_of_.end() || keep[key_of(k)]) continue;
     free_slots_.push_back(it->second);
     slot_of_.erase(it);
-    state.set_index(int(k.level), k.x, k.y, uint16_t(TV_SLOT_EMPTY));
+    if (k.level > uint32_t(kRootLevel))
+      state.set_overview(k, uint16_t(TV_SLOT_INVALID));
+    else
+      state.set_index(int(k.level), k.x, k.y, uint16_t(TV_SLOT_EMPTY));
   }
   // Load, parents first.
   for (const MemoryNode& n : nodes_) {
@@ -54,7 +57,10 @@ Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& residen
     free_slots_.pop_back();
     slot_of_[key_of(k)] = slot;
     state.set_slot(slot, slot_descriptor_of(n.record, world_));
-    state.set_index(int(k.level), k.x, k.y, uint16_t(slot));
+    if (k.level > uint32_t(kRootLevel))
+      state.set_overview(k, uint16_t(slot));
+    else
+      state.set_index(int(k.level), k.x, k.y, uint16_t(slot));
     uploads.push_back({slot, n.data});
   }
   return Status::success();

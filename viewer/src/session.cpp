@@ -1,5 +1,7 @@
 #include "session.h"
 
+#include <cstdio>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -148,6 +150,19 @@ Status end_frame(Session& s, bool readback, FrameRecord& rec, double start, void
   rec.wait_ms = now_ms() - submit;
   rec.gpu = s.renderer.read_stats();
   rec.frame = int(s.records.size());
+  // Bounds that are not supposed to bind: say so once rather than lose detail or crack silently.
+  if (rec.gpu.traversal_overflow > 0 && !s.warned_overflow) {
+    s.warned_overflow = true;
+    std::fprintf(stderr, "terrain-view: warning: %u traversal list entries did not fit (frame %d); nodes were not split\n",
+                 rec.gpu.traversal_overflow, rec.frame);
+  }
+  if (rec.gpu.stitch_clamped > 0 && !s.warned_stitch) {
+    s.warned_stitch = true;
+    std::fprintf(stderr,
+                 "terrain-view: warning: %u patch edges face a neighbour more than 7 levels coarser (frame %d); "
+                 "their stitch is clamped to 7 and may crack\n",
+                 rec.gpu.stitch_clamped, rec.frame);
+  }
   s.records.push_back(rec);
   return Status::success();
 }
@@ -182,6 +197,7 @@ Status write_stats_json(const Session& s, const std::string& path) {
     f["patches_per_decimation"] = r.gpu.patches_decimated;  // e = 0..4
     f["triangles"] = r.gpu.triangles;
     f["traversal_overflow"] = r.gpu.traversal_overflow;
+    f["stitch_clamped"] = r.gpu.stitch_clamped;
     f["resident"] = r.source.resident;
     f["delivered"] = r.source.delivered;
     f["evicted"] = r.source.evicted;

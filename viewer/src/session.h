@@ -35,6 +35,7 @@ struct Session {
   // Window mode: the submit waits for `submit_wait` (swapchain acquire) and signals `submit_signal`.
   VkSemaphore submit_wait = VK_NULL_HANDLE, submit_signal = VK_NULL_HANDLE;
   bool capture_lists = false;  // copy node list, LOD map and patch list for read_lists() (tests, bench)
+  bool warned_overflow = false, warned_stitch = false;  // each warning once per session
   ~Session();
 };
 

@@ -18,23 +18,21 @@ class StreamSource final : public NodeSource {
     config.error_target_px = o.error_target_px;
     config.worker_threads = o.worker_threads;
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
-    // Every root stays resident, so the budget must hold them: say which flag to raise.
     {
       ArchiveReader reader;
       if (Status st = reader.open(path); !st.ok()) return st;
-      // The GPU traversal starts at the roots, which the streamer keeps resident only without
-      // overview levels (format/SPEC.md section 19): refuse rather than draw holes.
-      if (reader.top_level() > kRootLevel)
-        return Status::failure(Error::unsupported_input,
-                               "the archive has " + std::to_string(reader.level_count() - kLevelCount) +
-                                   " overview levels above the roots (format v2, SPEC section 19), which terrain-view "
-                                   "does not draw yet");
+      // The streamer keeps the top level resident: at most 16 overview nodes (format/SPEC.md
+      // section 19), or every root of an archive without overview levels. Budget 0 (the default)
+      // = 512, raised for such an archive to its roots + 512 so that it opens too.
       const uint64_t roots = uint64_t(reader.world().roots_x) * reader.world().roots_y;
-      if (o.budget_nodes < roots)
+      const bool overview = reader.top_level() > kRootLevel;
+      if (o.budget_nodes == 0)
+        config.budget_nodes = overview ? 512u : uint32_t(std::min<uint64_t>(std::max<uint64_t>(512, roots + 512), kMaxSlots));
+      else if (!overview && o.budget_nodes < roots)
         return Status::failure(Error::invalid_argument,
                                "--budget " + std::to_string(o.budget_nodes) + " is smaller than the archive's " +
-                                   std::to_string(roots) + " roots, which stay resident: use --budget " +
-                                   std::to_string(roots) + " or more");
+                                   std::to_string(roots) + " roots, which stay resident (it has no overview levels, "
+                                   "format/SPEC.md section 19): use --budget " + std::to_string(roots) + " or more, or 0");
     }
     return streamer_.open(path, config);
   }
@@ -72,6 +70,11 @@ class StreamSource final : public NodeSource {
     // Descriptors first (the upload computes patch bounds with the slot's quantization).
     for (uint16_t s : fu.dirty_slots) state.set_slot(s, streamer_.slots()[s]);
     for (const NodeDelivery& d : fu.delivered) uploads.push_back({d.slot, d.data});
+    // Overview nodes have no index grid cells: the state keeps their slots (children first out).
+    for (const NodeEviction& e : fu.evicted)
+      if (e.key.level > uint32_t(kRootLevel)) state.set_overview(e.key, uint16_t(TV_SLOT_INVALID));
+    for (const NodeDelivery& d : fu.delivered)
+      if (d.key.level > uint32_t(kRootLevel)) state.set_overview(d.key, d.slot);
     for (int level = 0; level < kLevelCount; ++level) {
       const DirtyRect& r = fu.dirty_index[size_t(level)];
       if (r.empty()) continue;

@@ -38,7 +38,7 @@ class NodeSource {
 };
 
 struct StreamSourceOptions {
-  uint32_t budget_nodes = 512;
+  uint32_t budget_nodes = 0;  // 0 = automatic: 512, or roots + 512 without overview levels
   double error_target_px = 2.0;
   uint32_t worker_threads = 0;
   uint32_t max_deliveries_per_frame = 128;

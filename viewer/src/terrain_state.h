@@ -5,6 +5,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "gpu_types.h"
@@ -43,6 +44,23 @@ class TerrainState {
   void set_index(int level, uint32_t x, uint32_t y, uint16_t value);
   const std::vector<uint16_t>& grid(int level) const { return grids_[level]; }
 
+  // Overview levels (format/SPEC.md section 19): levels 6 .. top_level() have no index grids;
+  // the state keeps their resident nodes in a small map (at most the resident set).
+  int top_level() const { return top_level(world_); }
+  static int top_level(const WorldInfo& w) { return terrain::top_level(w); }
+  // Records node `key` (level >= 6) as resident in `slot`, or removes it (slot >= TV_SLOT_INVALID).
+  void set_overview(const NodeKey& key, uint16_t slot);
+  // Slot of an overview node, TV_SLOT_EMPTY when it is not resident.
+  uint16_t overview_slot(const NodeKey& key) const;
+  // Where the GPU traversal starts: the top level's resident nodes (the roots without overview
+  // levels), in key order.
+  std::vector<uint32_t> start_slots() const;
+  // Child c of the resident node in `slot` (TV_SLOT_EMPTY exists but not resident, TV_SLOT_INVALID
+  // no such node), from the child mask and the index grid or the overview map.
+  uint16_t child(uint32_t slot, int c) const;
+  // The tree buffer of config.h ("Tree buffer"): start list and the child words of overview slots.
+  std::vector<uint32_t> tree_buffer() const;
+
   const SlotDescriptor& descriptor(uint32_t s) const { return slots_[s]; }
   const std::vector<SlotDescriptor>& descriptors() const { return slots_; }
   void set_slot(uint32_t s, const SlotDescriptor& desc);
@@ -58,6 +76,7 @@ class TerrainState {
   WorldInfo world_;
   std::array<std::vector<uint16_t>, kLevelCount> grids_;
   std::vector<SlotDescriptor> slots_;
+  std::unordered_map<uint64_t, uint16_t> overview_;  // (level, x, y) -> slot of resident overview nodes
   std::array<Rect, kLevelCount> dirty_index_;
   std::vector<uint32_t> dirty_slots_;
 };
