@@ -82,7 +82,12 @@ std::string report_json(const CookReport& r) {
                  {"finish", r.seconds_finish},   {"total", r.seconds_total},     {"cpu_heights", r.cpu_heights},
                  {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode},
                  {"cpu_first_pass", r.cpu_first_pass}, {"cpu_steps", r.cpu_steps}, {"cpu_blocks", r.cpu_blocks},
-                 {"cpu_total", r.cpu_total}};
+                 {"cpu_total", r.cpu_total}, {"cpu_overview", r.cpu_overview}};
+  j["overview_levels"] = {{"levels", r.overview_levels},
+                          {"step_log2", r.overview_step_log2},
+                          {"range_bound_m", r.overview_range_bound_m},
+                          {"nodes", r.overview_nodes},
+                          {"error_max_m", r.overview_error_max_m}};
   // The per-layer / per-encoder / per-section split of cpu_surface and cpu_encode, and every stage
   // and part in CPU ms per node (the unit of the cook-throughput budget).
   nlohmann::ordered_json parts, per_node;
