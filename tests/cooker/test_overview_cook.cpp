@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -123,6 +125,54 @@ TEST(OverviewCook, KilaueaOverviewNodesAreTheirChildrensEvenVertices) {
   for (const NodeRecord& n : r.level_nodes(top_level(w))) top_max = std::max(top_max, n.geometric_error_m);
   EXPECT_GT(top_max, root_max);
   EXPECT_EQ(parent_only, 0u) << "an overview vertex no child holds must be a hole";
+
+  // Against the same cook without overview levels: with a coarser overview step the roots' even
+  // vertices move by at most half of it (rule 7) and their odd vertices not at all.
+  cook::CookOptions off = o;
+  off.output = (scratch_dir("overview-cook") / "kilauea-off.terrain").string();
+  off.overview_levels = cook::OverviewMode::off;
+  cook::CookReport report_off;
+  ASSERT_TRUE(cook::cook(off, nullptr, report_off).ok());
+  ArchiveReader ro;
+  ASSERT_TRUE(ro.open(off.output).ok());
+  ASSERT_EQ(ro.level_nodes(kRootLevel).size(), r.level_nodes(kRootLevel).size());
+  int32_t even_moved_max = 0;
+  uint64_t even_moved = 0, odd_moved = 0, even_total = 0;
+  double error_change_max = 0;
+  for (const NodeRecord& root : r.level_nodes(kRootLevel)) {
+    const int64_t a = r.find(root.key), b = ro.find(root.key);
+    ASSERT_GE(b, 0);
+    Vertices va, vb;
+    ASSERT_TRUE(node_vertices(r, size_t(a), va).ok());
+    ASSERT_TRUE(node_vertices(ro, size_t(b), vb).ok());
+    for (int j = 0; j < kHeightSamples; ++j)
+      for (int i = 0; i < kHeightSamples; ++i) {
+        const size_t k = size_t(j * kHeightSamples + i);
+        ASSERT_EQ(va.hole[k], vb.hole[k]);
+        if (va.hole[k]) continue;
+        const int32_t d = std::abs(va.units[k] - vb.units[k]);
+        if ((i | j) & 1) {
+          odd_moved += d != 0;
+        } else {
+          ++even_total;
+          even_moved += d != 0;
+          even_moved_max = std::max(even_moved_max, d);
+        }
+      }
+    error_change_max = std::max(error_change_max, std::fabs(double(root.geometric_error_m) -
+                                                            double(ro.nodes()[size_t(b)].geometric_error_m)));
+  }
+  EXPECT_EQ(odd_moved, 0u);
+  if (w.overview_step_log2[0] == w.step_log2[kRootLevel]) {
+    EXPECT_EQ(even_moved, 0u);
+  } else {
+    EXPECT_GT(even_moved, 0u);
+    EXPECT_LE(even_moved_max, 1 << (w.overview_step_log2[0] - 1));
+  }
+  std::printf("kilauea roots against the cook without overview levels: %llu of %llu even vertices moved, by at most %d "
+              "units (%.1f mm); odd vertices moved: %llu; root error changed by at most %.4f m\n",
+              static_cast<unsigned long long>(even_moved), static_cast<unsigned long long>(even_total), even_moved_max,
+              even_moved_max * kHeightUnitM * 1000.0, static_cast<unsigned long long>(odd_moved), error_change_max);
 
   // The streamer opens it with its default budget (512) and keeps the top level resident.
   Streamer s;
