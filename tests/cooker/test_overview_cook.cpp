@@ -49,10 +49,16 @@ Status node_vertices(const ArchiveReader& r, size_t index, Vertices& out) {
   return Status::success();
 }
 
+// One scratch folder for the whole run (scratch_dir() empties it on every call).
+const std::filesystem::path& scratch() {
+  static const std::filesystem::path dir = scratch_dir("overview-cook");
+  return dir;
+}
+
 cook::CookOptions kilauea_options(const std::string& name) {
   cook::CookOptions o;
   o.inputs = {data_file("kilauea_utm5n.tif").string()};
-  o.output = (scratch_dir("overview-cook") / (name + ".terrain")).string();
+  o.output = (scratch() / (name + ".terrain")).string();
   o.threads = 2;
   o.finest_level = 4;  // roots and one level below them: fast, and level 4 shares the roots' vertices
   o.overview_levels = cook::OverviewMode::on;
@@ -129,7 +135,7 @@ TEST(OverviewCook, KilaueaOverviewNodesAreTheirChildrensEvenVertices) {
   // Against the same cook without overview levels: with a coarser overview step the roots' even
   // vertices move by at most half of it (rule 7) and their odd vertices not at all.
   cook::CookOptions off = o;
-  off.output = (scratch_dir("overview-cook") / "kilauea-off.terrain").string();
+  off.output = (scratch() / "kilauea-off.terrain").string();
   off.overview_levels = cook::OverviewMode::off;
   cook::CookReport report_off;
   ASSERT_TRUE(cook::cook(off, nullptr, report_off).ok());
@@ -200,12 +206,12 @@ TEST(OverviewCook, SameBytesForThreadsBlocksAndWorkUnits) {
   };
   for (const Run& run : {Run{"det-t1", 1, 4096, false}, Run{"det-blocks", 2, 4, false}, Run{"det-units", 2, 0, true}}) {
     cook::CookOptions o = base;
-    o.output = (scratch_dir("overview-cook") / (std::string(run.name) + ".terrain")).string();
+    o.output = (scratch() / (std::string(run.name) + ".terrain")).string();
     o.threads = run.threads;
     o.block_roots = run.block_roots;
     if (run.units) {
       o.block_roots = 0;
-      o.work_dir = (scratch_dir("overview-cook") / "work").string();
+      o.work_dir = (scratch() / "work").string();
       std::filesystem::remove_all(o.work_dir);
       o.unit_roots = 5;
     }
@@ -226,7 +232,7 @@ TEST(OverviewCook, AutoOnASmallWorldIsOff) {
   a.heights_only = true;
   a.overview_levels = cook::OverviewMode::automatic;
   cook::CookOptions off = a;
-  off.output = (scratch_dir("overview-cook") / "off.terrain").string();
+  off.output = (scratch() / "off.terrain").string();
   off.overview_levels = cook::OverviewMode::off;
   cook::CookReport ra, ro;
   ASSERT_TRUE(cook::cook(a, nullptr, ra).ok());
@@ -248,7 +254,7 @@ TEST(OverviewCook, SrtmTileOpensWithTheDefaultBudget) {
   TERRAIN_REQUIRE_DATA(dem);
   cook::CookOptions o;
   o.inputs = {dem.string()};
-  o.output = (scratch_dir("overview-cook") / "n22w160.terrain").string();
+  o.output = (scratch() / "n22w160.terrain").string();
   o.threads = 2;
   o.finest_level = 5;
   cook::CookReport report;
