@@ -13,6 +13,7 @@
 
 #include "cook_session.h"
 #include "node_spool.h"
+#include "overview_levels.h"
 #include "terrain/cook.h"
 #include "work_units.h"
 
@@ -73,12 +74,33 @@ std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
   return order;
 }
 
+// The roots of a spooled cook, for the overview levels (they read the payloads back).
+RootSource spool_roots(const NodeSpool& spool) {
+  auto entries = std::make_shared<std::vector<NodeSpool::Entry>>();
+  for (const NodeSpool::Entry& e : spool.sorted_entries())
+    if (e.record.key.level == uint32_t(kRootLevel)) entries->push_back(e);
+  RootSource src;
+  for (const NodeSpool::Entry& e : *entries) src.roots.push_back(e.record);
+  src.read = [&spool, entries](size_t i, std::vector<uint8_t>& out) { return spool.read((*entries)[i], out); };
+  return src;
+}
+
+// After every other node: the overview levels from the roots (SPEC 19), when the plan has any.
+Status add_overview_levels(const CookSession& s, const RootSource& roots, ArchiveWriter& writer, CookReport& report) {
+  if (s.world.overview_step_log2.empty()) return Status::success();
+  const double c0 = process_cpu();
+  Status st = write_overview_levels(overview_settings(s), roots, writer, report);
+  report.cpu_overview = process_cpu() - c0;
+  return st;
+}
+
 // The merge's session: the plan's decisions without any input opened.
 void session_for_merge(const PlanData& data, CookSession& s) {
   s.options = data.options;
   s.frame = data.frame;
   s.world = data.world;
   s.ctx.step_log2 = data.steps;
+  restore_overview_steps(data.world.overview_step_log2, s);
   s.ctx.finest_level = data.report.finest_level;
   s.descriptions = data.descriptions;
 }
@@ -104,6 +126,16 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   if (Status st = merge_unit_files(work_dir, data.plan, writer, totals, report, progress); !st.ok()) {
     writer.abort();
     return st;
+  }
+  if (!s.world.overview_step_log2.empty()) {
+    s.threads = threads;
+    RootSource roots;
+    Status st = unit_roots(work_dir, data.plan, roots);
+    if (st.ok()) st = add_overview_levels(s, roots, writer, report);
+    if (!st.ok()) {
+      writer.abort();
+      return st;
+    }
   }
   finish_levels(s, totals, report);
   const std::vector<uint64_t> bytes_read = report.input_bytes_read;
@@ -159,7 +191,8 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   ArchiveWriter writer;
   if (Status st = writer.open(options.output); !st.ok()) return st;
   NodeSpool spool;
-  const bool spooled = s.grid.count() > 1;
+  // Overview levels read the roots back from the spool: such cooks always spool.
+  const bool spooled = s.grid.count() > 1 || !s.world.overview_step_log2.empty();
   if (spooled)
     if (Status st = spool.open(fmt::format("{}.spool-{}", options.output, ::getpid())); !st.ok()) return st;
   const NodeSink sink = [&](NodeResult& r) {
@@ -178,7 +211,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   s.window = SampleWindow{};
   if (spooled) {
     report.spool_bytes = spool.bytes();
+    const RootSource roots = spool_roots(spool);  // before drain(), which forgets the entries
     if (Status st = spool.drain(writer); !st.ok()) return st;
+    if (Status st = add_overview_levels(s, roots, writer, report); !st.ok()) return st;
   }
   finish_levels(s, totals, report);
   report.seconds_pyramid = seconds_since(t_pyr);

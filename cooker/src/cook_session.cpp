@@ -10,7 +10,9 @@
 #include "crs.h"
 #include "inputs.h"
 #include "overlays.h"
+#include "overview_levels.h"
 #include "parallel.h"
+#include "quantize.h"
 #include "source_raster.h"
 #include "terrain/archive_reader.h"
 
@@ -120,6 +122,7 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
   j["finest_level"] = r.finest_level;
   j["voids_filled_samples"] = r.voids_filled_samples;
   j["hole_samples"] = r.hole_samples;
+  if (r.overview_levels > 0) j["overview_levels"] = r.overview_levels;  // absent: none (version-1 bytes kept)
   return j.dump();
 }
 
@@ -315,7 +318,51 @@ void choose_session_steps(CookSession& s, CookReport& report) {
   level_range_bounds(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, s.threads, worst);
   for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].range_bound_m = worst[size_t(l)];
   choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
+  // Overview levels (SPEC 19): one step for all of them, from the bound over their nodes, at least
+  // the roots'. Where it is coarser, the roots' even vertices are rounded to it as they are cooked
+  // (compute_window), so no node is re-rounded afterwards; every level's range then widens by up to
+  // half of it, and the steps are chosen again with that rounding.
+  const int k = overview_levels_for(s.options.overview_levels, s.grid.roots_x, s.grid.roots_y);
+  s.world.overview_step_log2.clear();
+  s.ctx.overview_step_log2 = -1;
+  if (k > 0) {
+    const double bound = overview_range_bound(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, k);
+    int step = std::max(required_step(bound, -1), int(s.ctx.step_log2[kRootLevel]));
+    if (step > s.ctx.step_log2[kRootLevel]) {
+      choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2, step);
+      step = std::max(step, int(s.ctx.step_log2[kRootLevel]));
+      s.ctx.overview_step_log2 = step;
+    }
+    s.world.overview_step_log2.assign(size_t(k), uint8_t(step));
+    report.overview_range_bound_m = bound;
+  }
+  report.overview_levels = k;
+  report.overview_step_log2 = k > 0 ? s.world.overview_step_log2[0] : 0;
   s.ranges = RangeSummary{};
+}
+
+void restore_overview_steps(const std::vector<uint8_t>& steps, CookSession& s) {
+  s.world.overview_step_log2 = steps;
+  s.ctx.overview_step_log2 = !steps.empty() && steps[0] > s.ctx.step_log2[kRootLevel] ? int(steps[0]) : -1;
+}
+
+OverviewSettings overview_settings(const CookSession& s) {
+  OverviewSettings o;
+  o.world = s.world;
+  o.world.step_log2 = s.ctx.step_log2;
+  o.rules = s.rules.get();
+  o.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
+  o.payload.zstd_level = s.options.zstd_level;
+  o.payload.surface_zstd_level = s.options.surface_zstd_level;
+  o.heights_only = s.options.heights_only;
+  o.threads = s.threads;
+  return o;
+}
+
+int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y) {
+  if (mode == OverviewMode::off) return 0;
+  if (mode == OverviewMode::automatic && uint64_t(roots_x) * roots_y <= kOverviewAutoRoots) return 0;
+  return std::max(1, overview_levels_needed(roots_x, roots_y));
 }
 
 Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,

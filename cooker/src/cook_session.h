@@ -62,12 +62,21 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
 // Material rules and the overlays (opened; read per block).
 Status surface_setup(CookSession& s, CookReport& report);
 // Every level's step from the range bounds of every node that could exist (s.ctx.step_log2), from
-// the first pass's summary: reads nothing.
+// the first pass's summary: reads nothing. Also the overview levels (s.world.overview_step_log2,
+// s.ctx.overview_step_log2).
 // The levels' worst bounds go to the report.
 void choose_session_steps(CookSession& s, CookReport& report);
 // Reads and fills block `index`'s window and cooks its nodes into `sink` (key order in the block).
 Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
                              CookReport& report);
+// Restores the overview steps a plan decided (world and context).
+void restore_overview_steps(const std::vector<uint8_t>& steps, CookSession& s);
+// The settings of write_overview_levels (overview_levels.h) for this session.
+struct OverviewSettings;
+OverviewSettings overview_settings(const CookSession& s);
+// Overview levels a cook writes (SPEC 19): 0 (off; auto at most kOverviewAutoRoots root cells), else
+// overview_levels_needed(roots), at least 1.
+int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y);
 // After every block: levels finer than the finest cooked get its step; the pyramid's report.
 void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report);
 // Writes the metadata (steps, palette, cook info) and renames the archive into place; section

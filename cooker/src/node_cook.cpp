@@ -55,15 +55,26 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   }
   std::array<double, kWindowSize> xs, cols, rows;
   std::array<int64_t, kWindowSize> gxs;
-  std::array<double, kLevelCount> scale;
-  for (int l = 0; l < kLevelCount; ++l) scale[size_t(l)] = std::ldexp(1024.0, -int(ctx.step_log2[size_t(l)]));
+  // Entry kLevelCount: the vertices of the overview levels' lattice (level 6 and up), rounded to
+  // their step when it is coarser than the roots' (SPEC 19 rule 7); else they are the roots'.
+  const bool overview = ctx.overview_step_log2 > int(ctx.step_log2[kRootLevel]);
+  const int top = overview ? kLevelCount : kRootLevel;
+  std::array<int, kLevelCount + 1> steps;
+  std::array<double, kLevelCount + 1> scale;
+  for (int l = 0; l < kLevelCount; ++l) steps[size_t(l)] = ctx.step_log2[size_t(l)];
+  steps[kLevelCount] = overview ? ctx.overview_step_log2 : ctx.step_log2[kRootLevel];
+  for (int l = 0; l <= kLevelCount; ++l) scale[size_t(l)] = std::ldexp(1024.0, -steps[size_t(l)]);
+  auto level_of = [top](int64_t g) {
+    if (g == 0) return top;
+    return std::min(__builtin_ctzll(uint64_t(g)), top);
+  };
   // vertex_level(gx, gy) is the smaller of vertex_level(gx, 0) and vertex_level(0, gy) (trailing
   // zeros of gx | gy): the column part once per window.
   std::array<uint8_t, kWindowSize> column_level;
   for (int i = 0; i < kWindowSize; ++i) {
     gxs[size_t(i)] = lattice_index(key.x, i - kWindowMargin, key.level);
     xs[size_t(i)] = ctx.lattice_x(gxs[size_t(i)]);
-    column_level[size_t(i)] = uint8_t(vertex_level(gxs[size_t(i)], 0));
+    column_level[size_t(i)] = uint8_t(level_of(gxs[size_t(i)]));
   }
   // Axis-aligned sources: every row of vertices shares the columns' Catmull-Rom weights (the
   // mapping gives the same column for any row, so the bits are those of the per-vertex path).
@@ -144,7 +155,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
         row_sum[size_t(i)] = sum;
       }
     }
-    const int row_level = vertex_level(0, gy);
+    const int row_level = level_of(gy);
     for (int i = lo; i < hi; ++i) {
       const size_t k = size_t(j) * kWindowSize + size_t(i);
       double h = 0;
@@ -166,7 +177,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       // Range first: a height far outside the archive's (a spike of 1e30 kept by --valid-range) would
       // overflow the integer conversion and wrap into range.
       const bool in_range = std::fabs(h) <= double(kMaxHeightUnits) * kHeightUnitM;
-      const int64_t u = in_range ? quantize_units(h, scale[vl], ctx.step_log2[vl]) : int64_t(kMaxHeightUnits) + 1;
+      const int64_t u = in_range ? quantize_units(h, scale[vl], steps[vl]) : int64_t(kMaxHeightUnits) + 1;
       if (u > kMaxHeightUnits || u < -kMaxHeightUnits)  // bad data (exit 1), not a bad flag
         return Status::failure(Error::unsupported_input,
                                fmt::format("height {:.3f} m at frame ({:.3f}, {:.3f}) is outside the archive's +-16384 m "

@@ -26,6 +26,9 @@ struct CookContext {
   Surface surface;
   double origin_x = 0, origin_y = 0;
   std::array<uint8_t, kLevelCount> step_log2{};
+  // Overview levels (SPEC 19): their step when it is coarser than the roots' (every vertex on the
+  // level-6 lattice, the roots' even vertices, is then rounded to it), else -1 (nothing changes).
+  int overview_step_log2 = -1;
   int finest_level = 0;
   double tolerance_m = 0;
   double source_spacing_m = 0;  // finest source sample spacing in frame metres

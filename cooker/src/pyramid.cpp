@@ -97,14 +97,29 @@ void level_range_bounds(const CookContext& ctx, const RangeSummary& ranges, uint
   }
 }
 
+double overview_range_bound(const CookContext& ctx, const RangeSummary& ranges, uint32_t roots_x, uint32_t roots_y,
+                            int levels) {
+  double worst = 0;
+  for (int level = kLevelCount; level < kLevelCount + levels; ++level) {
+    const uint32_t nx = uint32_t(level_grid_cells(roots_x, level)), ny = uint32_t(level_grid_cells(roots_y, level));
+    for (uint32_t y = 0; y < ny; ++y)
+      for (uint32_t x = 0; x < nx; ++x) {
+        const SampleRect q = node_query_rect(ctx, {uint32_t(level), x, y});
+        worst = std::max(worst, ranges.surface_range_bound(q.c0, q.r0, q.c1, q.r1));
+      }
+  }
+  return worst;
+}
+
 void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
-                  std::array<uint8_t, kLevelCount>& steps) {
+                  std::array<uint8_t, kLevelCount>& steps, int overview_step) {
   const int floor_step = tolerance_step(tolerance_m);
   for (int level = kRootLevel; level >= finest_level; --level) {
     const double w = worst[size_t(level)];
+    const int coarsest = std::max(int(steps[kRootLevel]), overview_step);
     const int step = level == kRootLevel
-                         ? std::max(required_step(w, -1), floor_step)
-                         : std::min(std::max(required_step(w, steps[kRootLevel]), floor_step), int(steps[size_t(level + 1)]));
+                         ? std::max(required_step(w, overview_step), floor_step)
+                         : std::min(std::max(required_step(w, coarsest), floor_step), int(steps[size_t(level + 1)]));
     steps[size_t(level)] = uint8_t(step);
   }
   for (int level = finest_level - 1; level >= 0; --level) steps[size_t(level)] = steps[size_t(finest_level)];

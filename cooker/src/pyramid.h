@@ -50,11 +50,18 @@ SampleRect block_cook_rect(const CookContext& ctx, const RootBlock& b);
 // at levels ctx.finest_level .. 5 (a max: independent of threads and of any order).
 void level_range_bounds(const CookContext& ctx, const RangeSummary& ranges, uint32_t roots_x, uint32_t roots_y,
                         int threads, std::array<double, kLevelCount>& worst);
+// The largest range bound of a node of the overview levels 6 .. 5 + levels (SPEC 19) over the
+// root grid: their step's rule is the roots' (every overview level gets one step, at least the
+// roots', so steps never decrease upward).
+double overview_range_bound(const CookContext& ctx, const RangeSummary& ranges, uint32_t roots_x, uint32_t roots_y,
+                            int levels);
 // The levels' steps from the worst bounds: the range's step or the tolerance's, whichever is
 // coarser; each level capped by the next coarser one's, so steps never decrease towards the roots.
 // Levels finer than ctx.finest_level get the finest level's step.
+// overview_step >= 0: the step of overview levels above the roots, which rounds the roots' even
+// vertices (SPEC 19 rule 7) and so widens every level's range by up to half of it.
 void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
-                  std::array<uint8_t, kLevelCount>& steps);
+                  std::array<uint8_t, kLevelCount>& steps, int overview_step = -1);
 
 // Totals of the cook that blocks add to (summed in block order: floating sums may differ in the
 // last bits between block orders; they go to the report only).

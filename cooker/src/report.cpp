@@ -82,7 +82,12 @@ std::string report_json(const CookReport& r) {
                  {"finish", r.seconds_finish},   {"total", r.seconds_total},     {"cpu_heights", r.cpu_heights},
                  {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode},
                  {"cpu_first_pass", r.cpu_first_pass}, {"cpu_steps", r.cpu_steps}, {"cpu_blocks", r.cpu_blocks},
-                 {"cpu_total", r.cpu_total}};
+                 {"cpu_total", r.cpu_total}, {"cpu_overview", r.cpu_overview}};
+  j["overview_levels"] = {{"levels", r.overview_levels},
+                          {"step_log2", r.overview_step_log2},
+                          {"range_bound_m", r.overview_range_bound_m},
+                          {"nodes", r.overview_nodes},
+                          {"error_max_m", r.overview_error_max_m}};
   // The per-layer / per-encoder / per-section split of cpu_surface and cpu_encode, and every stage
   // and part in CPU ms per node (the unit of the cook-throughput budget).
   nlohmann::ordered_json parts, per_node;
@@ -143,6 +148,11 @@ std::string report_summary(const CookReport& r) {
     s += fmt::format("{:>5}  {:>6.1f}  {:>6}  {:>8.3f}  {:>10.3f}  {:>10.3f}  {}\n", l, vertex_spacing_m(l), v.nodes,
                      std::ldexp(1.0, v.step_log2) * kHeightUnitM * 1000.0, v.error_max_m, v.error_rms_m, v.error_samples);
   }
+  if (r.overview_levels > 0)
+    s += fmt::format("overview: {} levels above the roots (SPEC 19), {} nodes, step {:.3f} mm (range bound {:.1f} m), "
+                     "error max {:.3f} m, {:.2f} cpu s\n",
+                     r.overview_levels, r.overview_nodes, std::ldexp(1.0, r.overview_step_log2) * kHeightUnitM * 1000.0,
+                     r.overview_range_bound_m, r.overview_error_max_m, r.cpu_overview);
   // Counted per node (node_cook.cpp measure_error): a valid sample on an edge shared by two finest
   // nodes is measured in both, so the count can exceed the raster's samples.
   s += fmt::format("full detail: error max {:.3f} m, rms {:.3f} m over {} sample measurements (each valid source "

@@ -1,5 +1,7 @@
 #include "work_units.h"
 
+#include "overview_levels.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -70,6 +72,7 @@ json options_json(const CookOptions& o) {
   j["force"] = o.force;
   j["zstd_level"] = o.zstd_level;
   j["surface_zstd_level"] = o.surface_zstd_level;
+  j["overview_levels"] = int(o.overview_levels);
   return j;
 }
 
@@ -104,6 +107,7 @@ CookOptions options_of(const json& j) {
   o.force = j.at("force");
   o.zstd_level = j.at("zstd_level");
   o.surface_zstd_level = j.at("surface_zstd_level");
+  o.overview_levels = OverviewMode(j.value("overview_levels", 0));
   return o;
 }
 
@@ -230,6 +234,7 @@ std::string decisions_text(const CookOptions& o, const FrameCrs& frame, const Wo
   j["grid"] = {w.origin_x_m, w.origin_y_m, w.roots_x, w.roots_y};
   j["finest_level"] = finest;
   j["steps"] = steps;
+  if (!w.overview_step_log2.empty()) j["overview_steps"] = w.overview_step_log2;
   return j.dump();
 }
 
@@ -525,6 +530,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                {"unit_roots", s.grid.side}};
   j["finest_level"] = s.ctx.finest_level;
   j["steps"] = s.ctx.step_log2;
+  if (!w.overview_step_log2.empty()) j["overview_steps"] = w.overview_step_log2;
   json fills = json::array();
   for (const SampleRect& r : s.voids.spanning_fills) fills.push_back(rect_json(r));
   const VoidStats& vs = s.voids.stats;
@@ -601,6 +607,7 @@ Status read_plan(const std::string& work_dir, PlanData& out) {
     out.world.extent_max_y_m = g.at("extent").at(3);
     out.unit_roots = g.at("unit_roots");
     out.steps = j.at("steps").get<std::array<uint8_t, kLevelCount>>();
+    if (j.contains("overview_steps")) out.world.overview_step_log2 = j.at("overview_steps").get<std::vector<uint8_t>>();
     const json& v = j.at("voids");
     out.voids.width = out.source_width;
     out.voids.height = out.source_height;
@@ -638,6 +645,8 @@ Status read_plan(const std::string& work_dir, PlanData& out) {
     rep.extent_max_x_m = out.world.extent_max_x_m;
     rep.extent_max_y_m = out.world.extent_max_y_m;
     rep.finest_level = j.at("finest_level");
+    rep.overview_levels = int(out.world.overview_step_log2.size());
+    rep.overview_step_log2 = out.world.overview_step_log2.empty() ? 0 : out.world.overview_step_log2[0];
     rep.tolerance_m = out.options.tolerance_m;
     rep.block_roots = out.unit_roots;
     rep.blocks = j.at("unit_count");
@@ -704,6 +713,7 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s,
       s.world.roots_x != data.world.roots_x || s.world.roots_y != data.world.roots_y)
     return Status::failure(Error::internal, "the plan's root grid does not follow from its inputs");
   s.ctx.step_log2 = data.steps;
+  restore_overview_steps(data.world.overview_step_log2, s);
   return surface_setup(s, report);
 }
 
@@ -889,6 +899,39 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, Archi
   }
   for (auto& [u, fd] : open_fds) ::close(fd);
   return st;
+}
+
+// ---- overview levels (overview_levels.h): the roots of the unit files ----
+Status unit_roots(const std::string& work_dir, const PlanFile& plan, RootSource& out) {
+  struct Where {
+    uint32_t unit;
+    uint64_t offset;
+    uint32_t size;
+  };
+  auto where = std::make_shared<std::vector<Where>>();
+  out = RootSource{};
+  for (const UnitPlan& u : plan.units) {
+    UnitContents c;
+    std::string why;
+    if (!read_unit(unit_file(work_dir, u.index), u.index, u.fingerprint, UnitCheck::head, c, why))
+      return Status::failure(Error::no_data, fmt::format("unit {}: {}", u.index, why));
+    for (const auto& [r, off] : c.nodes)
+      if (r.key.level == uint32_t(kRootLevel)) {
+        out.roots.push_back(r);
+        where->push_back({u.index, off, r.payload_size});
+      }
+  }
+  out.read = [work_dir, where](size_t i, std::vector<uint8_t>& bytes) {
+    const Where& w = (*where)[i];
+    const std::string path = unit_file(work_dir, w.unit);
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return Status::failure(Error::io_open, fmt::format("{}: {}", path, std::strerror(errno)));
+    bytes.resize(w.size);
+    Status st = read_at(fd, bytes.data(), bytes.size(), w.offset, path);
+    ::close(fd);
+    return st;
+  };
+  return Status::success();
 }
 
 }  // namespace terrain::cook

@@ -71,6 +71,11 @@ Status check_plan_inputs(const PlanFile& plan);
 // the plan (a named error), and restores the plan's decisions (frame, grid, steps, voids).
 Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
 
+// The roots of every unit file (checked as the merge checks them), for the overview levels: their
+// records and a reader of their payloads.
+struct RootSource;
+Status unit_roots(const std::string& work_dir, const PlanFile& plan, RootSource& out);
+
 // Statistics a unit adds to the cook's report, stored in its file for the merge.
 struct UnitStats {
   PyramidTotals totals;

@@ -189,6 +189,14 @@ int run(int argc, char** argv) {
   app.add_option("--bc-quality", quality, "Block compression quality of normals and albedo")
       ->check(CLI::IsMember({"fast", "balanced", "best"}))
       ->capture_default_str();
+  std::string overview = "auto";
+  app.add_option("--overview-levels", overview,
+                 fmt::format("Overview levels above the 2048 m roots (format v2, SPEC section 19) so a streamer can "
+                             "open worlds of more roots than its budget: auto = when the root grid has more than {} "
+                             "cells (half the streamer's default 512-node budget), on, off",
+                             terrain::cook::kOverviewAutoRoots))
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
   app.add_flag("--heights-only", o.heights_only, "Skip normals, albedo, splat and cones (they stay zero)");
   app.add_flag("--force", o.force,
                fmt::format("Cook even when the plan needs more than {} root nodes or more than {} roots per side "
@@ -239,6 +247,9 @@ int run(int argc, char** argv) {
   o.nodata = nodata == "hole" ? terrain::cook::NodataPolicy::hole
              : nodata == "fill" ? terrain::cook::NodataPolicy::fill
                                 : terrain::cook::NodataPolicy::automatic;
+  o.overview_levels = overview == "on"    ? terrain::cook::OverviewMode::on
+                      : overview == "off" ? terrain::cook::OverviewMode::off
+                                          : terrain::cook::OverviewMode::automatic;
   o.surface_quality = quality == "fast" ? terrain::cook::SurfaceQuality::fast
                       : quality == "best" ? terrain::cook::SurfaceQuality::best
                                           : terrain::cook::SurfaceQuality::balanced;

@@ -125,7 +125,6 @@ uint64_t count_seam_mismatches(const ArchiveReader& reader, uint64_t& compared, 
   compared = 0;
   uint64_t mismatches = 0;
   const auto nodes = reader.nodes();
-  const auto& steps = reader.world().step_log2;
   // Decoded heights (float bits as the shader computes them) and holes per node, on demand.
   struct Decoded {
     std::vector<float> h;
@@ -143,7 +142,7 @@ uint64_t count_seam_mismatches(const ArchiveReader& reader, uint64_t& compared, 
       d.h.resize(kHeightCount);
       const NodeRecord& rec = nodes[index];
       for (size_t k = 0; k < size_t(kHeightCount); ++k)
-        d.h[k] = units_to_metres_f32(vertex_units(rec.height_offset, data->heights[k], steps[rec.key.level]));
+        d.h[k] = units_to_metres_f32(vertex_units(rec.height_offset, data->heights[k], level_step_log2(reader.world(), int(rec.key.level))));
     }
     return cache.emplace(index, std::move(d)).first->second;
   };

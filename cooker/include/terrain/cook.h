@@ -22,6 +22,7 @@ enum class NodataPolicy : uint8_t {
 };
 
 enum class SurfaceQuality : uint8_t { fast, balanced, best };
+enum class OverviewMode : uint8_t { automatic, on, off };
 
 struct CookOptions {
   std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
@@ -83,6 +84,10 @@ struct CookOptions {
   std::string landcover_table_path;
   bool heights_only = false;        // skip the surface layers (benchmarks; sections stay zero)
   bool force = false;               // cook plans beyond kMaxPlannedRoots / kStreamerMaxRootsPerSide
+  // Overview levels above the roots (format/SPEC.md section 19, format version 2): automatic writes
+  // them when the root grid has more than kOverviewAutoRoots cells, on always (at least one level),
+  // off never. K = overview_levels_needed(roots_x, roots_y) (at least 1 with `on`).
+  OverviewMode overview_levels = OverviewMode::automatic;
 
   // zstd levels: heights at 9 (tuned optimal parsing of the predictor residuals, see
   // format/src/payload.cpp); the surface sections at 6. Measured on the 2532 nodes of the Oetztal
@@ -97,6 +102,15 @@ struct CookOptions {
 // CPU for flat ones), so a coarse raster spread over a huge area (64 x 64 samples at 100 km: 9.8 M
 // roots) is refused with a named error unless CookOptions::force.
 inline constexpr uint64_t kMaxPlannedRoots = 1000000;
+
+// `--overview-levels auto` writes overview levels when the root grid (roots_x * roots_y, known
+// before any node is cooked) has more cells than this: half the streamer's default budget of 512
+// nodes. Keeping every root resident would then leave less than half of the budget for the
+// refinement near the camera (and above 512 the world cannot be opened at all). Smaller worlds keep
+// their version-1 bytes: the Kilauea benchmark area (13 x 12 roots) and every test world of the
+// viewer stay below it; a 1 x 1 degree SRTM tile (~55 x 55), Oetztal (19 x 21) and Puget Sound
+// (80 x 80) are above.
+inline constexpr uint64_t kOverviewAutoRoots = 256;
 
 struct LevelStats {
   uint32_t nodes = 0;
@@ -195,6 +209,14 @@ struct CookReport {
   std::vector<std::string> warnings;
   // Surface layers (when present)
   SurfaceTotals surface;
+  // Overview levels (SPEC 19): how many, their step, their nodes, the range bound of the step rule
+  // and the process CPU seconds of building them from the cooked roots (0 when none).
+  int overview_levels = 0;
+  uint8_t overview_step_log2 = 0;
+  double overview_range_bound_m = 0;
+  uint64_t overview_nodes = 0;
+  double cpu_overview = 0;
+  double overview_error_max_m = 0;  // the largest geometric_error_m of an overview node
 };
 
 // Progress: fraction 0..1 and a short stage name; return false to cancel (cook returns `cancelled`).
