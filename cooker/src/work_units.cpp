@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -810,6 +811,7 @@ struct MergeUnit {
   std::array<uint64_t, kLevelCount> level_begin{};    // table index of each level's first node
   std::array<uint64_t, kLevelCount> level_nodes{};    // and its node count
   std::array<uint64_t, kLevelCount> level_payload{};  // file offset of each level's first payload
+  std::array<uint64_t, kLevelCount> level_bytes{};    // and its payload bytes
 };
 
 // Reads one unit's nodes of one level in table order, table and payloads in large sequential reads.
@@ -818,7 +820,8 @@ class LevelCursor {
   LevelCursor(int fd, const std::string& path, const MergeUnit& u, int level, size_t chunk)
       : fd_(fd), path_(path), next_(u.level_begin[size_t(level)]),
         end_(u.level_begin[size_t(level)] + u.level_nodes[size_t(level)]),
-        payload_at_(u.level_payload[size_t(level)]), chunk_(chunk) {}
+        payload_at_(u.level_payload[size_t(level)]),
+        payload_end_(u.level_payload[size_t(level)] + u.level_bytes[size_t(level)]), chunk_(chunk) {}
   bool done() const { return next_ == end_; }
   // The next node's record (its payload_offset: the file offset of its payload).
   Status peek(NodeRecord& r) {
@@ -845,21 +848,24 @@ class LevelCursor {
   }
   // The payload of the node peek() returned; then moves to the next node.
   Status take(uint32_t size, std::span<const uint8_t>& payload) {
-    if (payload_at_ < buf_at_ || payload_at_ + size > buf_at_ + buf_.size()) {
-      // Refill from this payload on: up to `chunk_` bytes, never past the level's payloads.
-      uint64_t want = std::max<uint64_t>(size, chunk_);
-      buf_.resize(size_t(want));
+    if (payload_at_ < buf_at_ || payload_at_ + size > buf_at_ + buf_size_) {
+      // Refill from this payload on: `chunk_` bytes, never past the level's payloads (an
+      // uninitialised buffer: zeroing megabytes per refill cost more than the copy).
+      const size_t want = size_t(std::max<uint64_t>(size, std::min<uint64_t>(chunk_, payload_end_ - payload_at_)));
+      if (want > buf_capacity_) {
+        buf_.reset(new uint8_t[want]);
+        buf_capacity_ = want;
+      }
       buf_at_ = payload_at_;
-      size_t got = 0;
-      while (got < size) {  // at least this payload; what follows is a bonus
-        const ssize_t k = ::pread(fd_, buf_.data() + got, buf_.size() - got, off_t(buf_at_ + got));
+      buf_size_ = 0;
+      while (buf_size_ < size) {  // at least this payload; what follows is a bonus
+        const ssize_t k = ::pread(fd_, buf_.get() + buf_size_, want - buf_size_, off_t(buf_at_ + buf_size_));
         if (k < 0 && errno == EINTR) continue;
         if (k <= 0) return Status::failure(Error::truncated, fmt::format("{}: {}", path_, k < 0 ? std::strerror(errno) : "ends early"));
-        got += size_t(k);
+        buf_size_ += size_t(k);
       }
-      buf_.resize(got);
     }
-    payload = {buf_.data() + size_t(payload_at_ - buf_at_), size};
+    payload = {buf_.get() + size_t(payload_at_ - buf_at_), size};
     payload_at_ += size;
     ++next_;
     ++table_i_;
@@ -870,11 +876,12 @@ class LevelCursor {
   static constexpr uint64_t kTableChunk = 1024;
   int fd_;
   const std::string& path_;
-  uint64_t next_, end_, payload_at_;
+  uint64_t next_, end_, payload_at_, payload_end_;
   size_t chunk_;
   std::vector<uint8_t> table_;
   uint64_t table_i_ = 0, table_n_ = 0;
-  std::vector<uint8_t> buf_;
+  std::unique_ptr<uint8_t[]> buf_;
+  size_t buf_capacity_ = 0, buf_size_ = 0;
   uint64_t buf_at_ = 0;
 };
 
@@ -927,6 +934,7 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
       m.level_begin[size_t(l)] = index;
       m.level_payload[size_t(l)] = at;
       for (uint64_t k = 0; k < count[size_t(l)]; ++k) at += c.nodes[size_t(index + k)].first.payload_size;
+      m.level_bytes[size_t(l)] = at - m.level_payload[size_t(l)];
       index += count[size_t(l)];
       shape.level_nodes[size_t(l)] += count[size_t(l)];
     }
@@ -955,8 +963,8 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
   for (int level = kRootLevel; level >= 0; --level) {
     const int up = kRootLevel - level;
     for (const auto& [rows, list] : bands) {
-      // The band's files, each with a share of a 64 MB read budget (at least 256 KB).
-      const size_t chunk = std::clamp<size_t>((size_t(64) << 20) / list.size(), size_t(256) << 10, size_t(8) << 20);
+      // The band's files, each with a share of a 32 MB read budget (256 KB-4 MB each).
+      const size_t chunk = std::clamp<size_t>((size_t(32) << 20) / list.size(), size_t(256) << 10, size_t(4) << 20);
       std::vector<std::string> paths;
       std::vector<int> fds;
       std::vector<LevelCursor> cursors;
