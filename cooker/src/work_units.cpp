@@ -814,11 +814,18 @@ struct MergeUnit {
   std::array<uint64_t, kLevelCount> level_bytes{};    // and its payload bytes
 };
 
+// A read buffer kept across the bands and levels of a merge (fresh megabytes per cursor cost page
+// faults: more system time than the copy itself).
+struct ReadBuffer {
+  std::unique_ptr<uint8_t[]> data;  // uninitialised: zeroing it per refill would cost as much
+  size_t capacity = 0;
+};
+
 // Reads one unit's nodes of one level in table order, table and payloads in large sequential reads.
 class LevelCursor {
  public:
-  LevelCursor(int fd, const std::string& path, const MergeUnit& u, int level, size_t chunk)
-      : fd_(fd), path_(path), next_(u.level_begin[size_t(level)]),
+  LevelCursor(int fd, const std::string& path, const MergeUnit& u, int level, size_t chunk, ReadBuffer& buf)
+      : fd_(fd), path_(path), buf_(buf), next_(u.level_begin[size_t(level)]),
         end_(u.level_begin[size_t(level)] + u.level_nodes[size_t(level)]),
         payload_at_(u.level_payload[size_t(level)]),
         payload_end_(u.level_payload[size_t(level)] + u.level_bytes[size_t(level)]), chunk_(chunk) {}
@@ -849,23 +856,22 @@ class LevelCursor {
   // The payload of the node peek() returned; then moves to the next node.
   Status take(uint32_t size, std::span<const uint8_t>& payload) {
     if (payload_at_ < buf_at_ || payload_at_ + size > buf_at_ + buf_size_) {
-      // Refill from this payload on: `chunk_` bytes, never past the level's payloads (an
-      // uninitialised buffer: zeroing megabytes per refill cost more than the copy).
+      // Refill from this payload on: `chunk_` bytes, never past the level's payloads.
       const size_t want = size_t(std::max<uint64_t>(size, std::min<uint64_t>(chunk_, payload_end_ - payload_at_)));
-      if (want > buf_capacity_) {
-        buf_.reset(new uint8_t[want]);
-        buf_capacity_ = want;
+      if (want > buf_.capacity) {
+        buf_.data.reset(new uint8_t[want]);
+        buf_.capacity = want;
       }
       buf_at_ = payload_at_;
       buf_size_ = 0;
       while (buf_size_ < size) {  // at least this payload; what follows is a bonus
-        const ssize_t k = ::pread(fd_, buf_.get() + buf_size_, want - buf_size_, off_t(buf_at_ + buf_size_));
+        const ssize_t k = ::pread(fd_, buf_.data.get() + buf_size_, want - buf_size_, off_t(buf_at_ + buf_size_));
         if (k < 0 && errno == EINTR) continue;
         if (k <= 0) return Status::failure(Error::truncated, fmt::format("{}: {}", path_, k < 0 ? std::strerror(errno) : "ends early"));
         buf_size_ += size_t(k);
       }
     }
-    payload = {buf_.get() + size_t(payload_at_ - buf_at_), size};
+    payload = {buf_.data.get() + size_t(payload_at_ - buf_at_), size};
     payload_at_ += size;
     ++next_;
     ++table_i_;
@@ -876,12 +882,12 @@ class LevelCursor {
   static constexpr uint64_t kTableChunk = 1024;
   int fd_;
   const std::string& path_;
+  ReadBuffer& buf_;
   uint64_t next_, end_, payload_at_, payload_end_;
   size_t chunk_;
   std::vector<uint8_t> table_;
   uint64_t table_i_ = 0, table_n_ = 0;
-  std::unique_ptr<uint8_t[]> buf_;
-  size_t buf_capacity_ = 0, buf_size_ = 0;
+  size_t buf_size_ = 0;
   uint64_t buf_at_ = 0;
 };
 
@@ -960,11 +966,14 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
   if (Status st = writer.open_ordered(output, shape); !st.ok()) return st;
   uint64_t total = 0, copied = 0;
   for (uint64_t n : shape.level_nodes) total += n;
+  size_t widest = 0;
+  for (const auto& [rows, list] : bands) widest = std::max(widest, list.size());
+  std::vector<ReadBuffer> buffers(widest);
   for (int level = kRootLevel; level >= 0; --level) {
     const int up = kRootLevel - level;
     for (const auto& [rows, list] : bands) {
-      // The band's files, each with a share of a 32 MB read budget (256 KB-4 MB each).
-      const size_t chunk = std::clamp<size_t>((size_t(32) << 20) / list.size(), size_t(256) << 10, size_t(4) << 20);
+      // The band's files, each with a share of a 16 MB read budget (256 KB-1 MB each).
+      const size_t chunk = std::clamp<size_t>((size_t(16) << 20) / list.size(), size_t(256) << 10, size_t(1) << 20);
       std::vector<std::string> paths;
       std::vector<int> fds;
       std::vector<LevelCursor> cursors;
@@ -979,7 +988,7 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
         const int fd = ::open(paths.back().c_str(), O_RDONLY | O_CLOEXEC);
         if (fd < 0) return bad_unit(unit, fmt::format("cannot open: {}", std::strerror(errno)));
         fds.push_back(fd);
-        cursors.emplace_back(fd, paths.back(), units[unit], level, chunk);
+        cursors.emplace_back(fd, paths.back(), units[unit], level, chunk, buffers[cursors.size()]);
       }
       const uint32_t row_end = rows.second << up;
       for (uint32_t row = rows.first << up; row < row_end; ++row)
