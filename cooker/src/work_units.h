@@ -93,7 +93,7 @@ bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_
 // `report`. Reads each unit's head, then each unit file front to back once (its CRC checked as its
 // payloads are copied). Memory does not grow with the archive: one unit's node table at a time
 // (56 bytes per node of the largest unit) while checking, then a read buffer per unit of a band
-// (256 KB-8 MB, 64 MB in all) and the writer's buffers. Fails naming a unit that is missing or
+// (64-256 KB, 4 MB in all) and the writer's buffers. Fails naming a unit that is missing or
 // bad; the caller then aborts the writer.
 Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
                         ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress);
