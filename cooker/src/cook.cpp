@@ -121,9 +121,8 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   report.threads = threads;
   report.surface_layers = !data.options.heights_only;
   ArchiveWriter writer;
-  if (Status st = writer.open(output); !st.ok()) return st;
   PyramidTotals totals;
-  if (Status st = merge_unit_files(work_dir, data.plan, writer, totals, report, progress); !st.ok()) {
+  if (Status st = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress); !st.ok()) {
     writer.abort();
     return st;
   }

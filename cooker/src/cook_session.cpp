@@ -402,14 +402,12 @@ Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report)
   s.world.cook_info_json = cook_info(s.options, report, s.descriptions);
   if (Status st = writer.finish(s.world); !st.ok()) return st;
   report.archive_bytes = writer.bytes_written();
-  {
-    ArchiveReader reader;
-    SectionBytes sb;
-    if (reader.open(s.options.output).ok() && reader.section_bytes(sb).ok())
-      for (int k = 0; k < 5; ++k) {
-        report.section_stored_bytes[size_t(k)] = sb.stored[k];
-        report.section_raw_bytes[size_t(k)] = sb.raw[k];
-      }
+  // From the payload tables the writer parsed (reading the archive back would keep its directory
+  // in memory: the merge must not grow with the archive).
+  const SectionBytes sb = writer.section_bytes();
+  for (int k = 0; k < 5; ++k) {
+    report.section_stored_bytes[size_t(k)] = sb.stored[k];
+    report.section_raw_bytes[size_t(k)] = sb.raw[k];
   }
   report.input_bytes_read.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) report.input_bytes_read.push_back(in.bytes_read);

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -21,6 +22,7 @@
 #include "crs.h"
 #include "node_spool.h"
 #include "source_raster.h"
+#include "terrain/surface_contract.h"
 
 namespace terrain::cook {
 namespace {
@@ -285,6 +287,7 @@ json stats_json(const UnitStats& u) {
            {t.cpu_normals, t.cpu_albedo, t.cpu_splat, t.cpu_cones, t.normal_err_max_deg, t.normal_err_sum_deg,
             t.normal_samples, t.albedo_sq_err_sum, t.albedo_samples, t.albedo_hole_texels, t.albedo_alpha_mismatches,
             t.cone_exact_deg_sum, t.cone_encoded_deg_sum, t.cone_patches, t.cone_patches_never_cull}},
+          {"cpu_parts", t.cpu_parts},  // absent in units of older tools: read as zeros
           {"void_fill_residual_m", r.void_fill_residual_m},
           {"window_samples", r.block_window_samples_max},
           {"input_bytes_read", r.input_bytes_read}};
@@ -320,6 +323,10 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
   t.cone_encoded_deg_sum += s.at(12).get<double>();
   t.cone_patches += s.at(13).get<uint64_t>();
   t.cone_patches_never_cull += s.at(14).get<uint64_t>();
+  if (j.contains("cpu_parts")) {
+    const auto parts = j.at("cpu_parts").get<std::vector<double>>();
+    for (size_t k = 0; k < std::min(parts.size(), t.cpu_parts.size()); ++k) t.cpu_parts[k] += parts[k];
+  }
   r.void_fill_residual_m = std::max(r.void_fill_residual_m, j.at("void_fill_residual_m").get<double>());
   r.block_window_samples_max = std::max(r.block_window_samples_max, j.at("window_samples").get<uint64_t>());
   const auto bytes = j.at("input_bytes_read").get<std::vector<uint64_t>>();
@@ -805,37 +812,150 @@ bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_
   return read_unit(unit_file(work_dir, index), index, plan.units[index].fingerprint, UnitCheck::head, c, why);
 }
 
-Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, ArchiveWriter& writer,
-                        PyramidTotals& totals, CookReport& report, const ProgressFn& progress) {
-  // One read of every unit byte: the heads (header, table, stats) are checked first, each unit's
-  // payloads are then CRC-checked as they are copied (a unit's payloads are read in its file
-  // order: its table is in canonical order, which the archive's order refines). A unit whose CRC
-  // fails once its last payload is copied fails the merge; the archive is only renamed into place
-  // by finish(), so nothing is merged.
+namespace {
+
+// A unit's place in the merge, from its checked head: what the copy needs, not its node table.
+struct MergeUnit {
+  uint32_t crc = 0, stored_crc = 0;  // running CRC-32 of the bytes copied so far, the trailer's
+  uint64_t nodes = 0, left = 0;      // nodes in the file, nodes not copied yet
+  std::array<uint64_t, kLevelCount> level_begin{};    // table index of each level's first node
+  std::array<uint64_t, kLevelCount> level_nodes{};    // and its node count
+  std::array<uint64_t, kLevelCount> level_payload{};  // file offset of each level's first payload
+  std::array<uint64_t, kLevelCount> level_bytes{};    // and its payload bytes
+};
+
+// A read buffer kept across the bands and levels of a merge (fresh megabytes per cursor cost page
+// faults: more system time than the copy itself).
+struct ReadBuffer {
+  std::unique_ptr<uint8_t[]> data;  // uninitialised: zeroing it per refill would cost as much
+  size_t capacity = 0;
+};
+
+// Reads one unit's nodes of one level in table order, table and payloads in large sequential reads.
+class LevelCursor {
+ public:
+  LevelCursor(int fd, const std::string& path, const MergeUnit& u, int level, size_t chunk, ReadBuffer& buf)
+      : fd_(fd), path_(path), buf_(buf), next_(u.level_begin[size_t(level)]),
+        end_(u.level_begin[size_t(level)] + u.level_nodes[size_t(level)]),
+        payload_at_(u.level_payload[size_t(level)]),
+        payload_end_(u.level_payload[size_t(level)] + u.level_bytes[size_t(level)]), chunk_(chunk) {}
+  bool done() const { return next_ == end_; }
+  // The next node's record (its payload_offset: the file offset of its payload).
+  Status peek(NodeRecord& r) {
+    if (table_i_ == table_n_) {
+      const uint64_t n = std::min<uint64_t>(end_ - next_, kTableChunk);
+      table_.resize(size_t(n) * kUnitRecord);
+      if (Status st = read_at(fd_, table_.data(), table_.size(), kUnitHeader + next_ * kUnitRecord, path_); !st.ok()) return st;
+      table_i_ = 0;
+      table_n_ = n;
+    }
+    const uint8_t* p = &table_[size_t(table_i_) * kUnitRecord];
+    r = NodeRecord{};
+    r.key = {get_u32(p), get_u32(p + 4), get_u32(p + 8)};
+    r.child_mask = p[12];
+    r.flags = p[13];
+    r.height_offset = int32_t(get_u32(p + 16));
+    r.min_height = int32_t(get_u32(p + 20));
+    r.max_height = int32_t(get_u32(p + 24));
+    const uint32_t err = get_u32(p + 28);
+    std::memcpy(&r.geometric_error_m, &err, 4);
+    r.payload_size = get_u32(p + 40);
+    r.payload_offset = payload_at_;
+    return Status::success();
+  }
+  // The payload of the node peek() returned; then moves to the next node.
+  Status take(uint32_t size, std::span<const uint8_t>& payload) {
+    if (payload_at_ < buf_at_ || payload_at_ + size > buf_at_ + buf_size_) {
+      // Refill from this payload on: `chunk_` bytes, never past the level's payloads.
+      const size_t want = size_t(std::max<uint64_t>(size, std::min<uint64_t>(chunk_, payload_end_ - payload_at_)));
+      if (want > buf_.capacity) {
+        buf_.data.reset(new uint8_t[want]);
+        buf_.capacity = want;
+      }
+      buf_at_ = payload_at_;
+      buf_size_ = 0;
+      while (buf_size_ < size) {  // at least this payload; what follows is a bonus
+        const ssize_t k = ::pread(fd_, buf_.data.get() + buf_size_, want - buf_size_, off_t(buf_at_ + buf_size_));
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) return Status::failure(Error::truncated, fmt::format("{}: {}", path_, k < 0 ? std::strerror(errno) : "ends early"));
+        buf_size_ += size_t(k);
+      }
+    }
+    payload = {buf_.data.get() + size_t(payload_at_ - buf_at_), size};
+    payload_at_ += size;
+    ++next_;
+    ++table_i_;
+    return Status::success();
+  }
+
+ private:
+  static constexpr uint64_t kTableChunk = 1024;
+  int fd_;
+  const std::string& path_;
+  ReadBuffer& buf_;
+  uint64_t next_, end_, payload_at_, payload_end_;
+  size_t chunk_;
+  std::vector<uint8_t> table_;
+  uint64_t table_i_ = 0, table_n_ = 0;
+  size_t buf_size_ = 0;
+  uint64_t buf_at_ = 0;
+};
+
+}  // namespace
+
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
+                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress) {
+  // Two passes, memory independent of the archive's size. First every unit's head (header,
+  // table, stats) is checked, one unit at a time: what the archive will hold per level, and per
+  // unit where each level starts. Then the payloads are copied in the archive's order: a level at
+  // a time, the units of one band of roots (the plan's units in a row) side by side, row by row
+  // of nodes; each unit is read front to back once, its CRC checked as it is copied (the payload
+  // CRC the writer computes anyway, combined into the unit's). The writer is ordered: it writes
+  // each directory entry in place. A unit failing a check fails the merge, and the archive is only
+  // renamed into place by finish(), so nothing is merged.
   auto bad_unit = [&](uint32_t unit, const std::string& why) {
     return Status::failure(Error::no_data, fmt::format("unit {} ({}): {}; nothing merged (run `terrain-cook unit {} {}`)",
                                                        unit, unit_file(work_dir, unit), why, work_dir, unit));
   };
   const std::string damaged = "checksum mismatch (damaged or half-written)";
-  struct Entry {
-    NodeRecord record;
-    uint32_t unit;
-    uint64_t offset;
-  };
-  struct UnitState {
-    uint32_t crc = 0, stored_crc = 0;
-    uint64_t left = 0;  // nodes not copied yet
-  };
-  std::vector<Entry> entries;
-  std::vector<UnitState> units(plan.units.size());
+  std::vector<MergeUnit> units(plan.units.size());
+  ArchiveShape shape;
   for (const UnitPlan& u : plan.units) {
     UnitContents c;
     std::string why;
     if (!read_unit(unit_file(work_dir, u.index), u.index, u.fingerprint, UnitCheck::head, c, why))
       return bad_unit(u.index, why);
-    units[u.index] = {c.head_crc, c.stored_crc, c.nodes.size()};
+    MergeUnit& m = units[u.index];
+    m.crc = c.head_crc;
+    m.stored_crc = c.stored_crc;
+    m.nodes = m.left = c.nodes.size();
     if (c.nodes.empty() && c.head_crc != c.stored_crc) return bad_unit(u.index, damaged);
-    for (const auto& [r, off] : c.nodes) entries.push_back({r, u.index, off});
+    // Levels in the table: 5 first (canonical order); each node inside the unit's roots, so the
+    // band of the unit is where the merge looks for it.
+    std::array<uint64_t, kLevelCount> count{};
+    for (const auto& [r, off] : c.nodes) {
+      const int up = kRootLevel - int(r.key.level);
+      const uint32_t rx = r.key.x >> up, ry = r.key.y >> up;
+      if (rx < u.roots.x0 || rx >= u.roots.x1 || ry < u.roots.y0 || ry >= u.roots.y1) {
+        uint32_t crc = c.head_crc;
+        const int fd = ::open(unit_file(work_dir, u.index).c_str(), O_RDONLY | O_CLOEXEC);
+        const bool whole = fd >= 0 && crc_range(fd, c.payload_start, c.size - 8, crc, unit_file(work_dir, u.index));
+        if (fd >= 0) ::close(fd);
+        return bad_unit(u.index, !whole || crc != c.stored_crc ? damaged : fmt::format("node {} lies outside its roots", node_name(r.key)));
+      }
+      ++count[r.key.level];
+    }
+    uint64_t index = 0, at = c.payload_start;
+    for (int l = kRootLevel; l >= 0; --l) {
+      m.level_begin[size_t(l)] = index;
+      m.level_payload[size_t(l)] = at;
+      for (uint64_t k = 0; k < count[size_t(l)]; ++k) at += c.nodes[size_t(index + k)].first.payload_size;
+      m.level_bytes[size_t(l)] = at - m.level_payload[size_t(l)];
+      index += count[size_t(l)];
+      shape.level_nodes[size_t(l)] += count[size_t(l)];
+    }
+    m.level_nodes = count;
+    shape.payload_bytes += at - c.payload_start;
     try {
       add_stats(c.stats, totals, report);
     } catch (const std::exception& e) {
@@ -844,61 +964,78 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, Archi
     if (progress && !progress(0.05 * double(u.index + 1) / double(plan.units.size()), "checking units"))
       return Status::failure(Error::cancelled, "cancelled");
   }
-  std::sort(entries.begin(), entries.end(),
-            [](const Entry& a, const Entry& b) { return payload_order_less(a.record.key, b.record.key); });
-  // Payloads in canonical order. The units of one band of roots are read in turn; a bounded
-  // number of files stays open (thousands of units would exceed the descriptor limit).
-  std::map<uint32_t, int> open_fds;
-  auto fd_of = [&](uint32_t unit) -> int {
-    if (auto it = open_fds.find(unit); it != open_fds.end()) return it->second;
-    if (open_fds.size() >= 256) {
-      ::close(open_fds.begin()->second);
-      open_fds.erase(open_fds.begin());
-    }
-    const int fd = ::open(unit_file(work_dir, unit).c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd >= 0) {
-      ::posix_fadvise(fd, 0, 0, POSIX_FADV_SEQUENTIAL);
-      open_fds[unit] = fd;
-    }
-    return fd;
-  };
-  std::vector<uint8_t> buf;
-  Status st = Status::success();
-  for (size_t i = 0; i < entries.size() && st.ok(); ++i) {
-    const Entry& e = entries[i];
-    const int fd = fd_of(e.unit);
-    if (fd < 0) {
-      st = Status::failure(Error::io_open, fmt::format("unit {}: {}", e.unit, std::strerror(errno)));
-      break;
-    }
-    buf.resize(e.record.payload_size);
-    if (Status r = read_at(fd, buf.data(), buf.size(), e.offset, unit_file(work_dir, e.unit)); !r.ok()) {
-      st = bad_unit(e.unit, r.message);
-      break;
-    }
-    UnitState& u = units[e.unit];
-    u.crc = crc_update(u.crc, buf.data(), buf.size());
-    if (st = writer.add_node(e.record, buf); !st.ok()) {
-      // A payload the writer refuses: name the unit, as damaged when its CRC says so.
-      if (st.code == Error::invalid_argument) {
-        uint32_t crc = u.crc;
-        const uint64_t end = e.offset + e.record.payload_size;
-        const std::string path = unit_file(work_dir, e.unit);
-        struct stat fs {};
-        const bool whole = ::fstat(fd, &fs) == 0 && crc_range(fd, end, uint64_t(fs.st_size) - 8, crc, path);
-        st = bad_unit(e.unit, !whole || crc != u.stored_crc ? damaged : st.message);
-      }
-      break;
-    }
-    if (--u.left == 0 && u.crc != u.stored_crc) {
-      st = bad_unit(e.unit, damaged);
-      break;
-    }
-    if (progress && i % 4096 == 0 && !progress(0.05 + 0.95 * double(i + 1) / double(entries.size()), "merging"))
-      st = Status::failure(Error::cancelled, "cancelled");
+  // Bands: the units of one row of the plan's blocks, west to east.
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> bands;
+  for (const UnitPlan& u : plan.units) bands[{u.roots.y0, u.roots.y1}].push_back(u.index);
+  uint32_t band_end = 0;
+  for (auto& [rows, list] : bands) {
+    if (rows.first < band_end) return Status::failure(Error::internal, "the plan's units overlap");
+    band_end = rows.second;
+    std::sort(list.begin(), list.end(), [&](uint32_t a, uint32_t b) { return plan.units[a].roots.x0 < plan.units[b].roots.x0; });
   }
-  for (auto& [u, fd] : open_fds) ::close(fd);
-  return st;
+  if (Status st = writer.open_ordered(output, shape); !st.ok()) return st;
+  uint64_t total = 0, copied = 0;
+  for (uint64_t n : shape.level_nodes) total += n;
+  size_t widest = 0;
+  for (const auto& [rows, list] : bands) widest = std::max(widest, list.size());
+  std::vector<ReadBuffer> buffers(widest);
+  for (int level = kRootLevel; level >= 0; --level) {
+    const int up = kRootLevel - level;
+    for (const auto& [rows, list] : bands) {
+      // The band's files, each with a share of a 4 MB read budget (64-256 KB each: larger reads
+      // gained nothing measurable, their fresh pages cost page faults).
+      const size_t chunk = std::clamp<size_t>((size_t(4) << 20) / list.size(), size_t(64) << 10, size_t(256) << 10);
+      std::vector<std::string> paths;
+      std::vector<int> fds;
+      std::vector<LevelCursor> cursors;
+      paths.reserve(list.size());
+      cursors.reserve(list.size());
+      struct Closer {
+        std::vector<int>& fds;
+        ~Closer() { for (int fd : fds) ::close(fd); }
+      } closer{fds};
+      for (uint32_t unit : list) {
+        paths.push_back(unit_file(work_dir, unit));
+        const int fd = ::open(paths.back().c_str(), O_RDONLY | O_CLOEXEC);
+        if (fd < 0) return bad_unit(unit, fmt::format("cannot open: {}", std::strerror(errno)));
+        fds.push_back(fd);
+        cursors.emplace_back(fd, paths.back(), units[unit], level, chunk, buffers[cursors.size()]);
+      }
+      const uint32_t row_end = rows.second << up;
+      for (uint32_t row = rows.first << up; row < row_end; ++row)
+        for (size_t k = 0; k < list.size(); ++k) {
+          const uint32_t unit = list[k];
+          LevelCursor& cur = cursors[k];
+          MergeUnit& u = units[unit];
+          NodeRecord r;
+          while (!cur.done()) {
+            if (Status st = cur.peek(r); !st.ok()) return bad_unit(unit, st.message);
+            if (r.key.y != row) break;
+            const uint64_t at = r.payload_offset;
+            std::span<const uint8_t> payload;
+            if (Status st = cur.take(r.payload_size, payload); !st.ok()) return bad_unit(unit, st.message);
+            uint32_t crc = 0;
+            if (Status st = writer.add_node(r, payload, &crc); !st.ok()) {
+              // A payload or node the writer refuses: name the unit, as damaged when its CRC says so.
+              uint32_t whole_crc = uint32_t(::crc32(u.crc, payload.data(), uInt(payload.size())));
+              struct stat fs {};
+              const bool whole = ::fstat(fds[k], &fs) == 0 &&
+                                 crc_range(fds[k], at + r.payload_size, uint64_t(fs.st_size) - 8, whole_crc, paths[k]);
+              writer.abort();
+              return bad_unit(unit, !whole || whole_crc != u.stored_crc ? damaged : st.message);
+            }
+            u.crc = uint32_t(::crc32_combine(u.crc, crc, z_off_t(r.payload_size)));
+            if (--u.left == 0 && u.crc != u.stored_crc) return bad_unit(unit, damaged);
+            if (progress && ++copied % 4096 == 0 &&
+                !progress(0.05 + 0.95 * double(copied) / double(std::max<uint64_t>(total, 1)), "merging"))
+              return Status::failure(Error::cancelled, "cancelled");
+          }
+        }
+      for (size_t k = 0; k < list.size(); ++k)
+        if (!cursors[k].done()) return bad_unit(list[k], "its table is not in canonical order");
+    }
+  }
+  return Status::success();
 }
 
 // ---- overview levels (overview_levels.h): the roots of the unit files ----

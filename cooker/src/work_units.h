@@ -93,10 +93,14 @@ bool unit_file_valid(const std::string& work_dir, const PlanFile& plan, uint32_t
 // unit command (unit_file_valid) redoes it and the merge names it.
 bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_t index, std::string& why);
 
-// Merges every unit of the plan into `writer` in canonical order and sums their stats (in unit
-// order) into `totals` and `report`, reading each unit file once (its CRC checked as its payloads
-// are copied). Fails naming a unit that is missing or bad; the caller then aborts the writer.
-Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, ArchiveWriter& writer,
-                        PyramidTotals& totals, CookReport& report, const ProgressFn& progress);
+// Merges every unit of the plan into `writer`, which it opens (ordered, ArchiveWriter::open_ordered)
+// on `output`, in canonical order, and sums their stats (in unit order) into `totals` and
+// `report`. Reads each unit's head, then each unit file front to back once (its CRC checked as its
+// payloads are copied). Memory does not grow with the archive: one unit's node table at a time
+// (56 bytes per node of the largest unit) while checking, then a read buffer per unit of a band
+// (64-256 KB, 4 MB in all) and the writer's buffers. Fails naming a unit that is missing or
+// bad; the caller then aborts the writer.
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
+                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress);
 
 }  // namespace terrain::cook

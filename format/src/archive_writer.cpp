@@ -1,6 +1,9 @@
-// Streaming atomic writer: payloads go straight to `path`.tmp-<pid> as they arrive; only the
-// 48-byte directory entries stay in memory. finish() appends directory and metadata, writes the
-// header into the 128 bytes reserved at the start, fsyncs and renames over the final path.
+// Streaming atomic writer: payloads go to `path`.tmp-<pid> as they arrive (through a write buffer:
+// one write per few MB, not one per node). Default mode: only the 48-byte directory entries stay
+// in memory; finish() appends the sorted directory. Ordered mode (open_ordered): the directory's
+// place is known from the start, each entry is written there as its node comes and nothing grows
+// with the node count. finish() then writes metadata and the header into the 128 bytes reserved
+// at the start, fsyncs and renames over the final path.
 #include "terrain/archive_writer.h"
 #include "terrain/output_paths.h"
 
@@ -13,6 +16,8 @@
 #include <cstring>
 #include <filesystem>
 #include <unordered_set>
+
+#include <zlib.h>
 
 #include "bytes.h"
 #include "layout.h"
@@ -51,13 +56,252 @@ Status write_all(int fd, const uint8_t* data, size_t size, uint64_t offset, cons
 
 Status validate_world(const WorldInfo& world) { return detail::validate_world(world); }
 
+// The children level L+1's child masks announce, in the directory order of level L (y, then x):
+// for each row of parents, the children of its southern half (bits 0, 1) left to right, then of
+// its northern half (bits 2, 3). The ordered writer checks level L's nodes against this sequence,
+// reading level L+1's entries back from the file (each row twice).
+struct ChildStream {
+  int fd = -1;
+  uint64_t begin = 0, count = 0;  // file offset and entry count of level L+1's directory
+  uint32_t level = 0;             // L+1
+  uint64_t row_begin = 0, row_end = 0, i = 0;
+  int half = 0, c = 0;
+  std::vector<uint8_t> buf;
+  uint64_t buf_first = 0, buf_count = 0;
+
+  void reset(int file, uint64_t offset, uint64_t n, uint32_t parent_level) {
+    fd = file;
+    begin = offset;
+    count = n;
+    level = parent_level;
+    row_begin = row_end = i = 0;
+    half = c = 0;
+    buf_first = buf_count = 0;
+  }
+  // Entry i of level L+1; nullptr when unreadable.
+  const uint8_t* entry(uint64_t k) {
+    if (k < buf_first || k >= buf_first + buf_count) {
+      constexpr uint64_t kChunk = 1024;
+      buf_first = k;
+      buf_count = std::min(kChunk, count - k);
+      buf.resize(size_t(buf_count) * layout::kEntrySize);
+      size_t got = 0;
+      while (got < buf.size()) {
+        const ssize_t n = ::pread(fd, buf.data() + got, buf.size() - got, off_t(begin + k * layout::kEntrySize + got));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) {
+          buf_count = 0;
+          return nullptr;
+        }
+        got += size_t(n);
+      }
+    }
+    return buf.data() + size_t(k - buf_first) * layout::kEntrySize;
+  }
+  // The next announced child; false when there is none. `error` when the file is unreadable.
+  bool next(NodeKey& out, bool& error) {
+    namespace f = layout::entry;
+    for (;;) {
+      if (row_begin == row_end) {  // the next row of parents
+        if (row_end >= count) return false;
+        row_begin = row_end;
+        const uint8_t* e = entry(row_begin);
+        if (!e) return error = true, false;
+        const uint32_t py = detail::load_u32(e + f::y);
+        for (row_end = row_begin + 1; row_end < count; ++row_end) {
+          const uint8_t* n = entry(row_end);
+          if (!n) return error = true, false;
+          if (detail::load_u32(n + f::y) != py) break;
+        }
+        half = c = 0;
+        i = row_begin;
+      }
+      if (i == row_end) {
+        if (half == 0) {
+          half = 1;
+          c = 0;
+          i = row_begin;
+        } else {
+          row_begin = row_end;
+        }
+        continue;
+      }
+      const uint8_t* e = entry(i);
+      if (!e) return error = true, false;
+      const NodeKey parent{level, detail::load_u32(e + f::x), detail::load_u32(e + f::y)};
+      const uint8_t mask = e[f::child_mask];
+      while (c < 2) {
+        const int bit = half * 2 + c++;
+        if (mask & (1u << bit)) {
+          out = child_of(parent, bit);
+          return true;
+        }
+      }
+      ++i;
+      c = 0;
+    }
+  }
+};
+
 struct ArchiveWriter::Impl {
   std::string path, temp_path;
   int fd = -1;
-  uint64_t offset = 0;  // end of the payloads written so far
+  uint64_t offset = 0;  // end of the payloads added so far (some may still be in `out`)
   std::vector<NodeRecord> records;
   std::unordered_set<NodeKey, KeyHash> keys;
   Status failed;  // sticky first error
+  SectionBytes sections;
+  // Write buffer of the payloads: bytes [out_offset, out_offset + out.size()) of the file.
+  std::vector<uint8_t> out;
+  uint64_t out_offset = 0;
+  // 256 KB: larger buffers cost more in page faults (fresh pages of each merge) than they save in writes.
+  static constexpr size_t kOutBuffer = size_t(256) << 10;
+
+  // Ordered mode.
+  bool ordered = false;
+  ArchiveShape shape;
+  std::array<uint64_t, kLevelCount> dir_start{};  // file offset of each level's directory
+  std::array<uint64_t, kLevelCount> added{};      // nodes of each level added so far
+  std::array<uint32_t, kLevelCount> dir_crc{};    // CRC-32 of each level's directory bytes
+  std::array<uint32_t, kLevelCount> max_x{}, max_y{};
+  int level = -1;  // the level being added
+  NodeKey last{};
+  std::vector<uint8_t> dir;  // entries of `level` not yet written
+  uint64_t dir_offset = 0;   // file offset of dir[0]
+  ChildStream children;
+
+  Status flush_out() {
+    if (out.empty()) return Status::success();
+    Status s = write_all(fd, out.data(), out.size(), out_offset, temp_path);
+    out_offset += out.size();
+    out.clear();
+    return s;
+  }
+  Status flush_dir() {
+    if (dir.empty()) return Status::success();
+    Status s = write_all(fd, dir.data(), dir.size(), dir_offset, temp_path);
+    dir_offset += dir.size();
+    dir.clear();
+    return s;
+  }
+  Status append_payload(std::span<const uint8_t> payload) {
+    if (out.size() + payload.size() > kOutBuffer)
+      if (Status s = flush_out(); !s.ok()) return s;
+    if (payload.size() >= kOutBuffer) {  // never with payloads of at most 1 MiB; kept general
+      Status s = write_all(fd, payload.data(), payload.size(), out_offset, temp_path);
+      out_offset += payload.size();
+      return s;
+    }
+    out.insert(out.end(), payload.begin(), payload.end());
+    return Status::success();
+  }
+  // Ordered mode: the children level `level` should have and did not get.
+  Status check_level_complete() {
+    if (level < 0) return Status::success();
+    const auto l = size_t(level);
+    if (added[l] != shape.level_nodes[l])
+      return Status::failure(Error::invalid_argument, "level " + std::to_string(level) + " got " + std::to_string(added[l]) +
+                                                          " nodes, the shape says " + std::to_string(shape.level_nodes[l]));
+    if (level < kRootLevel) {
+      NodeKey missing;
+      bool error = false;
+      if (children.next(missing, error))
+        return Status::failure(Error::directory_invalid, "node " + node_name(parent_of(missing)) + ": child_mask bit " +
+                                                             std::to_string((missing.x & 1) | ((missing.y & 1) << 1)) +
+                                                             " is set but child " + node_name(missing) + " is absent");
+      if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+    }
+    return Status::success();
+  }
+  // Ordered mode: level `lvl`'s nodes announce no children (the level below is empty).
+  Status check_no_children(int lvl) {
+    if (lvl <= 0) return Status::success();  // level 0 has no child masks (validate_record)
+    if (Status s = flush_dir(); !s.ok()) return s;
+    ChildStream stream;
+    stream.reset(fd, dir_start[size_t(lvl)], shape.level_nodes[size_t(lvl)], uint32_t(lvl));
+    NodeKey missing;
+    bool error = false;
+    if (stream.next(missing, error))
+      return Status::failure(Error::directory_invalid, "node " + node_name(parent_of(missing)) + ": child_mask bit " +
+                                                           std::to_string((missing.x & 1) | ((missing.y & 1) << 1)) +
+                                                           " is set but child " + node_name(missing) + " is absent");
+    if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+    return Status::success();
+  }
+  // Ordered mode: the checks of `r` against the order, the shape and the level above.
+  Status check_ordered(const NodeRecord& r, uint64_t payload_size) {
+    const auto l = size_t(r.key.level);
+    if (r.key.level > uint32_t(kRootLevel))
+      return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + ": an ordered writer takes levels 0..5");
+    if (int(r.key.level) != level) {
+      if (level >= 0 && int(r.key.level) > level)
+        return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " comes after level " + std::to_string(level) +
+                                                            " (an ordered writer takes level 5 first, then towards 0)");
+      if (Status s = check_level_complete(); !s.ok()) return s;
+      if (level > 0 && int(r.key.level) != level - 1)
+        if (Status s = check_no_children(level); !s.ok()) return s;
+      for (int k = level < 0 ? kRootLevel : level - 1; k > int(r.key.level); --k)  // levels skipped: empty
+        if (shape.level_nodes[size_t(k)] != 0)
+          return Status::failure(Error::invalid_argument, "level " + std::to_string(k) + " got no nodes, the shape says " +
+                                                              std::to_string(shape.level_nodes[size_t(k)]));
+      if (Status s = flush_dir(); !s.ok()) return s;  // the level above is read back from the file
+      level = int(r.key.level);
+      dir_offset = dir_start[l];
+      if (level < kRootLevel) children.reset(fd, dir_start[l + 1], shape.level_nodes[l + 1], r.key.level + 1);
+    } else if (!key_less(last, r.key)) {
+      return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " is not after node " + node_name(last) +
+                                                          " (an ordered writer takes each level by y, then x, once each)");
+    }
+    if (added[l] == shape.level_nodes[l])
+      return Status::failure(Error::invalid_argument, "level " + std::to_string(level) + " has more nodes than the shape's " +
+                                                          std::to_string(shape.level_nodes[l]));
+    if (offset - layout::kHeaderSize + payload_size > shape.payload_bytes)
+      return Status::failure(Error::invalid_argument, "the payloads exceed the shape's " + std::to_string(shape.payload_bytes) + " bytes");
+    if (level < kRootLevel) {
+      NodeKey expected;
+      bool error = false;
+      const bool has = children.next(expected, error);
+      if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+      if (!has || key_less(r.key, expected))
+        return Status::failure(Error::directory_invalid, "node " + node_name(r.key) + ": parent " + node_name(parent_of(r.key)) +
+                                                             " is absent or its child_mask bit " +
+                                                             std::to_string((r.key.x & 1) | ((r.key.y & 1) << 1)) + " is clear");
+      if (!(expected == r.key))
+        return Status::failure(Error::directory_invalid, "node " + node_name(parent_of(expected)) + ": child_mask bit " +
+                                                             std::to_string((expected.x & 1) | ((expected.y & 1) << 1)) +
+                                                             " is set but child " + node_name(expected) + " is absent");
+    }
+    return Status::success();
+  }
+
+  // Directory and node count of an ordered writer at finish(): every check default mode makes on
+  // the whole directory was made as the nodes came, but the grid bounds, which need the world.
+  Status finish_ordered(const WorldInfo& world, uint32_t& directory_crc, uint64_t& node_count) {
+      Impl& w = *this;
+    if (!world.overview_step_log2.empty())
+      return Status::failure(Error::invalid_argument, "an ordered writer makes no overview levels");
+    if (Status s = w.check_level_complete(); !s.ok()) return s;
+    if (Status s = w.check_no_children(w.level); !s.ok()) return s;
+    for (int k = w.level < 0 ? kRootLevel : w.level - 1; k >= 0; --k)
+      if (w.shape.level_nodes[size_t(k)] != 0)
+        return Status::failure(Error::invalid_argument, "level " + std::to_string(k) + " got no nodes, the shape says " +
+                                                            std::to_string(w.shape.level_nodes[size_t(k)]));
+    if (w.offset - layout::kHeaderSize != w.shape.payload_bytes)
+      return Status::failure(Error::invalid_argument, "the payloads are " + std::to_string(w.offset - layout::kHeaderSize) +
+                                                          " bytes, the shape says " + std::to_string(w.shape.payload_bytes));
+    if (Status s = w.flush_dir(); !s.ok()) return s;
+    directory_crc = 0;
+    node_count = 0;
+    for (size_t l = 0; l < size_t(kLevelCount); ++l) {
+      const uint64_t n = w.shape.level_nodes[l];
+      if (n && (w.max_x[l] >= level_grid_cells(world.roots_x, int(l)) || w.max_y[l] >= level_grid_cells(world.roots_y, int(l))))
+        return Status::failure(Error::directory_invalid, "level " + std::to_string(l) + " has a node outside its node grid");
+      // The directory's CRC from the levels', in file order (zlib's crc32_combine).
+      directory_crc = uint32_t(::crc32_combine(directory_crc, w.dir_crc[l], z_off_t(n * layout::kEntrySize)));
+      node_count += n;
+    }
+    return Status::success();
+  }
 
   void close_and_remove() {
     if (fd >= 0) ::close(fd);
@@ -66,6 +310,8 @@ struct ArchiveWriter::Impl {
     temp_path.clear();
     records.clear();
     keys.clear();
+    out.clear();
+    dir.clear();
   }
   Status fail(Status s) {
     close_and_remove();
@@ -79,7 +325,7 @@ ArchiveWriter::~ArchiveWriter() { abort(); }
 
 Status ArchiveWriter::open(const std::string& path) {
   abort();
-  impl_->failed = {};
+  *impl_ = Impl{};
   if (path.empty()) return Status::failure(Error::invalid_argument, "empty archive path");
   // The rename at finish() replaces whatever `path` names: as root that would turn /dev/null or a
   // FIFO into a regular file, and a directory cannot be replaced at all. Refuse before any work.
@@ -88,7 +334,7 @@ Status ArchiveWriter::open(const std::string& path) {
                            path + ": is a " + file_kind_name(st.st_mode) + ", not a regular file; refusing to replace it");
   impl_->path = path;
   impl_->temp_path = path + ".tmp-" + std::to_string(::getpid());
-  impl_->fd = ::open(impl_->temp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  impl_->fd = ::open(impl_->temp_path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (impl_->fd < 0) {
     const std::string msg = impl_->temp_path + ": cannot create: " + errno_text();
     impl_->temp_path.clear();
@@ -96,11 +342,30 @@ Status ArchiveWriter::open(const std::string& path) {
   }
   const uint8_t zeros[layout::kHeaderSize] = {};
   if (Status s = write_all(impl_->fd, zeros, sizeof(zeros), 0, impl_->temp_path); !s.ok()) return impl_->fail(s);
-  impl_->offset = layout::kHeaderSize;
+  impl_->offset = impl_->out_offset = layout::kHeaderSize;
+  impl_->out.reserve(Impl::kOutBuffer);
   return Status::success();
 }
 
-Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t> payload) {
+Status ArchiveWriter::open_ordered(const std::string& path, const ArchiveShape& shape) {
+  uint64_t nodes = 0;
+  for (uint64_t n : shape.level_nodes) nodes += n;
+  if (nodes > layout::kMaxNodeCount) return Status::failure(Error::invalid_argument, "too many nodes");
+  if (Status s = open(path); !s.ok()) return s;
+  Impl& w = *impl_;
+  w.ordered = true;
+  w.shape = shape;
+  // Directory: level 0 first (key order), right after the payloads.
+  uint64_t at = layout::kHeaderSize + shape.payload_bytes;
+  for (size_t l = 0; l < size_t(kLevelCount); ++l) {
+    w.dir_start[l] = at;
+    at += shape.level_nodes[l] * layout::kEntrySize;
+  }
+  w.dir.reserve(size_t(64) << 10);
+  return Status::success();
+}
+
+Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t> payload, uint32_t* payload_crc) {
   Impl& w = *impl_;
   if (!w.failed.ok()) return w.failed;
   if (w.fd < 0) return Status::failure(Error::invalid_argument, "add_node before open() or after finish()");
@@ -114,12 +379,35 @@ Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t
   detail::PayloadTable table;
   if (Status s = detail::parse_payload_table(payload, table); !s.ok())
     return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + ": payload: " + s.to_string());
-  if (!w.keys.insert(r.key).second)
+  if (w.ordered) {
+    // A broken order, shape or tree fails the writer: its directory is partly written.
+    if (Status s = w.check_ordered(r, payload.size()); !s.ok()) return w.fail(s);
+  } else if (!w.keys.insert(r.key).second) {
     return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " was added twice");
+  }
   r.payload_crc32 = detail::crc32_of(payload);
-  if (Status s = write_all(w.fd, payload.data(), payload.size(), w.offset, w.temp_path); !s.ok()) return w.fail(s);
+  if (payload_crc) *payload_crc = r.payload_crc32;
+  if (Status s = w.append_payload(payload); !s.ok()) return w.fail(s);
   w.offset += payload.size();
-  w.records.push_back(r);
+  for (size_t k = 0; k < layout::kSectionCount; ++k) {
+    w.sections.stored[k] += table[k].stored_size;
+    w.sections.raw[k] += table[k].raw_size;
+  }
+  if (w.ordered) {
+    const auto l = size_t(r.key.level);
+    uint8_t entry[layout::kEntrySize];
+    detail::encode_entry(r, entry);
+    w.dir_crc[l] = uint32_t(::crc32(w.dir_crc[l], entry, layout::kEntrySize));
+    w.dir.insert(w.dir.end(), entry, entry + layout::kEntrySize);
+    if (w.dir.size() >= (size_t(64) << 10))
+      if (Status s = w.flush_dir(); !s.ok()) return w.fail(s);
+    w.max_x[l] = std::max(w.max_x[l], r.key.x);
+    w.max_y[l] = std::max(w.max_y[l], r.key.y);
+    ++w.added[l];
+    w.last = r.key;
+  } else {
+    w.records.push_back(r);
+  }
   return Status::success();
 }
 
@@ -128,34 +416,44 @@ Status ArchiveWriter::finish(const WorldInfo& world) {
   if (!w.failed.ok()) return w.failed;
   if (w.fd < 0) return Status::failure(Error::invalid_argument, "finish before open() or after finish()");
   if (Status s = detail::validate_world(world); !s.ok()) return w.fail(s);
-  if (w.records.size() > layout::kMaxNodeCount) return w.fail(Status::failure(Error::invalid_argument, "too many nodes"));
-  std::sort(w.records.begin(), w.records.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
-  for (const NodeRecord& r : w.records)
-    if (Status s = detail::validate_record(r, &world); !s.ok()) return w.fail(s);
+  if (Status s = w.flush_out(); !s.ok()) return w.fail(s);
   const uint64_t payload_size = w.offset - layout::kHeaderSize;
-  if (Status s = detail::validate_directory(w.records, layout::kHeaderSize, payload_size, top_level(world)); !s.ok()) return w.fail(s);
-
-  std::vector<uint8_t> directory(w.records.size() * layout::kEntrySize);
-  for (size_t i = 0; i < w.records.size(); ++i) detail::encode_entry(w.records[i], directory.data() + i * layout::kEntrySize);
+  std::vector<uint8_t> directory;
+  uint32_t directory_crc = 0;
+  uint64_t node_count = 0;
+  if (w.ordered) {
+    if (Status s = w.finish_ordered(world, directory_crc, node_count); !s.ok()) return w.fail(s);
+  } else {
+    if (w.records.size() > layout::kMaxNodeCount) return w.fail(Status::failure(Error::invalid_argument, "too many nodes"));
+    std::sort(w.records.begin(), w.records.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+    for (const NodeRecord& r : w.records)
+      if (Status s = detail::validate_record(r, &world); !s.ok()) return w.fail(s);
+    if (Status s = detail::validate_directory(w.records, layout::kHeaderSize, payload_size, top_level(world)); !s.ok()) return w.fail(s);
+    directory.resize(w.records.size() * layout::kEntrySize);
+    for (size_t i = 0; i < w.records.size(); ++i) detail::encode_entry(w.records[i], directory.data() + i * layout::kEntrySize);
+    directory_crc = detail::crc32_of(directory);
+    node_count = w.records.size();
+  }
   std::vector<uint8_t> metadata;
   detail::encode_metadata(world, metadata);
 
   detail::Header h;
   h.format_version = detail::required_format_version(world);
-  h.node_count = uint32_t(w.records.size());
+  h.node_count = uint32_t(node_count);
   h.payload_offset = layout::kHeaderSize;
   h.payload_size = payload_size;
   h.directory_offset = w.offset;
-  h.directory_size = directory.size();
+  h.directory_size = node_count * layout::kEntrySize;
   h.metadata_offset = h.directory_offset + h.directory_size;
   h.metadata_size = metadata.size();
   h.file_size = h.metadata_offset + h.metadata_size;
-  h.directory_crc32 = detail::crc32_of(directory);
+  h.directory_crc32 = directory_crc;
   h.metadata_crc32 = detail::crc32_of(metadata);
   uint8_t header[layout::kHeaderSize];
   detail::encode_header(h, header);
 
-  if (Status s = write_all(w.fd, directory.data(), directory.size(), h.directory_offset, w.temp_path); !s.ok()) return w.fail(s);
+  if (!w.ordered)
+    if (Status s = write_all(w.fd, directory.data(), directory.size(), h.directory_offset, w.temp_path); !s.ok()) return w.fail(s);
   if (Status s = write_all(w.fd, metadata.data(), metadata.size(), h.metadata_offset, w.temp_path); !s.ok()) return w.fail(s);
   if (::ftruncate(w.fd, off_t(h.file_size)) != 0)  // drop leftovers of an earlier failed attempt (none expected)
     return w.fail(Status::failure(Error::io_write, w.temp_path + ": truncate failed: " + errno_text()));
@@ -187,5 +485,7 @@ void ArchiveWriter::abort() {
 }
 
 uint64_t ArchiveWriter::bytes_written() const { return impl_->offset; }
+
+SectionBytes ArchiveWriter::section_bytes() const { return impl_->sections; }
 
 }  // namespace terrain

@@ -28,7 +28,7 @@ case $case_name in
   any_split_any_order)
     # Units of 1, 2 and 7 roots per side (256, 64 and 9 units of the 16 x 16 roots), run in shuffled
     # orders two at a time, merge to the one-process bytes.
-    "$cook" "$dem" "${flags[@]}" -o ref.terrain || fail "reference cook"
+    "$cook" "$dem" "${flags[@]}" -o ref.terrain --report ref.json || fail "reference cook"
     for roots in 1 2 7; do
       n=$("$cook" plan "$dem" "${flags[@]}" --work-dir "w$roots" --unit-roots $roots) || fail "plan $roots"
       echo "unit roots $roots: $n units"
@@ -36,6 +36,17 @@ case $case_name in
       "$cook" merge "w$roots" -o "m$roots.terrain" -q || fail "merge $roots"
       cmp ref.terrain "m$roots.terrain" || fail "units of $roots roots: not the one-process bytes"
     done
+    # The units carry the per-stage CPU of their nodes: every stage the one-process cook timed is
+    # timed in the merged report too (CPU seconds differ run to run; zero would mean not carried).
+    "$cook" merge w2 -o m2b.terrain -q --report m2.json || fail "merge 2 with a report"
+    python3 - ref.json m2.json <<'PY' || fail "cpu_parts of the units are not in the merged report"
+import json, sys
+ref, merged = (json.load(open(p))["time_s"]["cpu_parts"] for p in sys.argv[1:3])
+timed = [k for k, v in ref.items() if v > 0]
+missing = [k for k in timed if merged.get(k, 0) <= 0]
+print(f"cpu_parts timed by the one-process cook: {len(timed)}; zero after the merge: {missing}")
+sys.exit(1 if not timed or missing else 0)
+PY
     n1=$(python3 -c "import json; print(json.load(open('w1/plan.json'))['unit_count'])")
     n7=$(python3 -c "import json; print(json.load(open('w7/plan.json'))['unit_count'])")
     [ "$n1" -ge 8 ] && [ "$n7" -lt "$n1" ] || fail "expected >= 8 units of 1 root and fewer of 7 (got $n1, $n7)"

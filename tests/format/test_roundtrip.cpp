@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <zlib.h>
 
 #include "archive_fixture.h"
 #include "scratch_archive_test.h"
@@ -373,6 +374,112 @@ TEST_F(ArchiveRoundTrip, ConcurrentDecodesFromManyThreadsAgree) {
     });
   for (auto& th : threads) th.join();
   EXPECT_EQ(mismatches.load(), 0);
+}
+
+// ---- ordered mode (open_ordered, the merge of work units) ----
+bool payload_order(const NodeKey& a, const NodeKey& b) {
+  if (a.level != b.level) return a.level > b.level;
+  return key_less(a, b);
+}
+ArchiveShape shape_of(const std::vector<NodeKey>& keys, const std::vector<std::vector<uint8_t>>& payloads) {
+  ArchiveShape s;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    ++s.level_nodes[keys[i].level];
+    s.payload_bytes += payloads[i].size();
+  }
+  return s;
+}
+
+TEST_F(ArchiveRoundTrip, OrderedWriterGivesTheSameBytesAsTheDefaultOne) {
+  const WorldInfo w = make_world();
+  auto keys = test::sparse_keys();
+  std::sort(keys.begin(), keys.end(), payload_order);
+  std::vector<std::vector<uint8_t>> payloads(keys.size());
+  std::vector<NodeRecord> records;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    test::BuiltNode n = test::make_synthetic_node(w, keys[i], 1);
+    n.record.child_mask = test::child_mask_of(keys, keys[i]);
+    records.push_back(n.record);
+    ASSERT_TRUE(encode_node_payload(*n.data, {}, payloads[i]).ok());
+  }
+  ArchiveWriter a, b;
+  ASSERT_TRUE(a.open(path_).ok());
+  ASSERT_TRUE(b.open_ordered(path_ + "2", shape_of(keys, payloads)).ok());
+  for (size_t i = 0; i < keys.size(); ++i) {
+    ASSERT_TRUE(a.add_node(records[i], payloads[i]).ok());
+    uint32_t crc = 0;
+    const Status s = b.add_node(records[i], payloads[i], &crc);
+    ASSERT_TRUE(s.ok()) << s.to_string();
+    EXPECT_EQ(crc, uint32_t(::crc32(0, payloads[i].data(), uInt(payloads[i].size()))));
+  }
+  ASSERT_TRUE(a.finish(w).ok());
+  const Status s = b.finish(w);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_GT(keys.size(), 20u);
+  EXPECT_EQ(read_file(path_ + "2"), read_file(path_));
+  EXPECT_EQ(a.section_bytes().stored[0], b.section_bytes().stored[0]);
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path_ + "2").ok());
+  SectionBytes sb;
+  ASSERT_TRUE(reader.section_bytes(sb).ok());
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(b.section_bytes().stored[k], sb.stored[k]);
+    EXPECT_EQ(b.section_bytes().raw[k], sb.raw[k]);
+  }
+  EXPECT_GT(sb.stored[0], 0u);
+}
+
+TEST_F(ArchiveRoundTrip, OrderedWriterRefusesWhatTheDefaultOneRefuses) {
+  const WorldInfo w = make_world(1, 1);
+  auto keys = test::close_tree({{0, 4, 3}, {0, 30, 17}});
+  std::sort(keys.begin(), keys.end(), payload_order);
+  std::vector<std::vector<uint8_t>> payloads(keys.size());
+  std::vector<NodeRecord> records;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    test::BuiltNode n = test::make_seed_node(w, keys[i]);
+    n.record.child_mask = test::child_mask_of(keys, keys[i]);
+    records.push_back(n.record);
+    ASSERT_TRUE(encode_node_payload(*n.data, {}, payloads[i]).ok());
+  }
+  // variant: 0 bit clear but child exists, 1 bit set but child absent, 2 two nodes swapped,
+  // (refused by the tree check: the first level-3 node is not 3/0/0), 3 a node missing from the
+  // shape's count, 4 a level-0 node dropped (its parent's bit dangles)
+  for (int variant = 0; variant < 5; ++variant) {
+    std::vector<NodeRecord> r = records;
+    std::vector<std::vector<uint8_t>> p = payloads;
+    std::vector<NodeKey> k = keys;
+    ArchiveShape shape = shape_of(keys, payloads);
+    for (NodeRecord& n : r)
+      if (n.key == NodeKey{2, 1, 0}) n.child_mask = variant == 0 ? 0 : variant == 1 ? uint8_t(n.child_mask | 1) : n.child_mask;
+    if (variant == 2) std::swap(r[3], r[4]), std::swap(p[3], p[4]);
+    if (variant == 3) ++shape.level_nodes[0];
+    if (variant == 4) {
+      shape.level_nodes[0] -= 1;
+      shape.payload_bytes -= p.back().size();
+      r.pop_back();
+      p.pop_back();
+    }
+    ArchiveWriter writer;
+    ASSERT_TRUE(writer.open_ordered(path_, shape).ok());
+    Status s = Status::success();
+    for (size_t i = 0; i < r.size() && s.ok(); ++i) s = writer.add_node(r[i], p[i]);
+    if (s.ok()) s = writer.finish(w);
+    EXPECT_FALSE(s.ok()) << variant;
+    if (variant <= 1 || variant == 4) {
+      EXPECT_EQ(s.code, Error::directory_invalid) << variant << ": " << s.to_string();
+      EXPECT_NE(s.message.find("child_mask bit"), std::string::npos) << s.message;
+    }
+    if (variant == 0) {
+      EXPECT_NE(s.message.find("parent 2/1/0"), std::string::npos) << s.message;
+    }
+    if (variant == 1) {
+      EXPECT_NE(s.message.find("node 2/1/0: child_mask bit 0 is set"), std::string::npos) << s.message;
+    }
+    if (variant == 3) {
+      EXPECT_EQ(s.code, Error::invalid_argument) << variant << ": " << s.to_string();
+    }
+    EXPECT_FALSE(std::filesystem::exists(path_)) << variant;
+  }
 }
 
 }  // namespace

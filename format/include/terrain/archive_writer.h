@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "terrain/archive_reader.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
@@ -46,6 +47,13 @@ Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, No
 // apply), so a cooker can fail early with a clear message.
 Status validate_world(const WorldInfo& world);
 
+// What an ordered writer is told before its first node: the node count of each level and the
+// payload bytes of all of them, so the directory's place in the file is known from the start.
+struct ArchiveShape {
+  std::array<uint64_t, kLevelCount> level_nodes{};
+  uint64_t payload_bytes = 0;
+};
+
 class ArchiveWriter {
  public:
   ArchiveWriter();
@@ -55,16 +63,28 @@ class ArchiveWriter {
 
   // Creates `path`.tmp-<pid> next to `path`.
   Status open(const std::string& path);
+  // Streaming (ordered) mode, for a merge of sorted parts: nodes must come in the canonical payload
+  // order (SPEC 18: level 5 first, then towards 0; within a level by y, then x), exactly
+  // `shape.level_nodes` of each level and `shape.payload_bytes` in all; no overview levels. Each
+  // directory entry is written in place as its node comes, so memory does not grow with the node
+  // count (a write buffer and one read buffer). Every check of finish() is still made, as the
+  // nodes come: order, counts, and child masks against the level above (read back from the file).
+  // The bytes are the same as the default mode's for the same calls.
+  Status open_ordered(const std::string& path, const ArchiveShape& shape);
   // Appends one node. `record` payload fields are ignored and filled in. Nodes may come in any
   // order (the payload order is the call order: call in a deterministic order for identical
   // bytes); the directory is sorted by key at finish(). Duplicate keys are an error.
-  Status add_node(const NodeRecord& record, std::span<const uint8_t> payload);
+  // `payload_crc` (optional) receives the payload's CRC-32 (a caller checking its own CRC over
+  // the same bytes combines it instead of computing it again).
+  Status add_node(const NodeRecord& record, std::span<const uint8_t> payload, uint32_t* payload_crc = nullptr);
   // Writes directory, metadata and header, flushes, fsyncs and renames over the final path.
   Status finish(const WorldInfo& world);
   // Removes the temp file; the final path is left as it was.
   void abort();
 
   uint64_t bytes_written() const;
+  // Stored and raw bytes per section of the nodes added so far (as ArchiveReader::section_bytes).
+  SectionBytes section_bytes() const;
 
  private:
   struct Impl;
