@@ -122,7 +122,9 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   report.surface_layers = !data.options.heights_only;
   ArchiveWriter writer;
   PyramidTotals totals;
-  if (Status st = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress); !st.ok()) {
+  // Overview levels come after the units' nodes: the streaming (ordered) writer takes levels 0..5.
+  const bool ordered = s.world.overview_step_log2.empty();
+  if (Status st = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress, ordered); !st.ok()) {
     writer.abort();
     return st;
   }

@@ -904,7 +904,8 @@ class LevelCursor {
 }  // namespace
 
 Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
-                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress) {
+                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress,
+                        bool ordered) {
   // Two passes, memory independent of the archive's size. First every unit's head (header,
   // table, stats) is checked, one unit at a time: what the archive will hold per level, and per
   // unit where each level starts. Then the payloads are copied in the archive's order: a level at
@@ -973,7 +974,7 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
     band_end = rows.second;
     std::sort(list.begin(), list.end(), [&](uint32_t a, uint32_t b) { return plan.units[a].roots.x0 < plan.units[b].roots.x0; });
   }
-  if (Status st = writer.open_ordered(output, shape); !st.ok()) return st;
+  if (Status st = ordered ? writer.open_ordered(output, shape) : writer.open(output); !st.ok()) return st;
   uint64_t total = 0, copied = 0;
   for (uint64_t n : shape.level_nodes) total += n;
   size_t widest = 0;
