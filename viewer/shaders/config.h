@@ -9,6 +9,9 @@
 // Levels 6 .. 5+K: overview levels above the roots (format/SPEC.md section 19), nodes like any other
 // at 32 m, 64 m, ... vertex spacing. TV_MAX_LEVELS bounds every per-level array.
 #define TV_MAX_LEVELS 20
+// Fog thins with height (exponential, the air's density scale height): from 50 km up a 100 km
+// world shows through ~15 % fog instead of ~60 % at the sea-level density.
+#define TV_FOG_SCALE_HEIGHT_M 8000.0
 #define TV_QUADS_PER_NODE 128     // 8 patches x 16 quads
 #define TV_PATCHES_PER_SIDE 8
 #define TV_PATCHES_PER_NODE 64

@@ -1,7 +1,7 @@
 #version 450
 // Terrain shading (FC5 section 7): near, the splat materials (bilinear blend of the 4 surrounding
 // ids with a noise-perturbed height blend, per-material procedural detail); far, the baked albedo
-// and normal; sun + sky ambient, distance fog, a smooth near/far transition. Debug views replace it.
+// and normal; sun + sky ambient, height fog (terrain.vert), a smooth near/far transition. Debug views replace it.
 #extension GL_GOOGLE_include_directive : require
 #include "common.glsl"
 
@@ -14,6 +14,7 @@ layout(location = 0) in float v_dist;
 layout(location = 1) in vec2 v_node;
 layout(location = 2) in float v_hole;
 layout(location = 3) flat in uvec4 v_patch;
+layout(location = 4) in float v_fog;  // fog amount (terrain.vert: exponential height fog)
 layout(location = 0) out vec4 out_color;
 
 // Pipelines are specialised per shading group and debug view (a CPU rasteriser executes every
@@ -178,8 +179,7 @@ void main() {
   if (debug_view == TV_DEBUG_NONE || debug_view == TV_DEBUG_WIRE) {
     vec3 ambient = frame.sky_color.rgb * (0.55 + 0.45 * n.z) * frame.sun_color.w * (0.4 + 0.6 * ao);
     color = albedo * (frame.sun_color.rgb * ndl + ambient);
-    float fog = 1.0 - exp(-frame.fog.w * dist);
-    color = mix(color, frame.fog.rgb, fog);
+    color = mix(color, frame.fog.rgb, clamp(v_fog, 0.0, 1.0));
   } else {
     color = albedo * (0.35 + 0.65 * ndl);  // debug colours, lit just enough to read the shape
   }

@@ -17,6 +17,7 @@ layout(location = 0) out float v_dist;        // distance to the camera (m; line
 layout(location = 1) out vec2 v_node;         // node-local vertex coordinates (0..128)
 layout(location = 2) out float v_hole;        // > 0 inside triangles touching a hole vertex
 layout(location = 3) flat out uvec4 v_patch;  // the patch entry
+layout(location = 4) out float v_fog;         // fog amount 0..1 (exponential height fog, per vertex)
 
 void main() {
   uvec4 p = patches[gl_InstanceIndex];  // includes firstInstance: the far list starts at capacity
@@ -48,6 +49,12 @@ void main() {
     v_hole = -1.0;       // holes kept (debug view marks them)
   }
   v_dist = length(pos);
+  // Optical depth from the camera to the vertex through fog of density fog.w * exp(-h / H): the
+  // closed form of the integral along the straight ray; a level ray gives density * distance.
+  float hc = frame.cam_frac.z / TV_FOG_SCALE_HEIGHT_M, dh = pos.z / TV_FOG_SCALE_HEIGHT_M;
+  float ec = exp(-hc);
+  float mean = abs(dh) < 1e-3 ? ec * (1.0 - 0.5 * dh) : (ec - exp(-(hc + dh))) / dh;
+  v_fog = 1.0 - exp(-frame.fog.w * v_dist * mean);
   v_node = vec2(ni, nj);
   v_patch = p;
 }
