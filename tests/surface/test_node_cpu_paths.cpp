@@ -96,7 +96,9 @@ TEST(NodeCpuPaths, SplatFilterMatchesThePerVertexLoopOnRealNodes) {
           const bool f = filter_heights(n.window.data(), scale, n.spacing_m, fast);
           const bool s = reference_filter(n.window.data(), scale, n.spacing_m, slow);
           ASSERT_EQ(f, s) << "level " << level << " scale " << scale;
-          if (f) EXPECT_EQ(differing(fast, slow), 0) << "level " << level << " node " << x << "," << y << " scale " << scale;
+          if (f) {
+            EXPECT_EQ(differing(fast, slow), 0) << "level " << level << " node " << x << "," << y << " scale " << scale;
+          }
         }
       }
   }
