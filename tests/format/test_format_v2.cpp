@@ -9,6 +9,7 @@
 #include <functional>
 
 #include "archive_fixture.h"
+#include "archive_bytes.h"
 #include "terrain/archive_layout.h"
 #include "test_data.h"
 
@@ -43,37 +44,7 @@ WorldInfo lcc_world() {
   return w;
 }
 
-std::vector<uint8_t> slurp(const std::filesystem::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), {}};
-}
-
-uint64_t get_u64(const std::vector<uint8_t>& b, size_t at) {
-  uint64_t v = 0;
-  for (int i = 7; i >= 0; --i) v = (v << 8) | b[at + size_t(i)];
-  return v;
-}
-uint32_t get_u32(const std::vector<uint8_t>& b, size_t at) {
-  return uint32_t(b[at]) | uint32_t(b[at + 1]) << 8 | uint32_t(b[at + 2]) << 16 | uint32_t(b[at + 3]) << 24;
-}
-void put_u32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i));
-}
-void put_u64(std::vector<uint8_t>& b, size_t at, uint64_t v) {
-  for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i));
-}
-uint32_t crc(const uint8_t* p, size_t n) { return uint32_t(crc32(crc32(0L, Z_NULL, 0), p, uInt(n))); }
-
-// Re-seals a file after a deliberate change: metadata size and CRC, file size, header CRC, so the
-// reader gets past the checksums to the field rules.
-void reseal(std::vector<uint8_t>& b) {
-  namespace h = layout::header;
-  const size_t meta = size_t(get_u64(b, h::metadata_offset));
-  put_u64(b, h::metadata_size, b.size() - meta);
-  put_u64(b, h::file_size, b.size());
-  put_u32(b, h::metadata_crc32, crc(b.data() + meta, b.size() - meta));
-  put_u32(b, h::header_crc32, crc(b.data(), h::header_crc32));
-}
+using namespace test;  // archive_bytes.h: slurp, get/put_u32/u64, crc, reseal
 
 class FormatV2 : public ::testing::Test {
  protected:

@@ -10,6 +10,7 @@
 
 #include "scratch_archive_test.h"
 #include "synthetic_archive.h"
+#include "archive_bytes.h"
 #include "terrain/archive_layout.h"
 #include "terrain/archive_reader.h"
 #include "terrain/archive_writer.h"
@@ -19,36 +20,7 @@
 namespace terrain {
 namespace {
 
-std::vector<uint8_t> slurp(const std::filesystem::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), {}};
-}
-uint64_t get_u64(const std::vector<uint8_t>& b, size_t at) {
-  uint64_t v = 0;
-  for (int i = 7; i >= 0; --i) v = (v << 8) | b[at + size_t(i)];
-  return v;
-}
-uint32_t get_u32(const std::vector<uint8_t>& b, size_t at) {
-  return uint32_t(b[at]) | uint32_t(b[at + 1]) << 8 | uint32_t(b[at + 2]) << 16 | uint32_t(b[at + 3]) << 24;
-}
-void put_u32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
-  for (int i = 0; i < 4; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i));
-}
-void put_u64(std::vector<uint8_t>& b, size_t at, uint64_t v) {
-  for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i));
-}
-uint32_t crc(const uint8_t* p, size_t n) { return uint32_t(crc32(crc32(0L, Z_NULL, 0), p, uInt(n))); }
-
-// Re-seals sizes and every CRC after a deliberate change, so the reader reaches the field rules.
-void reseal(std::vector<uint8_t>& b) {
-  namespace h = layout::header;
-  const size_t dir = size_t(get_u64(b, h::directory_offset)), meta = size_t(get_u64(b, h::metadata_offset));
-  put_u64(b, h::metadata_size, b.size() - meta);
-  put_u64(b, h::file_size, b.size());
-  put_u32(b, h::directory_crc32, crc(b.data() + dir, meta - dir));
-  put_u32(b, h::metadata_crc32, crc(b.data() + meta, b.size() - meta));
-  put_u32(b, h::header_crc32, crc(b.data(), h::header_crc32));
-}
+using namespace test;  // archive_bytes.h: slurp, get/put_u32/u64, crc, reseal
 
 // 20 x 20 roots, roots only (min_level 5): the synthetic roots are crack-free among themselves,
 // so verify() checks the overview levels' shared vertices against them. 20 -> 10 -> 5 -> 3: K = 3.
