@@ -23,10 +23,12 @@ int64_t lattice_index(uint32_t node, int i, uint32_t level) {
   return (int64_t(node) * kQuadsPerSide + i) * (int64_t(1) << level);
 }
 
+}  // namespace
+
 // Without surface layers the albedo still carries the hole mask (format/SPEC.md: vertex (i, j) is a
 // hole when albedo texel (i + kApron, j + kApron) has alpha 0), in flat grey BC1 blocks: both
 // endpoints equal selects the 3-colour mode, where index 3 is transparent.
-void encode_hole_albedo(const NodeWindow& w, std::array<uint8_t, kAlbedoBytes>& out) {
+void encode_hole_albedo(const uint8_t* hole_window, std::array<uint8_t, kAlbedoBytes>& out) {
   constexpr uint16_t kGrey565 = 0x8410;
   for (int by = 0; by < kTexelBlocks; ++by)
     for (int bx = 0; bx < kTexelBlocks; ++bx) {
@@ -34,7 +36,7 @@ void encode_hole_albedo(const NodeWindow& w, std::array<uint8_t, kAlbedoBytes>& 
       for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c) {
           const int i = bx * 4 + c - kApron + kWindowMargin, j = by * 4 + r - kApron + kWindowMargin;
-          if (w.hole[size_t(j) * kWindowSize + size_t(i)]) indices |= 3u << (2 * (4 * r + c));
+          if (hole_window[size_t(j) * kWindowSize + size_t(i)]) indices |= 3u << (2 * (4 * r + c));
         }
       uint8_t* b = &out[size_t(by * kTexelBlocks + bx) * 8];
       b[0] = b[2] = uint8_t(kGrey565 & 0xFF);
@@ -42,8 +44,6 @@ void encode_hole_albedo(const NodeWindow& w, std::array<uint8_t, kAlbedoBytes>& 
       for (int k = 0; k < 4; ++k) b[4 + k] = uint8_t(indices >> (8 * k));
     }
 }
-
-}  // namespace
 
 Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w) {
   // Window elements [lo, hi) per axis are evaluated (the block's window holds their taps, and
@@ -350,7 +350,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
     if (!out.status.ok()) return;
   }
-  if (!surface_done) encode_hole_albedo(*window, data->albedo_bc1);
+  if (!surface_done) encode_hole_albedo(window->hole.data(), data->albedo_bc1);
   const double t3 = thread_cpu_s();
   PayloadTiming timing;
   out.status = encode_node_payload(*data, ctx.payload, out.payload, &timing);

@@ -57,6 +57,9 @@ struct NodeWindow {
   std::array<int32_t, kWindowCount> units;
   std::array<uint8_t, kWindowCount> hole;
 };
+// The albedo of a node without surface layers: flat grey BC1 carrying the hole mask of a
+// kWindowSize x kWindowSize window of hole flags (heights-only nodes, overview nodes).
+void encode_hole_albedo(const uint8_t* hole_window, std::array<uint8_t, kAlbedoBytes>& out);
 // Fails (invalid_argument) when a height is outside the archive's +-16384 m.
 Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w);
 // The node square in source sample coordinates: the bounding box of its corners and edge

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <memory>
 
+#include "node_cook.h"
 #include "parallel.h"
 #include "quantize.h"
 #include "terrain/bc_decode.h"
@@ -80,24 +81,6 @@ void decode_root(const NodeRecord& rec, int step_log2, const std::vector<uint8_t
       out.hole[size_t(j * kEven + i)] = ok ? 0 : 1;
     }
   out.deviation_m = deviation_of(kQuadsPerSide / 2, vertex);
-}
-
-// Flat grey BC1 with the hole mask in alpha (as node_cook.cpp's heights-only albedo).
-void encode_hole_albedo(const uint8_t* hole_window, std::array<uint8_t, kAlbedoBytes>& out) {
-  constexpr uint16_t kGrey565 = 0x8410;
-  for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      uint32_t indices = 0;
-      for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) {
-          const int i = bx * 4 + c - kApron + kWindowMargin, j = by * 4 + r - kApron + kWindowMargin;
-          if (hole_window[size_t(j) * kWindowSize + size_t(i)]) indices |= 3u << (2 * (4 * r + c));
-        }
-      uint8_t* b = &out[size_t(by * kTexelBlocks + bx) * 8];
-      b[0] = b[2] = uint8_t(kGrey565 & 0xFF);
-      b[1] = b[3] = uint8_t(kGrey565 >> 8);
-      for (int k = 0; k < 4; ++k) b[4 + k] = uint8_t(indices >> (8 * k));
-    }
 }
 
 // A level's nodes: which exist, and their geometric error (the children's bound for the next level).

@@ -250,6 +250,20 @@ void put_u64(uint8_t* p, uint64_t v) { for (int i = 0; i < 8; ++i) p[i] = uint8_
 uint32_t get_u32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
 uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
 
+// A unit table entry (SPEC 18): the node's record; payload offset and size are the caller's.
+NodeRecord unit_record(const uint8_t* p) {
+  NodeRecord r;
+  r.key = {get_u32(p), get_u32(p + 4), get_u32(p + 8)};
+  r.child_mask = p[12];
+  r.flags = p[13];
+  r.height_offset = int32_t(get_u32(p + 16));
+  r.min_height = int32_t(get_u32(p + 20));
+  r.max_height = int32_t(get_u32(p + 24));
+  const uint32_t err = get_u32(p + 28);
+  std::memcpy(&r.geometric_error_m, &err, 4);
+  return r;
+}
+
 uint32_t crc_update(uint32_t crc, const uint8_t* p, size_t n) {
   uLong c = crc;
   while (n > 0) {
@@ -465,15 +479,7 @@ bool read_unit(const std::string& path, uint32_t index, const std::string& expec
   uint64_t next = 0;  // payloads back to back, in table order
   for (uint32_t i = 0; i < count; ++i) {
     const uint8_t* p = &head[size_t(i) * kUnitRecord];
-    NodeRecord r;
-    r.key = {get_u32(p), get_u32(p + 4), get_u32(p + 8)};
-    r.child_mask = p[12];
-    r.flags = p[13];
-    r.height_offset = int32_t(get_u32(p + 16));
-    r.min_height = int32_t(get_u32(p + 20));
-    r.max_height = int32_t(get_u32(p + 24));
-    const uint32_t err = get_u32(p + 28);
-    std::memcpy(&r.geometric_error_m, &err, 4);
+    NodeRecord r = unit_record(p);
     r.payload_offset = get_u64(p + 32);
     r.payload_size = get_u32(p + 40);
     if (r.payload_offset + r.payload_size > payload_bytes || r.key.level >= uint32_t(kLevelCount))
@@ -850,15 +856,7 @@ class LevelCursor {
       table_n_ = n;
     }
     const uint8_t* p = &table_[size_t(table_i_) * kUnitRecord];
-    r = NodeRecord{};
-    r.key = {get_u32(p), get_u32(p + 4), get_u32(p + 8)};
-    r.child_mask = p[12];
-    r.flags = p[13];
-    r.height_offset = int32_t(get_u32(p + 16));
-    r.min_height = int32_t(get_u32(p + 20));
-    r.max_height = int32_t(get_u32(p + 24));
-    const uint32_t err = get_u32(p + 28);
-    std::memcpy(&r.geometric_error_m, &err, 4);
+    r = unit_record(p);
     r.payload_size = get_u32(p + 40);
     r.payload_offset = payload_at_;
     return Status::success();
