@@ -15,6 +15,7 @@
 #include "node_spool.h"
 #include "overview_levels.h"
 #include "terrain/cook.h"
+#include "terrain/output_paths.h"
 #include "work_units.h"
 
 namespace terrain::cook {
@@ -195,7 +196,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   // Overview levels read the roots back from the spool: such cooks always spool.
   const bool spooled = s.grid.count() > 1 || !s.world.overview_step_log2.empty();
   if (spooled)
-    if (Status st = spool.open(fmt::format("{}.spool-{}", options.output, ::getpid())); !st.ok()) return st;
+    if (Status st = spool.open(staging_path(options.output, "spool")); !st.ok()) return st;
   const NodeSink sink = [&](NodeResult& r) {
     return spooled ? spool.add(r.record, r.payload) : writer.add_node(r.record, r.payload);
   };

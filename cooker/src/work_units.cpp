@@ -22,6 +22,7 @@
 #include "crs.h"
 #include "node_spool.h"
 #include "source_raster.h"
+#include "terrain/output_paths.h"
 #include "terrain/surface_contract.h"
 
 namespace terrain::cook {
@@ -570,7 +571,8 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                      {"fingerprint", u.fingerprint}});
   j["units"] = units;
   // Atomically: a plan is either the old one or the new one.
-  const std::string temp = fmt::format("{}.tmp-{}", path, ::getpid());
+  remove_stale_staging(path);  // a plan write killed before its rename
+  const std::string temp = staging_path(path);
   const std::string text = j.dump(1) + "\n";
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
@@ -734,11 +736,11 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
   const std::string path = unit_file(work_dir, index);
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
-  // Host and pid in the temporary name: the same unit re-run on another machine of a shared work
-  // dir (a requeued array task) never writes into this one's file.
-  char host[256] = "host";
-  ::gethostname(host, sizeof host - 1);
-  const std::string temp = fmt::format("{}.tmp-{}-{}", path, host, ::getpid());
+  // Host and pid in the staged name: the same unit re-run on another machine of a shared work dir
+  // (a requeued array task) never writes into this one's file. A run of this unit killed on this
+  // host left its staged files: they go first.
+  remove_stale_staging(path);
+  const std::string temp = staging_path(path);
   NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
   if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
   UnitStats stats;

@@ -298,11 +298,14 @@ int run(int argc, char** argv) {
   }
 
   // ---- cook into staged files beside the targets ----
-  const std::string pid = std::to_string(::getpid());
   const std::string final_archive = o.output;
-  const std::string staged_archive = final_archive + ".tmp-" + pid;
-  const std::string staged_report = report_path.empty() ? "" : report_path + ".tmp-" + pid;
-  stage_for_cleanup(staged_archive + ".tmp-" + pid);  // the writer's own temp file (archive_writer.h)
+  // What a SIGKILLed earlier cook of these targets left goes first (output_paths.h).
+  terrain::remove_stale_staging(final_archive);
+  if (!report_path.empty()) terrain::remove_stale_staging(report_path);
+  const std::string staged_archive = terrain::staging_path(final_archive);
+  const std::string staged_report = report_path.empty() ? "" : terrain::staging_path(report_path);
+  stage_for_cleanup(terrain::staging_path(staged_archive));           // the writer's own temp file
+  stage_for_cleanup(terrain::staging_path(staged_archive, "spool"));  // the cook's node spool
   stage_for_cleanup(staged_archive);
   if (!staged_report.empty()) stage_for_cleanup(staged_report);
   install_signal_cleanup();

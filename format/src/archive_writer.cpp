@@ -333,7 +333,9 @@ Status ArchiveWriter::open(const std::string& path) {
     return Status::failure(Error::invalid_argument,
                            path + ": is a " + file_kind_name(st.st_mode) + ", not a regular file; refusing to replace it");
   impl_->path = path;
-  impl_->temp_path = path + ".tmp-" + std::to_string(::getpid());
+  // A killed earlier writer of this archive left its staged file: clear it before staging ours.
+  remove_stale_staging(path);
+  impl_->temp_path = staging_path(path);
   impl_->fd = ::open(impl_->temp_path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (impl_->fd < 0) {
     const std::string msg = impl_->temp_path + ": cannot create: " + errno_text();

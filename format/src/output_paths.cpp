@@ -1,5 +1,6 @@
 #include "terrain/output_paths.h"
 
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -96,6 +97,45 @@ Status check_output_paths(const std::vector<NamedPath>& inputs, const std::vecto
       return Status::failure(Error::io_write, named(out) + ": directory " + dir + " is not writable: " + std::strerror(errno));
   }
   return Status::success();
+}
+
+namespace {
+
+std::string host_name() {
+  char host[256] = {};
+  if (::gethostname(host, sizeof host - 1) != 0 || host[0] == 0) return "host";
+  return host;
+}
+
+}  // namespace
+
+std::string staging_path(const std::string& target, const char* kind) {
+  return target + "." + kind + "-" + host_name() + "-" + std::to_string(::getpid());
+}
+
+size_t remove_stale_staging(const std::string& target) {
+  const std::filesystem::path t(target);
+  const std::string dir = directory_of(target), base = t.filename().string(), host = host_name();
+  std::error_code ec;
+  size_t removed = 0;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    for (const char* kind : {"tmp", "spool"}) {
+      const std::string prefix = base + "." + kind + "-" + host + "-";
+      if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+      size_t end_digits = prefix.size();
+      while (end_digits < name.size() && name[end_digits] >= '0' && name[end_digits] <= '9') ++end_digits;
+      // The pid ends the name or an extension follows it ("...-<pid>.payloads"); anything else is
+      // another host's name that merely starts with ours ("<host>-5-<pid>").
+      if (end_digits == prefix.size() || end_digits - prefix.size() > 9) continue;
+      if (end_digits < name.size() && name[end_digits] != '.') continue;
+      const pid_t pid = pid_t(std::stol(name.substr(prefix.size(), end_digits - prefix.size())));
+      if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
+      std::error_code rm;
+      if (std::filesystem::remove(it->path(), rm)) ++removed;
+    }
+  }
+  return removed;
 }
 
 }  // namespace terrain

@@ -56,7 +56,19 @@ case $case_name in
       ls | grep -q 'tmp-' && { echo "FAIL: SIG$sig left $(ls | grep tmp-)"; exit 1; }
       [ "$(snapshot)" = "$before" ] || { echo "FAIL: SIG$sig changed files"; exit 1; }
       echo "ok: SIG$sig -> $rc, no temp files, files unchanged"
-    done ;;
+    done
+    # SIGKILL cannot be handled: the staged files stay, the targets are untouched, and the next
+    # cook of the same targets removes what the killed one left.
+    "$bin/terrain-cook" in.npz --crs EPSG:4326 -q --tolerance 0.01 --finest-level 0 -o keep.terrain --report old.json &
+    pid=$!
+    for _ in $(seq 600); do ls | grep -q 'tmp-' && break; kill -0 $pid 2>/dev/null || break; sleep 0.1; done
+    kill -KILL $pid; wait $pid
+    left=$(ls | grep 'tmp-')
+    [ -n "$left" ] || { echo "FAIL: SIGKILL: no staged file to clear (the cook ended first?)"; exit 1; }
+    [ "$(snapshot | grep -v tmp-)" = "$before" ] || { echo "FAIL: SIGKILL changed files"; exit 1; }
+    "$bin/terrain-cook" in.npz --crs EPSG:4326 -q -o keep.terrain --report old.json || { echo "FAIL: cook after SIGKILL"; exit 1; }
+    ls | grep -q 'tmp-' && { echo "FAIL: the cook after SIGKILL left $(ls | grep tmp-)"; exit 1; }
+    echo "ok: SIGKILL left $(echo $left), the next cook removed it" ;;
   view_flags)
     for a in "--error 0" "--budget 0" "--threads 1000"; do
       expect 2 "must be" "$bin/terrain-view" keep.terrain --headless --out x.png $a

@@ -91,9 +91,9 @@ PY
     "$cook" "$dem" "${full[@]}" -o out.terrain --work-dir w --unit-roots 2 || fail "resume"
     cmp ref.terrain out.terrain || fail "resumed archive differs from the one-process cook"
     cmp ref.terrain timing.terrain || fail "uninterrupted --work-dir archive differs"
-    # What the KILLED runs left: a kill can land in any atomic write (the plan's, a unit's, the
-    # archive's), each staged under its own .tmp-* name beside its target.
-    find . \( -name '*.tmp-*' -o -name '*.spool-*' \) -delete
+    # A kill can land in any staged write (the plan's, a unit's, the archive's or its spool); the
+    # resume that succeeded removed what the killed runs left of them.
+    no_leftovers
     "$cook" "$dem" "${full[@]}" -o out2.terrain --work-dir w --unit-roots 2 || fail "second resume"
     cmp ref.terrain out2.terrain || fail "a finished work dir merges again to other bytes"
     no_leftovers ;;

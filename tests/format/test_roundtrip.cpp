@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include "archive_fixture.h"
@@ -12,6 +14,7 @@
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
 #include "terrain/height_codec.h"
+#include "terrain/output_paths.h"
 #include "test_data.h"
 
 namespace terrain {
@@ -277,6 +280,34 @@ TEST_F(ArchiveRoundTrip, FailedOrAbortedWriteLeavesTheEarlierArchiveIntact) {
   EXPECT_EQ(read_file(path_), before);
   ArchiveReader reader;
   EXPECT_TRUE(reader.open(path_).ok());
+}
+
+// What a SIGKILLed writer leaves (its staged file under its host and pid) is removed by the next
+// writer of the same target; staged files of other hosts, of live processes and of other targets stay.
+TEST_F(ArchiveRoundTrip, NextWriterRemovesWhatAKilledWriterLeft) {
+  const pid_t dead = ::fork();
+  if (dead == 0) ::_exit(0);
+  ASSERT_GT(dead, 0);
+  ASSERT_EQ(::waitpid(dead, nullptr, 0), dead);  // reaped: kill(dead, 0) now fails with ESRCH
+  const std::string mine = staging_path(path_);  // "<path>.tmp-<host>-<our pid>"
+  const std::string host_part = mine.substr(path_.size() + 5, mine.rfind('-') - path_.size() - 5);
+  auto touch = [](const std::string& p) { std::ofstream(p) << "x"; };
+  const std::string stale_tmp = path_ + ".tmp-" + host_part + "-" + std::to_string(dead);
+  const std::string stale_spool = path_ + ".spool-" + host_part + "-" + std::to_string(dead);
+  const std::string stale_ext = stale_tmp + ".payloads";
+  const std::string live = path_ + ".tmp-" + host_part + "-" + std::to_string(::getppid());
+  const std::string other_host = path_ + ".tmp-" + host_part + "x-" + std::to_string(dead);
+  const std::string prefixed_host = path_ + ".tmp-" + host_part + "-5-" + std::to_string(dead);
+  const std::string other_target = path_ + "2.tmp-" + host_part + "-" + std::to_string(dead);
+  for (const std::string* p : {&stale_tmp, &stale_spool, &stale_ext, &live, &other_host, &prefixed_host, &other_target})
+    touch(*p);
+  const WorldInfo w = make_world();
+  ASSERT_TRUE(test::write_synthetic_archive(path_, w, test::sparse_keys()).ok());
+  for (const std::string* p : {&stale_tmp, &stale_spool, &stale_ext})
+    EXPECT_FALSE(std::filesystem::exists(*p)) << *p << " (a dead writer's) survived";
+  for (const std::string* p : {&live, &other_host, &prefixed_host, &other_target})
+    EXPECT_TRUE(std::filesystem::exists(*p)) << *p << " was removed";
+  EXPECT_EQ(remove_stale_staging(path_), 0u);  // nothing stale left
 }
 
 TEST_F(ArchiveRoundTrip, ChildMasksMustMatchTheDirectoryExactly) {

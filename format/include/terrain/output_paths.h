@@ -29,4 +29,15 @@ struct NamedPath {
 // exist are skipped (their reader names them).
 Status check_output_paths(const std::vector<NamedPath>& inputs, const std::vector<NamedPath>& outputs);
 
+// Staged writes: a file written atomically (an archive, a plan, a work unit) or spooled on the way
+// to one is first `<target>.<kind>-<host>-<pid>` (kind "tmp" or "spool"), renamed over or removed
+// at the end. Host and pid name the writer, so writers on machines sharing a directory never meet.
+std::string staging_path(const std::string& target, const char* kind = "tmp");
+
+// Removes the staged files of `target` (any kind, any extension after the pid) that a process of
+// this host left and that no longer runs: what a SIGKILLed cook leaves, cleared by the next write of
+// the same target. Files of other hosts and of live processes (or a reused pid) are left alone.
+// Returns how many were removed.
+size_t remove_stale_staging(const std::string& target);
+
 }  // namespace terrain
