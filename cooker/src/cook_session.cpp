@@ -408,7 +408,9 @@ Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report)
   for (int k = 0; k < 5; ++k) {
     report.section_stored_bytes[size_t(k)] = sb.stored[k];
     report.section_raw_bytes[size_t(k)] = sb.raw[k];
+    for (int l = 0; l < kMaxLevels; ++l) report.level_section_stored_bytes[size_t(l)][size_t(k)] = sb.stored_by_level[l][k];
   }
+  for (int l = 0; l < kMaxLevels; ++l) report.level_nodes[size_t(l)] = sb.nodes_by_level[l];
   report.input_bytes_read.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) report.input_bytes_read.push_back(in.bytes_read);
   report.output_vertices = report.nodes * uint64_t(kHeightCount);

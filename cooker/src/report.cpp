@@ -23,6 +23,23 @@ double SurfaceTotals::albedo_psnr_db() const {
   return 10.0 * std::log10(255.0 * 255.0 / (albedo_sq_err_sum / double(albedo_samples)));
 }
 
+// A level's stored bytes by section, per km2 of its nodes' area and per valid source sample (the
+// archive's size at lidar density is what users compare; issue 17).
+nlohmann::ordered_json level_bytes_json(const CookReport& r, int l) {
+  const auto& by_section = r.level_section_stored_bytes[size_t(l)];
+  uint64_t stored = 0;
+  nlohmann::ordered_json sections;
+  for (int k = 0; k < 5; ++k) {
+    stored += by_section[size_t(k)];
+    sections[kSectionNames[k]] = by_section[size_t(k)];
+  }
+  const double km2 = double(r.level_nodes[size_t(l)]) * node_size_m(l) * node_size_m(l) * 1e-6;
+  return {{"stored_bytes", stored},
+          {"section_stored_bytes", sections},
+          {"bytes_per_km2", km2 > 0 ? double(stored) / km2 : 0.0},
+          {"bytes_per_source_sample", r.source_valid_samples ? double(stored) / double(r.source_valid_samples) : 0.0}};
+}
+
 std::string report_json(const CookReport& r) {
   nlohmann::ordered_json j;
   j["inputs"] = r.input_descriptions;
@@ -66,6 +83,7 @@ std::string report_json(const CookReport& r) {
                       {"error_max_m", s.error_max_m},
                       {"error_rms_m", s.error_rms_m},
                       {"uncovered_samples", s.uncovered_samples}});
+    levels.back().update(level_bytes_json(r, l));
   }
   j["levels"] = levels;
   j["full_detail_error"] = {{"samples", r.leaf_error_samples},
@@ -77,7 +95,9 @@ std::string report_json(const CookReport& r) {
     sections[kSectionNames[s]] = {{"stored_bytes", r.section_stored_bytes[size_t(s)]},
                                   {"raw_bytes", r.section_raw_bytes[size_t(s)]}};
   j["output"] = {{"nodes", r.nodes}, {"archive_bytes", r.archive_bytes}, {"sections", sections},
-                 {"surface_layers", r.surface_layers}};
+                 {"surface_layers", r.surface_layers},
+                 {"bytes_per_source_sample",
+                  r.source_valid_samples ? double(r.archive_bytes) / double(r.source_valid_samples) : 0.0}};
   j["time_s"] = {{"read", r.seconds_read},       {"prepare", r.seconds_prepare}, {"pyramid", r.seconds_pyramid},
                  {"finish", r.seconds_finish},   {"total", r.seconds_total},     {"cpu_heights", r.cpu_heights},
                  {"cpu_error", r.cpu_error},     {"cpu_surface", r.cpu_surface}, {"cpu_encode", r.cpu_encode},
@@ -88,6 +108,12 @@ std::string report_json(const CookReport& r) {
                           {"range_bound_m", r.overview_range_bound_m},
                           {"nodes", r.overview_nodes},
                           {"error_max_m", r.overview_error_max_m}};
+  nlohmann::ordered_json overview_bytes = nlohmann::ordered_json::array();
+  for (int l = kLevelCount; l < kLevelCount + r.overview_levels && l < kMaxLevels; ++l) {
+    overview_bytes.push_back({{"level", l}, {"nodes", r.level_nodes[size_t(l)]}});
+    overview_bytes.back().update(level_bytes_json(r, l));
+  }
+  j["overview_levels"]["bytes_by_level"] = overview_bytes;
   // The per-layer / per-encoder / per-section split of cpu_surface and cpu_encode, and every stage
   // and part in CPU ms per node (the unit of the cook-throughput budget).
   nlohmann::ordered_json parts, per_node;
@@ -172,6 +198,15 @@ std::string report_summary(const CookReport& r) {
   }
   s += "bytes:";
   for (int k = 0; k < 5; ++k) s += fmt::format(" {} {}", kSectionNames[k], r.section_stored_bytes[size_t(k)]);
+  if (r.source_valid_samples)
+    s += fmt::format("; {:.3f} bytes per valid source sample", double(r.archive_bytes) / double(r.source_valid_samples));
+  s += "\nbytes per km2 of the level's nodes:";
+  for (int l = kMaxLevels - 1; l >= 0; --l) {
+    if (!r.level_nodes[size_t(l)]) continue;
+    uint64_t stored = 0;
+    for (uint64_t b : r.level_section_stored_bytes[size_t(l)]) stored += b;
+    s += fmt::format(" L{} {:.0f}", l, double(stored) / (double(r.level_nodes[size_t(l)]) * node_size_m(l) * node_size_m(l) * 1e-6));
+  }
   s += "\n";
   s += fmt::format("time: read {:.2f} s, prepare {:.2f} s, pyramid {:.2f} s, finish {:.2f} s (cpu: heights {:.2f}, "
                    "error {:.2f}, surface {:.2f}, encode {:.2f}) on {} threads\n",

@@ -176,7 +176,9 @@ Status ArchiveReader::section_bytes(SectionBytes& out) const {
     for (size_t s = 0; s < layout::kSectionCount; ++s) {
       out.stored[s] += table[s].stored_size;
       out.raw[s] += table[s].raw_size;
+      out.stored_by_level[impl_->nodes[i].key.level][s] += table[s].stored_size;  // level checked at open
     }
+    ++out.nodes_by_level[impl_->nodes[i].key.level];
   }
   return Status::success();
 }

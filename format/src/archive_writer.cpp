@@ -394,7 +394,9 @@ Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t
   for (size_t k = 0; k < layout::kSectionCount; ++k) {
     w.sections.stored[k] += table[k].stored_size;
     w.sections.raw[k] += table[k].raw_size;
+    w.sections.stored_by_level[r.key.level][k] += table[k].stored_size;  // level checked by validate_record
   }
+  ++w.sections.nodes_by_level[r.key.level];
   if (w.ordered) {
     const auto l = size_t(r.key.level);
     uint8_t entry[layout::kEntrySize];

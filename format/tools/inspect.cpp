@@ -31,6 +31,18 @@ const char* kind_name(ProjectionKind k) {
 
 std::string key_text(const NodeKey& k) { return fmt::format("{}/{}/{}", k.level, k.x, k.y); }
 
+uint64_t level_stored_bytes(const SectionBytes& b, int l) {
+  uint64_t sum = 0;
+  for (size_t s = 0; s < layout::kSectionCount; ++s) sum += b.stored_by_level[l][s];
+  return sum;
+}
+
+// Stored bytes per km2 of the area the level's nodes cover (levels are sparse: not per km2 of the world).
+double level_bytes_per_km2(const SectionBytes& b, int l) {
+  const double km2 = double(b.nodes_by_level[l]) * node_size_m(l) * node_size_m(l) * 1e-6;
+  return km2 > 0 ? double(level_stored_bytes(b, l)) / km2 : 0.0;
+}
+
 struct Facts {
   SectionBytes sections;
   std::vector<uint32_t> per_level;  // levels 0 .. top (overview levels included, SPEC 19)
@@ -72,10 +84,11 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
   o << fmt::format("extent     x {:.3f} .. {:.3f}, y {:.3f} .. {:.3f} ({:.3f} x {:.3f} km)\n", w.extent_min_x_m, w.extent_max_x_m,
                    w.extent_min_y_m, w.extent_max_y_m, (w.extent_max_x_m - w.extent_min_x_m) / 1000,
                    (w.extent_max_y_m - w.extent_min_y_m) / 1000);
-  o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m\n";
+  o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m  stored_bytes  bytes_per_km2\n";
   for (int l = level_count(w) - 1; l >= 0; --l)
-    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}{}\n", l, node_size_m(l), vertex_spacing_m(l),
-                     1000.0 * double(1 << level_step_log2(w, l)) * kHeightUnitM, f.per_level[size_t(l)], f.max_error[size_t(l)],
+    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}  {:>12}  {:>13.0f}{}\n", l, node_size_m(l),
+                     vertex_spacing_m(l), 1000.0 * double(1 << level_step_log2(w, l)) * kHeightUnitM, f.per_level[size_t(l)],
+                     f.max_error[size_t(l)], level_stored_bytes(f.sections, l), level_bytes_per_km2(f.sections, l),
                      l > kRootLevel ? "  overview" : "");
   if (level_count(w) > kLevelCount)
     o << fmt::format("overview   {} levels above the roots (6..{}), top level {} holds {} nodes\n", level_count(w) - kLevelCount,
@@ -120,7 +133,9 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   for (int l = 0; l < level_count(w); ++l)
     j["levels"].push_back({{"level", l}, {"node_size_m", node_size_m(l)}, {"vertex_spacing_m", vertex_spacing_m(l)},
                            {"step_log2", level_step_log2(w, l)}, {"nodes", f.per_level[size_t(l)]},
-                           {"max_geometric_error_m", f.max_error[size_t(l)]}, {"overview", l > kRootLevel}});
+                           {"max_geometric_error_m", f.max_error[size_t(l)]}, {"overview", l > kRootLevel},
+                           {"stored_bytes", level_stored_bytes(f.sections, l)},
+                           {"bytes_per_km2", level_bytes_per_km2(f.sections, l)}});
   j["overview_levels"] = level_count(w) - kLevelCount;
   j["top_level"] = top_level(w);
   if (f.any) j["height_range_m"] = {units_to_metres(f.min_units), units_to_metres(f.max_units)};

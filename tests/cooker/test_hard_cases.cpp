@@ -202,6 +202,26 @@ TEST(HardCase, VerticalStepOf1000m) {
     }
   }
   EXPECT_GT(c.report.levels[1].nodes, 0u);
+  // The report's bytes by level (issue 17) are the archive's: per level, the stored bytes the reader
+  // counts in its nodes' payload tables, per km2 of those nodes and per valid source sample.
+  SectionBytes sb;
+  ASSERT_TRUE(c.archive.reader.section_bytes(sb).ok());
+  const auto j = nlohmann::json::parse(cook::report_json(c.report));
+  const std::vector<uint32_t> per_level = c.archive.reader.nodes_per_level();
+  uint64_t all_levels = 0;
+  for (int l = 0; l < kLevelCount; ++l) {
+    const auto& lj = j["levels"][size_t(l)];
+    uint64_t stored = 0;
+    for (int k = 0; k < 5; ++k) stored += sb.stored_by_level[l][k];
+    all_levels += stored;
+    EXPECT_EQ(lj["stored_bytes"].get<uint64_t>(), stored) << "level " << l;
+    const double km2 = double(per_level[size_t(l)]) * node_size_m(l) * node_size_m(l) * 1e-6;
+    EXPECT_NEAR(lj["bytes_per_km2"].get<double>(), km2 > 0 ? double(stored) / km2 : 0.0, 1e-6) << "level " << l;
+    EXPECT_NEAR(lj["bytes_per_source_sample"].get<double>(), double(stored) / (600.0 * 120.0), 1e-9) << "level " << l;
+  }
+  EXPECT_GT(all_levels, 0u);
+  EXPECT_LT(all_levels, c.report.archive_bytes);  // the rest is the header, directory and metadata
+  EXPECT_NEAR(j["output"]["bytes_per_source_sample"].get<double>(), double(c.report.archive_bytes) / (600.0 * 120.0), 1e-9);
 }
 
 // Isolated one-sample spikes of +50 m on flat ground. Bounds: tolerance + half step + 1 mm at

@@ -458,6 +458,31 @@ TEST_F(ArchiveRoundTrip, OrderedWriterGivesTheSameBytesAsTheDefaultOne) {
     EXPECT_EQ(b.section_bytes().raw[k], sb.raw[k]);
   }
   EXPECT_GT(sb.stored[0], 0u);
+  // The split by level (terrain-inspect's and the cook report's bytes per km2): the writer's and the
+  // reader's agree, each level's bytes are its nodes' payload tables, and the levels add up.
+  std::vector<uint64_t> level_bytes(kMaxLevels, 0), level_nodes(kMaxLevels, 0);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    ++level_nodes[keys[i].level];
+    // SPEC "Payload": the sections' stored bytes fill the payload behind its table.
+    level_bytes[keys[i].level] += payloads[i].size() - (4 + layout::kSectionCount * layout::kPayloadTableEntrySize);
+  }
+  int levels_seen = 0;
+  for (int l = 0; l < kMaxLevels; ++l) {
+    uint64_t reader_sum = 0;
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_EQ(b.section_bytes().stored_by_level[l][k], sb.stored_by_level[l][k]) << "level " << l << " section " << k;
+      reader_sum += sb.stored_by_level[l][k];
+    }
+    EXPECT_EQ(reader_sum, level_bytes[size_t(l)]) << "level " << l;
+    EXPECT_EQ(sb.nodes_by_level[l], level_nodes[size_t(l)]) << "level " << l;
+    levels_seen += level_nodes[size_t(l)] > 0;
+  }
+  EXPECT_GE(levels_seen, 3);  // the split is tested across levels, not on one
+  for (int k = 0; k < 5; ++k) {
+    uint64_t by_level = 0;
+    for (int l = 0; l < kMaxLevels; ++l) by_level += sb.stored_by_level[l][k];
+    EXPECT_EQ(by_level, sb.stored[k]) << "section " << k;
+  }
 }
 
 TEST_F(ArchiveRoundTrip, OrderedWriterRefusesWhatTheDefaultOneRefuses) {

@@ -185,6 +185,10 @@ struct CookReport {
   uint64_t archive_bytes = 0;
   std::array<uint64_t, 5> section_stored_bytes{};  // heights, normals, albedo, splat, cones
   std::array<uint64_t, 5> section_raw_bytes{};
+  // Stored bytes per level (overview levels included) and section: the report's bytes per km2 and
+  // per source sample by level.
+  std::array<std::array<uint64_t, 5>, kMaxLevels> level_section_stored_bytes{};
+  std::array<uint64_t, kMaxLevels> level_nodes{};
   bool surface_layers = false;       // false when heights_only or the surface library is absent
   // Time (wall seconds per stage; CPU seconds for the per-node work summed over threads)
   double seconds_read = 0, seconds_prepare = 0, seconds_pyramid = 0, seconds_finish = 0, seconds_total = 0;

@@ -16,6 +16,8 @@ namespace terrain {
 struct SectionBytes {  // stored (compressed) and raw bytes per section, summed over nodes
   uint64_t stored[5] = {};
   uint64_t raw[5] = {};
+  uint64_t stored_by_level[kMaxLevels][5] = {};  // the same stored bytes, split by the nodes' level
+  uint64_t nodes_by_level[kMaxLevels] = {};
 };
 
 class ArchiveReader {
