@@ -88,7 +88,7 @@ case $case_name in
     head -c 8450 /dev/zero > wide.r16
     "$bin/terrain-cook" wide.r16 --raw-size 65x65 --spacing 1500 --crs local --heights-only --overview-levels off -q -o wide.terrain \
       || { echo "FAIL: wide cook"; exit 1; }
-    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json timeout 100 \
+    VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json timeout 360 \
       "$bin/terrain-view" wide.terrain --headless --out wide.png --size 320x180 --stats wide.json -q \
       || { echo "FAIL: terrain-view did not draw the 2209-root archive"; exit 1; }
     [ -s wide.png ] || { echo "FAIL: no image"; exit 1; }
