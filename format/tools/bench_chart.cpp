@@ -221,8 +221,8 @@ std::string render_panel(const Chart& c, size_t index, const Layout& l) {
                fmt::format("><title>{}{}{}: x {}, y {}</title></circle>\n", xml_escape(ser.name),
                            q.label.empty() ? "" : " ", xml_escape(q.label), value_text(q.x), value_text(q.y));
       if (ser.label_points && !q.label.empty())
-        marks += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"10\" fill=\"{}\">{}</text>\n", x + 6, y - 6,
-                             colour, xml_escape(q.label));
+        marks += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"10\" fill=\"{}\">{}</text>\n", x + 6,
+                             y - 6 < b.y + 10 ? y + 14 : y - 6, colour, xml_escape(q.label));  // below at the top
     }
     if (ser.line)
       for (const std::string& run : runs)
