@@ -423,6 +423,7 @@ terrain::chart::Chart scale_chart(const std::vector<ScaleRow>& rows, const std::
   namespace ch = terrain::chart;
   ch::Chart c;
   c.title = title;
+  c.note = ch::machine_note();
   ch::Panel peak, rate;
   peak.title = "peak RSS, MiB";
   rate.title = "M source samples per CPU-second";
