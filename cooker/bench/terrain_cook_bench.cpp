@@ -10,6 +10,9 @@
 // --scale: cooks 1 m lidar-like squares of --sizes km (made by make_lidar_like.py from a real DEM)
 // with default flags (the bounded-memory, block-wise cook) and, for --baseline-sizes, in-core (one
 // block) side by side; prints peak memory, time and throughput per size and the issue-13 targets.
+//
+// --chart FILE.svg: the sweep's cook time and archive size against tolerance and measured error,
+// one series per DEM (bench_chart.h); with --scale, the scale chart.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -29,6 +32,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "bench_chart.h"
 
 namespace {
 
@@ -292,6 +297,7 @@ struct ScaleOptions {
   int runs = 1;
   double tile_km = 0;  // > 0: each DEM is a VRT of tile_km x tile_km km GeoTIFF tiles
   std::string work, source, python, script;
+  std::string chart;  // --chart: a copy of the scale chart
 };
 
 // The generated DEM of one size: one tiled GeoTIFF, or a VRT of GeoTIFF tiles (--tile-km).
@@ -410,100 +416,39 @@ std::vector<TargetCheck> scale_targets(const std::vector<ScaleRow>& rows) {
   return checks;
 }
 
-std::string xml_escape(const std::string& s) {
-  std::string o;
-  for (char ch : s) {
-    switch (ch) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += ch;
-    }
-  }
-  return o;
-}
-
-// A round axis end above v (1, 2 or 5 times a power of ten) and its tick step.
-std::pair<double, double> nice_axis(double v) {
-  if (!(v > 0)) return {1, 0.2};
-  const double p = std::pow(10.0, std::floor(std::log10(v)));
-  for (double m : {1.0, 2.0, 2.5, 5.0, 10.0})
-    if (m * p >= v) return {m * p, m * p / (m == 2.5 ? 5 : (m == 2.0 ? 4 : 5))};
-  return {10 * p, 2 * p};
-}
-
 // Two panels, peak RSS (MiB) and M samples per CPU-second against the square's side (km), one series
-// per mode; the peak panel draws the 2 GiB target. Plain SVG: opens in any browser.
-std::string scale_svg(const std::vector<ScaleRow>& rows, const std::string& title) {
-  constexpr double kPanelW = 340, kPanelH = 230, kLeft = 64, kTop = 72, kGap = 90;
-  // Blocks: filled dots; in-core: rings around them, so equal values stay visible.
-  const std::vector<std::pair<std::string, std::string>> series = {{"blocks", "#1f5fbf"}, {"in-core", "#d0402a"}};
-  const auto marker = [](const std::string& mode, double x, double y, const std::string& colour) {
-    return mode == "blocks"
-               ? fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\">", x, y, colour)
-               : fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"7\" fill=\"none\" stroke=\"{}\" "
-                             "stroke-width=\"2\">",
-                             x, y, colour);
-  };
-  double max_km = 0, max_peak = mib(kPeakTargetBytes), max_rate = 0;
-  for (const ScaleRow& r : rows) {
-    if (!r.ok()) continue;
-    max_km = std::max(max_km, double(r.km));
-    max_peak = std::max(max_peak, mib(r.rss_bytes));
-    max_rate = std::max(max_rate, r.samples_per_cpu_s() / 1e6);
+// per mode (in-core as rings around the blocks dots, so equal values stay visible); the peak panel
+// draws the 2 GiB target.
+terrain::chart::Chart scale_chart(const std::vector<ScaleRow>& rows, const std::string& title) {
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = title;
+  c.note = ch::machine_note();
+  ch::Panel peak, rate;
+  peak.title = "peak RSS, MiB";
+  rate.title = "M source samples per CPU-second";
+  for (ch::Panel* p : {&peak, &rate}) {
+    p->x = {"square side, km", ch::Scale::linear, true};
+    p->y = {p->title, ch::Scale::linear, true};
   }
-  const auto [x_end, x_step] = nice_axis(max_km);
-  std::string s = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" viewBox=\"0 0 {0} {1}\" "
-      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      "<text x=\"{2}\" y=\"22\" font-size=\"14\">{3}</text>\n",
-      kLeft + 2 * kPanelW + kGap + 30, kTop + kPanelH + 56, kLeft, xml_escape(title));
-  for (size_t k = 0; k < series.size(); ++k)  // legend
-    s += marker(series[k].first, kLeft + 8 + 110.0 * double(k), 40, series[k].second) +
-         fmt::format("</circle><text x=\"{}\" y=\"44\">{}</text>\n", kLeft + 20 + 110.0 * double(k),
-                     series[k].first);
-  const auto panel = [&](double x0, const std::string& y_label, double y_max_data, auto value, double target) {
-    const auto [y_end, y_step] = nice_axis(y_max_data);
-    const auto px = [&](double km) { return x0 + kPanelW * km / x_end; };
-    const auto py = [&](double v) { return kTop + kPanelH * (1 - v / y_end); };
-    std::string p = fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#888\"/>\n",
-                                x0, kTop, kPanelW, kPanelH);
-    for (double t = 0; t <= x_end + 1e-9; t += x_step)
-      p += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1}\" x2=\"{0:.1f}\" y2=\"{2}\" stroke=\"#eee\"/>"
-                       "<text x=\"{0:.1f}\" y=\"{3}\" text-anchor=\"middle\">{4:g}</text>\n",
-                       px(t), kTop, kTop + kPanelH, kTop + kPanelH + 16, t);
-    for (double t = 0; t <= y_end + 1e-9; t += y_step)
-      p += fmt::format("<line x1=\"{0}\" y1=\"{1:.1f}\" x2=\"{2}\" y2=\"{1:.1f}\" stroke=\"#eee\"/>"
-                       "<text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\">{5:g}</text>\n",
-                       x0, py(t), x0 + kPanelW, x0 - 6, py(t) + 4, t);
-    p += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">square side, km</text>\n", x0 + kPanelW / 2,
-                     kTop + kPanelH + 34);
-    p += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>\n",
-                     x0 + kPanelW / 2, kTop - 6, y_label);
-    if (target > 0)
-      p += fmt::format("<line x1=\"{0}\" y1=\"{1:.1f}\" x2=\"{2}\" y2=\"{1:.1f}\" stroke=\"#555\" "
-                       "stroke-dasharray=\"5,4\"/><text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\" fill=\"#555\">"
-                       "2 GiB target</text>\n",
-                       x0, py(target), x0 + kPanelW, x0 + kPanelW - 4, py(target) - 4);
-    for (const auto& [mode, colour] : series) {
-      std::string points;
-      for (const ScaleRow& r : rows) {
-        if (r.mode != mode || !r.ok()) continue;
-        const double x = px(r.km), y = py(value(r));
-        points += fmt::format("{:.1f},{:.1f} ", x, y);
-        p += marker(mode, x, y, colour) + fmt::format("<title>{} {} km: {:.3g}</title></circle>\n", mode, r.km, value(r));
-      }
-      if (std::count(points.begin(), points.end(), ' ') > 1)
-        p += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.5\"/>\n", points, colour);
+  peak.lines.push_back({"2 GiB target", mib(kPeakTargetBytes), true});
+  for (const char* mode : {"blocks", "in-core"}) {
+    ch::Series s;
+    s.name = mode;
+    s.hollow = std::string(mode) == "in-core";
+    ch::Series r = s;
+    for (const ScaleRow& row : rows) {
+      if (row.mode != mode || !row.ok()) continue;
+      const std::string label = fmt::format("{} km", row.km);
+      s.points.push_back({double(row.km), mib(row.rss_bytes), label});
+      r.points.push_back({double(row.km), row.samples_per_cpu_s() / 1e6, label});
     }
-    return p;
-  };
-  s += panel(kLeft, "peak RSS, MiB", max_peak, [](const ScaleRow& r) { return mib(r.rss_bytes); },
-             mib(kPeakTargetBytes));
-  s += panel(kLeft + kPanelW + kGap, "M source samples per CPU-second", max_rate,
-             [](const ScaleRow& r) { return r.samples_per_cpu_s() / 1e6; }, 0);
-  return s + "</svg>\n";
+    if (s.points.empty()) continue;
+    peak.series.push_back(s);
+    rate.series.push_back(r);
+  }
+  c.panels = {peak, rate};
+  return c;
 }
 
 int scale_main(const std::string& tool, const std::filesystem::path& self, ScaleOptions o) {
@@ -630,8 +575,16 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
                                                   {"targets", targets}}
                                        .dump(2)
                                 << "\n";
-  std::ofstream(stem + ".svg") << scale_svg(
-      rows, fmt::format("terrain-cook {} on 1 m lidar-like squares: blocks (default flags) vs in-core", mode));
+  const std::string chart_error = terrain::chart::write_svg(
+      scale_chart(rows, fmt::format("terrain-cook {} on 1 m lidar-like squares: blocks (default flags) vs in-core", mode)),
+      stem + ".svg");
+  if (!chart_error.empty()) fmt::print(stderr, "terrain-cook-bench: {}\n", chart_error);
+  if (!o.chart.empty()) {
+    std::error_code copy_ec;
+    std::filesystem::copy_file(stem + ".svg", o.chart, std::filesystem::copy_options::overwrite_existing, copy_ec);
+    if (copy_ec) fmt::print(stderr, "terrain-cook-bench: cannot write --chart {}: {}\n", o.chart, copy_ec.message());
+    else fmt::print("Wrote {}\n", o.chart);
+  }
   fmt::print("\nWrote {}.json, .csv and .svg\n", stem);
   bool failed = different;
   for (const ScaleRow& r : rows) failed |= r.status.rfind("failed", 0) == 0;
@@ -777,6 +730,47 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   }
   return failures ? 1 : 0;
 }
+struct SweepPoint {
+  std::string dem;
+  double tolerance = 0, wall_s = 0, bytes = 0, max_err = 0, rms_err = 0;
+};
+
+// --chart: the heights-only sweep, one series per DEM: cook time and archive size against the
+// tolerance asked for and against the largest height error measured (log-log: DEMs differ by
+// orders of magnitude).
+terrain::chart::Chart sweep_chart(const std::vector<SweepPoint>& points, int runs) {
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = "terrain-cook-bench: heights-only cooks, tolerance sweep per DEM";
+  c.note = fmt::format("Cook time = wall seconds of terrain-cook (median of {} run{}); archive = bytes written; error = "
+                       "largest |cooked - source| height over the full-detail surface, from the cook report. {}",
+                       runs, runs == 1 ? "" : "s", ch::machine_note());
+  const ch::Axis tol{"tolerance, m", ch::Scale::log10}, err{"measured max height error, m", ch::Scale::log10};
+  const ch::Axis time{"cook wall time, s", ch::Scale::log10}, size{"archive, MB", ch::Scale::log10};
+  ch::Panel p[4] = {{"cook time against tolerance", tol, time, {}, {}, {}},
+                    {"archive size against tolerance", tol, size, {}, {}, {}},
+                    {"cook time against measured error", err, time, {}, {}, {}},
+                    {"archive size against measured error", err, size, {}, {}, {}}};
+  std::vector<std::string> dems;
+  for (const SweepPoint& q : points)
+    if (std::find(dems.begin(), dems.end(), q.dem) == dems.end()) dems.push_back(q.dem);
+  for (const std::string& dem : dems) {
+    ch::Series s[4];
+    for (ch::Series& x : s) x.name = dem;
+    for (const SweepPoint& q : points) {
+      if (q.dem != dem) continue;
+      const std::string label = fmt::format("{} m", q.tolerance);
+      s[0].points.push_back({q.tolerance, q.wall_s, label});
+      s[1].points.push_back({q.tolerance, q.bytes / 1e6, label});
+      s[2].points.push_back({q.max_err, q.wall_s, label});
+      s[3].points.push_back({q.max_err, q.bytes / 1e6, label});
+    }
+    for (int k = 0; k < 4; ++k) p[k].series.push_back(s[k]);
+  }
+  c.panels.assign(std::begin(p), std::end(p));
+  return c;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -796,6 +790,10 @@ int main(int argc, char** argv) {
   app.add_option("--dems", only, "Only these DEMs (names as printed)")->delimiter(',');
   app.add_option("--runs", runs, "Runs per measurement (median; default 3, --scale 1)")->check(CLI::Range(1, 100));
   app.add_flag("--skip-default", skip_default, "Skip the default cooks with every section");
+  std::string chart;
+  app.add_option("--chart", chart,
+                 "Also write an SVG chart: the sweep's cook time and archive size against tolerance and measured "
+                 "error per DEM (with --scale: the scale chart)");
   app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
   app.add_option("--sizes", so.sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
       ->capture_default_str();
@@ -841,6 +839,7 @@ int main(int argc, char** argv) {
   }
   if (scale) {
     so.runs = app.count("--runs") ? runs : 1;
+    so.chart = chart;
     if (so.source.empty()) so.source = std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string();
     return scale_main(tool, self, so);
   }
@@ -873,6 +872,7 @@ int main(int argc, char** argv) {
              "tol_m", "nodes", "MB", "cook_s", "max_m", "rms_m", "finest", "hgt_MS/cs", "spacing", "gdal_samp",
              "gdal_s", "gdal_MS/cs", "peakMB");
   std::vector<std::string> tsv;
+  std::vector<SweepPoint> sweep;
   std::map<std::pair<std::string, double>, Baseline> baselines;
   for (const Dem& dem : dems) {
     if (!only.empty() && std::find(only.begin(), only.end(), dem.name) == only.end()) continue;
@@ -896,6 +896,7 @@ int main(int argc, char** argv) {
       tsv.push_back(fmt::format("sweep\t{}\t{}\t{}\t{}\t{:.3f}\t{:.4f}\t{:.5f}\t{}\t{:.2f}\t{}\t{}\t{:.3f}\t{:.2f}\t{:.0f}",
                                 dem.name, tol, s->nodes, s->bytes, s->wall_s, s->max_err, s->rms_err,
                                 s->finest_present, ours, b.spacing, b.samples, b.seconds, theirs, s->rss_mb));
+      sweep.push_back({dem.name, tol, s->wall_s, double(s->bytes), s->max_err, s->rms_err});
     }
   }
   if (!skip_default) {
@@ -918,5 +919,12 @@ int main(int argc, char** argv) {
              "gdal_MS_per_cpu_s peak_MB; default: dem nodes bytes cook_s max_m rms_m finest hgt_MS_per_cpu_s peak_MB)\n");
   for (const std::string& line : tsv) fmt::print("{}\n", line);
   std::filesystem::remove_all(scratch);
+  if (!chart.empty()) {
+    if (const std::string e = terrain::chart::write_svg(sweep_chart(sweep, runs), chart); !e.empty()) {
+      fmt::print(stderr, "terrain-cook-bench: {}\n", e);
+      return 1;
+    }
+    fmt::print("\nWrote {}\n", chart);
+  }
   return 0;
 }

@@ -6,7 +6,8 @@
 // ratios), the number to quote on a shared machine.
 // Peer coder: JPEG-LS lossless (CharLS, when built with it) on the same tiles, timed and checked
 // the same way. --dump-pgm writes every tile as a 16-bit PGM for external coders
-// (tools/peer_lossless.sh runs JPEG-XL's cjxl over them).
+// (tools/peer_lossless.sh runs JPEG-XL's cjxl over them). --chart FILE.svg draws bits per sample
+// against decode MB/s per dataset (bench_chart.h).
 #include <zip.h>
 #include <zlib.h>
 #include <zstd.h>
@@ -29,6 +30,7 @@
 #include "terrain/archive_writer.h"
 #include "terrain/format.h"
 #include "terrain/height_codec.h"
+#include "bench_chart.h"
 
 #if TERRAIN_HAVE_CHARLS
 #include <charls/charls.h>
@@ -462,6 +464,40 @@ bool write_bytes_file(const std::string& dir, const Result& r) {
   return true;
 }
 
+// --chart: a panel per dataset, stored bits per height sample against decode MB/s (fastest of
+// `runs`): predictor+zstd across its zstd levels as a line, the other coders measured in this run
+// (plain zstd, JPEG-LS, memcpy of the raw R16 tiles) as named points.
+terrain::chart::Chart format_chart(const std::vector<Result>& results, int default_level, int runs) {
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = "terrain-format-bench: height tiles, stored size against decode speed";
+  c.note = fmt::format("129 x 129 R16 height tiles of each DEM (lossless); bits per sample = stored bytes x 8 / samples; "
+                       "decode MB/s of R16 output, fastest of {} runs (one thread). JPEG-XL is measured outside this "
+                       "program (tools/peer_lossless.sh) and is not drawn. {}",
+                       runs, ch::machine_note());
+  c.columns = 3;
+  c.panel_width = 280;
+  c.panel_height = 200;
+  for (const Result& r : results) {
+    const double samples = double(r.tiles) * double(kHeightCount);
+    const auto bits = [&](uint64_t bytes) { return 8.0 * double(bytes) / samples; };
+    ch::Panel p;
+    p.title = fmt::format("{} ({} tiles)", r.name, r.tiles);
+    p.x = {"bits per sample", ch::Scale::linear, true};
+    p.y = {"decode, MB/s", ch::Scale::log10};
+    ch::Series s{"predictor+zstd (labels: zstd level)", {}};
+    s.label_points = true;
+    for (const LevelResult& l : r.levels) s.points.push_back({bits(l.bytes), l.decode_mbps, fmt::format("-{}", l.level)});
+    p.series.push_back(s);
+    p.named.push_back({"zstd -19", bits(r.zstd19), r.zstd19_decode_mbps});
+    if (default_level != 19) p.named.push_back({fmt::format("zstd -{}", default_level), bits(r.zstd_default), r.zstd_default_decode_mbps});
+    if (r.charls.measured) p.named.push_back({"JPEG-LS", bits(r.charls.bytes), r.charls.decode_mbps});
+    p.named.push_back({"memcpy", bits(r.raw), r.memcpy_mbps});
+    c.panels.push_back(std::move(p));
+  }
+  return c;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -492,6 +528,8 @@ int main(int argc, char** argv) {
                  "write every tile as a 16-bit PGM to DIR/<dataset>/NNNNN.pgm (plus bench_bytes.tsv) for external coders "
                  "(tools/peer_lossless.sh)");
   app.add_flag("--json", json, "print JSON instead of the table");
+  std::string chart;
+  app.add_option("--chart", chart, "also write an SVG chart: bits per sample against decode MB/s per dataset");
   CLI11_PARSE(app, argc, argv);
 
   std::vector<Dataset> sets;
@@ -555,6 +593,13 @@ int main(int argc, char** argv) {
     }
     if (!dump_dir.empty() && !write_bytes_file(dump_dir, r)) return 1;
     results.push_back(std::move(r));
+  }
+  if (!chart.empty()) {
+    if (const std::string e = terrain::chart::write_svg(format_chart(results, default_level, runs), chart); !e.empty()) {
+      fmt::print(stderr, "terrain-format-bench: {}\n", e);
+      return 1;
+    }
+    fmt::print(stderr, "wrote {}\n", chart);  // stderr: --json keeps stdout pure JSON
   }
   if (json) {
     nlohmann::json j = nlohmann::json::array();

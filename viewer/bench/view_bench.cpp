@@ -7,7 +7,8 @@
 // of a full-detail render (every node resident and split, no coarsening), the vertical distance
 // between that surface and the surface the target draws, projected to pixels at the pixel's
 // distance (the quantity the LOD test bounds). Every node is decoded up front (same residency for
-// all rows), so an archive must fit --max-nodes.
+// all rows), so an archive must fit --max-nodes. --chart FILE.svg draws frame and work time against
+// the measured error, one series per view (bench_chart.h).
 #include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
@@ -17,9 +18,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <sstream>
 #include <unordered_map>
 
+#include "bench_chart.h"
 #include "session.h"
 
 namespace terrain::view {
@@ -126,6 +129,44 @@ terrain::Status median_draw(Session& s, const Camera& cam, FrameSettings::DrawPr
   return terrain::Status::success();
 }
 
+// --chart: frame time (wall, the wait for the frame) and work time (process CPU per frame) against
+// the p99 screen-space error each target leaves, a series per view, points labelled with the target.
+terrain::chart::Chart view_chart(const std::vector<Row>& rows, const std::string& archive, unsigned w, unsigned h,
+                                 const std::string& device, int frames, bool decimate) {
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = "terrain-view-bench: frame cost against the screen-space error it leaves";
+  c.note = "Archive " + std::filesystem::path(archive).filename().string() + ", " + std::to_string(w) + "x" +
+           std::to_string(h) + ", device " + device + ", median of " + std::to_string(frames) +
+           " frames per point; error = p99 over terrain pixels of |drawn - full-detail height| in pixels; labels: the "
+           "error target (px). " + ch::machine_note();
+  ch::Panel frame, work;
+  frame.title = "frame time";
+  work.title = "work per frame (process CPU)";
+  frame.x = work.x = {"measured screen-space error, p99, px", ch::Scale::linear, true};
+  frame.y = {"frame ms", ch::Scale::linear, true};
+  work.y = {"work ms", ch::Scale::linear, true};
+  std::vector<std::string> views;
+  for (const Row& r : rows)
+    if (std::find(views.begin(), views.end(), r.view) == views.end()) views.push_back(r.view);
+  for (const std::string& v : views) {
+    ch::Series sf{decimate ? v : v + " (no decimation)", {}};
+    sf.label_points = true;
+    ch::Series sw = sf;
+    for (const Row& r : rows) {
+      if (r.view != v) continue;
+      char label[32];
+      std::snprintf(label, sizeof label, "%g", r.target);
+      sf.points.push_back({r.err_p99, r.wall, label});
+      sw.points.push_back({r.err_p99, r.work, label});
+    }
+    frame.series.push_back(sf);
+    work.series.push_back(sw);
+  }
+  c.panels = {frame, work};
+  return c;
+}
+
 }  // namespace
 }  // namespace terrain::view
 
@@ -143,6 +184,8 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "frames before measuring")->capture_default_str();
   app.add_option("--max-nodes", max_nodes, "most nodes to decode up front")->capture_default_str();
   app.add_flag("--json", json_out, "print the table as JSON on stdout");
+  std::string chart;
+  app.add_option("--chart", chart, "also write an SVG chart: frame and work ms against the measured error, per view");
   app.add_flag("--no-decimate", no_decimate, "no per-patch decimation of roots (the baseline it is measured against)");
   app.add_flag("--profile", profile,
                "also split the draw: vertex work only (rasterizer discard), constant-colour fragments, shading");
@@ -291,6 +334,15 @@ int main(int argc, char** argv) {
                  full.gpu.nodes, double(full.gpu.triangles) / 1e6, full.gpu.gpu_total_ms);
   }
 
+  if (!chart.empty()) {
+    const std::string e = terrain::chart::write_svg(
+        view_chart(rows, archive, w, h, s.ctx.device_name, frames, !no_decimate), chart);
+    if (!e.empty()) {
+      std::fprintf(stderr, "terrain-view-bench: %s\n", e.c_str());
+      return 1;
+    }
+    std::fprintf(stderr, "wrote %s\n", chart.c_str());
+  }
   if (json_out) {
     nlohmann::json j = nlohmann::json::array();
     for (const Row& r : rows) {

@@ -5,8 +5,10 @@
 // packed world-space normals), then encodes them with every encoder and prints, in one table:
 // microseconds per block (median of repeated runs, one thread), albedo PSNR over non-hole texels,
 // punch-through mismatches (must be 0), and normal angular error (mean / max degrees). A second
-// table gives the whole per-node surface cook time per quality setting.
+// table gives the whole per-node surface cook time per quality setting. --frontier --chart FILE.svg
+// also draws the frontier (bench_chart.h).
 #include <algorithm>
+#include <cstdarg>
 #include <chrono>
 #include <ctime>
 #include <cmath>
@@ -19,6 +21,7 @@
 #include <unistd.h>
 
 #include "bc_blocks.h"
+#include "bench_chart.h"
 #include "dem_nodes.h"
 #include "materials.h"
 #include "normals.h"
@@ -35,6 +38,17 @@ double thread_seconds() {
   timespec t;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+// printf into a std::string (chart titles).
+std::string fmt_string(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt_string(const char* format, ...) {
+  char buf[2048];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
+  return buf;
 }
 
 struct Dataset {
@@ -237,7 +251,10 @@ void print_block_stats(const char* name, const std::vector<NodePayload>& payload
 // variants, which is what the default's hot path calls; "scalar" rows force the scalar definition
 // that the SSE2 path restates byte for byte); a row "meets" the albedo target when its
 // PSNR >= max(stb, squish cluster) and its time <= stb's.
-void print_frontier(const char* name, const std::vector<NodePayload>& payloads, int reps) {
+// With `panels`, adds one chart panel per albedo set: PSNR against us/block, the effort sweep as a
+// series, the libraries as named points, the target as lines.
+void print_frontier(const char* name, const std::vector<NodePayload>& payloads, int reps,
+                    std::vector<terrain::chart::Panel>* panels) {
   for (int set = 0; set < 2; ++set) {
     std::vector<uint8_t> blocks;
     for (const NodePayload& p : payloads) {
@@ -308,12 +325,33 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
     for (const Result& r : rows)
       std::printf("%-34s %9.3f %8.2f %6s\n", r.label.c_str(), r.us, r.psnr,
                   r.psnr >= target_db && r.us <= stb.us ? "yes" : "no");
+    if (!panels) continue;
+    namespace ch = terrain::chart;
+    ch::Panel p;
+    p.title = fmt_string("%s %s albedo, %zu blocks", name, set == 0 ? "splat" : "relief", n);
+    p.x = {"encode time, us per block (thread CPU)", ch::Scale::log10};
+    p.y = {"PSNR, dB (hole-free texels)", ch::Scale::linear};
+    ch::Series sweep{"own BC1, effort sweep", {}}, scalar{"own BC1, scalar path", {}}, def{"own BC1 default", {}};
+    scalar.line = false;
+    def.line = false;
+    def.hollow = true;
+    def.radius = 5;
+    def.points.push_back({rows[0].us, rows[0].psnr, rows[0].label});
+    for (const Result& r : rows) {
+      const bool is_scalar = r.label.find("scalar") != std::string::npos;
+      (is_scalar ? scalar : sweep).points.push_back({r.us, r.psnr, r.label});
+    }
+    std::sort(sweep.points.begin(), sweep.points.end(), [](const ch::Point& a, const ch::Point& b) { return a.x < b.x; });
+    p.series = {sweep, def, scalar};
+    p.named = {{stb.label, stb.us, stb.psnr}, {squish.label, squish.us, squish.psnr}};
+    p.lines = {{"target PSNR", target_db, true}, {"stb time", stb.us, false}};
+    panels->push_back(std::move(p));
   }
 }
 
 void print_usage(FILE* to) {
   std::fprintf(to,
-      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--encoder NAME] [--block-stats] [--frontier] [--json] [--quiet] [--help]\n"
+      "usage: terrain-bc-bench [--data DIR] [--reps N] [--only NAME] [--encoder NAME] [--block-stats] [--frontier [--chart FILE.svg]] [--json] [--quiet] [--help]\n"
       "  Encodes real-node payloads (albedo with holes, normals) with libsquish, stb_dxt and our\n"
       "  encoder; prints us/block (median of N runs), albedo PSNR, punch-through mismatches and\n"
       "  normal angular error, then the per-node surface cook time per quality setting.\n"
@@ -325,7 +363,9 @@ void print_usage(FILE* to) {
       "  --block-stats  only the per-block error distribution of the default encoder against libsquish\n"
       "              cluster fit on the splat albedo (where the dB are lost), no timing\n"
       "  --frontier  only speed against PSNR of our BC1 encoder as its effort knobs are swept, next to\n"
-      "              stb_dxt and libsquish cluster fit (hole-free albedo blocks)\n",
+      "              stb_dxt and libsquish cluster fit (hole-free albedo blocks)\n"
+      "  --chart FILE.svg  with --frontier: also write the frontier as an SVG chart (a panel per DEM and\n"
+      "              albedo set, the libraries as labelled points)\n",
       TERRAIN_BENCH_DATA_DIR);
 }
 
@@ -336,7 +376,7 @@ int main(int argc, char** argv) {
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
   int reps = 5;
   bool json = false, quiet = false, block_stats = false, frontier = false;
-  std::string only, encoder_only;
+  std::string only, encoder_only, chart_path;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") { print_usage(stdout); return 0; }
@@ -348,8 +388,14 @@ int main(int argc, char** argv) {
     else if (a == "--reps" && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
     else if (a == "--encoder" && i + 1 < argc) encoder_only = argv[++i];
+    else if (a == "--chart" && i + 1 < argc) chart_path = argv[++i];
     else { std::fprintf(stderr, "terrain-bc-bench: unknown argument '%s'\n", a.c_str()); print_usage(stderr); return 2; }
   }
+  if (!chart_path.empty() && !frontier) {
+    std::fprintf(stderr, "terrain-bc-bench: --chart needs --frontier\n");
+    return 2;
+  }
+  std::vector<terrain::chart::Panel> frontier_panels;
   const bool progress = !quiet && isatty(2);
   const MaterialRules rules = default_material_rules();
   std::vector<Row> rows;
@@ -381,7 +427,7 @@ int main(int argc, char** argv) {
       holes += payloads[i].hole_texels;
     }
     if (frontier) {
-      print_frontier(dem.name.c_str(), payloads, reps);
+      print_frontier(dem.name.c_str(), payloads, reps, chart_path.empty() ? nullptr : &frontier_panels);
       continue;
     }
     if (block_stats) {
@@ -450,6 +496,20 @@ int main(int argc, char** argv) {
     if (progress) std::fprintf(stderr, "  %d hole texels over %zu nodes\n", holes, nodes.size());
   }
 
+  if (!chart_path.empty()) {
+    terrain::chart::Chart c;
+    c.title = "terrain-bc-bench --frontier: BC1 albedo encoders, PSNR against encode time";
+    c.note = fmt_string("Hole-free 4x4 blocks of real-node albedo (splat-baked and colour relief); time = thread CPU "
+                        "us per block, median of %d rep%s, one thread; squares = peer libraries on the same blocks; "
+                        "dashed = the target (PSNR >= max(stb, squish), time <= stb). %s",
+                        reps, reps == 1 ? "" : "s", terrain::chart::machine_note().c_str());
+    c.panels = std::move(frontier_panels);
+    if (const std::string e = terrain::chart::write_svg(c, chart_path); !e.empty()) {
+      std::fprintf(stderr, "terrain-bc-bench: %s\n", e.c_str());
+      return 1;
+    }
+    std::printf("\nWrote %s\n", chart_path.c_str());
+  }
   if (block_stats || frontier) return 0;
   const bool cook_table = encoder_only.empty();
   // Whole surface cook per node (normals, albedo, splat, cones + compression), one thread, on up
