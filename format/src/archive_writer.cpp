@@ -1,4 +1,4 @@
-// Streaming atomic writer: payloads go to `path`.tmp-<pid> as they arrive (through a write buffer:
+// Streaming atomic writer: payloads go to `path`.tmp-<host>-<pid> as they arrive (through a write buffer:
 // one write per few MB, not one per node). Default mode: only the 48-byte directory entries stay
 // in memory; finish() appends the sorted directory. Ordered mode (open_ordered): the directory's
 // place is known from the start, each entry is written there as its node comes and nothing grows

@@ -61,7 +61,8 @@ class ArchiveWriter {
   ArchiveWriter(const ArchiveWriter&) = delete;
   ArchiveWriter& operator=(const ArchiveWriter&) = delete;
 
-  // Creates `path`.tmp-<pid> next to `path`.
+  // Creates `path`.tmp-<host>-<pid> next to `path` (output_paths.h), first removing what a killed
+  // writer of `path` on this host left there.
   Status open(const std::string& path);
   // Streaming (ordered) mode, for a merge of sorted parts: nodes must come in the canonical payload
   // order (SPEC 18: level 5 first, then towards 0; within a level by y, then x), exactly
