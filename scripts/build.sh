@@ -6,12 +6,15 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 flavour=${1:-release}
 shift || true
 args=(-G Ninja -DCMAKE_BUILD_TYPE=Release)
+sanitizer_flags=("-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG")
 case "$flavour" in
   release) ;;
+  # Sanitizer builds: -O1 -g1 (line tables: symbolized stacks) builds in 475 s instead of 688 s at
+  # -O2 -g on 2 cores, and the ASan tests take 844 s instead of 805 s (measured 2026-12-03).
   asan) args=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DTERRAIN_SANITIZE=address,undefined"
-              -DTERRAIN_BUILD_BENCHMARKS=OFF) ;;
+              -DTERRAIN_BUILD_BENCHMARKS=OFF "${sanitizer_flags[@]}") ;;
   tsan) args=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRAIN_SANITIZE=thread -DTERRAIN_BUILD_VIEWER=OFF
-              -DTERRAIN_BUILD_BENCHMARKS=OFF) ;;
+              -DTERRAIN_BUILD_BENCHMARKS=OFF "${sanitizer_flags[@]}") ;;
   *) echo "build.sh: unknown flavour '$flavour' (release, asan, tsan)" >&2; exit 2 ;;
 esac
 # ccache (installed by setup.sh) makes rebuilds and the clean-clone CI stage cheap; paths under the
@@ -22,5 +25,6 @@ if command -v ccache >/dev/null; then
 fi
 dir="$root/build/$flavour"
 cmake -S "$root" -B "$dir" "${args[@]}" "$@" >/dev/null
-cmake --build "$dir" -j "$(nproc)"
+# BUILD_TARGET=<target> builds only that target (CI: the streamer tests under TSan).
+cmake --build "$dir" -j "$(nproc)" ${BUILD_TARGET:+--target "$BUILD_TARGET"}
 echo "build.sh: $flavour build in $dir (binaries in $dir/bin)"

@@ -274,6 +274,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   // Unit files beyond the new unit count belong to no unit any more.
   for (uint32_t i = summary.unit_count; std::filesystem::exists(unit_file(options.work_dir, i), ec); ++i)
     std::filesystem::remove(unit_file(options.work_dir, i), ec);
+  remove_stale_staging_in(units_dir(options.work_dir));  // staged files of unit runs killed on this host
   return write_plan(s, report, plan, summary.plan_path);
 }
 

@@ -498,8 +498,9 @@ bool read_unit(const std::string& path, uint32_t index, const std::string& expec
 }  // namespace
 
 std::string plan_file(const std::string& work_dir) { return work_dir + "/plan.json"; }
+std::string units_dir(const std::string& work_dir) { return work_dir + "/units"; }
 std::string unit_file(const std::string& work_dir, uint32_t index) {
-  return fmt::format("{}/units/unit-{}.tcu", work_dir, index);
+  return fmt::format("{}/unit-{}.tcu", units_dir(work_dir), index);
 }
 
 Status plan_units(CookSession& s, PlanFile& plan) {
@@ -737,9 +738,8 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(path).parent_path(), ec);
   // Host and pid in the staged name: the same unit re-run on another machine of a shared work dir
-  // (a requeued array task) never writes into this one's file. A run of this unit killed on this
-  // host left its staged files: they go first.
-  remove_stale_staging(path);
+  // (a requeued array task) never writes into this one's file. What a killed run of a unit left is
+  // removed by the next plan or merge (one listing of the units for all of them, not one per unit).
   const std::string temp = staging_path(path);
   NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
   if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
@@ -919,6 +919,7 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
                                                        unit, unit_file(work_dir, unit), why, work_dir, unit));
   };
   const std::string damaged = "checksum mismatch (damaged or half-written)";
+  remove_stale_staging_in(units_dir(work_dir));  // staged files of unit runs killed on this host
   std::vector<MergeUnit> units(plan.units.size());
   ArchiveShape shape;
   for (const UnitPlan& u : plan.units) {

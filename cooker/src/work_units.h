@@ -22,6 +22,7 @@
 namespace terrain::cook {
 
 std::string plan_file(const std::string& work_dir);
+std::string units_dir(const std::string& work_dir);  // <work_dir>/units: the unit files
 std::string unit_file(const std::string& work_dir, uint32_t index);
 
 struct UnitPlan {

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <vector>
 
 namespace terrain {
 namespace {
@@ -113,29 +114,59 @@ std::string staging_path(const std::string& target, const char* kind) {
   return target + "." + kind + "-" + host_name() + "-" + std::to_string(::getpid());
 }
 
-size_t remove_stale_staging(const std::string& target) {
-  const std::filesystem::path t(target);
-  const std::string dir = directory_of(target), base = t.filename().string(), host = host_name();
+namespace {
+
+// The pid of a staged name's writer when `name` is `<base>.<kind>-<host>-<pid>[.<ext>]` with this
+// host, scanning from `from`; 0 otherwise. The pid ends the name or an extension follows it
+// ("...-<pid>.payloads"); anything else is another host's name that merely starts with ours
+// ("<host>-5-<pid>").
+pid_t staged_pid(const std::string& name, size_t at, const std::string& host, const char* kind) {
+  const std::string marker = std::string(".") + kind + "-" + host + "-";
+  if (name.compare(at, marker.size(), marker) != 0) return 0;
+  const size_t digits = at + marker.size();
+  size_t end_digits = digits;
+  while (end_digits < name.size() && name[end_digits] >= '0' && name[end_digits] <= '9') ++end_digits;
+  if (end_digits == digits || end_digits - digits > 9) return 0;
+  if (end_digits < name.size() && name[end_digits] != '.') return 0;
+  return pid_t(std::stol(name.substr(digits, end_digits - digits)));
+}
+
+bool writer_is_gone(pid_t pid) { return pid > 0 && pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH; }
+
+template <class Match>
+size_t remove_in(const std::string& dir, Match&& stale) {
   std::error_code ec;
   size_t removed = 0;
-  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    for (const char* kind : {"tmp", "spool"}) {
-      const std::string prefix = base + "." + kind + "-" + host + "-";
-      if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-      size_t end_digits = prefix.size();
-      while (end_digits < name.size() && name[end_digits] >= '0' && name[end_digits] <= '9') ++end_digits;
-      // The pid ends the name or an extension follows it ("...-<pid>.payloads"); anything else is
-      // another host's name that merely starts with ours ("<host>-5-<pid>").
-      if (end_digits == prefix.size() || end_digits - prefix.size() > 9) continue;
-      if (end_digits < name.size() && name[end_digits] != '.') continue;
-      const pid_t pid = pid_t(std::stol(name.substr(prefix.size(), end_digits - prefix.size())));
-      if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
-      std::error_code rm;
-      if (std::filesystem::remove(it->path(), rm)) ++removed;
-    }
+  std::vector<std::filesystem::path> doomed;  // collected first: no removal under the iterator
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    if (stale(it->path().filename().string())) doomed.push_back(it->path());
+  for (const auto& p : doomed) {
+    std::error_code rm;
+    if (std::filesystem::remove(p, rm)) ++removed;
   }
   return removed;
+}
+
+}  // namespace
+
+size_t remove_stale_staging(const std::string& target) {
+  const std::string base = std::filesystem::path(target).filename().string(), host = host_name();
+  return remove_in(directory_of(target), [&](const std::string& name) {
+    if (name.size() <= base.size() || name.compare(0, base.size(), base) != 0) return false;
+    for (const char* kind : {"tmp", "spool"})
+      if (writer_is_gone(staged_pid(name, base.size(), host, kind))) return true;
+    return false;
+  });
+}
+
+size_t remove_stale_staging_in(const std::string& dir) {
+  const std::string host = host_name();
+  return remove_in(dir, [&](const std::string& name) {
+    for (size_t at = name.find('.'); at != std::string::npos; at = name.find('.', at + 1))
+      for (const char* kind : {"tmp", "spool"})
+        if (writer_is_gone(staged_pid(name, at, host, kind))) return true;
+    return false;
+  });
 }
 
 }  // namespace terrain

@@ -310,6 +310,39 @@ TEST_F(ArchiveRoundTrip, NextWriterRemovesWhatAKilledWriterLeft) {
   EXPECT_EQ(remove_stale_staging(path_), 0u);  // nothing stale left
 }
 
+// The work dir's sweep (terrain-cook plan and merge): every target's stale staged files in one
+// listing, the same keep rules as above.
+TEST_F(ArchiveRoundTrip, DirectorySweepRemovesEveryDeadWritersFilesOnly) {
+  const pid_t dead = ::fork();
+  if (dead == 0) ::_exit(0);
+  ASSERT_GT(dead, 0);
+  ASSERT_EQ(::waitpid(dead, nullptr, 0), dead);
+  const std::filesystem::path dir = path_ + ".units";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string mine = staging_path((dir / "u").string());
+  const std::string host_part = mine.substr(mine.find(".tmp-") + 5, mine.rfind('-') - mine.find(".tmp-") - 5);
+  const std::string d = std::to_string(dead), live = std::to_string(::getppid());
+  const std::vector<std::string> stale = {"unit-3.tcu.tmp-" + host_part + "-" + d,
+                                          "unit-3.tcu.tmp-" + host_part + "-" + d + ".payloads",
+                                          "unit-17.tcu.spool-" + host_part + "-" + d,
+                                          "a.terrain.tmp-" + host_part + "-" + d + ".tmp-" + host_part + "-" + d};
+  const std::vector<std::string> kept = {"unit-3.tcu",
+                                         "unit-4.tcu.tmp-" + host_part + "-" + live,
+                                         "unit-5.tcu.tmp-" + host_part + "x-" + d,
+                                         "unit-6.tcu.tmp-" + host_part + "-5-" + d,
+                                         "unit-7.tcu.tmpx-" + host_part + "-" + d,
+                                         "unit-8.tcu.tmp-" + host_part + "-" + d + "x"};
+  for (const auto& n : stale) std::ofstream(dir / n) << "x";
+  for (const auto& n : kept) std::ofstream(dir / n) << "x";
+  EXPECT_EQ(remove_stale_staging_in(dir.string()), stale.size());
+  for (const auto& n : stale) EXPECT_FALSE(std::filesystem::exists(dir / n)) << n << " (a dead writer's) survived";
+  for (const auto& n : kept) EXPECT_TRUE(std::filesystem::exists(dir / n)) << n << " was removed";
+  EXPECT_EQ(remove_stale_staging_in(dir.string()), 0u);
+  EXPECT_EQ(remove_stale_staging_in((dir / "missing").string()), 0u);  // no such directory: nothing, no throw
+  std::filesystem::remove_all(dir);
+}
+
 TEST_F(ArchiveRoundTrip, ChildMasksMustMatchTheDirectoryExactly) {
   const WorldInfo w = make_world(1, 1);
   const auto keys = test::close_tree({{0, 4, 3}});

@@ -40,4 +40,8 @@ std::string staging_path(const std::string& target, const char* kind = "tmp");
 // Returns how many were removed.
 size_t remove_stale_staging(const std::string& target);
 
+// The same for every target in `dir`: one listing for a directory of many staged outputs (a work
+// dir's units), where one remove_stale_staging per target would list it once per target.
+size_t remove_stale_staging_in(const std::string& dir);
+
 }  // namespace terrain
