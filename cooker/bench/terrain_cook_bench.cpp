@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "bench_chart.h"
+#include "bench_paths.h"
 
 namespace {
 
@@ -453,7 +454,7 @@ terrain::chart::Chart scale_chart(const std::vector<ScaleRow>& rows, const std::
 
 int scale_main(const std::string& tool, const std::filesystem::path& self, ScaleOptions o) {
   if (o.work.empty()) o.work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
-  if (o.script.empty()) o.script = std::string(TERRAIN_BENCH_DIR) + "/make_lidar_like.py";
+  if (o.script.empty()) o.script = std::string(terrain::bench_source_dir()) + "/cooker/bench/make_lidar_like.py";
   const std::string& work = o.work;
   const std::string& source = o.source;
   const bool heights_only = o.heights_only;
@@ -774,7 +775,7 @@ terrain::chart::Chart sweep_chart(const std::vector<SweepPoint>& points, int run
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string data = TERRAIN_DEFAULT_DATA_DIR;
+  std::string data = terrain::bench_data_dir();
   std::vector<double> tolerances = {0.25, 0.5, 1.0, 2.0, 4.0};
   std::vector<std::string> only;
   int runs = 3;

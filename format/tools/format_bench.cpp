@@ -31,6 +31,7 @@
 #include "terrain/format.h"
 #include "terrain/height_codec.h"
 #include "bench_chart.h"
+#include "bench_paths.h"
 
 #if TERRAIN_HAVE_CHARLS
 #include <charls/charls.h>
@@ -502,7 +503,7 @@ terrain::chart::Chart format_chart(const std::vector<Result>& results, int defau
 
 int main(int argc, char** argv) {
   CLI::App app{"terrain-format-bench: height codec vs plain zstd on real R16 tiles"};
-  std::string data_dir = TERRAIN_DEFAULT_DATA_DIR;
+  std::string data_dir = terrain::bench_data_dir();
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
   std::vector<std::string> archives;
   std::vector<int> levels = {1, 3, 6, 9, 19};

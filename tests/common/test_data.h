@@ -8,25 +8,26 @@
 
 #include <unistd.h>
 
+
 namespace terrain::test {
+
+// The paths this build was configured with (tests/common/test_paths.cpp).
+const char* configured_data_dir();                // ../shared/data beside the checkout, or -DTERRAIN_DATA_DIR
+std::filesystem::path bin_dir();                  // <build>/bin
+std::filesystem::path source_dir();               // the checkout
+std::filesystem::path build_dir();                // <build>
+std::filesystem::path test_archives_dir();        // $TERRAIN_TEST_ARCHIVES, else the cook_test_archives fixture's
+std::filesystem::path scratch_root();             // <build>/test-scratch
 
 inline std::filesystem::path data_dir() {
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) return env;
-  return TERRAIN_DEFAULT_DATA_DIR;
+  return configured_data_dir();
 }
 inline std::filesystem::path data_file(const std::string& name) { return data_dir() / name; }
-inline std::filesystem::path bin_dir() { return TERRAIN_BIN_DIR; }
-inline std::filesystem::path source_dir() { return TERRAIN_SOURCE_DIR; }
 
 // A fresh, empty scratch folder for one test, under the build tree (<build>/test-scratch), so a
 // test run leaves nothing in /tmp and `rm -rf build` removes everything it wrote.
-inline std::filesystem::path scratch_dir(const std::string& test_name) {
-  auto dir = std::filesystem::path(TERRAIN_TEST_SCRATCH_DIR) /
-             (test_name + "-" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+std::filesystem::path scratch_dir(const std::string& test_name);
 
 }  // namespace terrain::test
 

@@ -8,11 +8,12 @@
 
 #include "fuzz_cooker_inputs_body.h"
 #include "inputs.h"
+#include "test_data.h"
 
 namespace {
 
 TEST(FuzzCookerInputs, SeedsLoadAndMutantsFailCleanly) {
-  const auto dir = std::filesystem::path(TERRAIN_BUILD_DIR) / "cooker-robust-scratch" / "fuzz-replay";
+  const auto dir = terrain::test::build_dir() / "cooker-robust-scratch" / "fuzz-replay";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const auto seeds = terrain::fuzz::cooker_inputs_seeds(dir.string());
@@ -54,7 +55,7 @@ TEST(FuzzCookerInputs, ForgedZipEntrySizeIsNotAnAllocation) {
     0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xb6, 0x81, 0x00, 0x00, 0x00, 0x00, 0x65, 0x6c, 0x65, 0x76, 0x61,
     0x74, 0x69, 0x6f, 0x7e, 0x2e, 0x6e, 0x70, 0x79, 0x50, 0x4b, 0x05, 0x06, 0x00, 0x00, 0x00, 0x00, 0x01,
     0x00, 0x01, 0x00, 0x3b, 0x00, 0x00, 0x00, 0x74, 0x00, 0x00, 0x00, 0x00, 0x00};
-  const auto dir = std::filesystem::path(TERRAIN_BUILD_DIR) / "cooker-robust-scratch" / "fuzz-forged-zip";
+  const auto dir = terrain::test::build_dir() / "cooker-robust-scratch" / "fuzz-forged-zip";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   EXPECT_EQ(terrain::fuzz::cooker_inputs_one_input(kInput, sizeof kInput, dir.string()), 0) << "refused, not loaded";

@@ -20,7 +20,7 @@ namespace {
 const char* kJacksboro = "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz";
 
 std::filesystem::path build_scratch(const std::string& name) {
-  const auto dir = std::filesystem::path(TERRAIN_BUILD_DIR) / "cooker-robust-scratch" / name;
+  const auto dir = terrain::test::build_dir() / "cooker-robust-scratch" / name;
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "bench_chart.h"
+#include "test_data.h"
 
 namespace ch = terrain::chart;
 namespace {
@@ -47,7 +48,7 @@ bool parses_as_svg(const std::string& path) {
 }
 
 std::string scratch(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::path(TERRAIN_TEST_SCRATCH_DIR) / "bench_chart";
+  const std::filesystem::path dir = terrain::test::scratch_root() / "bench_chart";
   std::filesystem::create_directories(dir);
   return (dir / name).string();
 }

@@ -16,6 +16,7 @@
 
 #include "terrain/engine_export.h"
 #include "terrain/sample.h"
+#include "test_data.h"
 
 namespace ex = terrain::engine_export;
 using terrain::ArchiveReader;
@@ -23,8 +24,8 @@ using terrain::SurfaceSampler;
 
 namespace {
 
-const std::string kArchive = TERRAIN_EXPORT_TEST_ARCHIVE;
-const std::string kScratch = std::string(TERRAIN_TEST_SCRATCH_DIR) + "/export";
+const std::string kArchive = (terrain::test::build_dir() / "export-test/jacksboro.terrain").string();  // the fixture's
+const std::string kScratch = (terrain::test::scratch_root() / "export").string();
 
 template <typename T>
 std::vector<T> read_image(const std::string& path, OIIO::TypeDesc type, int& w, int& h, int& channels) {
@@ -326,7 +327,7 @@ TEST_F(Jacksboro, UnrealHeightmapCooksBackWithinTheStatedBound) {
   std::snprintf(cmd, sizeof(cmd),
                 "%s/terrain-cook %s/jb.png -o %s --crs local --spacing %.17g --origin %.17g,%.17g --height-scale %.17g "
                 "--height-offset %.17g --finest-level 4 --tolerance 0.02 --heights-only -q",
-                TERRAIN_BIN_DIR, o.out_dir.c_str(), cooked.c_str(), back["spacing"].get<double>(),
+                terrain::test::bin_dir().c_str(), o.out_dir.c_str(), cooked.c_str(), back["spacing"].get<double>(),
                 back["origin"][0].get<double>(), back["origin"][1].get<double>(), back["height_scale"].get<double>(),
                 back["height_offset"].get<double>());
   ASSERT_EQ(std::system(cmd), 0) << cmd;
@@ -483,7 +484,7 @@ TEST_F(Jacksboro, GodotHeightsCookBackWithinTheStatedBound) {
   std::snprintf(cmd, sizeof(cmd),
                 "%s/terrain-cook %s/terrain_x0_y0_height.exr -o %s --crs local --spacing %.17g --origin %.17g,%.17g "
                 "--finest-level 4 --tolerance 0.02 --heights-only -q",
-                TERRAIN_BIN_DIR, o.out_dir.c_str(), cooked.c_str(), j["cook_back"]["spacing"].get<double>(),
+                terrain::test::bin_dir().c_str(), o.out_dir.c_str(), cooked.c_str(), j["cook_back"]["spacing"].get<double>(),
                 j["cook_back"]["origin"][0].get<double>(), j["cook_back"]["origin"][1].get<double>());
   ASSERT_EQ(std::system(cmd), 0) << cmd;
   ArchiveReader again;

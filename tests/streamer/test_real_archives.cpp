@@ -13,23 +13,13 @@
 namespace terrain::test {
 namespace {
 
-#ifndef TERRAIN_TEST_ARCHIVES
-#define TERRAIN_TEST_ARCHIVES ""
-#endif
-
-std::filesystem::path archives_dir() {
-  return *TERRAIN_TEST_ARCHIVES ? std::filesystem::path(TERRAIN_TEST_ARCHIVES) : bin_dir().parent_path() / "test-archives";
-}
+std::filesystem::path archives_dir() { return test_archives_dir(); }
 
 std::vector<std::string> real_archives() {
-  std::vector<std::filesystem::path> dirs = {archives_dir()};
-  if (const char* env = std::getenv("TERRAIN_TEST_ARCHIVES"); env && *env) dirs.insert(dirs.begin(), env);
   std::vector<std::string> out;
-  for (const auto& dir : dirs) {
-    if (!std::filesystem::is_directory(dir)) continue;
-    for (const auto& e : std::filesystem::directory_iterator(dir))
+  if (std::filesystem::is_directory(archives_dir()))
+    for (const auto& e : std::filesystem::directory_iterator(archives_dir()))
       if (e.path().extension() == ".terrain") out.push_back(e.path().string());
-  }
   std::sort(out.begin(), out.end());
   return out;
 }

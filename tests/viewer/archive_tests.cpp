@@ -18,10 +18,7 @@
 namespace terrain::view {
 namespace {
 
-std::filesystem::path archive_dir() {
-  if (const char* e = std::getenv("TERRAIN_TEST_ARCHIVES"); e && *e) return e;
-  return TERRAIN_TEST_ARCHIVES;  // the cook_test_archives fixture (tests/CMakeLists.txt)
-}
+std::filesystem::path archive_dir() { return test::test_archives_dir(); }  // fixture cook_test_archives
 
 std::filesystem::path archive(const std::string& name) { return archive_dir() / (name + ".terrain"); }
 
@@ -65,7 +62,7 @@ size_t magenta(const std::vector<uint8_t>& rgba) {
 }
 
 void dump_ppm(const RenderTarget& t, const std::vector<uint8_t>& rgba, const std::string& name) {
-  std::ofstream f(std::string(TV_DUMP_DIR) + "/" + name + ".ppm", std::ios::binary);
+  std::ofstream f(test::build_dir() / "viewer-test-images" / (name + ".ppm"), std::ios::binary);  // tests/viewer/CMakeLists.txt
   f << "P6\n" << t.width << " " << t.height << "\n255\n";
   for (size_t i = 0; i < rgba.size(); i += 4) f.write(reinterpret_cast<const char*>(&rgba[i]), 3);
 }

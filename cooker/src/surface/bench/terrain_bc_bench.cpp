@@ -22,6 +22,7 @@
 
 #include "bc_blocks.h"
 #include "bench_chart.h"
+#include "bench_paths.h"
 #include "dem_nodes.h"
 #include "materials.h"
 #include "normals.h"
@@ -366,13 +367,13 @@ void print_usage(FILE* to) {
       "              stb_dxt and libsquish cluster fit (hole-free albedo blocks)\n"
       "  --chart FILE.svg  with --frontier: also write the frontier as an SVG chart (a panel per DEM and\n"
       "              albedo set, the libraries as labelled points)\n",
-      TERRAIN_BENCH_DATA_DIR);
+      terrain::bench_data_dir());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string data_dir = TERRAIN_BENCH_DATA_DIR;
+  std::string data_dir = terrain::bench_data_dir();
   if (const char* env = std::getenv("TERRAIN_DATA_DIR"); env && *env) data_dir = env;
   int reps = 5;
   bool json = false, quiet = false, block_stats = false, frontier = false;
