@@ -12,6 +12,10 @@
 #include <filesystem>
 #include <set>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include "session.h"
 #include "synthetic_archive.h"
 
@@ -36,7 +40,11 @@ synthetic::Spec big_world(uint32_t side) {
 std::string archive_for(uint32_t side) {
   const std::filesystem::path path =
       std::filesystem::temp_directory_path() / ("terrain_view_overview_" + std::to_string(side) + ".terrain");
-  // Cached between runs; rewritten when this test binary (and so the generator) is newer.
+  // Cached between runs; rewritten when this test binary (and so the generator) is newer. The
+  // tests of this file run side by side under ctest -j: the first writes, the others wait for it
+  // on a lock instead of writing the same 180 MB again.
+  const int lock = ::open((path.string() + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock >= 0) ::flock(lock, LOCK_EX);
   std::error_code ec;
   const auto exe_time = std::filesystem::last_write_time("/proc/self/exe", ec);
   if (!std::filesystem::exists(path) || ec || std::filesystem::last_write_time(path) < exe_time) {
@@ -50,6 +58,7 @@ std::string archive_for(uint32_t side) {
                 (unsigned long long)sum.roots,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
+  if (lock >= 0) ::close(lock);  // releases the lock
   return path.string();
 }
 
