@@ -295,6 +295,20 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
   const SampleRect rect = fill_read_rect(s.voids, need);
   s.window_need = SampleRect{};
   SampleWindow& w = s.window;
+  // Room for the largest window of the grid, reserved once: growing block by block reallocated
+  // and copied the window (and faulted in each new buffer), ~0.3 s of CPU on 9 blocks of 8 km of
+  // 1 m lidar. Reserving touches no page; only the samples read are faulted in.
+  if (w.values.capacity() < size_t(rect.samples())) {
+    uint64_t most = uint64_t(rect.samples());
+    for (uint32_t i = 0; i < s.grid.count(); ++i) {
+      const SampleRect r = block_cook_rect(s.ctx, s.grid.block(i));
+      if (!r.empty()) most = std::max(most, uint64_t(fill_read_rect(s.voids, r).samples()));
+    }
+    w.values = std::vector<float>();
+    w.filled = std::vector<uint8_t>();
+    w.values.reserve(size_t(most));
+    w.filled.reserve(size_t(most));
+  }
   w.rect = rect;
   w.source_width = s.ctx.source_width;
   w.source_height = s.ctx.source_height;

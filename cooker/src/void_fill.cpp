@@ -106,11 +106,26 @@ Status fill_complete_voids_as(const FillWindow& win, float* z, uint8_t* filled, 
   // Window edges inside the raster: a void reaching one may continue beyond the window.
   const bool open_left = win.c0 > 0, open_right = win.c0 + w < rw;
   const bool open_top = win.r0 > 0, open_bottom = win.r0 + h < rh;
+  // Most windows of real data hold no nodata at all: find the first one with a branch-free scan
+  // (it vectorises) before clearing a flag per sample.
+  size_t first = n;
+  for (size_t base = 0; base < n && first == n; base += 256) {
+    const size_t end = std::min(n, base + 256);
+    bool any = false;
+    for (size_t i = base; i < end; ++i) any |= z[i] != z[i];
+    if (any)
+      for (size_t i = base; i < end; ++i)
+        if (std::isnan(z[i])) {
+          first = i;
+          break;
+        }
+  }
+  if (first == n) return Status::success();
   thread_local std::vector<uint8_t> seen;  // reused: a cook fills one window per block and pass
   seen.assign(n, 0);
   std::vector<Index> stack;
   Samples<Index> samples;
-  for (size_t start = 0; start < n; ++start) {
+  for (size_t start = first; start < n; ++start) {
     if (!std::isnan(z[start]) || seen[start]) continue;
     // Depth-first from the void's first sample, neighbours left, right, up, down: this order
     // (through fill_one) decides the filled values' bits, so it must not change.

@@ -3,6 +3,7 @@
 // of the plan; the plan's counts are fill_voids()' counts; the plan reads each sample once.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -267,6 +268,46 @@ TEST(VoidPlan, AllNodataAndNoVoids) {
     EXPECT_TRUE(plan.valid_bounds.empty());
     EXPECT_TRUE(plan.spanning_fills.empty());
   }
+}
+
+// The fill first looks for any nodata in chunks of 256 samples (void_fill.cpp): a lone void
+// sample anywhere, on either side of a chunk edge or as the very last sample, is still found.
+TEST(VoidPlan, ALoneVoidSampleIsFoundAtEveryChunkEdge) {
+  const int w = 40, h = 30;  // 1200 samples: chunk edges at 256, 512, 768, 1024
+  for (int p : {41, 255, 256, 257, 511, 512, 1023, 1024, 1158, w * h - 1}) {
+    SCOPED_TRACE(p);
+    Raster r = synthetic_raster(w, h, 3);
+    const std::vector<float> before = r.values;
+    r.values[size_t(p)] = NAN;
+    std::vector<uint8_t> filled;
+    VoidStats st;
+    ASSERT_TRUE(fill_voids(r, NodataPolicy::automatic, 4096, filled, st).ok());
+    const bool border = p % w == 0 || p % w == w - 1 || p / w == 0 || p / w == h - 1;
+    EXPECT_EQ(st.filled_regions + st.hole_regions, 1u);
+    EXPECT_EQ(st.filled_regions, border ? 0u : 1u);  // border voids stay holes under auto
+    for (size_t i = 0; i < r.values.size(); ++i) {
+      if (int(i) == p) continue;
+      ASSERT_EQ(std::memcmp(&r.values[i], &before[i], sizeof(float)), 0) << i;
+      ASSERT_EQ(filled[i], 0) << i;
+    }
+    if (!border) {
+      EXPECT_EQ(filled[size_t(p)], 1);
+      // Filled from its 4 neighbours: within their range.
+      const float n[4] = {before[size_t(p - 1)], before[size_t(p + 1)], before[size_t(p - w)], before[size_t(p + w)]};
+      EXPECT_GE(r.values[size_t(p)], *std::min_element(n, n + 4));
+      EXPECT_LE(r.values[size_t(p)], *std::max_element(n, n + 4));
+    } else {
+      EXPECT_TRUE(std::isnan(r.values[size_t(p)]));
+    }
+  }
+  // No nodata: nothing is counted and no value changes.
+  Raster r = synthetic_raster(w, h, 4);
+  const std::vector<float> before = r.values;
+  std::vector<uint8_t> filled;
+  VoidStats st;
+  ASSERT_TRUE(fill_voids(r, NodataPolicy::fill, 4096, filled, st).ok());
+  EXPECT_EQ(st.filled_regions + st.hole_regions, 0u);
+  EXPECT_EQ(std::memcmp(r.values.data(), before.data(), before.size() * sizeof(float)), 0);
 }
 
 TEST(VoidPlan, FirstPassReadsEachSampleOnceATileAtATime) {
