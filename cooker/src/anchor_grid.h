@@ -3,6 +3,7 @@
 // so smooth at these scales that the interpolation error stays far below a millimetre (measured in
 // tests/cooker), while the exact GeographicLib call costs ~1 us per point.
 #pragma once
+#include <cstddef>
 #include <functional>
 #include <vector>
 
@@ -33,6 +34,7 @@ class AnchorGrid {
 
   bool empty() const { return values_.empty(); }
   double step() const { return step_; }
+  size_t bytes() const { return values_.capacity() * sizeof(double); }
 
  private:
   double x0_ = 0, y0_ = 0, step_ = 1;

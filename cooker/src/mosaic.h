@@ -11,7 +11,7 @@ namespace terrain::cook {
 // Merges `inputs` into one raster covering their union, on the FIRST input's pixel grid. Inputs in
 // its CRS at its spacing whose origins are a whole number of samples apart (adjacent HGT tiles, a
 // tiled GeoTIFF export) are copied exactly; an input in another CRS or at another spacing is first
-// resampled onto that grid (resample_inputs.h: GDAL warper, bilinear, nodata honoured), so the
+// resampled onto that grid (resample_inputs.h: exact CRS transform at anchors, tent filter, nodata honoured), so the
 // result then depends on the order: the first input sets grid and CRS and wins every overlap. Overlap rule: where
 // several inputs have data for a sample, the one listed FIRST wins; later inputs only fill samples
 // the earlier ones leave as nodata (HGT tiles share their edge rows, which then agree anyway).

@@ -31,30 +31,46 @@ Status MosaicSource::assemble(std::vector<Layer> layers, std::vector<InputStat> 
     InputLayer& in = layers[i].input;
     Raster& r = in.raster;
     if (i > 0 && needs_resampling(ref, r)) {
-      // Another CRS or spacing: onto the first input's grid (resample_inputs.h), which needs it whole.
-      if (in.source) {
-        const uint64_t bytes = uint64_t(r.width) * uint64_t(r.height) * sizeof(float);
-        if (Status st = check_memory(held_bytes + bytes, memory_limit_bytes, r.path,
-                                     fmt::format("{} samples of {}x{} read whole to resample them",
-                                                 format_count(uint64_t(r.width) * uint64_t(r.height)), r.width, r.height),
-                                     "raise --memory-limit, or reproject the inputs to one grid with gdalwarp first");
-            !st.ok())
-          return st;
-        r.values.assign(size_t(r.width) * size_t(r.height), NAN);
-        if (Status st = read_layer_window(in, 0, 0, r.width, r.height, r.values.data(), scratch,
-                                          &stats[i].implausible);
-            !st.ok())
-          return st;
-        stats[i].bytes_read = in.source->info().bytes_read;
-        stats[i].windowed = false;
-        in.source.reset();
-        held_bytes += bytes;
-      }
-      Raster resampled;
-      if (Status st = resample_onto_grid(ref, r, held_bytes, memory_limit_bytes, resampled); !st.ok()) return st;
-      held_bytes += uint64_t(resampled.values.size()) * sizeof(float);
-      held_bytes -= uint64_t(r.values.size()) * sizeof(float);
-      r = std::move(resampled);
+      // Another CRS or spacing: seen on the first input's grid, read by windows (resample_inputs.h).
+      const Raster header = [&] {
+        Raster h;
+        h.path = r.path;
+        h.description = r.description;
+        h.crs = r.crs;
+        h.geo = r.geo;
+        h.width = r.width;
+        h.height = r.height;
+        h.nodata_declared = r.nodata_declared;
+        return h;
+      }();
+      const bool windowed = in.source != nullptr;
+      held_bytes -= uint64_t(r.values.size()) * sizeof(float);  // counted again below when held whole
+      std::unique_ptr<ResampledInput> resampled;
+      if (Status st = ResampledInput::open(ref, std::move(in), resampled); !st.ok()) return st;
+      held_bytes += uint64_t(resampled->input().values.size()) * sizeof(float) + resampled->resident_bytes();
+      if (Status st = check_memory(held_bytes, memory_limit_bytes, header.path,
+                                   "its anchors and the inputs held whole",
+                                   "raise --memory-limit, or reproject the inputs to one grid with gdalwarp first");
+          !st.ok())
+        return st;
+      stats[i].implausible = resampled->implausible();
+      stats[i].bytes_read = resampled->bytes_read();
+      stats[i].windowed = windowed;
+      in = InputLayer{};
+      Raster& placed = in.raster;
+      placed.path = header.path;
+      placed.width = resampled->width();
+      placed.height = resampled->height();
+      placed.crs = ref.crs;
+      placed.geo = ref.geo;
+      ref_map.to_model(double(resampled->col()), double(resampled->row()), placed.geo.c[0], placed.geo.c[3]);
+      placed.nodata_declared = header.nodata_declared;
+      placed.implausible = resampled->implausible();
+      placed.description = fmt::format("{}, resampled from {} onto the first input's grid as {}x{} (tent filter of "
+                                        "radius {:.3g} input samples)",
+                                        header.description, describe_crs(header.crs), placed.width, placed.height,
+                                        resampled->radius());
+      layers[i].resampled = std::move(resampled);
     }
     if (r.crs.kind == CrsKind::geographic) {
       // Tiles either side of the antimeridian (N19E179 and N19W180) are neighbours: move each
@@ -147,7 +163,13 @@ Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
     const int iw = int(x1 - x0), ih = int(y1 - y0);
     const float* src = nullptr;
     size_t src_stride = 0;
-    if (l.input.source) {
+    if (l.resampled) {
+      window_.resize(size_t(iw) * size_t(ih));
+      if (Status st = l.resampled->read(int(x0 - l.col), int(y0 - l.row), iw, ih, window_.data()); !st.ok()) return st;
+      stats_[i].bytes_read = l.resampled->bytes_read();
+      src = window_.data();
+      src_stride = size_t(iw);
+    } else if (l.input.source) {
       window_.resize(size_t(iw) * size_t(ih));
       if (Status st = read_layer_window(l.input, int(x0 - l.col), int(y0 - l.row), iw, ih, window_.data(), scratch_,
                                         count_implausible_ ? &stats_[i].implausible : nullptr);
@@ -173,7 +195,10 @@ Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
 
 uint64_t MosaicSource::held_input_bytes() const {
   uint64_t n = 0;
-  for (const Layer& l : layers_) n += uint64_t(l.input.raster.values.size()) * sizeof(float);
+  for (const Layer& l : layers_) {
+    n += uint64_t(l.input.raster.values.size()) * sizeof(float);
+    if (l.resampled) n += uint64_t(l.resampled->input().values.size()) * sizeof(float);
+  }
   return n;
 }
 
@@ -182,7 +207,8 @@ uint64_t MosaicSource::resident_bytes() const {
   bool windowed = false;
   for (const Layer& l : layers_) {
     n += uint64_t(l.input.raster.values.capacity()) * sizeof(float);
-    windowed = windowed || l.input.source;
+    if (l.resampled) n += uint64_t(l.resampled->input().values.capacity()) * sizeof(float) + l.resampled->resident_bytes();
+    windowed = windowed || l.input.source || (l.resampled && l.resampled->bytes_read() > 0);
   }
   n += uint64_t(window_.capacity() + scratch_.capacity()) * sizeof(float);
   return n + (windowed ? gdal_cache_used_bytes() : 0);

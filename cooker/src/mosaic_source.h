@@ -9,6 +9,7 @@
 
 #include "inputs.h"
 #include "raster.h"
+#include "resample_inputs.h"
 #include "terrain/cook.h"
 #include "terrain/status.h"
 
@@ -34,7 +35,7 @@ class MosaicSource {
     std::string path, description;  // description as load_inputs' Raster::description (before resampling)
     SourceCrs crs;
     uint64_t bytes_read = 0;        // SourceInfo::bytes_read of a windowed input; 0 for inputs read whole
-    bool windowed = false;          // read by windows (GDAL); false: held whole (own readers, resampled)
+    bool windowed = false;          // read by windows (GDAL); false: held whole (own readers)
     // Implausible heights of the input (Raster::Implausible as load_inputs counts them). Inputs held
     // whole: complete from open. Windowed inputs: counted by read() while count_implausible is on.
     Raster::Implausible implausible;
@@ -47,7 +48,7 @@ class MosaicSource {
   // count twice. The 1-sample ring read around a window is never counted.
   void set_count_implausible(bool on) { count_implausible_ = on; }
 
-  // Bytes this source holds in memory now: inputs held whole (own readers, resampled), its scratch,
+  // Bytes this source holds in memory now: inputs held whole (own readers), resampled inputs' anchors, its scratch,
   // and GDAL's block cache (process-wide; set by set_gdal_cache_bytes) when an input is windowed.
   uint64_t resident_bytes() const;
   // Bytes of the inputs held whole (their values): mosaic()'s memory check.
@@ -55,7 +56,8 @@ class MosaicSource {
 
   // Internals, for open_mosaic_source and mosaic().
   struct Layer {
-    InputLayer input;       // resampled inputs: raster holds the resampled values, source is null
+    InputLayer input;       // resampled inputs: raster is its place on the grid (no values), source is null
+    std::unique_ptr<ResampledInput> resampled;  // set for an input in another CRS or spacing
     int64_t col = 0, row = 0;  // its sample (0, 0) in mosaic samples
   };
   static Status assemble(std::vector<Layer> layers, std::vector<InputStat> stats, uint64_t held_bytes,
@@ -73,9 +75,9 @@ class MosaicSource {
 // unsupported CRS, too small, ...; a VRT naming a missing tile is refused here already). GDAL-
 // readable inputs (and web tiles) stay OPEN and are read by windows through
 // SourceRaster::read_window; .npz, HGT, PNG/EXR and raw inputs are read whole. An input that needs
-// resampling (another CRS or spacing than the first) is read whole and resampled onto the first
-// input's grid by resample_onto_grid, and held so. memory_limit_bytes: budget for what this source
-// itself holds (inputs held whole at 4 B per sample, resampled ones and the warper's buffer).
+// resampling (another CRS or spacing than the first) is seen on the first input's grid through a
+// ResampledInput, read by windows like the others. memory_limit_bytes: budget for what this source
+// itself holds (inputs held whole at 4 B per sample, the resampled inputs' anchors).
 Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out);
 
 }  // namespace terrain::cook

@@ -14,6 +14,7 @@
 #include <ogr_srs_api.h>
 
 #include "cooker_test_util.h"
+#include "mosaic_source.h"
 #include "test_data.h"
 
 using namespace terrain;
@@ -164,6 +165,56 @@ TEST_F(MixedSynthetic, OneAndTwoThreadsAreByteIdentical) {
   const std::string a = file_bytes(dir_ / "t1.terrain"), b = file_bytes(dir_ / "t2.terrain");
   EXPECT_GT(a.size(), 1000u);
   EXPECT_TRUE(a == b) << "archives differ (" << a.size() << " vs " << b.size() << " bytes)";
+}
+
+// The resampled input is read by windows like any other (issue 13: nothing sized by the whole
+// input): nothing of it is held, and a small window reads a small part of it.
+TEST_F(MixedSynthetic, TheResampledInputIsReadByWindowsNotHeldWhole) {
+  cook::CookOptions o;
+  o.inputs = {(dir_ / "a_utm.tif").string(), (dir_ / "b_geo.tif").string()};
+  cook::MosaicSource src;
+  ASSERT_TRUE(cook::open_mosaic_source(o, UINT64_MAX, src).ok());
+  ASSERT_EQ(src.inputs().size(), 2u);
+  EXPECT_TRUE(src.inputs()[1].windowed);
+  EXPECT_EQ(src.held_input_bytes(), 0u);
+  const uint64_t whole_b = uint64_t(pair_.b.width) * uint64_t(pair_.b.height) * sizeof(float);
+  // Opening counts B's implausible heights once, reading it in strips.
+  const uint64_t after_open = src.inputs()[1].bytes_read;
+  EXPECT_GE(after_open, whole_b);
+  // 12 x 12 grid samples (360 m) beside A: the samples of B within them and the filter reach.
+  std::vector<float> out(144);
+  ASSERT_TRUE(src.read(4, src.header().height / 2, 12, 12, out.data()).ok());  // west of A: B only
+  const uint64_t window = src.inputs()[1].bytes_read - after_open;
+  EXPECT_GT(window, 0u);
+  EXPECT_LT(window * 20, whole_b) << window << " bytes for 144 samples of a " << whole_b << "-byte input";
+  for (float v : out) EXPECT_TRUE(std::isfinite(v) && v >= 399.0f && v <= 601.0f) << v;  // B's 500 +- 100 m
+}
+
+// Block size and order change no byte of a mixed cook: every resampled sample depends on its own
+// position and the input's samples only, whichever window asks for it.
+TEST_F(MixedSynthetic, EveryBlockSplitAndOrderGivesTheSameBytes) {
+  cook::CookOptions o;
+  o.inputs = {(dir_ / "a_utm.tif").string(), (dir_ / "b_geo.tif").string()};
+  o.threads = 2;
+  o.heights_only = true;
+  o.block_roots = 4096;
+  o.output = (dir_ / "whole.terrain").string();
+  cook::CookReport whole;
+  ASSERT_TRUE(cook::cook(o, nullptr, whole).ok());
+  ASSERT_EQ(whole.blocks, 1u);
+  const std::string expected = file_bytes(o.output);
+  ASSERT_GT(expected.size(), 1000u);
+  for (const auto& [roots, seed] : std::vector<std::pair<uint32_t, uint32_t>>{{1, 0}, {1, 5}, {2, 3}}) {
+    o.block_roots = roots;
+    o.block_order = seed;
+    o.output = (dir_ / fmt::format("b{}s{}.terrain", roots, seed)).string();
+    cook::CookReport r;
+    const Status st = cook::cook(o, nullptr, r);
+    ASSERT_TRUE(st.ok()) << st.message;
+    EXPECT_GE(r.blocks, 2u);
+    EXPECT_LT(r.block_window_samples_max, whole.block_window_samples_max);
+    EXPECT_TRUE(file_bytes(o.output) == expected) << "block_roots " << roots << ", order seed " << seed;
+  }
 }
 
 // Kilauea (UTM 5N, 30 m) cut in two overlapping halves: the west half as is, the east half

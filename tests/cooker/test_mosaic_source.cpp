@@ -107,7 +107,7 @@ struct LegacyCase {
   double height_scale, height_offset;
   std::array<double, 2> valid_range;
   int width, height;
-  uint64_t hash;                        // load_inputs + mosaic before MosaicSource (commit 91de528)
+  uint64_t hash;                        // load_inputs + mosaic before MosaicSource (commit 91de528; n19_kilauea: see there)
   std::vector<uint64_t> out_of_range;   // per input, from the same code
 };
 
@@ -130,8 +130,11 @@ std::vector<LegacyCase> legacy_cases() {
       // Two inputs on one grid: the first wins, the second fills its voids.
       {"tahoe_pair", {"tahoe_lidar_highesthit.tif", "tahoe_lidar_bareearth.tif"}, "", 1, 0, dv, 400, 400,
        0xb21198b34abf4284ull, {0, 0}},
-      // An HGT tile and a UTM GeoTIFF resampled onto its grid, with a gap between them.
-      {"n19_kilauea", {"N19W155.hgt.zip", "kilauea_utm5n.tif"}, "", 1, 0, dv, 1610, 1201, 0x0472adf4d5f9baa7ull, {0, 0}},
+      // An HGT tile and a UTM GeoTIFF resampled onto its grid, with a gap between them. The hash is
+      // of the windowed resampling (resample_inputs.h, anchors + tent filter); against gdalwarp -r
+      // bilinear onto the same grid it differs by a median 0.09 m, p99 1.8 m, max 12 m (on the
+      // cliffs, 30 m samples onto 90 m), and has data in 4521 fewer samples at nodata edges.
+      {"n19_kilauea", {"N19W155.hgt.zip", "kilauea_utm5n.tif"}, "", 1, 0, dv, 1610, 1201, 0x8caaf66df96dbc75ull, {0, 0}},
   };
 }
 
