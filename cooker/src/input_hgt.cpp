@@ -1,11 +1,18 @@
 // SRTM HGT: big-endian Int16, rows north to south, the name gives the south-west corner, samples on
 // whole-degree edges (1201 or 3601 per side, edges shared with the neighbouring tiles), -32768 voids.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
 
 #include "crs.h"
 #include "inputs.h"
+#include "source_raster.h"
 
 namespace terrain::cook {
 namespace {
@@ -43,16 +50,85 @@ Status check_stored_name(const std::string& path, const std::string& stored, int
                                      path, stored, tile_name(slat, slon), tile_name(lat, lon), tile_name(slat, slon), ext));
 }
 
-}  // namespace
+// The tile's samples as stored (big-endian Int16, n x n), read by rows with pread: the file itself
+// for a plain .hgt, else an unlinked temporary file the zip or gzip was inflated into once (so a
+// mosaic of thousands of tiles holds none of them in memory; the file goes when the cook ends,
+// killed or not).
+class HgtSource final : public SourceRaster {
+ public:
+  HgtSource(int fd, int n, double nodata) : fd_(fd), n_(n), nodata_(nodata) {}
+  ~HgtSource() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  SourceInfo& info() { return info_; }
+  uint64_t scratch_bytes(int w, int) const override { return uint64_t(w) * 2; }
+  Status read_window(int x0, int y0, int w, int h, float* out) override {
+    if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > n_ || y0 + h > n_)
+      return Status::failure(Error::invalid_argument, fmt::format("{}: window {}x{} at ({}, {}) outside the {}x{} tile",
+                                                                  info_.path, w, h, x0, y0, n_, n_));
+    row_.resize(size_t(w) * 2);
+    for (int r = 0; r < h; ++r) {
+      const off_t at = (off_t(y0 + r) * n_ + x0) * 2;
+      size_t done = 0;
+      while (done < row_.size()) {
+        const ssize_t got = ::pread(fd_, row_.data() + done, row_.size() - done, at + off_t(done));
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0)
+          return Status::failure(Error::io_read, fmt::format("{}: cannot read row {}: {}", info_.path, y0 + r,
+                                                             got < 0 ? std::strerror(errno) : "file shortened"));
+        done += size_t(got);
+      }
+      float* o = out + size_t(r) * size_t(w);
+      for (int i = 0; i < w; ++i) {
+        const int16_t v = int16_t(uint16_t(row_[2 * size_t(i)]) << 8 | row_[2 * size_t(i) + 1]);
+        o[i] = double(v) == nodata_ ? NAN : float(v);
+      }
+    }
+    info_.bytes_read += uint64_t(w) * uint64_t(h) * 2;
+    return Status::success();
+  }
 
-Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out) {
+ private:
+  int fd_;
+  int n_;
+  double nodata_;
+  std::vector<uint8_t> row_;
+};
+
+// An unlinked temporary file in $TMPDIR (else /tmp) holding `bytes`; -1 and `error` on failure.
+int unlinked_temp_file(const std::vector<uint8_t>& bytes, std::string& error) {
+  const char* dir = std::getenv("TMPDIR");
+  std::string templ = std::string(dir && *dir ? dir : "/tmp") + "/terrain-hgt-XXXXXX";
+  const int fd = ::mkstemp(templ.data());
+  if (fd < 0) {
+    error = fmt::format("cannot create a temporary file in {}: {}", dir && *dir ? dir : "/tmp", std::strerror(errno));
+    return -1;
+  }
+  ::unlink(templ.c_str());
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t put = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (put < 0 && errno == EINTR) continue;
+    if (put <= 0) {
+      error = fmt::format("cannot write a temporary file in {}: {}", dir && *dir ? dir : "/tmp", std::strerror(errno));
+      ::close(fd);
+      return -1;
+    }
+    done += size_t(put);
+  }
+  return fd;
+}
+
+// The checks and georeferencing both readers share: name, container, size. `bytes` holds the
+// samples of a zip or gzip (inflated), stays empty for a plain file (whose size was checked).
+Status open_hgt(const std::string& path, int& n, std::vector<uint8_t>& bytes, std::string& container, Raster& head) {
   int lat = 0, lon = 0;
   if (!parse_hgt_name(path, lat, lon))
     return Status::failure(Error::unsupported_input,
                            fmt::format("{}: an HGT file name must start with its south-west corner, e.g. N22W160.hgt", path));
-  std::vector<uint8_t> bytes;
-  std::string container = "plain";
-  uint64_t plain_size = 0;
+  bytes.clear();
+  container = "plain";
+  uint64_t size = 0;
   Status st;
   // No more than the larger tile is ever read: a bigger entry, stream or file is refused unread.
   if (ends_with(path, ".zip")) {
@@ -60,49 +136,88 @@ Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out
     st = read_zip_entry(path, ".hgt", bytes, entry, kBytes1);
     if (st.ok()) st = check_stored_name(path, entry, lat, lon, ".hgt.zip");
     container = "zip";
+    size = bytes.size();
   } else if (ends_with(path, ".gz")) {
     st = check_stored_name(path, gzip_stored_name(path), lat, lon, ".hgt.gz");
     if (st.ok()) st = gunzip_file(path, bytes, kBytes1);
     container = "gzip";
+    size = bytes.size();
   } else {
     std::error_code ec;
-    plain_size = uint64_t(std::filesystem::file_size(path, ec));
-    if (ec || plain_size == kBytes3 || plain_size == kBytes1) st = read_file_bytes(path, bytes);
-    else bytes.clear();  // refused below by its size, unread
+    size = uint64_t(std::filesystem::file_size(path, ec));
+    if (ec) return Status::failure(Error::io_read, fmt::format("{}: {}", path, ec.message()));
   }
   if (!st.ok()) return st;
-  int n = 0;
-  if (bytes.size() == kBytes3) n = 1201;
-  else if (bytes.size() == kBytes1) n = 3601;
+  if (size == kBytes3) n = 1201;
+  else if (size == kBytes1) n = 3601;
   else
     return Status::failure(Error::unsupported_input,
                            fmt::format("{}: {} bytes of HGT data; expected 1201x1201 (3\") or 3601x3601 (1\") Int16 "
-                                       "samples ({} or {} bytes)", path,
-                                       container == "plain" ? plain_size : uint64_t(bytes.size()),
-                                       kBytes3, kBytes1));
-  if (Status mst = check_raster_memory(path, uint64_t(n), uint64_t(n), "Int16", options); !mst.ok()) return mst;
+                                       "samples ({} or {} bytes)", path, size, kBytes3, kBytes1));
+  head = Raster{};
+  head.path = path;
+  head.width = head.height = n;
+  head.nodata_declared = true;  // -32768, or --nodata-value
+  const double step = 1.0 / (n - 1);
+  head.geo.c[0] = lon;
+  head.geo.c[1] = step;
+  head.geo.c[2] = 0;
+  head.geo.c[3] = lat + 1;
+  head.geo.c[4] = 0;
+  head.geo.c[5] = -step;
+  head.geo.valid = true;
+  head.geo.point_samples = true;  // samples on whole-degree edges, shared with the neighbours
+  head.crs = wgs84_geographic();
+  return Status::success();
+}
+
+}  // namespace
+
+Status open_hgt_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out) {
+  int n = 0;
+  std::vector<uint8_t> bytes;
+  std::string container;
+  Raster head;
+  if (Status st = open_hgt(path, n, bytes, container, head); !st.ok()) return st;
+  int fd = -1;
+  if (container == "plain") {
+    fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return Status::failure(Error::io_read, fmt::format("{}: {}", path, std::strerror(errno)));
+  } else {
+    std::string error;
+    fd = unlinked_temp_file(bytes, error);
+    if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: inflating the tile: {}", path, error));
+  }
   const double nodata = options.nodata_value.value_or(-32768.0);
+  auto src = std::make_unique<HgtSource>(fd, n, nodata);
+  SourceInfo& info = src->info();
+  info.path = path;
+  info.width = info.height = n;
+  info.geo = head.geo;
+  info.crs = head.crs;
+  info.nodata = nodata;
+  info.sample_type = "Int16";
+  info.description = fmt::format("SRTM HGT {}\" {}x{} ({}), voids {}", n == 1201 ? 3 : 1, n, n, container, nodata);
+  out = std::move(src);
+  return Status::success();
+}
+
+Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out) {
+  std::unique_ptr<SourceRaster> src;
+  if (Status st = open_hgt_source(path, options, src); !st.ok()) return st;
+  const SourceInfo& info = src->info();
+  if (Status mst = check_raster_memory(path, uint64_t(info.width), uint64_t(info.height), "Int16", options); !mst.ok())
+    return mst;
   out = Raster{};
   out.path = path;
-  out.width = out.height = n;
-  out.nodata_declared = true;  // -32768, or --nodata-value
-  out.values.resize(size_t(n) * n);
-  for (size_t i = 0; i < out.values.size(); ++i) {
-    const int16_t v = int16_t(uint16_t(bytes[2 * i]) << 8 | bytes[2 * i + 1]);
-    out.values[i] = double(v) == nodata ? NAN : float(v);
-  }
-  const double step = 1.0 / (n - 1);
-  out.geo.c[0] = lon;
-  out.geo.c[1] = step;
-  out.geo.c[2] = 0;
-  out.geo.c[3] = lat + 1;
-  out.geo.c[4] = 0;
-  out.geo.c[5] = -step;
-  out.geo.valid = true;
-  out.geo.point_samples = true;  // samples on whole-degree edges, shared with the neighbours
-  out.crs = wgs84_geographic();
-  out.description = fmt::format("SRTM HGT {}\" {}x{} ({}), voids {}", n == 1201 ? 3 : 1, n, n, container, nodata);
-  return Status::success();
+  out.width = info.width;
+  out.height = info.height;
+  out.nodata_declared = true;
+  out.geo = info.geo;
+  out.crs = info.crs;
+  out.description = info.description;
+  out.values.resize(size_t(info.width) * size_t(info.height));
+  return src->read_window(0, 0, info.width, info.height, out.values.data());
 }
 
 }  // namespace terrain::cook

@@ -217,7 +217,7 @@ Status open_input_layer(const std::string& path, const CookOptions& options, con
       if (st.ok()) st = open_web_tile(path, t, enc, src);
       break;
     }
-    case Format::hgt: st = read_hgt(path, ro, r); break;
+    case Format::hgt: st = open_hgt_source(path, ro, src); break;
     case Format::image: st = read_image(path, ro, r); break;
     case Format::raw: st = read_raw(path, ro, r); break;
     case Format::npz: st = read_npz(path, ro, r); break;

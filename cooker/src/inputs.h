@@ -42,6 +42,7 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
 // NaN for a combination read_geotiff refuses; shared with the overlay windows (overlays.cpp).
 double sample_value(const uint8_t* p, int bits, int format);
 // SRTM HGT (1" 3601 or 3" 1201 samples per side), plain, .zip or .gz; position from the file name.
+// Read whole (tools and tests); the cook opens it with open_hgt_source (source_raster.h).
 Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out);
 // PNG (8/16-bit grey) and EXR (first channel) heightmaps through OpenImageIO; no georeferencing.
 Status read_image(const std::string& path, const ReadOptions& options, Raster& out);

@@ -74,7 +74,7 @@ class MosaicSource {
 // Opens every input of `options` (the errors and messages of load_inputs: missing files, no CRS,
 // unsupported CRS, too small, ...; a VRT naming a missing tile is refused here already). GDAL-
 // readable inputs (and web tiles) stay OPEN and are read by windows through
-// SourceRaster::read_window; .npz, HGT, PNG/EXR and raw inputs are read whole. An input that needs
+// SourceRaster::read_window, as are SRTM HGT tiles (open_hgt_source); .npz, PNG/EXR and raw inputs are read whole. An input that needs
 // resampling (another CRS or spacing than the first) is seen on the first input's grid through a
 // ResampledInput, read by windows like the others. memory_limit_bytes: budget for what this source
 // itself holds (inputs held whole at 4 B per sample, the resampled inputs' anchors).

@@ -49,6 +49,10 @@ class SourceRaster {
 // cannot read is a named error.
 Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out);
 
+// Opens an SRTM HGT tile (plain, .zip or .gz; position from its name, read_hgt's checks) for reading
+// by rows: a plain file in place, a zip or gzip inflated once into an unlinked file in $TMPDIR.
+Status open_hgt_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out);
+
 // Registers GDAL's drivers and sets its cache once (called by every GDAL-backed source).
 void init_gdal();
 // GDAL's block cache (process-wide): init_gdal sets 64 MB; the block-wise cook gives it a share of

@@ -150,7 +150,7 @@ int run(int argc, char** argv) {
                  "(default -12000,9000)");
   app.add_option("--memory-limit", memory_limit,
                  "Memory budget, e.g. 256M, 2G: sets the block size (the source is read by windows, one block at a "
-                 "time) and GDAL's cache; inputs held whole (npz, HGT, images) and voids too large "
+                 "time) and GDAL's cache; inputs held whole (npz, images, raw) and voids too large "
                  "to fill within it are refused before reading; default: 2G, or half the RAM, cgroup limit or "
                  "ulimit -v when less (" +
                      fmt::format("{:.1f}G here)", double(terrain::cook::default_memory_limit_bytes()) / (1 << 30)));

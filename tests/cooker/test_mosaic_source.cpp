@@ -6,6 +6,8 @@
 
 #include <gdal.h>
 
+#include <cstdlib>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -385,6 +387,74 @@ TEST(MosaicSource, BytesReadGrowWithTheWindowNotTheFile) {
 }
 
 // The GDAL block cache follows the budget it is given (unless GDAL_CACHEMAX says otherwise).
+// SRTM HGT tiles are read by windows too (a mosaic of thousands holds none of them): a plain tile
+// in place, a gzip inflated once into an unlinked file in $TMPDIR, which leaves nothing behind.
+TEST(MosaicSource, HgtTilesAreReadByWindowsNotHeld) {
+  const fs::path dir = scratch_dir("mosaic_source_hgt");
+  const fs::path tmp = dir / "tmp";
+  fs::create_directories(tmp);
+  constexpr int n = 1201;
+  std::vector<uint8_t> bytes(size_t(n) * n * 2);
+  std::vector<float> expect(size_t(n) * n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      int16_t v = int16_t(100 + (r * 7 + c * 3) % 2000 - 600);
+      if ((r - 600) * (r - 600) + (c - 300) * (c - 300) < 25) v = -32768;  // an enclosed void
+      const size_t i = size_t(r) * n + size_t(c);
+      bytes[2 * i] = uint8_t(uint16_t(v) >> 8);
+      bytes[2 * i + 1] = uint8_t(uint16_t(v) & 0xff);
+      expect[i] = v == -32768 ? NAN : float(v);
+    }
+  const fs::path plain = dir / "N10E020.hgt", gz = dir / "N10E021.hgt.gz";
+  {
+    std::ofstream f(plain, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  }
+  ASSERT_EQ(std::system(fmt::format("gzip -n -c '{}' > '{}'", plain.string(), gz.string()).c_str()), 0);
+  const char* old_tmp = std::getenv("TMPDIR");
+  const std::string saved = old_tmp ? old_tmp : "";
+  setenv("TMPDIR", tmp.c_str(), 1);
+  for (const fs::path& p : {plain, gz}) {
+    SCOPED_TRACE(p.string());
+    cook::CookOptions o;
+    o.inputs = {p.string()};
+    cook::MosaicSource src;
+    const Status st = cook::open_mosaic_source(o, UINT64_MAX, src);
+    ASSERT_TRUE(st.ok()) << st.message;
+    EXPECT_TRUE(src.inputs()[0].windowed);
+    EXPECT_EQ(src.held_input_bytes(), 0u);
+    EXPECT_TRUE(fs::is_empty(tmp)) << "the inflated tile must be unlinked";
+    // A window reads its rows only, and gives the stored values (voids as NaN).
+    std::vector<float> out(size_t(40) * 30);
+    ASSERT_TRUE(src.read(590, 280, 40, 30, out.data()).ok());
+    EXPECT_EQ(src.inputs()[0].bytes_read, uint64_t(40) * 30 * 2);
+    for (int r = 0; r < 30; ++r)
+      for (int c = 0; c < 40; ++c) {
+        const float e = expect[size_t(280 + r) * n + size_t(590 + c)], g = out[size_t(r) * 40 + size_t(c)];
+        ASSERT_TRUE(std::isnan(e) ? std::isnan(g) : g == e) << c << "," << r;
+      }
+    // The whole tile through read_hgt (tools and tests) is the same reader.
+    cook::Raster whole;
+    ASSERT_TRUE(cook::read_hgt(p.string(), {}, whole).ok());
+    ASSERT_EQ(whole.values.size(), expect.size());
+    EXPECT_TRUE(std::equal(whole.values.begin(), whole.values.end(), expect.begin(),
+                           [](float a, float b) { return (std::isnan(a) && std::isnan(b)) || a == b; }));
+  }
+  // Nowhere to inflate into: a named error.
+  setenv("TMPDIR", (dir / "missing").c_str(), 1);
+  {
+    cook::CookOptions o;
+    o.inputs = {gz.string()};
+    cook::MosaicSource src;
+    const Status st = cook::open_mosaic_source(o, UINT64_MAX, src);
+    EXPECT_FALSE(st.ok());
+    EXPECT_NE(st.message.find("temporary file"), std::string::npos) << st.message;
+    EXPECT_NE(st.message.find("N10E021.hgt.gz"), std::string::npos) << st.message;
+  }
+  if (old_tmp) setenv("TMPDIR", saved.c_str(), 1);
+  else unsetenv("TMPDIR");
+}
+
 TEST(MosaicSource, GdalCacheSize) {
   if (std::getenv("GDAL_CACHEMAX")) GTEST_SKIP() << "GDAL_CACHEMAX is set";
   cook::set_gdal_cache_bytes(uint64_t(24) << 20);
