@@ -304,8 +304,8 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
       const SampleRect r = block_cook_rect(s.ctx, s.grid.block(i));
       if (!r.empty()) most = std::max(most, uint64_t(fill_read_rect(s.voids, r).samples()));
     }
-    w.values = std::vector<float>();
-    w.filled = std::vector<uint8_t>();
+    w.values = LargeVector<float>();
+    w.filled = LargeVector<uint8_t>();
     w.values.reserve(size_t(most));
     w.filled.reserve(size_t(most));
   }

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "large_buffer.h"
+
 namespace terrain::cook {
 
 // Inclusive sample rectangle [c0, c1] x [r0, r1] in whole-source coordinates.
@@ -36,8 +38,8 @@ inline SampleRect grow(const SampleRect& a, int by) { return {a.c0 - by, a.r0 - 
 struct SampleWindow {
   SampleRect rect;
   int source_width = 0, source_height = 0;
-  std::vector<float> values;
-  std::vector<uint8_t> filled;  // 1 = a filled void sample (not source data); empty = none
+  LargeVector<float> values;    // resize() leaves new samples uninitialised: the reader fills them
+  LargeVector<uint8_t> filled;  // 1 = a filled void sample (not source data); empty = none
   size_t index(int c, int r) const { return size_t(r - rect.r0) * size_t(rect.width()) + size_t(c - rect.c0); }
   float at(int c, int r) const { return values[index(c, r)]; }
   bool is_filled(int c, int r) const { return !filled.empty() && filled[index(c, r)]; }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fmt/format.h>
 
+#include "large_buffer.h"
 #include "memory_budget.h"
 
 namespace terrain::cook {
@@ -121,7 +122,7 @@ Status fill_complete_voids_as(const FillWindow& win, float* z, uint8_t* filled, 
         }
   }
   if (first == n) return Status::success();
-  thread_local std::vector<uint8_t> seen;  // reused: a cook fills one window per block and pass
+  thread_local LargeVector<uint8_t> seen;  // reused: a cook fills one window per block and pass
   seen.assign(n, 0);
   std::vector<Index> stack;
   Samples<Index> samples;
