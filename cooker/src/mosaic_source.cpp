@@ -26,7 +26,6 @@ Status MosaicSource::assemble(std::vector<Layer> layers, std::vector<InputStat> 
   int64_t c0 = 0, r0 = 0, c1 = ref.width, r1 = ref.height;
   double ref_lon = 0, ref_lat = 0;
   ref_map.to_model(0.5 * (ref.width - 1), 0.5 * (ref.height - 1), ref_lon, ref_lat);
-  std::vector<float> scratch;
   for (size_t i = 0; i < layers.size(); ++i) {
     InputLayer& in = layers[i].input;
     Raster& r = in.raster;

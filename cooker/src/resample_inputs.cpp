@@ -69,7 +69,7 @@ uint64_t ResampledInput::bytes_read() const {
 
 uint64_t ResampledInput::resident_bytes() const {
   const Impl& m = *impl_;
-  return uint64_t(m.layer.raster.values.capacity() + m.window.capacity() + m.scratch.capacity()) * sizeof(float) +
+  return uint64_t(m.window.capacity() + m.scratch.capacity()) * sizeof(float) +
          uint64_t(m.xs.capacity() + m.a.capacity() + m.b.capacity()) * sizeof(double) +
          uint64_t(m.to_input.bytes());
 }

@@ -47,7 +47,7 @@ class ResampledInput {
   uint64_t bytes_read() const;                // of the input's windowed reader; 0 when held whole
   // Samples [x0, x0+w) x [y0, y0+h) of its grid (inside it) into out, row-major. One thread at a time.
   Status read(int x0, int y0, int w, int h, float* out);
-  // Bytes it holds: the anchors and the scratch of one tile.
+  // Bytes it holds besides input().values (an input held whole): the anchors and one tile's scratch.
   uint64_t resident_bytes() const;
 
  private:
