@@ -86,13 +86,29 @@ RootSource spool_roots(const NodeSpool& spool) {
   return src;
 }
 
-// After every other node: the overview levels from the roots (SPEC 19), when the plan has any.
-Status add_overview_levels(const CookSession& s, const RootSource& roots, ArchiveWriter& writer, CookReport& report) {
+// The overview levels from the cooked roots (SPEC 19), when the plan has any, into a spool next
+// to `output`: their nodes follow every other node, and an ordered writer must know their count
+// and bytes before the first node (the directory's place).
+Status spool_overview_levels(const CookSession& s, const RootSource& roots, const std::string& output, NodeSpool& spool,
+                             CookReport& report) {
   if (s.world.overview_step_log2.empty()) return Status::success();
   const double c0 = process_cpu();
-  Status st = write_overview_levels(overview_settings(s), roots, writer, report);
+  Status st = spool.open(staging_path(output, "overview"));
+  if (st.ok())
+    st = write_overview_levels(overview_settings(s), roots,
+                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, report);
   report.cpu_overview = process_cpu() - c0;
   return st;
+}
+
+// The shape of an archive of `parts`' nodes (an ordered writer's, archive_writer.h).
+ArchiveShape shape_of(std::initializer_list<const NodeSpool*> parts, ArchiveShape shape = {}) {
+  for (const NodeSpool* p : parts) {
+    const ArchiveShape s = p->shape();
+    for (size_t l = 0; l < size_t(kMaxLevels); ++l) shape.level_nodes[l] += s.level_nodes[l];
+    shape.payload_bytes += s.payload_bytes;
+  }
+  return shape;
 }
 
 // The merge's session: the plan's decisions without any input opened.
@@ -123,21 +139,23 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   report.surface_layers = !data.options.heights_only;
   ArchiveWriter writer;
   PyramidTotals totals;
-  // Overview levels come after the units' nodes: the streaming (ordered) writer takes levels 0..5.
-  const bool ordered = s.world.overview_step_log2.empty();
-  if (Status st = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress, ordered); !st.ok()) {
-    writer.abort();
-    return st;
-  }
-  if (!s.world.overview_step_log2.empty()) {
+  // The overview levels (built from the units' roots once every unit is checked) are spooled
+  // first: the ordered writer places the directory after every payload, theirs included.
+  NodeSpool overview;
+  auto with_overview = [&](ArchiveShape& shape) {
+    if (s.world.overview_step_log2.empty()) return Status::success();
     s.threads = threads;
     RootSource roots;
     Status st = unit_roots(work_dir, data.plan, roots);
-    if (st.ok()) st = add_overview_levels(s, roots, writer, report);
-    if (!st.ok()) {
-      writer.abort();
-      return st;
-    }
+    if (st.ok()) st = spool_overview_levels(s, roots, output, overview, report);
+    if (st.ok()) shape = shape_of({&overview}, shape);
+    return st;
+  };
+  Status merged = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress, with_overview);
+  if (merged.ok() && overview.nodes()) merged = overview.drain(writer);
+  if (!merged.ok()) {
+    writer.abort();
+    return merged;
   }
   finish_levels(s, totals, report);
   const std::vector<uint64_t> bytes_read = report.input_bytes_read;
@@ -212,10 +230,14 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   }
   s.window = SampleWindow{};
   if (spooled) {
+    // The ordered writer: the directory written in place, nothing held per node but the spools'
+    // records.
     report.spool_bytes = spool.bytes();
-    const RootSource roots = spool_roots(spool);  // before drain(), which forgets the entries
+    NodeSpool overview;
+    if (Status st = spool_overview_levels(s, spool_roots(spool), options.output, overview, report); !st.ok()) return st;
+    if (Status st = writer.open_ordered(options.output, shape_of({&spool, &overview})); !st.ok()) return st;
     if (Status st = spool.drain(writer); !st.ok()) return st;
-    if (Status st = add_overview_levels(s, roots, writer, report); !st.ok()) return st;
+    if (Status st = overview.drain(writer); !st.ok()) return st;
   }
   finish_levels(s, totals, report);
   report.seconds_pyramid = seconds_since(t_pyr);

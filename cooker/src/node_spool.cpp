@@ -45,6 +45,13 @@ std::vector<NodeSpool::Entry> NodeSpool::sorted_entries() const {
   return out;
 }
 
+ArchiveShape NodeSpool::shape() const {
+  ArchiveShape s;
+  for (const Entry& e : entries_) ++s.level_nodes[e.record.key.level];
+  s.payload_bytes = bytes_;
+  return s;
+}
+
 Status NodeSpool::read(const Entry& e, std::vector<uint8_t>& out) const {
   out.resize(e.size);
   size_t done = 0;

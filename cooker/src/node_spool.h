@@ -27,9 +27,12 @@ class NodeSpool {
   // Creates the spool file `path` (replaced if it exists; removed by the destructor).
   Status open(const std::string& path);
   Status add(const NodeRecord& record, std::span<const uint8_t> payload);
-  // Hands every node to `writer` in canonical order (level 5 first, then y, then x).
+  // Hands every node to `writer` in canonical order (level 5 first, towards 0, then overview
+  // levels from 6 upward; in a level by y, then x).
   Status drain(ArchiveWriter& writer);
   uint64_t bytes() const { return bytes_; }
+  // Node count per level and payload bytes: what an ordered writer is told (archive_writer.h).
+  ArchiveShape shape() const;
   size_t nodes() const { return entries_.size(); }
 
   struct Entry {
@@ -48,9 +51,9 @@ class NodeSpool {
   std::vector<Entry> entries_;
 };
 
-// True when `a` comes before `b` in the archive's payload order.
+// True when `a` comes before `b` in the archive's payload order (format.h: payload_order_rank).
 inline bool payload_order_less(const NodeKey& a, const NodeKey& b) {
-  if (a.level != b.level) return a.level > b.level;
+  if (a.level != b.level) return payload_order_rank(a.level) < payload_order_rank(b.level);
   if (a.y != b.y) return a.y < b.y;
   return a.x < b.x;
 }

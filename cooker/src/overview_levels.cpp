@@ -230,7 +230,7 @@ void build_node(const OverviewSettings& s, const Lattice& lat, const LevelNodes&
 
 }  // namespace
 
-Status write_overview_levels(const OverviewSettings& s, const RootSource& src, ArchiveWriter& writer,
+Status write_overview_levels(const OverviewSettings& s, const RootSource& src, const NodeOut& out,
                              CookReport& report) {
   const int k = int(s.world.overview_step_log2.size());
   if (k <= 0) return Status::success();
@@ -267,7 +267,7 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, A
         here.exists[hk] = 1;
         here.bound[hk] = double(b.record.geometric_error_m);
         report.overview_error_max_m = std::max(report.overview_error_max_m, here.bound[hk]);
-        if (Status st = writer.add_node(b.record, b.payload); !st.ok()) return st;
+        if (Status st = out(b.record, b.payload); !st.ok()) return st;
         ++report.overview_nodes;
       }
     }

@@ -23,6 +23,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <vector>
 
 #include "surface/surface_layers.h"
@@ -49,9 +50,12 @@ struct OverviewSettings {
   int threads = 1;
 };
 
-// Builds the K overview levels and hands their nodes to `writer` (level 6 first, then by y, x).
+// Where the built nodes go: an archive writer's add_node, or a spool.
+using NodeOut = std::function<Status(const NodeRecord& record, std::span<const uint8_t> payload)>;
+
+// Builds the K overview levels and hands their nodes to `out` (level 6 first, then by y, x).
 // Report: overview_nodes, overview_error_max_m.
-Status write_overview_levels(const OverviewSettings& settings, const RootSource& roots, ArchiveWriter& writer,
+Status write_overview_levels(const OverviewSettings& settings, const RootSource& roots, const NodeOut& out,
                              CookReport& report);
 
 }  // namespace terrain::cook

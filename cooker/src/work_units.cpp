@@ -905,7 +905,7 @@ class LevelCursor {
 
 Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
                         ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress,
-                        bool ordered) {
+                        const std::function<Status(ArchiveShape&)>& extend_shape) {
   // Two passes, memory independent of the archive's size. First every unit's head (header,
   // table, stats) is checked, one unit at a time: what the archive will hold per level, and per
   // unit where each level starts. Then the payloads are copied in the archive's order: a level at
@@ -975,9 +975,11 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
     band_end = rows.second;
     std::sort(list.begin(), list.end(), [&](uint32_t a, uint32_t b) { return plan.units[a].roots.x0 < plan.units[b].roots.x0; });
   }
-  if (Status st = ordered ? writer.open_ordered(output, shape) : writer.open(output); !st.ok()) return st;
   uint64_t total = 0, copied = 0;
   for (uint64_t n : shape.level_nodes) total += n;
+  if (extend_shape)
+    if (Status st = extend_shape(shape); !st.ok()) return st;
+  if (Status st = writer.open_ordered(output, shape); !st.ok()) return st;
   size_t widest = 0;
   for (const auto& [rows, list] : bands) widest = std::max(widest, list.size());
   std::vector<ReadBuffer> buffers(widest);

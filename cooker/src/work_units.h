@@ -13,6 +13,7 @@
 // every unit the change does not touch.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -100,11 +101,11 @@ bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_
 // payloads are copied). Memory does not grow with the archive: one unit's node table at a time
 // (56 bytes per node of the largest unit) while checking, then a read buffer per unit of a band
 // (64-256 KB, 4 MB in all) and the writer's buffers. Fails naming a unit that is missing or
-// bad; the caller then aborts the writer. `ordered` false: the writer is opened in its default
-// mode (the directory held until finish()), for an archive that gets overview levels after the
-// units' nodes (the ordered writer takes levels 0..5 only); the bytes are the same.
+// bad; the caller then aborts the writer. `extend_shape` (optional), called once every unit is
+// checked and before the writer opens, adds the nodes the caller will add after the units' (the
+// overview levels).
 Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
                         ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress,
-                        bool ordered = true);
+                        const std::function<Status(ArchiveShape&)>& extend_shape = {});
 
 }  // namespace terrain::cook

@@ -160,10 +160,10 @@ struct ArchiveWriter::Impl {
   // Ordered mode.
   bool ordered = false;
   ArchiveShape shape;
-  std::array<uint64_t, kLevelCount> dir_start{};  // file offset of each level's directory
-  std::array<uint64_t, kLevelCount> added{};      // nodes of each level added so far
-  std::array<uint32_t, kLevelCount> dir_crc{};    // CRC-32 of each level's directory bytes
-  std::array<uint32_t, kLevelCount> max_x{}, max_y{};
+  std::array<uint64_t, kMaxLevels> dir_start{};  // file offset of each level's directory
+  std::array<uint64_t, kMaxLevels> added{};      // nodes of each level added so far
+  std::array<uint32_t, kMaxLevels> dir_crc{};    // CRC-32 of each level's directory bytes
+  std::array<uint32_t, kMaxLevels> max_x{}, max_y{};
   int level = -1;  // the level being added
   NodeKey last{};
   std::vector<uint8_t> dir;  // entries of `level` not yet written
@@ -228,22 +228,31 @@ struct ArchiveWriter::Impl {
     if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
     return Status::success();
   }
+  // Ordered mode: a level's place in the payload order: 5, 4, .., 0, then 6, 7, .. (SPEC 18, 19).
+  static int rank(int l) { return payload_order_rank(uint32_t(l)); }
+  static int level_of_rank(int k) { return k <= kRootLevel ? kRootLevel - k : k; }  // its inverse
+  Status shape_says_empty(int from_rank, int to_rank) const {  // the levels of ranks [from, to)
+    for (int k = std::max(from_rank, 0); k < to_rank; ++k)
+      if (shape.level_nodes[size_t(level_of_rank(k))] != 0)
+        return Status::failure(Error::invalid_argument, "level " + std::to_string(level_of_rank(k)) +
+                                                            " got no nodes, the shape says " +
+                                                            std::to_string(shape.level_nodes[size_t(level_of_rank(k))]));
+    return Status::success();
+  }
   // Ordered mode: the checks of `r` against the order, the shape and the level above.
   Status check_ordered(const NodeRecord& r, uint64_t payload_size) {
     const auto l = size_t(r.key.level);
-    if (r.key.level > uint32_t(kRootLevel))
-      return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + ": an ordered writer takes levels 0..5");
+    if (r.key.level >= uint32_t(kMaxLevels))
+      return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + ": level out of range");
     if (int(r.key.level) != level) {
-      if (level >= 0 && int(r.key.level) > level)
+      if (level >= 0 && rank(int(r.key.level)) < rank(level))
         return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " comes after level " + std::to_string(level) +
-                                                            " (an ordered writer takes level 5 first, then towards 0)");
+                                                            " (an ordered writer takes level 5 first, then towards 0, then "
+                                                            "the overview levels from 6 upward)");
       if (Status s = check_level_complete(); !s.ok()) return s;
-      if (level > 0 && int(r.key.level) != level - 1)
+      if (level > 0 && level <= kRootLevel && int(r.key.level) != level - 1)
         if (Status s = check_no_children(level); !s.ok()) return s;
-      for (int k = level < 0 ? kRootLevel : level - 1; k > int(r.key.level); --k)  // levels skipped: empty
-        if (shape.level_nodes[size_t(k)] != 0)
-          return Status::failure(Error::invalid_argument, "level " + std::to_string(k) + " got no nodes, the shape says " +
-                                                              std::to_string(shape.level_nodes[size_t(k)]));
+      if (Status s = shape_says_empty(level < 0 ? 0 : rank(level) + 1, rank(int(r.key.level))); !s.ok()) return s;
       if (Status s = flush_dir(); !s.ok()) return s;  // the level above is read back from the file
       level = int(r.key.level);
       dir_offset = dir_start[l];
@@ -273,26 +282,68 @@ struct ArchiveWriter::Impl {
     }
     return Status::success();
   }
+  // Ordered mode, at finish(): overview level `parent_level` (written after its children) announces
+  // exactly the nodes of the level below, in their directory order: every child's bit is set and
+  // every set bit has its child (SPEC 19 rule 5: roots and overview nodes are closed upward).
+  Status check_children_of(int parent_level) {
+    const auto p = size_t(parent_level), c = p - 1;
+    ChildStream announced, below;
+    announced.reset(fd, dir_start[p], shape.level_nodes[p], uint32_t(parent_level));
+    below.reset(fd, dir_start[c], shape.level_nodes[c], uint32_t(parent_level - 1));
+    for (uint64_t k = 0; k < shape.level_nodes[c]; ++k) {
+      const uint8_t* e = below.entry(k);
+      if (!e) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+      const NodeKey key{uint32_t(parent_level - 1), detail::load_u32(e + layout::entry::x), detail::load_u32(e + layout::entry::y)};
+      NodeKey expected;
+      bool error = false;
+      const bool has = announced.next(expected, error);
+      if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+      if (!has || key_less(key, expected))
+        return Status::failure(Error::directory_invalid, "node " + node_name(key) + ": parent " + node_name(parent_of(key)) +
+                                                             " is absent or its child_mask bit " +
+                                                             std::to_string((key.x & 1) | ((key.y & 1) << 1)) +
+                                                             " is clear (overview levels are closed upward, SPEC 19)");
+      if (!(expected == key))
+        return Status::failure(Error::directory_invalid, "node " + node_name(parent_of(expected)) + ": child_mask bit " +
+                                                             std::to_string((expected.x & 1) | ((expected.y & 1) << 1)) +
+                                                             " is set but child " + node_name(expected) + " is absent");
+    }
+    NodeKey extra;
+    bool error = false;
+    if (announced.next(extra, error))
+      return Status::failure(Error::directory_invalid, "node " + node_name(parent_of(extra)) + ": child_mask bit " +
+                                                           std::to_string((extra.x & 1) | ((extra.y & 1) << 1)) +
+                                                           " is set but child " + node_name(extra) + " is absent");
+    if (error) return Status::failure(Error::io_read, temp_path + ": cannot read its directory back");
+    return Status::success();
+  }
 
   // Directory and node count of an ordered writer at finish(): every check default mode makes on
   // the whole directory was made as the nodes came, but the grid bounds, which need the world.
   Status finish_ordered(const WorldInfo& world, uint32_t& directory_crc, uint64_t& node_count) {
-      Impl& w = *this;
-    if (!world.overview_step_log2.empty())
-      return Status::failure(Error::invalid_argument, "an ordered writer makes no overview levels");
+    Impl& w = *this;
+    const int top = top_level(world);
+    for (int l = top + 1; l < kMaxLevels; ++l)
+      if (w.shape.level_nodes[size_t(l)] != 0)
+        return Status::failure(Error::invalid_argument, "the shape has nodes at level " + std::to_string(l) +
+                                                            ", above the world's top level " + std::to_string(top));
     if (Status s = w.check_level_complete(); !s.ok()) return s;
-    if (Status s = w.check_no_children(w.level); !s.ok()) return s;
-    for (int k = w.level < 0 ? kRootLevel : w.level - 1; k >= 0; --k)
-      if (w.shape.level_nodes[size_t(k)] != 0)
-        return Status::failure(Error::invalid_argument, "level " + std::to_string(k) + " got no nodes, the shape says " +
-                                                            std::to_string(w.shape.level_nodes[size_t(k)]));
+    if (w.level <= kRootLevel)
+      if (Status s = w.check_no_children(w.level); !s.ok()) return s;
+    if (Status s = w.shape_says_empty(w.level < 0 ? 0 : rank(w.level) + 1, rank(top) + 1); !s.ok()) return s;
     if (w.offset - layout::kHeaderSize != w.shape.payload_bytes)
       return Status::failure(Error::invalid_argument, "the payloads are " + std::to_string(w.offset - layout::kHeaderSize) +
                                                           " bytes, the shape says " + std::to_string(w.shape.payload_bytes));
     if (Status s = w.flush_dir(); !s.ok()) return s;
+    for (int l = kRootLevel + 1; l <= top; ++l)
+      if (Status s = w.check_children_of(l); !s.ok()) return s;
+    if (top > kRootLevel && w.shape.level_nodes[size_t(top)] > kMaxTopNodes)
+      return Status::failure(Error::directory_invalid, "the top level " + std::to_string(top) + " has " +
+                                                           std::to_string(w.shape.level_nodes[size_t(top)]) + " nodes, more than " +
+                                                           std::to_string(kMaxTopNodes) + " (SPEC 19)");
     directory_crc = 0;
     node_count = 0;
-    for (size_t l = 0; l < size_t(kLevelCount); ++l) {
+    for (size_t l = 0; l <= size_t(top); ++l) {
       const uint64_t n = w.shape.level_nodes[l];
       if (n && (w.max_x[l] >= level_grid_cells(world.roots_x, int(l)) || w.max_y[l] >= level_grid_cells(world.roots_y, int(l))))
         return Status::failure(Error::directory_invalid, "level " + std::to_string(l) + " has a node outside its node grid");
@@ -359,7 +410,7 @@ Status ArchiveWriter::open_ordered(const std::string& path, const ArchiveShape& 
   w.shape = shape;
   // Directory: level 0 first (key order), right after the payloads.
   uint64_t at = layout::kHeaderSize + shape.payload_bytes;
-  for (size_t l = 0; l < size_t(kLevelCount); ++l) {
+  for (size_t l = 0; l < size_t(kMaxLevels); ++l) {
     w.dir_start[l] = at;
     at += shape.level_nodes[l] * layout::kEntrySize;
   }

@@ -33,13 +33,29 @@ synthetic::Spec overview_spec() {
   return s;
 }
 
-// Writes `nodes` (any order) with `world`; returns the writer's status.
-Status write_nodes(const std::string& path, const WorldInfo& world, const std::vector<synthetic::Node>& nodes) {
+// Writes `nodes` (any order) with `world`; returns the writer's status. `ordered`: in the payload
+// order of SPEC 18 and 19 (5 first, towards 0, then 6 upward), by the ordered (streaming) writer.
+Status write_nodes(const std::string& path, const WorldInfo& world, std::vector<synthetic::Node> nodes, bool ordered = false) {
   ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
   std::vector<uint8_t> payload;
   PayloadOptions options;
   options.zstd_level = synthetic::Spec{}.zstd_level;  // as synthetic::write_archive() writes
+  if (ordered) {
+    auto rank = [](uint32_t l) { return l <= uint32_t(kRootLevel) ? kRootLevel - int(l) : int(l); };
+    std::sort(nodes.begin(), nodes.end(), [&](const synthetic::Node& a, const synthetic::Node& b) {
+      const NodeKey &x = a.record.key, &y = b.record.key;
+      return x.level != y.level ? rank(x.level) < rank(y.level) : key_less(x, y);
+    });
+    ArchiveShape shape;
+    for (const synthetic::Node& n : nodes) {
+      if (Status s = encode_node_payload(n.data, options, payload); !s.ok()) return s;
+      ++shape.level_nodes[n.record.key.level];
+      shape.payload_bytes += payload.size();
+    }
+    if (Status s = writer.open_ordered(path, shape); !s.ok()) return s;
+  } else if (Status s = writer.open(path); !s.ok()) {
+    return s;
+  }
   for (const synthetic::Node& n : nodes) {
     if (Status s = encode_node_payload(n.data, options, payload); !s.ok()) return s;
     if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
@@ -70,12 +86,14 @@ class OverviewLevels : public test::ScratchArchiveTest {
     if (message) *message = s.message;
     return s.code;
   }
-  // The writer's verdict on the world's nodes after `edit`.
+  // The writer's verdict on the world's nodes after `edit` (ordered_: the ordered writer's).
   Status write_edited(const std::function<void(WorldInfo&, std::vector<synthetic::Node>&)>& edit) {
     synthetic::World w = world_;
     edit(w.world, w.nodes);
-    return write_nodes((dir_ / "edited.terrain").string(), w.world, w.nodes);
+    return write_nodes((dir_ / "edited.terrain").string(), w.world, w.nodes, ordered_);
   }
+  bool ordered_ = false;
+  void check_directory_rules();
   size_t first_of_level(uint32_t level) const {
     const auto& n = world_.nodes;
     return size_t(std::find_if(n.begin(), n.end(), [&](const synthetic::Node& x) { return x.record.key.level == level; }) - n.begin());
@@ -213,7 +231,55 @@ TEST_F(OverviewLevels, DamagedRecordsAreNamed) {
   EXPECT_EQ(validate_world(w).code, Error::metadata_invalid);
 }
 
+// The merge of work units streams with the ordered writer, overview levels included: the same
+// bytes as the default writer given the same calls, and the same directory rules refused.
+TEST_F(OverviewLevels, TheOrderedWriterTakesOverviewLevels) {
+  const std::string a = (dir_ / "default.terrain").string(), b = (dir_ / "ordered.terrain").string();
+  ASSERT_TRUE(write_nodes(a, world_.world, world_.nodes, false).ok());  // in the order given
+  std::vector<synthetic::Node> sorted = world_.nodes;
+  auto rank = [](uint32_t l) { return l <= uint32_t(kRootLevel) ? kRootLevel - int(l) : int(l); };
+  std::sort(sorted.begin(), sorted.end(), [&](const synthetic::Node& x, const synthetic::Node& y) {
+    return x.record.key.level != y.record.key.level ? rank(x.record.key.level) < rank(y.record.key.level)
+                                                      : key_less(x.record.key, y.record.key);
+  });
+  ASSERT_TRUE(write_nodes(a, world_.world, sorted, false).ok());
+  const Status s = write_nodes(b, world_.world, world_.nodes, true);
+  ASSERT_TRUE(s.ok()) << s.to_string();
+  EXPECT_EQ(slurp(a), slurp(b));
+  ArchiveReader r;
+  ASSERT_TRUE(r.open(b).ok());
+  EXPECT_EQ(r.world().overview_step_log2.size(), 3u);
+  size_t overview = 0;
+  for (const synthetic::Node& n : world_.nodes) overview += n.record.key.level > uint32_t(kRootLevel);
+  EXPECT_GE(overview, 10u);  // the levels above the roots are in the test, not only the roots
+  // Out of order: an overview node before a level-0..5 node.
+  std::vector<synthetic::Node> swapped = sorted;
+  std::rotate(swapped.begin(), swapped.end() - 1, swapped.end());  // the top node first
+  ArchiveShape shape;
+  std::vector<std::vector<uint8_t>> payloads(swapped.size());
+  PayloadOptions options;
+  options.zstd_level = synthetic::Spec{}.zstd_level;
+  for (size_t i = 0; i < swapped.size(); ++i) {
+    ASSERT_TRUE(encode_node_payload(swapped[i].data, options, payloads[i]).ok());
+    ++shape.level_nodes[swapped[i].record.key.level];
+    shape.payload_bytes += payloads[i].size();
+  }
+  ArchiveWriter w;
+  ASSERT_TRUE(w.open_ordered(b, shape).ok());
+  const Status u = w.add_node(swapped[0].record, payloads[0]);  // the top node before the roots: refused
+  EXPECT_EQ(u.code, Error::invalid_argument) << u.to_string();
+  EXPECT_NE(u.message.find("level 5 got no nodes, the shape says"), std::string::npos) << u.message;
+}
+
 TEST_F(OverviewLevels, DirectoryRulesAreChecked) {
+  for (bool ordered : {false, true}) {
+    ordered_ = ordered;
+    SCOPED_TRACE(ordered ? "ordered writer" : "default writer");
+    check_directory_rules();
+  }
+}
+
+void OverviewLevels::check_directory_rules() {
   std::string msg;
   // A level above the top (level byte 9 with K = 3): directory_invalid at the reader.
   const size_t dir = size_t(get_u64(good_, layout::header::directory_offset));
@@ -241,11 +307,17 @@ TEST_F(OverviewLevels, DirectoryRulesAreChecked) {
     nodes.push_back(extra);
   });
   EXPECT_EQ(s.code, Error::directory_invalid) << s.to_string();
-  EXPECT_NE(s.message.find("node grid"), std::string::npos) << s.message;
+  // The ordered writer checks the tree (6/10/0 has no parent at level 7) before the grid.
+  EXPECT_NE(s.message.find(ordered_ ? "parent 7/5/0 is absent" : "node grid"), std::string::npos) << s.message;
   // Overview nodes in a world that declares none.
   s = write_edited([&](WorldInfo& w, std::vector<synthetic::Node>&) { w.overview_step_log2.clear(); });
-  EXPECT_EQ(s.code, Error::directory_invalid) << s.to_string();
-  EXPECT_NE(s.message.find("declares no overview levels"), std::string::npos) << s.message;
+  if (ordered_) {  // the ordered writer was told the levels by its shape: the world contradicts it
+    EXPECT_EQ(s.code, Error::invalid_argument) << s.to_string();
+    EXPECT_NE(s.message.find("above the world's top level 5"), std::string::npos) << s.message;
+  } else {
+    EXPECT_EQ(s.code, Error::directory_invalid) << s.to_string();
+    EXPECT_NE(s.message.find("declares no overview levels"), std::string::npos) << s.message;
+  }
   // A top level of more than 16 nodes: K = 2 leaves the 5 x 5 level 7 on top.
   s = write_edited([&](WorldInfo& w, std::vector<synthetic::Node>& nodes) {
     w.overview_step_log2.resize(2);

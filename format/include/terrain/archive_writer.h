@@ -47,10 +47,11 @@ Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, No
 // apply), so a cooker can fail early with a clear message.
 Status validate_world(const WorldInfo& world);
 
-// What an ordered writer is told before its first node: the node count of each level and the
-// payload bytes of all of them, so the directory's place in the file is known from the start.
+// What an ordered writer is told before its first node: the node count of each level (overview
+// levels included) and the payload bytes of all of them, so the directory's place in the file is
+// known from the start.
 struct ArchiveShape {
-  std::array<uint64_t, kLevelCount> level_nodes{};
+  std::array<uint64_t, kMaxLevels> level_nodes{};
   uint64_t payload_bytes = 0;
 };
 
@@ -65,12 +66,14 @@ class ArchiveWriter {
   // writer of `path` on this host left there.
   Status open(const std::string& path);
   // Streaming (ordered) mode, for a merge of sorted parts: nodes must come in the canonical payload
-  // order (SPEC 18: level 5 first, then towards 0; within a level by y, then x), exactly
-  // `shape.level_nodes` of each level and `shape.payload_bytes` in all; no overview levels. Each
-  // directory entry is written in place as its node comes, so memory does not grow with the node
-  // count (a write buffer and one read buffer). Every check of finish() is still made, as the
-  // nodes come: order, counts, and child masks against the level above (read back from the file).
-  // The bytes are the same as the default mode's for the same calls.
+  // order (SPEC 18: level 5 first, then towards 0; within a level by y, then x; then the overview
+  // levels of SPEC 19, level 6 first, upward), exactly `shape.level_nodes` of each level and
+  // `shape.payload_bytes` in all. Each directory entry is written in place as its node comes, so
+  // memory does not grow with the node count (a write buffer and one read buffer). Every check of
+  // finish() is still made: order and counts as the nodes come, child masks of levels 0..4 against
+  // the level above as they come, and those of the overview levels (written after their
+  // children) at finish(), each read back from the file. The bytes are the same as the default
+  // mode's for the same calls.
   Status open_ordered(const std::string& path, const ArchiveShape& shape);
   // Appends one node. `record` payload fields are ignored and filled in. Nodes may come in any
   // order (the payload order is the call order: call in a deterministic order for identical

@@ -129,6 +129,12 @@ inline int overview_levels_needed(uint32_t roots_x, uint32_t roots_y) {
   return kMaxOverviewLevels;
 }
 
+// A level's place in the payload order of a cooked archive (SPEC 18, 19): level 5 first, then
+// towards 0, then the overview levels from 6 upward (they are built from the cooked roots).
+inline int payload_order_rank(uint32_t level) {
+  return level <= uint32_t(kRootLevel) ? kRootLevel - int(level) : int(level);
+}
+
 // ---- Nodes ------------------------------------------------------------------------------------
 struct NodeKey {
   uint32_t level = 0;  // 0 = finest
