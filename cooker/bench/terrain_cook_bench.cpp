@@ -695,6 +695,9 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
     const Run merge = run({tool, "merge", w, "-o", merged, "-q"});
     if (!merge.ok) return 1;
     const Run cp = run({"cp", merged, w + "/copy.terrain"});
+    // The merge fsyncs its archive before the rename (a crash must not leave a renamed, unwritten
+    // file over an earlier archive); cp does not. The same copy made as durable: dd conv=fsync.
+    const Run cp_sync = run({"dd", "if=" + merged, "of=" + w + "/copy-sync.terrain", "bs=4M", "conv=fsync", "status=none"});
     double units_cpu = 0;
     std::vector<double> unit_cpu;
     for (const UnitRun& u : per_unit) {
@@ -711,15 +714,19 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
     fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge less its start-up", merge.wall_s - start.wall_s,
                merge.cpu_s - start.cpu_s, double(bytes) / 1e6 / std::max(1e-3, merge.wall_s - start.wall_s));
     fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "cp of the archive", cp.wall_s, cp.cpu_s, double(bytes) / 1e6 / cp.wall_s);
+    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "copy + fsync (dd)", cp_sync.wall_s, cp_sync.cpu_s,
+               double(bytes) / 1e6 / cp_sync.wall_s);
+    fmt::print("  merge peak RSS {:.1f} MB for a {:.1f} MB archive\n", double(merge.rss_bytes) / 1e6, double(bytes) / 1e6);
     std::sort(unit_cpu.begin(), unit_cpu.end());
     if (!unit_cpu.empty())
       fmt::print("  per-unit CPU: min {:.2f} s, median {:.2f} s, max {:.2f} s; {} process starts = {:.2f} s of CPU\n",
                  unit_cpu.front(), unit_cpu[unit_cpu.size() / 2], unit_cpu.back(), units + 2,
                  double(units + 2) * start.cpu_s);
     fmt::print("  {} workers: CPU of plan + units + merge {:.2f} s = {:+.1f} % over the one-process cook (target <= +5 %); "
-               "merge at {:.2f} x the speed of cp (target >= 0.5); archive {} the one-process bytes\n",
+               "merge at {:.2f} x the speed of cp (target >= 0.5), {:.2f} x a copy as durable (dd conv=fsync); "
+               "archive {} the one-process bytes\n",
                workers, total_cpu, 100.0 * (total_cpu / base.cpu_s - 1.0), cp.wall_s / merge.wall_s,
-               same ? "equals" : "DIFFERS FROM");
+               cp_sync.wall_s / merge.wall_s, same ? "equals" : "DIFFERS FROM");
     if (workers == 2) {
       // 16 machines, on paper: the measured per-unit CPU seconds scheduled longest first.
       const double makespan = plan.wall_s + lpt_makespan(unit_cpu, 16) + merge.wall_s;

@@ -94,8 +94,10 @@ Status spool_overview_levels(const CookSession& s, const RootSource& roots, cons
   if (s.world.overview_step_log2.empty()) return Status::success();
   const double c0 = process_cpu();
   Status st = spool.open(staging_path(output, "overview"));
+  OverviewSettings settings = overview_settings(s);
+  settings.scratch_path = staging_path(output, "lattice");
   if (st.ok())
-    st = write_overview_levels(overview_settings(s), roots,
+    st = write_overview_levels(settings, roots,
                                [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, report);
   report.cpu_overview = process_cpu() - c0;
   return st;

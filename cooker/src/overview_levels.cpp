@@ -1,7 +1,12 @@
 #include "overview_levels.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fmt/format.h>
 #include <memory>
 
@@ -16,16 +21,68 @@ namespace {
 constexpr int kOverviewBase = kLevelCount;  // level 6: the first overview level
 constexpr int kEven = kHeightSamples / 2 + 1;  // 65 even vertices per root side
 
-// The level-6 vertex lattice: the roots' even vertices, (roots_x * 64 + 1) x (roots_y * 64 + 1).
-struct Lattice {
+// The level-6 vertex lattice, (roots_x * 64 + 1) x (roots_y * 64 + 1): the roots' even vertices.
+// It lives in a scratch file (an int32 per vertex, kNoVertex where no root holds one), written
+// root row by root row and read back by bands, so memory follows the lattice's width, not its
+// area (10^5 roots: 1.6 GB on disk, bands of 13-26 MB).
+constexpr int32_t kNoVertex = INT32_MIN;  // never a height: units are offsets plus 16-bit steps
+
+struct LatticeFile {
+  int fd = -1;
+  std::string path;
   int64_t w = 0, h = 0;
+  LatticeFile() = default;
+  LatticeFile(const LatticeFile&) = delete;
+  LatticeFile& operator=(const LatticeFile&) = delete;
+  ~LatticeFile() {
+    if (fd >= 0) ::close(fd);
+  }
+  Status io_error(const char* what) const {
+    return Status::failure(what[0] == 'w' ? Error::io_write : Error::io_read,
+                           fmt::format("overview levels: {} the lattice scratch file {}: {}", what, path, std::strerror(errno)));
+  }
+  Status write_rows(int64_t y, int64_t n, const int32_t* rows) const {
+    const auto* p = reinterpret_cast<const uint8_t*>(rows);
+    size_t size = size_t(n * w) * sizeof(int32_t), done = 0;
+    const auto at = off_t(y * w * int64_t(sizeof(int32_t)));
+    while (done < size) {
+      const ssize_t k = ::pwrite(fd, p + done, size - done, at + off_t(done));
+      if (k < 0 && errno == EINTR) continue;
+      if (k <= 0) return io_error("writing");
+      done += size_t(k);
+    }
+    return Status::success();
+  }
+  Status read_row(int64_t y, std::vector<int32_t>& row) const {
+    row.resize(size_t(w));
+    auto* p = reinterpret_cast<uint8_t*>(row.data());
+    const size_t size = row.size() * sizeof(int32_t);
+    const auto at = off_t(y * w * int64_t(sizeof(int32_t)));
+    for (size_t done = 0; done < size;) {
+      const ssize_t k = ::pread(fd, p + done, size - done, at + off_t(done));
+      if (k < 0 && errno == EINTR) continue;
+      if (k <= 0) return errno = k == 0 ? EIO : errno, io_error("reading");
+      done += size_t(k);
+    }
+    return Status::success();
+  }
+};
+
+// Rows [y0, y0 + rows * stride) of the level-6 lattice, every `stride`-th row and column: what the
+// nodes of one row of a level read (their window with its margin; above level 6, the level
+// below's vertices for the error bound).
+struct Band {
+  int64_t w = 0, h = 0;  // the whole lattice
+  int64_t y0 = 0, rows = 0, cols = 0;
+  int stride = 1;
   std::vector<int32_t> units;
-  std::vector<uint8_t> has;  // 1 = a root holds the vertex as a non-hole vertex
+  // Level-6 lattice vertex (x, y), x and y - y0 multiples of the stride.
   bool get(int64_t x, int64_t y, int32_t& u) const {
     if (x < 0 || y < 0 || x >= w || y >= h) return false;
-    const size_t k = size_t(y * w + x);
-    u = units[k];
-    return has[k] != 0;
+    const int64_t r = (y - y0) / stride;
+    if (y < y0 || r >= rows) return false;  // never asked: the band covers every row its nodes read
+    u = units[size_t(r * cols + x / stride)];
+    return u != kNoVertex;
   }
 };
 
@@ -97,53 +154,94 @@ struct BuiltNode {
   Status status = Status::success();
 };
 
-Status build_lattice(const OverviewSettings& s, const RootSource& src, Lattice& lat, LevelNodes& roots) {
+// Writes the level-6 lattice file from the roots, root row by root row (the 65 lattice rows of
+// one row of roots in memory; the row the next root row shares is carried over), and fills the
+// root grid's existence and error bounds.
+Status build_lattice(const OverviewSettings& s, const RootSource& src, LatticeFile& lat, LevelNodes& roots) {
   const int step5 = s.world.step_log2[kRootLevel];
   lat.w = int64_t(s.world.roots_x) * (kEven - 1) + 1;
   lat.h = int64_t(s.world.roots_y) * (kEven - 1) + 1;
-  lat.units.assign(size_t(lat.w * lat.h), 0);
-  lat.has.assign(size_t(lat.w * lat.h), 0);
+  lat.path = s.scratch_path;
+  lat.fd = ::open(lat.path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (lat.fd < 0) return lat.io_error("creating");
+  ::unlink(lat.path.c_str());  // gone with the process, however it ends
   roots.nx = s.world.roots_x;
   roots.ny = s.world.roots_y;
   roots.exists.assign(size_t(roots.nx) * roots.ny, 0);
   roots.bound.assign(size_t(roots.nx) * roots.ny, 0.0);
+  std::vector<size_t> order(src.roots.size());  // by root row, then column
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  for (const NodeRecord& rec : src.roots)
+    if (rec.key.level != uint32_t(kRootLevel) || rec.key.x >= roots.nx || rec.key.y >= roots.ny)
+      return Status::failure(Error::internal, "overview levels: a root outside the root grid");
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return key_less(src.roots[a].key, src.roots[b].key); });
+  std::vector<int32_t> band(size_t(kEven * lat.w), kNoVertex);  // lattice rows 64 R .. 64 R + 64
   const size_t batch = size_t(16) * size_t(resolve_threads(s.threads));
   std::vector<std::vector<uint8_t>> bytes(batch);
   std::vector<RootEven> even(batch);
-  for (size_t start = 0; start < src.roots.size(); start += batch) {
-    const size_t n = std::min(batch, src.roots.size() - start);
-    for (size_t i = 0; i < n; ++i)
-      if (Status st = src.read(start + i, bytes[i]); !st.ok()) return st;
-    parallel_for(n, s.threads, [&](size_t i) { decode_root(src.roots[start + i], step5, bytes[i], even[i]); });
-    for (size_t i = 0; i < n; ++i) {  // in root order: the result does not depend on the threads
-      const NodeRecord& rec = src.roots[start + i];
-      const RootEven& e = even[i];
-      if (!e.status.ok())
-        return Status::failure(e.status.code, fmt::format("overview levels: root {}/{}: {}", rec.key.x, rec.key.y,
-                                                          e.status.message));
-      if (rec.key.level != uint32_t(kRootLevel) || rec.key.x >= roots.nx || rec.key.y >= roots.ny)
-        return Status::failure(Error::internal, "overview levels: a root outside the root grid");
-      const size_t rk = size_t(rec.key.y) * roots.nx + rec.key.x;
-      roots.exists[rk] = 1;
-      roots.bound[rk] = double(rec.geometric_error_m) + e.deviation_m;
-      for (int j = 0; j < kEven; ++j)
-        for (int ii = 0; ii < kEven; ++ii) {
-          if (e.hole[size_t(j * kEven + ii)]) continue;
-          const size_t k = size_t((int64_t(rec.key.y) * (kEven - 1) + j) * lat.w + int64_t(rec.key.x) * (kEven - 1) + ii);
-          const int32_t u = e.units[size_t(j * kEven + ii)];
-          if (lat.has[k] && lat.units[k] != u)  // neighbours share bit-identical heights (SPEC 7)
-            return Status::failure(Error::internal,
-                                   fmt::format("overview levels: roots disagree on a shared vertex ({} vs {} units)",
-                                               lat.units[k], u));
-          lat.units[k] = u;
-          lat.has[k] = 1;
-        }
+  size_t next = 0;
+  for (uint32_t row = 0; row < roots.ny; ++row) {
+    size_t end = next;
+    while (end < order.size() && src.roots[order[end]].key.y == row) ++end;
+    for (size_t start = next; start < end; start += batch) {
+      const size_t n = std::min(batch, end - start);
+      for (size_t i = 0; i < n; ++i)
+        if (Status st = src.read(order[start + i], bytes[i]); !st.ok()) return st;
+      parallel_for(n, s.threads, [&](size_t i) { decode_root(src.roots[order[start + i]], step5, bytes[i], even[i]); });
+      for (size_t i = 0; i < n; ++i) {  // in root order: the result does not depend on the threads
+        const NodeRecord& rec = src.roots[order[start + i]];
+        const RootEven& e = even[i];
+        if (!e.status.ok())
+          return Status::failure(e.status.code, fmt::format("overview levels: root {}/{}: {}", rec.key.x, rec.key.y,
+                                                            e.status.message));
+        const size_t rk = size_t(rec.key.y) * roots.nx + rec.key.x;
+        roots.exists[rk] = 1;
+        roots.bound[rk] = double(rec.geometric_error_m) + e.deviation_m;
+        for (int j = 0; j < kEven; ++j)
+          for (int ii = 0; ii < kEven; ++ii) {
+            if (e.hole[size_t(j * kEven + ii)]) continue;
+            int32_t& v = band[size_t(j * lat.w + int64_t(rec.key.x) * (kEven - 1) + ii)];
+            const int32_t u = e.units[size_t(j * kEven + ii)];
+            if (v != kNoVertex && v != u)  // neighbours share bit-identical heights (SPEC 7)
+              return Status::failure(Error::internal,
+                                     fmt::format("overview levels: roots disagree on a shared vertex ({} vs {} units)", v, u));
+            v = u;
+          }
+      }
     }
+    next = end;
+    // Rows 64 R .. 64 R + 63 are final; row 64 R + 64 is the next root row's first.
+    const bool last = row + 1 == roots.ny;
+    if (Status st = lat.write_rows(int64_t(row) * (kEven - 1), last ? kEven : kEven - 1, band.data()); !st.ok()) return st;
+    std::copy(band.end() - lat.w, band.end(), band.begin());
+    std::fill(band.begin() + lat.w, band.end(), kNoVertex);
   }
   return Status::success();
 }
 
-void build_node(const OverviewSettings& s, const Lattice& lat, const LevelNodes& below, const NodeKey& key,
+// The band that the nodes of row `y` of `level` read: their window's vertices (margin included),
+// and above level 6 the vertices of the level below for the error bound (rows and columns every
+// 2^(level - 7) of the level-6 lattice).
+Status load_band(const LatticeFile& lat, int level, uint32_t y, Band& band, std::vector<int32_t>& row) {
+  const int shift = level - kOverviewBase;
+  band.w = lat.w;
+  band.h = lat.h;
+  band.stride = shift == 0 ? 1 : 1 << (shift - 1);
+  const int64_t lo = std::max<int64_t>(0, (int64_t(y) * kQuadsPerSide - kWindowMargin) << shift);
+  const int64_t hi = std::min<int64_t>(lat.h - 1, (int64_t(y + 1) * kQuadsPerSide + kWindowMargin) << shift);
+  band.y0 = lo;
+  band.rows = hi >= lo ? (hi - lo) / band.stride + 1 : 0;
+  band.cols = (lat.w - 1) / band.stride + 1;
+  band.units.resize(size_t(band.rows * band.cols));
+  for (int64_t r = 0; r < band.rows; ++r) {
+    if (Status st = lat.read_row(lo + r * band.stride, row); !st.ok()) return st;
+    int32_t* out = &band.units[size_t(r * band.cols)];
+    for (int64_t c = 0; c < band.cols; ++c) out[c] = row[size_t(c * band.stride)];
+  }
+  return Status::success();
+}
+
+void build_node(const OverviewSettings& s, const Band& lat, const LevelNodes& below, const NodeKey& key,
                 BuiltNode& out) {
   out = BuiltNode{};
   out.record.key = key;
@@ -234,19 +332,21 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
                              CookReport& report) {
   const int k = int(s.world.overview_step_log2.size());
   if (k <= 0) return Status::success();
-  Lattice lat;
+  LatticeFile lat;
   LevelNodes below;
   if (Status st = build_lattice(s, src, lat, below); !st.ok()) return st;
   const size_t batch = size_t(8) * size_t(resolve_threads(s.threads));
   std::vector<BuiltNode> built(batch);
+  Band band;
+  std::vector<int32_t> row;
   for (int level = kOverviewBase; level < kOverviewBase + k; ++level) {
     LevelNodes here;
     here.nx = uint32_t(level_grid_cells(s.world.roots_x, level));
     here.ny = uint32_t(level_grid_cells(s.world.roots_y, level));
     here.exists.assign(size_t(here.nx) * here.ny, 0);
     here.bound.assign(size_t(here.nx) * here.ny, 0.0);
-    std::vector<NodeKey> keys;  // directory order within the level: y, then x
-    for (uint32_t y = 0; y < here.ny; ++y)
+    for (uint32_t y = 0; y < here.ny; ++y) {
+      std::vector<NodeKey> keys;  // directory order within the level: y, then x
       for (uint32_t x = 0; x < here.nx; ++x) {
         const NodeKey key{uint32_t(level), x, y};
         for (int c = 0; c < 4; ++c) {
@@ -257,18 +357,21 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
           }
         }
       }
-    for (size_t start = 0; start < keys.size(); start += batch) {
-      const size_t n = std::min(batch, keys.size() - start);
-      parallel_for(n, s.threads, [&](size_t i) { build_node(s, lat, below, keys[start + i], built[i]); });
-      for (size_t i = 0; i < n; ++i) {
-        BuiltNode& b = built[i];
-        if (!b.status.ok()) return b.status;
-        const size_t hk = size_t(b.record.key.y) * here.nx + b.record.key.x;
-        here.exists[hk] = 1;
-        here.bound[hk] = double(b.record.geometric_error_m);
-        report.overview_error_max_m = std::max(report.overview_error_max_m, here.bound[hk]);
-        if (Status st = out(b.record, b.payload); !st.ok()) return st;
-        ++report.overview_nodes;
+      if (keys.empty()) continue;
+      if (Status st = load_band(lat, level, y, band, row); !st.ok()) return st;
+      for (size_t start = 0; start < keys.size(); start += batch) {
+        const size_t n = std::min(batch, keys.size() - start);
+        parallel_for(n, s.threads, [&](size_t i) { build_node(s, band, below, keys[start + i], built[i]); });
+        for (size_t i = 0; i < n; ++i) {
+          BuiltNode& b = built[i];
+          if (!b.status.ok()) return b.status;
+          const size_t hk = size_t(b.record.key.y) * here.nx + b.record.key.x;
+          here.exists[hk] = 1;
+          here.bound[hk] = double(b.record.geometric_error_m);
+          report.overview_error_max_m = std::max(report.overview_error_max_m, here.bound[hk]);
+          if (Status st = out(b.record, b.payload); !st.ok()) return st;
+          ++report.overview_nodes;
+        }
       }
     }
     below = std::move(here);

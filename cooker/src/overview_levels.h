@@ -18,12 +18,15 @@
 //    children's triangles and the largest difference is at a child vertex).
 //  - directory: every level-6 node with a root below it, every level-(L+1) node with a level-L
 //    node below it; child masks name them.
-// Memory: the level-6 lattice, 5 bytes per vertex = 20 KB per root cell (55 x 55 roots: 62 MB;
-// a 317 x 317 country would need 2 GB: streaming it by bands of rows is left to do).
+// Memory: the level-6 lattice (4 bytes per vertex, 16 KB per root cell) goes to a scratch file,
+// written by rows of roots and read back by bands of rows: 65 lattice rows while writing, at most
+// 329 rows of (roots_x * 64 + 1) vertices while building (26 MB at 317 x 317 roots), plus 9 bytes
+// per root cell (existence, error bound) and a node's working set per thread.
 #pragma once
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "surface/surface_layers.h"
@@ -48,6 +51,7 @@ struct OverviewSettings {
   PayloadOptions payload;
   bool heights_only = false;
   int threads = 1;
+  std::string scratch_path;  // the level-6 lattice's scratch file (created, unlinked at once)
 };
 
 // Where the built nodes go: an archive writer's add_node, or a spool.

@@ -10,9 +10,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <malloc.h>
 #include <memory>
 
 #include "cooker_test_util.h"
+#include "overview_levels.h"
 #include "terrain/bc_decode.h"
 #include "terrain/streamer.h"
 #include "test_data.h"
@@ -21,6 +23,12 @@ using namespace terrain;
 using namespace terrain::test;
 
 namespace {
+
+// Heap bytes in use: small blocks (uordblks) and the large ones malloc maps on their own (hblkhd).
+int64_t heap_in_use() {
+  const struct mallinfo2 m = mallinfo2();
+  return int64_t(m.uordblks) + int64_t(m.hblkhd);
+}
 
 std::string file_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
@@ -224,6 +232,69 @@ TEST(OverviewCook, SameBytesForThreadsBlocksAndWorkUnits) {
 }
 
 // `auto` on a world of at most kOverviewAutoRoots root cells is `off`, byte for byte (version 1).
+// 100 x 100 roots (10^4; a country has 10^5): the overview levels keep a band of the level-6
+// lattice's rows in memory, never the lattice (6401 x 6401 vertices, 164 MB at 4 bytes). Every
+// root is the same flat payload, so the work is the overview levels' own. Peak heap growth is
+// sampled at every node handed out.
+TEST(OverviewCook, TenThousandRootsNeedABandOfTheLatticeNotTheLattice) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "mallinfo2 does not see a sanitizer's heap";
+#else
+  const uint32_t side = 100;
+  cook::OverviewSettings s;
+  s.world.roots_x = s.world.roots_y = side;
+  s.world.step_log2 = {0, 0, 0, 0, 0, 0};
+  s.world.overview_step_log2.assign(size_t(overview_levels_needed(side, side)), 0);
+  s.heights_only = true;
+  s.threads = 2;
+  const auto dir = std::filesystem::temp_directory_path() / ("overview-band-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  s.scratch_path = (dir / "lattice").string();
+  std::vector<uint8_t> payload;
+  {
+    auto flat = std::make_unique<NodeData>();
+    ASSERT_TRUE(encode_node_payload(*flat, {}, payload).ok());
+  }
+  cook::RootSource roots;
+  for (uint32_t y = 0; y < side; ++y)
+    for (uint32_t x = 0; x < side; ++x) {
+      NodeRecord r;
+      r.key = {uint32_t(kRootLevel), x, y};
+      r.height_offset = r.min_height = r.max_height = 4096;
+      roots.roots.push_back(r);
+    }
+  roots.read = [&](size_t, std::vector<uint8_t>& out) {
+    out = payload;
+    return Status::success();
+  };
+  const int64_t base = heap_in_use();
+  int64_t peak = 0;
+  size_t nodes = 0, top = 0;
+  cook::CookReport report;
+  const Status st = cook::write_overview_levels(
+      s, roots,
+      [&](const NodeRecord& r, std::span<const uint8_t>) {
+        peak = std::max(peak, heap_in_use() - base);
+        ++nodes;
+        top += r.key.level == uint32_t(kRootLevel + s.world.overview_step_log2.size());
+        EXPECT_EQ(r.min_height, 4096);  // flat: every overview vertex is the roots' height
+        EXPECT_EQ(r.max_height, 4096);
+        return Status::success();
+      },
+      report);
+  std::filesystem::remove_all(dir);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  // 50 x 50 + 25 x 25 + 13 x 13 + 7 x 7 + 4 x 4 nodes, every one over some root.
+  EXPECT_EQ(nodes, 2500u + 625u + 169u + 49u + 16u);
+  EXPECT_EQ(top, 16u);
+  const double lattice_mb = 6401.0 * 6401.0 * 4.0 / 1e6;
+  std::printf("10^4 roots: peak heap growth %.1f MB while building %zu overview nodes (the whole lattice: %.0f MB)\n",
+              double(peak) / 1e6, nodes, lattice_mb);
+  // A band: 329 rows of 6401 vertices (8.4 MB) plus a row buffer, the root grid and the batch.
+  EXPECT_LT(double(peak) / 1e6, 24.0);
+#endif
+}
+
 TEST(OverviewCook, AutoOnASmallWorldIsOff) {
   const auto dem = data_file("kilauea_utm5n.tif");
   TERRAIN_REQUIRE_DATA(dem);
