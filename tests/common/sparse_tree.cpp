@@ -133,7 +133,7 @@ struct Generator {
     d.albedo_bc1.fill(0x11);  // 3-colour BC1 blocks (colour0 <= colour1): index 3 is transparent
     bool holes = false;
     for (size_t k = 0; k < units.size(); ++k) {
-      d.heights[k] = hole[k] ? 0 : uint16_t((units[k] - offset) >> step);
+      d.heights[k] = hole[k] ? uint16_t(0) : uint16_t((units[k] - offset) >> step);
       if (!hole[k]) continue;
       holes = true;
       const int tx = int(k % kHeightSamples) + kApron, ty = int(k / kHeightSamples) + kApron;
