@@ -14,7 +14,7 @@ double thread_cpu_seconds() {
 }  // namespace
 
 LoadQueue::LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity)
-    : reader_(reader), sections_(sections), capacity_(capacity) {
+    : reader_(reader), sections_(sections), surfaces_((sections & kSectionHeights) != 0), capacity_(capacity) {
   publish_mark_.assign(reader.nodes().size(), 0);
   taken_.assign(reader.nodes().size(), 0);
   workers_.reserve(threads);
@@ -120,6 +120,8 @@ void LoadQueue::worker_main() {
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = thread_cpu_seconds();
     Status status = reader_.decode_node(node, *data, sections_);
+    std::shared_ptr<const NodeSurface> surface;
+    if (status.ok() && surfaces_) surface = make_node_surface(reader_, node, *data, (sections_ & kSectionAlbedo) != 0);
     const double cpu_seconds = thread_cpu_seconds() - c0;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const uint64_t bytes = reader_.payload(node).size();
@@ -132,7 +134,7 @@ void LoadQueue::worker_main() {
     counters_.bytes_read += bytes;
     counters_.decode_seconds += seconds;
     counters_.decode_cpu_seconds += cpu_seconds;
-    results_.push_back({node, data, std::move(status), bytes, seconds});
+    results_.push_back({node, data, std::move(surface), std::move(status), bytes, seconds});
     result_ready_.notify_one();
   }
 }

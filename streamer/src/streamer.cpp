@@ -6,6 +6,7 @@
 #include <optional>
 #include <queue>
 #include <thread>
+#include <unordered_map>
 
 #include "load_queue.h"
 #include "resident_surface.h"
@@ -113,6 +114,9 @@ struct Streamer::Impl {
   // Results consumed this update; their in-flight room is given back only after the new request
   // list is published, so workers never take a stale request in between.
   uint32_t to_release = 0;
+  // Query surfaces the workers made for decoded nodes not yet delivered (at most the loads in
+  // flight): linked into the snapshot at delivery, dropped with the node's data.
+  std::unordered_map<uint32_t, std::shared_ptr<const detail::NodeSurface>> decoded_surfaces;
   std::vector<NodeData*> to_free;  // buffers to give back, in one lock at the end of update()
 
   // Counters.
@@ -237,6 +241,7 @@ struct Streamer::Impl {
         }
         phase[r.node] = Phase::decoded;
         data[r.node] = r.data;
+        if (r.surface) decoded_surfaces[r.node] = std::move(r.surface);
         decoded.push_back(r.node);
         bytes_decoded += raw_section_bytes(config.sections);
       }
@@ -267,6 +272,7 @@ struct Streamer::Impl {
       }
       phase[r.node] = Phase::decoded;
       data[r.node] = r.data;
+      if (r.surface) decoded_surfaces[r.node] = std::move(r.surface);
       decoded.push_back(r.node);
       bytes_decoded += raw_section_bytes(config.sections);
     }
@@ -308,6 +314,7 @@ struct Streamer::Impl {
     to_free.push_back(data[node]);
     data[node] = nullptr;
     phase[node] = Phase::idle;
+    decoded_surfaces.erase(node);
   }
 
   void evict_unwanted() {
@@ -353,8 +360,15 @@ struct Streamer::Impl {
       set_cell(r.key, slot);
       dirty_slots.push_back(slot);
       deliveries.push_back({r.key, slot, &records[node], data[node]});
-      if (config.sections & kSectionHeights)
-        surfaces.add(node, detail::make_node_surface(reader, node, *data[node], (config.sections & kSectionAlbedo) != 0));
+      if (config.sections & kSectionHeights) {
+        const auto it = decoded_surfaces.find(node);
+        if (it != decoded_surfaces.end()) {
+          surfaces.add(node, std::move(it->second));
+          decoded_surfaces.erase(it);
+        } else {
+          surfaces.add(node, detail::make_node_surface(reader, node, *data[node], (config.sections & kSectionAlbedo) != 0));
+        }
+      }
       ++loads_delivered;
       ++to_release;
     }
