@@ -41,10 +41,9 @@ Status write_nodes(const std::string& path, const WorldInfo& world, std::vector<
   PayloadOptions options;
   options.zstd_level = synthetic::Spec{}.zstd_level;  // as synthetic::write_archive() writes
   if (ordered) {
-    auto rank = [](uint32_t l) { return l <= uint32_t(kRootLevel) ? kRootLevel - int(l) : int(l); };
     std::sort(nodes.begin(), nodes.end(), [&](const synthetic::Node& a, const synthetic::Node& b) {
       const NodeKey &x = a.record.key, &y = b.record.key;
-      return x.level != y.level ? rank(x.level) < rank(y.level) : key_less(x, y);
+      return x.level != y.level ? payload_order_rank(x.level) < payload_order_rank(y.level) : key_less(x, y);
     });
     ArchiveShape shape;
     for (const synthetic::Node& n : nodes) {
@@ -237,9 +236,8 @@ TEST_F(OverviewLevels, TheOrderedWriterTakesOverviewLevels) {
   const std::string a = (dir_ / "default.terrain").string(), b = (dir_ / "ordered.terrain").string();
   ASSERT_TRUE(write_nodes(a, world_.world, world_.nodes, false).ok());  // in the order given
   std::vector<synthetic::Node> sorted = world_.nodes;
-  auto rank = [](uint32_t l) { return l <= uint32_t(kRootLevel) ? kRootLevel - int(l) : int(l); };
   std::sort(sorted.begin(), sorted.end(), [&](const synthetic::Node& x, const synthetic::Node& y) {
-    return x.record.key.level != y.record.key.level ? rank(x.record.key.level) < rank(y.record.key.level)
+    return x.record.key.level != y.record.key.level ? payload_order_rank(x.record.key.level) < payload_order_rank(y.record.key.level)
                                                       : key_less(x.record.key, y.record.key);
   });
   ASSERT_TRUE(write_nodes(a, world_.world, sorted, false).ok());
