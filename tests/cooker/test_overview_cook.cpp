@@ -10,10 +10,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <malloc.h>
 #include <memory>
 
 #include "cooker_test_util.h"
+#include "heap_in_use.h"
 #include "overview_levels.h"
 #include "terrain/bc_decode.h"
 #include "terrain/streamer.h"
@@ -23,17 +23,6 @@ using namespace terrain;
 using namespace terrain::test;
 
 namespace {
-
-// Heap bytes in use: small blocks (uordblks) and the large ones malloc maps on their own (hblkhd).
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr bool kSanitizedHeap = true;
-#else
-constexpr bool kSanitizedHeap = false;
-#endif
-int64_t heap_in_use() {
-  const struct mallinfo2 m = mallinfo2();
-  return int64_t(m.uordblks) + int64_t(m.hblkhd);
-}
 
 std::string file_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
@@ -269,14 +258,14 @@ TEST(OverviewCook, TenThousandRootsNeedABandOfTheLatticeNotTheLattice) {
     out = payload;
     return Status::success();
   };
-  const int64_t base = heap_in_use();
+  const int64_t base = test::heap_in_use();
   int64_t peak = 0;
   size_t nodes = 0, top = 0;
   cook::CookReport report;
   const Status st = cook::write_overview_levels(
       s, roots,
       [&](const NodeRecord& r, std::span<const uint8_t>) {
-        peak = std::max(peak, heap_in_use() - base);
+        peak = std::max(peak, test::heap_in_use() - base);
         ++nodes;
         top += r.key.level == uint32_t(kRootLevel + s.world.overview_step_log2.size());
         EXPECT_EQ(r.min_height, 4096);  // flat: every overview vertex is the roots' height
@@ -294,7 +283,7 @@ TEST(OverviewCook, TenThousandRootsNeedABandOfTheLatticeNotTheLattice) {
               double(peak) / 1e6, nodes, lattice_mb);
   // A band: 329 rows of 6401 vertices (8.4 MB) plus a row buffer, the root grid and the batch.
   // (Not under a sanitizer: mallinfo2 does not see its heap. The nodes are checked there too.)
-  if (!kSanitizedHeap) {
+  if (!test::kSanitizedHeap) {
     EXPECT_LT(double(peak) / 1e6, 24.0);
   }
 }

@@ -4,13 +4,13 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
-#include <malloc.h>
 #include <thread>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <zlib.h>
 
 #include "archive_fixture.h"
+#include "heap_in_use.h"
 #include "scratch_archive_test.h"
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
@@ -22,17 +22,6 @@ namespace terrain {
 namespace {
 
 using test::make_world;
-
-// Heap bytes in use: small blocks (uordblks) and the large ones malloc maps on their own (hblkhd).
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr bool kSanitizedHeap = true;
-#else
-constexpr bool kSanitizedHeap = false;
-#endif
-int64_t heap_in_use() {
-  const struct mallinfo2 m = mallinfo2();
-  return int64_t(m.uordblks) + int64_t(m.hblkhd);
-}
 
 std::vector<uint8_t> read_file(const std::filesystem::path& p) {
   std::ifstream f(p, std::ios::binary);
@@ -559,9 +548,9 @@ TEST_F(ArchiveRoundTrip, TheOrderedWriterHoldsNothingPerNode) {
         ADD_FAILURE() << s.to_string();
         return -1;
       }
-      if (i == 0) first = heap_in_use();
+      if (i == 0) first = test::heap_in_use();
     }
-    const int64_t last = heap_in_use();
+    const int64_t last = test::heap_in_use();
     const Status s = writer.finish(w);
     EXPECT_TRUE(s.ok()) << s.to_string();
     return last - first;
@@ -571,7 +560,7 @@ TEST_F(ArchiveRoundTrip, TheOrderedWriterHoldsNothingPerNode) {
               static_cast<long long>(ordered), static_cast<long long>(held));
   EXPECT_EQ(read_file(path_), read_file(path_ + "2"));
   EXPECT_GT(keys.size(), 40000u);
-  if (kSanitizedHeap) return;  // mallinfo2 does not see a sanitizer's heap; the bytes are checked
+  if (test::kSanitizedHeap) return;  // mallinfo2 does not see a sanitizer's heap; the bytes are checked
   EXPECT_GT(held, int64_t(48 * keys.size())) << "the control: the default writer holds every record";
   EXPECT_LT(ordered, int64_t(256) << 10) << "ordered writer: " << ordered << " bytes more after " << keys.size() << " nodes";
 }
