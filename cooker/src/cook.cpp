@@ -310,7 +310,8 @@ Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSum
   return plan_in_session(options, progress, s, plan, summary, report);
 }
 
-Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool& skipped, CookReport& report) {
+Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
+                 CookReport& report) {
   skipped = false;
   report = CookReport{};
   PlanData data;
@@ -332,6 +333,7 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool&
     return Status::success();
   }
   CookSession s;
+  data.options.block_roots = block_roots;
   if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;
   return write_unit(s, data.plan, index, work_dir);
 }

@@ -255,15 +255,36 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
     const double sp = vertex_spacing_m(ctx.finest_level);
     ctx.surface.set_outer_apron(sx > 0 ? sp / sx : 0.5, sy > 0 ? sp / sy : 0.5);
   }
-  // Blocks (= work units) of roots, each reading only its window of the source.
-  const uint32_t side = options.unit_roots    ? options.unit_roots
-                        : options.block_roots ? options.block_roots
-                                              : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy,
-                                                                report.roots_x, report.roots_y);
+  // Blocks of roots, each reading only its window of the source; work units of whole blocks.
+  uint32_t side = options.block_roots ? options.block_roots
+                                      : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy, report.roots_x,
+                                                        report.roots_y);
+  const uint32_t unit_side = options.unit_roots ? options.unit_roots
+                                                : default_unit_roots(side, sx, sy, ctx.finest_level, report.roots_x,
+                                                                     report.roots_y);
+  side = std::min(side, unit_side);  // a unit smaller than a block is cooked as one block
   s.grid = BlockGrid{report.roots_x, report.roots_y, side};
+  s.units = BlockGrid{report.roots_x, report.roots_y, unit_side};
   report.block_roots = s.grid.side;
   report.blocks = s.grid.count();
   return Status::success();
+}
+
+uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,
+                            uint32_t roots_x, uint32_t roots_y) {
+  const uint32_t most = std::max(roots_x, roots_y);
+  if (block_side >= most) return block_side;
+  const double samples_per_root =
+      (kRootSizeM / std::max(spacing_x_m, 1e-3)) * (kRootSizeM / std::max(spacing_y_m, 1e-3));
+  double nodes_per_root = 0;  // a full pyramid from the finest level up
+  for (int l = std::clamp(finest_level, 0, kRootLevel); l <= kRootLevel; ++l) nodes_per_root += double(1u << (2 * (kRootLevel - l)));
+  uint32_t k = 1;
+  while (k * block_side < most) {
+    const double roots = double((k + 1) * block_side) * double((k + 1) * block_side);
+    if (roots * samples_per_root > kUnitSamples || roots * nodes_per_root > kUnitNodes) break;
+    ++k;
+  }
+  return k * block_side;
 }
 
 Status surface_setup(CookSession& s, CookReport& report) {
@@ -379,9 +400,10 @@ int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y) {
   return std::max(1, overview_levels_needed(roots_x, roots_y));
 }
 
-Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
-                             CookReport& report) {
-  const RootBlock b = s.grid.block(index);
+namespace {
+
+// Reads and fills the window of the roots `b` and cooks their nodes into `sink`.
+Status cook_roots(CookSession& s, const RootBlock& b, const NodeSink& sink, PyramidTotals& totals, CookReport& report) {
   const SampleRect rect = block_cook_rect(s.ctx, b);
   if (rect.empty()) return Status::success();
   if (Status st = read_window(s, rect, report); !st.ok()) return st;
@@ -392,6 +414,26 @@ Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sin
     if (Status st = prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1); !st.ok()) return st;
   }
   return cook_block(s.ctx, b, s.threads, sink, totals, report);
+}
+
+}  // namespace
+
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                             CookReport& report) {
+  return cook_roots(s, s.grid.block(index), sink, totals, report);
+}
+
+Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                            CookReport& report) {
+  const RootBlock u = s.units.block(index);
+  const uint32_t side = std::max(1u, s.grid.side);
+  for (uint32_t y = u.y0; y < u.y1; y += side)
+    for (uint32_t x = u.x0; x < u.x1; x += side)
+      if (Status st = cook_roots(s, RootBlock{x, y, std::min(u.x1, x + side), std::min(u.y1, y + side)}, sink, totals,
+                                 report);
+          !st.ok())
+        return st;
+  return Status::success();
 }
 
 void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report) {

@@ -45,7 +45,8 @@ struct CookSession {
   WorldInfo world;  // frame, grid and footprint (steps, palette and cook info at the end)
   std::shared_ptr<const MaterialRules> rules;
   std::unique_ptr<SurfaceOverlays> overlays;
-  BlockGrid grid;
+  BlockGrid grid;   // memory blocks: the window of one fits the budget (the one-process cook's order)
+  BlockGrid units;  // work units (plan.json): each cooked as memory blocks of at most grid.side roots
   SampleWindow window;  // the block being read or cooked
   RangeSummary ranges;   // the first pass's, for the steps (freed once they are chosen)
   SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
@@ -57,7 +58,8 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
 // summary (range_summary.h) and the inputs' descriptions into the report.
 Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
 // The frame (choose_frame, or `planned` when given), the mapping, the root grid and the footprint,
-// the context's constants and the block grid (unit_roots, else block_roots, else from the budget).
+// the context's constants, the block grid (block_roots, else from the budget) and the unit grid
+// (unit_roots, else default_unit_roots).
 Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report);
 // Material rules and the overlays (opened; read per block).
 Status surface_setup(CookSession& s, CookReport& report);
@@ -69,6 +71,18 @@ void choose_session_steps(CookSession& s, CookReport& report);
 // Reads and fills block `index`'s window and cooks its nodes into `sink` (key order in the block).
 Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
                              CookReport& report);
+// Cooks unit `index` of s.units as memory blocks of at most s.grid.side roots, row by row from the
+// unit's corner (block bounds never change a byte: only the windows' sizes).
+Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                            CookReport& report);
+// A unit's side in roots when --unit-roots is not given: the most memory blocks (`block_side`
+// roots each) whose samples and possible nodes stay within kUnitSamples and kUnitNodes, so that a
+// unit's fixed costs (process start, opening the inputs, fresh memory) are a few per cent of it.
+// 1 m lidar: 6 x 6 roots (9 blocks, 151 M samples, at most 49 140 nodes, about 10 s of CPU).
+inline constexpr double kUnitSamples = double(uint64_t(1) << 28);
+inline constexpr double kUnitNodes = double(1 << 16);
+uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,
+                            uint32_t roots_x, uint32_t roots_y);
 // Restores the overview steps a plan decided (world and context).
 void restore_overview_steps(const std::vector<uint8_t>& steps, CookSession& s);
 // The settings of write_overview_levels (overview_levels.h) for this session.

@@ -117,7 +117,8 @@ int run(int argc, char** argv) {
                  "cooks only the units that are missing (see `terrain-cook plan`, `unit`, `merge`)");
   if (planning) work_dir_opt->required();
   app.add_option("--unit-roots", o.unit_roots,
-                 "Work units of N x N root nodes (2 km each; default: the block size, from --memory-limit)")
+                 "Work units of N x N root nodes (2 km each; default: whole memory blocks up to 2^28 source samples "
+                 "and 2^16 possible nodes per unit, so that a unit's fixed costs stay a few per cent)")
       ->check(cli::int_range(1, 1 << 16));
   app.add_option("--tolerance", o.tolerance_m, "Refine nodes while their geometric error exceeds this (metres)")
       ->capture_default_str()
@@ -368,6 +369,7 @@ int run_unit(int argc, char** argv) {
   std::string work_dir;
   std::optional<uint32_t> index;
   int threads = 0;
+  uint32_t block_roots = 0;
   bool quiet = false;
   CLI::App app{"terrain-cook unit: cooks one work unit of a plan into its file in the work dir (idempotent: a unit "
                "already complete and valid is not redone)",
@@ -376,6 +378,10 @@ int run_unit(int argc, char** argv) {
   app.add_option("work_dir", work_dir, "Work dir written by `terrain-cook plan`")->required();
   app.add_option("index", index, "Unit index (default: $SLURM_ARRAY_TASK_ID, else $JOB_COMPLETION_INDEX)");
   app.add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(terrain::cli::int_range(0, 1024));
+  app.add_option("--block-roots", block_roots,
+                 "Cook the unit as memory blocks of N x N roots (default: the largest the plan's --memory-limit "
+                 "allows); changes no byte")
+      ->check(terrain::cli::int_range(1, 1 << 16));
   app.add_flag("-q,--quiet", quiet, "Print nothing on success");
   try {
     app.parse(argc, argv);
@@ -401,7 +407,7 @@ int run_unit(int argc, char** argv) {
   }
   bool skipped = false;
   terrain::cook::CookReport report;
-  const terrain::Status st = terrain::cook::cook_unit(work_dir, *index, threads, skipped, report);
+  const terrain::Status st = terrain::cook::cook_unit(work_dir, *index, threads, block_roots, skipped, report);
   if (!st.ok()) {
     std::fprintf(stderr, "terrain-cook unit %u: %s\n", *index, st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "cook_session.h"
 #include "cooker_test_util.h"
 #include "test_data.h"
 
@@ -251,3 +252,41 @@ TEST(BlockCook, RealDemKilauea) {
 }
 
 }  // namespace
+
+// A work unit by default: whole memory blocks, as many as stay within kUnitSamples source samples
+// and kUnitNodes possible nodes (one more block per side would exceed one of them), so its fixed
+// costs (process start, opening the inputs, fresh memory) are small next to its work.
+TEST(BlockCook, DefaultUnitsAreWholeBlocksWithinTheirBounds) {
+  struct Case {
+    const char* what;
+    uint32_t block_side;
+    double spacing_m;
+    int finest_level;
+    uint32_t roots;
+  };
+  const Case cases[] = {{"1 m lidar, 2-root blocks", 2, 1.0, 0, 100},
+                        {"0.25 m lidar, 1-root blocks", 1, 0.25, 0, 100},
+                        {"5 m DEM, 4-root blocks", 4, 5.0, 2, 200},
+                        {"2 m DEM, 3-root blocks", 3, 2.0, 1, 300}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    const uint32_t side = cook::default_unit_roots(c.block_side, c.spacing_m, c.spacing_m, c.finest_level, c.roots, c.roots);
+    const double samples_per_root = std::pow(2048.0 / c.spacing_m, 2);
+    double nodes_per_root = 0;
+    for (int l = c.finest_level; l <= 5; ++l) nodes_per_root += std::pow(4.0, 5 - l);
+    auto within = [&](uint32_t s) {
+      const double roots = double(s) * s;
+      return roots * samples_per_root <= cook::kUnitSamples && roots * nodes_per_root <= cook::kUnitNodes;
+    };
+    EXPECT_EQ(side % c.block_side, 0u) << side;
+    EXPECT_GE(side, c.block_side);
+    if (side > c.block_side) {
+      EXPECT_TRUE(within(side)) << side;
+    }
+    EXPECT_FALSE(within(side + c.block_side)) << side;
+  }
+  // 1 m lidar: units of 6 x 6 roots (9 blocks, 151 M samples, at most 49 140 nodes).
+  EXPECT_EQ(cook::default_unit_roots(2, 1.0, 1.0, 0, 100, 100), 6u);
+  // A block that holds the whole world is the one unit.
+  EXPECT_EQ(cook::default_unit_roots(64, 30.0, 30.0, 3, 40, 50), 64u);
+}

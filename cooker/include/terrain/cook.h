@@ -55,7 +55,7 @@ struct CookOptions {
   uint64_t block_order = 0;
   // Work units (issue 14; cooker/src/work_units.h): with work_dir set, cook() writes the plan and
   // one file per unit into it and merges them; run again after a kill it cooks only the units that
-  // are missing or stale. unit_roots: units of N x N roots (0: the block size).
+  // are missing or stale. unit_roots: units of N x N roots (0: default_unit_roots, whole blocks).
   std::string work_dir;
   uint32_t unit_roots = 0;
 
@@ -242,8 +242,11 @@ struct PlanSummary {
 // in the work dir whose inputs and decisions are unchanged stay valid, the others are removed.
 Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSummary& summary, CookReport& report);
 // `terrain-cook unit`: cooks unit `index` of the plan in `work_dir` into its unit file (atomically).
-// `skipped`: the unit file was already complete and valid (nothing redone).
-Status cook_unit(const std::string& work_dir, uint32_t index, int threads, bool& skipped, CookReport& report);
+// `skipped`: the unit file was already complete and valid (nothing redone). The unit is cooked as
+// memory blocks of block_roots x block_roots roots (0: the largest the plan's memory limit allows);
+// they change no byte of the unit.
+Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
+                 CookReport& report);
 // `terrain-cook merge`: checks every unit (present, complete, checksum, plan and input fingerprints)
 // and writes the archive atomically, payloads in canonical order.
 Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
