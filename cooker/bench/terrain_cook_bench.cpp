@@ -650,7 +650,21 @@ double lpt_makespan(std::vector<double> times, int machines) {
   return *std::max_element(load.begin(), load.end());
 }
 
-int units_main(const std::string& tool, const std::string& dem, uint32_t unit_roots, bool heights_only,
+// One round of --units: the one-process cook, then plan + units + merge with 1 and with 2 workers.
+struct UnitsPass {
+  Run plan, merge, cp, cp_sync;
+  double units_wall = 0, units_cpu = 0, total_cpu = 0;
+  std::vector<double> unit_cpu;
+  uint32_t units = 0;
+  bool same = false;
+};
+struct UnitsRound {
+  Run one;
+  double first_pass_cpu = 0, blocks_cpu = 0;  // from the one-process cook's report
+  UnitsPass pass[2];                          // 1 and 2 workers
+};
+
+int units_main(const std::string& tool, const std::string& dem, uint32_t unit_roots, bool heights_only, int runs,
                const std::string& work_root) {
   std::error_code ec;
   std::filesystem::create_directories(work_root, ec);
@@ -660,82 +674,113 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   }
   std::vector<std::string> flags;
   if (heights_only) flags.push_back("--heights-only");
-  fmt::print("terrain-cook-bench --units: {} ({}), units of {} roots, work {}\n", dem,
+  fmt::print("terrain-cook-bench --units: {} ({}), units of {} roots, {} round{}, work {}\n", dem,
              heights_only ? "heights only" : "full",
-             unit_roots ? std::to_string(unit_roots) : std::string("the plan's default"), work_root);
+             unit_roots ? std::to_string(unit_roots) : std::string("the plan's default"), runs, runs == 1 ? "" : "s",
+             work_root);
   const std::string one = work_root + "/one.terrain";
-  std::vector<std::string> argv = {tool, dem, "-o", one, "-q"};
-  argv.insert(argv.end(), flags.begin(), flags.end());
-  const Run base = run(argv);
-  if (!base.ok) return 1;
-  const uint64_t bytes = std::filesystem::file_size(one);
-  fmt::print("\n{:<28} {:>8} {:>8} {:>10}\n", "step", "wall_s", "cpu_s", "MB/s");
-  fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", "one-process cook", base.wall_s, base.cpu_s, "-");
   // A process start of terrain-cook (its shared libraries), which every unit and the merge pay:
   // the median of 3 runs of `terrain-cook merge --help`.
   std::vector<Run> starts;
   for (int i = 0; i < 3; ++i) starts.push_back(run({tool, "merge", "--help"}));
   std::sort(starts.begin(), starts.end(), [](const Run& a, const Run& b) { return a.cpu_s < b.cpu_s; });
   const Run start = starts[1];
-  fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", "process start-up", start.wall_s, start.cpu_s, "-");
+  // Rounds: each runs the one-process cook and both unit passes in turn, so that a change in the
+  // machine's load hits both sides of a ratio alike; the medians of the per-round ratios decide.
+  std::vector<UnitsRound> rounds;
   int failures = 0;
-  for (int workers : {1, 2}) {
-    const std::string w = fmt::format("{}/w{}", work_root, workers);
-    std::filesystem::remove_all(w, ec);
-    std::vector<std::string> pa = {tool, "plan", dem, "--work-dir", w, "-q"};
-    if (unit_roots) pa.insert(pa.end(), {"--unit-roots", std::to_string(unit_roots)});
-    pa.insert(pa.end(), flags.begin(), flags.end());
-    const Run plan = run(pa);
-    if (!plan.ok) return 1;
-    const uint32_t units = uint32_t(std::stoul(plan.out));
-    std::vector<UnitRun> per_unit;
-    double units_wall = 0;
-    if (!run_units(tool, w, units, workers, per_unit, units_wall)) return 1;
-    const std::string merged = w + "/merged.terrain";
-    const Run merge = run({tool, "merge", w, "-o", merged, "-q"});
-    if (!merge.ok) return 1;
-    const Run cp = run({"cp", merged, w + "/copy.terrain"});
-    // The merge fsyncs its archive before the rename (a crash must not leave a renamed, unwritten
-    // file over an earlier archive); cp does not. The same copy made as durable: dd conv=fsync.
-    const Run cp_sync = run({"dd", "if=" + merged, "of=" + w + "/copy-sync.terrain", "bs=4M", "conv=fsync", "status=none"});
-    double units_cpu = 0;
-    std::vector<double> unit_cpu;
-    for (const UnitRun& u : per_unit) {
-      units_cpu += u.cpu_s;
-      unit_cpu.push_back(u.cpu_s);
+  uint64_t bytes = 0;
+  fmt::print("\n{:<6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7}\n", "round", "workers",
+             "one cpu_s", "plan cpu", "units cpu", "merge s", "cp s", "dd sync s", "total cpu", "over %", "x cp",
+             "x dd");
+  for (int r = 0; r < runs; ++r) {
+    UnitsRound round;
+    std::vector<std::string> argv = {tool, dem, "-o", one, "-q", "--report", work_root + "/one.json"};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    round.one = run(argv);
+    if (!round.one.ok) return 1;
+    bytes = std::filesystem::file_size(one);
+    {
+      std::ifstream in(work_root + "/one.json");
+      const auto j = nlohmann::json::parse(in, nullptr, false);
+      if (!j.is_discarded() && j.contains("time_s")) {
+        round.first_pass_cpu = j["time_s"].value("cpu_first_pass", 0.0);
+        round.blocks_cpu = j["time_s"].value("cpu_blocks", 0.0);
+      }
     }
-    const double total_cpu = plan.cpu_s + units_cpu + merge.cpu_s;
-    const bool same = same_file(one, merged);
-    failures += same ? 0 : 1;
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", fmt::format("plan ({} units)", units), plan.wall_s, plan.cpu_s, "-");
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10}\n", fmt::format("units, {} worker{}", workers, workers > 1 ? "s" : ""),
-               units_wall, units_cpu, "-");
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge", merge.wall_s, merge.cpu_s, double(bytes) / 1e6 / merge.wall_s);
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "merge less its start-up", merge.wall_s - start.wall_s,
-               merge.cpu_s - start.cpu_s, double(bytes) / 1e6 / std::max(1e-3, merge.wall_s - start.wall_s));
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "cp of the archive", cp.wall_s, cp.cpu_s, double(bytes) / 1e6 / cp.wall_s);
-    fmt::print("{:<28} {:>8.2f} {:>8.2f} {:>10.0f}\n", "copy + fsync (dd)", cp_sync.wall_s, cp_sync.cpu_s,
-               double(bytes) / 1e6 / cp_sync.wall_s);
-    fmt::print("  merge peak RSS {:.1f} MB for a {:.1f} MB archive\n", double(merge.rss_bytes) / 1e6, double(bytes) / 1e6);
-    std::sort(unit_cpu.begin(), unit_cpu.end());
-    if (!unit_cpu.empty())
-      fmt::print("  per-unit CPU: min {:.2f} s, median {:.2f} s, max {:.2f} s; {} process starts = {:.2f} s of CPU\n",
-                 unit_cpu.front(), unit_cpu[unit_cpu.size() / 2], unit_cpu.back(), units + 2,
-                 double(units + 2) * start.cpu_s);
-    fmt::print("  {} workers: CPU of plan + units + merge {:.2f} s = {:+.1f} % over the one-process cook (target <= +5 %); "
-               "merge at {:.2f} x the speed of cp (target >= 0.5), {:.2f} x a copy as durable (dd conv=fsync); "
-               "archive {} the one-process bytes\n",
-               workers, total_cpu, 100.0 * (total_cpu / base.cpu_s - 1.0), cp.wall_s / merge.wall_s,
-               cp_sync.wall_s / merge.wall_s, same ? "equals" : "DIFFERS FROM");
-    if (workers == 2) {
-      // 16 machines, on paper: the measured per-unit CPU seconds scheduled longest first.
-      const double makespan = plan.wall_s + lpt_makespan(unit_cpu, 16) + merge.wall_s;
-      fmt::print("  16 machines (simulated from the per-unit times): makespan {:.2f} s = plan {:.2f} + units {:.2f} + "
-                 "merge {:.2f} ({:.0f} % in the merge); one process on one core would take {:.2f} s\n",
-                 makespan, plan.wall_s, lpt_makespan(unit_cpu, 16), merge.wall_s, 100.0 * merge.wall_s / makespan,
-                 total_cpu);
+    for (int wi = 0; wi < 2; ++wi) {
+      const int workers = wi + 1;
+      UnitsPass& p = round.pass[wi];
+      const std::string w = fmt::format("{}/w{}", work_root, workers);
+      std::filesystem::remove_all(w, ec);
+      std::vector<std::string> pa = {tool, "plan", dem, "--work-dir", w, "-q"};
+      if (unit_roots) pa.insert(pa.end(), {"--unit-roots", std::to_string(unit_roots)});
+      pa.insert(pa.end(), flags.begin(), flags.end());
+      p.plan = run(pa);
+      if (!p.plan.ok) return 1;
+      p.units = uint32_t(std::stoul(p.plan.out));
+      std::vector<UnitRun> per_unit;
+      if (!run_units(tool, w, p.units, workers, per_unit, p.units_wall)) return 1;
+      const std::string merged = w + "/merged.terrain";
+      p.merge = run({tool, "merge", w, "-o", merged, "-q"});
+      if (!p.merge.ok) return 1;
+      p.cp = run({"cp", merged, w + "/copy.terrain"});
+      // The merge fsyncs its archive before the rename (a crash must not leave a renamed, unwritten
+      // file over an earlier archive); cp does not. The same copy made as durable: dd conv=fsync.
+      p.cp_sync = run({"dd", "if=" + merged, "of=" + w + "/copy-sync.terrain", "bs=4M", "conv=fsync", "status=none"});
+      for (const UnitRun& u : per_unit) {
+        p.units_cpu += u.cpu_s;
+        p.unit_cpu.push_back(u.cpu_s);
+      }
+      p.total_cpu = p.plan.cpu_s + p.units_cpu + p.merge.cpu_s;
+      p.same = same_file(one, merged);
+      failures += p.same ? 0 : 1;
+      fmt::print("{:<6} {:>7} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>8.3f} {:>9.3f} {:>9.2f} {:>+7.1f} {:>7.2f} {:>7.2f}{}\n",
+                 r + 1, workers, round.one.cpu_s, p.plan.cpu_s, p.units_cpu, p.merge.wall_s, p.cp.wall_s,
+                 p.cp_sync.wall_s, p.total_cpu, 100.0 * (p.total_cpu / round.one.cpu_s - 1.0),
+                 p.cp.wall_s / p.merge.wall_s, p.cp_sync.wall_s / p.merge.wall_s, p.same ? "" : "  DIFFERENT BYTES");
     }
+    rounds.push_back(std::move(round));
   }
+  const UnitsPass& last = rounds.back().pass[1];
+  fmt::print("\nArchive {:.1f} MB, {} units; process start-up (terrain-cook merge --help) {:.3f} s wall, {:.3f} s CPU; "
+             "merge peak RSS {:.1f} MB\n",
+             double(bytes) / 1e6, last.units, start.wall_s, start.cpu_s, double(last.merge.rss_bytes) / 1e6);
+  auto med = [&](auto f) {
+    std::vector<double> v;
+    for (const UnitsRound& r : rounds) v.push_back(f(r));
+    return median(v);
+  };
+  fmt::print("Where the CPU goes (medians): one-process first pass {:.2f} s + blocks {:.2f} s; plan {:.2f} s; units "
+             "{:.2f} s (1 worker), {:.2f} s (2 workers)\n",
+             med([](const UnitsRound& r) { return r.first_pass_cpu; }), med([](const UnitsRound& r) { return r.blocks_cpu; }),
+             med([](const UnitsRound& r) { return r.pass[0].plan.cpu_s; }),
+             med([](const UnitsRound& r) { return r.pass[0].units_cpu; }),
+             med([](const UnitsRound& r) { return r.pass[1].units_cpu; }));
+  for (int wi = 0; wi < 2; ++wi) {
+    const double over = med([&](const UnitsRound& r) { return 100.0 * (r.pass[wi].total_cpu / r.one.cpu_s - 1.0); });
+    const double xcp = med([&](const UnitsRound& r) { return r.pass[wi].cp.wall_s / r.pass[wi].merge.wall_s; });
+    const double xdd = med([&](const UnitsRound& r) { return r.pass[wi].cp_sync.wall_s / r.pass[wi].merge.wall_s; });
+    const double merge_mbs = med([&](const UnitsRound& r) { return double(bytes) / 1e6 / r.pass[wi].merge.wall_s; });
+    const double cp_mbs = med([&](const UnitsRound& r) { return double(bytes) / 1e6 / r.pass[wi].cp.wall_s; });
+    fmt::print("{} worker{}: CPU of plan + units + merge {:+.1f} % over the one-process cook (target <= +5 %: {}); merge "
+               "{:.0f} MB/s, cp {:.0f} MB/s: {:.2f} x cp (target >= 0.5: {}), {:.2f} x a copy as durable (dd conv=fsync)\n",
+               wi + 1, wi ? "s" : "", over, over <= 5.0 ? "PASS" : "FAIL", merge_mbs, cp_mbs, xcp,
+               xcp >= 0.5 ? "PASS" : "FAIL", xdd);
+  }
+  // 16 machines, on paper: the measured per-unit CPU seconds scheduled longest first.
+  std::vector<double> unit_cpu = last.unit_cpu;
+  std::sort(unit_cpu.begin(), unit_cpu.end());
+  if (!unit_cpu.empty()) {
+    fmt::print("Per-unit CPU (last round, 2 workers): min {:.2f} s, median {:.2f} s, max {:.2f} s\n", unit_cpu.front(),
+               unit_cpu[unit_cpu.size() / 2], unit_cpu.back());
+    const double makespan = last.plan.wall_s + lpt_makespan(unit_cpu, 16) + last.merge.wall_s;
+    fmt::print("16 machines (simulated from the per-unit times): makespan {:.2f} s = plan {:.2f} + units {:.2f} + merge "
+               "{:.2f} ({:.0f} % in the merge); one process on one core would take {:.2f} s\n",
+               makespan, last.plan.wall_s, lpt_makespan(unit_cpu, 16), last.merge.wall_s,
+               100.0 * last.merge.wall_s / makespan, last.total_cpu);
+  }
+  fmt::print("Archive {} the one-process bytes in every round\n", failures ? "DIFFERS FROM" : "equals");
   return failures ? 1 : 0;
 }
 struct SweepPoint {
@@ -820,11 +865,12 @@ int main(int argc, char** argv) {
   app.add_option("--python", so.python, "--scale: Python with GDAL and numpy")->capture_default_str();
   app.add_option("--script", so.script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
   bool units = false;
-  uint32_t unit_roots = 2;
+  uint32_t unit_roots = 0;
   std::string units_dem;
   app.add_flag("--units", units,
                "Instead of the sweep: plan + units (1 and 2 worker processes) + merge against the one-process cook "
-               "of --units-dem (default: the 8 km square of --scale), merge MB/s next to cp, a 16-machine makespan");
+               "of --units-dem (default: the 8 km square of --scale), merge MB/s next to cp, a 16-machine makespan; "
+               "--runs rounds (default 3), medians of the per-round ratios");
   app.add_option("--units-dem", units_dem, "--units: the DEM to cook");
   app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots (0: the plan's default size)")->capture_default_str();
   try {
@@ -843,7 +889,7 @@ int main(int argc, char** argv) {
   if (units) {
     const std::string root = so.work.empty() ? (self.parent_path() / "bench-scale").string() : so.work;
     return units_main(tool, units_dem.empty() ? root + "/lidar_like_8km.tif" : units_dem, unit_roots, so.heights_only,
-                      root + "/units");
+                      app.count("--runs") ? runs : 3, root + "/units");
   }
   if (scale) {
     so.runs = app.count("--runs") ? runs : 1;
