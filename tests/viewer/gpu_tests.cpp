@@ -713,5 +713,33 @@ TEST(ViewerGpu, NearShadingMatchesTheBakedAlbedoInMeanColour) {
   EXPECT_LE(worst, 3.0) << "every tile, near and far of the switch, agrees";
 }
 
+// The index texture has a texel per 64 m sector of the world: a world wider than the device's
+// largest 2D image is refused by init with the numbers (no vkCreateImage beyond the limits), and
+// a world exactly as wide as the limit allows opens.
+TEST(ViewerGpu, AWorldWiderThanTheIndexTextureIsRefusedWithItsNumbers) {
+  World world;
+  world.synthetic = deep_world().synthetic;
+  TV_REQUIRE_GPU(gpu, world.synthetic.world, 64, 32, 32);
+  const uint32_t max_side = gpu->ctx.properties.limits.maxImageDimension2D;
+  const uint32_t most_roots = max_side >> kRootLevel;
+  WorldInfo wide = world.synthetic.world;
+  wide.roots_x = most_roots + 1;
+  wide.roots_y = 4;
+  RendererConfig rc;
+  rc.slot_count = 64;
+  TerrainRenderer refused;
+  const Status st = refused.init(gpu->ctx, wide, rc);
+  refused.destroy();
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.code, Error::unsupported_input);
+  EXPECT_NE(st.message.find("at most " + std::to_string(most_roots) + " roots per side"), std::string::npos) << st.message;
+  wide.roots_x = most_roots;
+  TerrainRenderer widest;
+  const Status ok = widest.init(gpu->ctx, wide, rc);
+  widest.destroy();
+  EXPECT_TRUE(ok.ok()) << ok.message;
+}
+
 }  // namespace
 }  // namespace terrain::view::test
+

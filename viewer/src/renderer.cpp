@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstring>
 #include <new>
+#include <string>
 
 #include "shaders.h"
 #include "terrain/bc_decode.h"
@@ -69,6 +70,17 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   top_level_ = uint32_t(top_level(world));
   sectors_x_ = level_grid_width(world.roots_x, 0);
   sectors_y_ = level_grid_width(world.roots_y, 0);
+  // The index texture has a texel per 64 m sector of the whole world at level 0 (a mip per level):
+  // a world wider than the device's largest 2D image cannot be drawn. Said before any allocation,
+  // with the numbers, instead of a failed or invalid vkCreateImage (a windowed index would lift it).
+  const uint32_t max_side = ctx.properties.limits.maxImageDimension2D;
+  if (sectors_x_ > max_side || sectors_y_ > max_side)
+    return Status::failure(Error::unsupported_input,
+                           "the archive is " + std::to_string(world.roots_x) + " x " + std::to_string(world.roots_y) +
+                               " roots; its index texture would be " + std::to_string(sectors_x_) + " x " +
+                               std::to_string(sectors_y_) + " texels and this device (" + ctx.device_name +
+                               ") allows " + std::to_string(max_side) + " per side: at most " +
+                               std::to_string(max_side >> kRootLevel) + " roots per side");
   lod_map_uints_ = size_t(std::min<uint32_t>(world.roots_x, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) *
                        (std::min<uint32_t>(world.roots_y, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) +
                    size_t(world.roots_x) * world.roots_y;
