@@ -735,7 +735,8 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
       p.total_cpu = p.plan.cpu_s + p.units_cpu + p.merge.cpu_s;
       p.same = same_file(one, merged);
       failures += p.same ? 0 : 1;
-      fmt::print("{:<6} {:>7} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>8.3f} {:>9.3f} {:>9.2f} {:>+7.1f} {:>7.2f} {:>7.2f}{}\n",
+      fmt::print("{:<6} {:>7} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>8.3f} {:>9.3f} {:>9.2f} {:>+7.1f} {:>7.2f} "
+                 "{:>7.2f}{}\n",
                  r + 1, workers, round.one.cpu_s, p.plan.cpu_s, p.units_cpu, p.merge.wall_s, p.cp.wall_s,
                  p.cp_sync.wall_s, p.total_cpu, 100.0 * (p.total_cpu / round.one.cpu_s - 1.0),
                  p.cp.wall_s / p.merge.wall_s, p.cp_sync.wall_s / p.merge.wall_s, p.same ? "" : "  DIFFERENT BYTES");
@@ -753,7 +754,8 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   };
   fmt::print("Where the CPU goes (medians): one-process first pass {:.2f} s + blocks {:.2f} s; plan {:.2f} s; units "
              "{:.2f} s (1 worker), {:.2f} s (2 workers)\n",
-             med([](const UnitsRound& r) { return r.first_pass_cpu; }), med([](const UnitsRound& r) { return r.blocks_cpu; }),
+             med([](const UnitsRound& r) { return r.first_pass_cpu; }),
+             med([](const UnitsRound& r) { return r.blocks_cpu; }),
              med([](const UnitsRound& r) { return r.pass[0].plan.cpu_s; }),
              med([](const UnitsRound& r) { return r.pass[0].units_cpu; }),
              med([](const UnitsRound& r) { return r.pass[1].units_cpu; }));

@@ -277,7 +277,8 @@ uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spac
   const double samples_per_root =
       (kRootSizeM / std::max(spacing_x_m, 1e-3)) * (kRootSizeM / std::max(spacing_y_m, 1e-3));
   double nodes_per_root = 0;  // a full pyramid from the finest level up
-  for (int l = std::clamp(finest_level, 0, kRootLevel); l <= kRootLevel; ++l) nodes_per_root += double(1u << (2 * (kRootLevel - l)));
+  for (int l = std::clamp(finest_level, 0, kRootLevel); l <= kRootLevel; ++l)
+    nodes_per_root += double(1u << (2 * (kRootLevel - l)));
   uint32_t k = 1;
   while (k * block_side < most) {
     const double roots = double((k + 1) * block_side) * double((k + 1) * block_side);

@@ -270,7 +270,8 @@ TEST(BlockCook, DefaultUnitsAreWholeBlocksWithinTheirBounds) {
                         {"2 m DEM, 3-root blocks", 3, 2.0, 1, 300}};
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);
-    const uint32_t side = cook::default_unit_roots(c.block_side, c.spacing_m, c.spacing_m, c.finest_level, c.roots, c.roots);
+    const uint32_t side =
+        cook::default_unit_roots(c.block_side, c.spacing_m, c.spacing_m, c.finest_level, c.roots, c.roots);
     const double samples_per_root = std::pow(2048.0 / c.spacing_m, 2);
     double nodes_per_root = 0;
     for (int l = c.finest_level; l <= 5; ++l) nodes_per_root += std::pow(4.0, 5 - l);

@@ -732,7 +732,8 @@ TEST(ViewerGpu, AWorldWiderThanTheIndexTextureIsRefusedWithItsNumbers) {
   refused.destroy();
   ASSERT_FALSE(st.ok());
   EXPECT_EQ(st.code, Error::unsupported_input);
-  EXPECT_NE(st.message.find("at most " + std::to_string(most_roots) + " roots per side"), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("at most " + std::to_string(most_roots) + " roots per side"), std::string::npos)
+      << st.message;
   wide.roots_x = most_roots;
   TerrainRenderer widest;
   const Status ok = widest.init(gpu->ctx, wide, rc);
