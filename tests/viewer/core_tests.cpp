@@ -62,7 +62,7 @@ FrameUniforms uniforms_for(const Camera& c, const WorldInfo& w, double error_px,
 
 // Counts how many listed nodes draw each sector.
 std::vector<int> coverage(const TerrainState& st, const NodeList& list) {
-  const uint32_t sx = st.grid_width(0), sy = st.grid_height(0);
+  const uint32_t sx = st.roots_x() << kRootLevel, sy = st.roots_y() << kRootLevel;
   std::vector<int> cover(size_t(sx) * sy, 0);
   for (uint32_t e : list.entries) {
     const SlotDescriptor& d = st.descriptor(e & TV_ENTRY_SLOT_MASK);
@@ -80,12 +80,14 @@ TEST(ViewerReference, SplitsOnlyWhenNoChildIsStillStreaming) {
   const WorldInfo w = small_world(1);
   TerrainState st;
   st.init(w, 8);
-  st.set_slot(0, slot_descriptor_of(record(5, 0, 0, 50.0f), w));
-  st.set_index(5, 0, 0, 0);
+  NodeRecord root = record(5, 0, 0, 50.0f);
+  root.child_mask = 0xF;
+  st.set_slot(0, slot_descriptor_of(root, w));
+  st.set_node({5, 0, 0}, 0);
   for (uint32_t c = 0; c < 4; ++c) {
     const NodeKey k = child_of({5, 0, 0}, int(c));
     st.set_slot(1 + c, slot_descriptor_of(record(4, k.x, k.y, 10.0f), w));
-    st.set_index(4, k.x, k.y, uint16_t(1 + c));
+    st.set_node(k, uint16_t(1 + c));
   }
   const FrameUniforms u = uniforms_for(look_down(w, 1024, 1024, 3000), w, 1.0);
   ASSERT_TRUE(wants_split(st.descriptor(0), u));
@@ -94,17 +96,25 @@ TEST(ViewerReference, SplitsOnlyWhenNoChildIsStillStreaming) {
   EXPECT_EQ(all.level_counts[5], 0u);
   EXPECT_EQ(all.level_counts[4], 4u);
 
-  st.set_index(4, 1, 0, uint16_t(TV_SLOT_EMPTY));  // one child still loading: no split at all
+  st.set_node({4, 1, 0}, uint16_t(TV_SLOT_EMPTY));  // one child still loading: no split at all
+  EXPECT_EQ(st.child(0, 1), uint16_t(TV_SLOT_EMPTY));
   NodeList waiting = reference_traverse(st, u, cpu);
   ASSERT_EQ(waiting.entries.size(), 1u);
   EXPECT_EQ(waiting.entries[0], 0u | 0xFu << TV_ENTRY_QUAD_SHIFT);
 
-  st.set_index(4, 1, 0, uint16_t(TV_SLOT_INVALID));  // child 1 does not exist: the root keeps its quarter
-  NodeList partial = reference_traverse(st, u, cpu);
-  EXPECT_EQ(partial.level_counts[4], 3u);
-  EXPECT_EQ(partial.level_counts[5], 1u);
-  EXPECT_TRUE(std::count(partial.entries.begin(), partial.entries.end(), 0u | (1u << 1) << TV_ENTRY_QUAD_SHIFT));
-  for (int c : coverage(st, partial)) EXPECT_EQ(c, 1);
+  // Child 1 does not exist (the parent's child mask says so) or failed to load: the root keeps
+  // its quarter either way.
+  for (int absent = 0; absent < 2; ++absent) {
+    root.child_mask = absent == 0 ? 0xD : 0xF;
+    st.set_slot(0, slot_descriptor_of(root, w));
+    if (absent == 1) st.set_node({4, 1, 0}, uint16_t(TV_SLOT_INVALID));
+    EXPECT_EQ(st.child(0, 1), uint16_t(TV_SLOT_INVALID));
+    NodeList partial = reference_traverse(st, u, cpu);
+    EXPECT_EQ(partial.level_counts[4], 3u);
+    EXPECT_EQ(partial.level_counts[5], 1u);
+    EXPECT_TRUE(std::count(partial.entries.begin(), partial.entries.end(), 0u | (1u << 1) << TV_ENTRY_QUAD_SHIFT));
+    for (int c : coverage(st, partial)) EXPECT_EQ(c, 1);
+  }
 
   const FrameUniforms far = uniforms_for(look_down(w, 1024, 1024, 3.0e6), w, 1.0);
   EXPECT_FALSE(wants_split(st.descriptor(0), far));  // 50 m seen from 3000 km: well under a pixel
@@ -297,7 +307,8 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
         if (e > 0 && patch_px(p) == 7) {
           const GpuNodeDesc& d = st.descriptor(patch_slot(p));
           const uint32_t east = (d.x + 1) << kRootLevel, row = (d.y << kRootLevel) + patch_py(p) * 4;
-          if (east < st.grid_width(0) && lod[size_t(lod_index(u, east, row))] > kRootLevel + 1) ++beside_coarsened;
+          const uint32_t sectors_x = st.roots_x() << kRootLevel;
+          if (east < sectors_x && lod[size_t(lod_index(u, east, row))] > kRootLevel + 1) ++beside_coarsened;
         }
         if (e > 0) {
           ASSERT_EQ(patch_level(p), uint32_t(kRootLevel)) << "only uncoarsened roots decimate";
@@ -374,8 +385,8 @@ TEST(ViewerReference, ResidencyKeepsParentsOfResidentNodes) {
   // Wants level-3 nodes but not their level-4 parents: they must stay out.
   ASSERT_TRUE(res.apply([](const NodeKey& k) { return k.level != 4; }, st, uploads).ok());
   EXPECT_EQ(res.resident_count(), 1u);
-  EXPECT_EQ(st.index(4, 0, 0), uint16_t(TV_SLOT_EMPTY));
-  EXPECT_EQ(st.index(3, 0, 0), uint16_t(TV_SLOT_EMPTY));
+  EXPECT_EQ(st.slot_of({4, 0, 0}), uint16_t(TV_SLOT_EMPTY));
+  EXPECT_EQ(st.slot_of({3, 0, 0}), uint16_t(TV_SLOT_EMPTY));
   uploads.clear();
   ASSERT_TRUE(res.apply([](const NodeKey&) { return true; }, st, uploads).ok());
   EXPECT_EQ(res.resident_count(), 21u);

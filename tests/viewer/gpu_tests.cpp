@@ -713,17 +713,16 @@ TEST(ViewerGpu, NearShadingMatchesTheBakedAlbedoInMeanColour) {
   EXPECT_LE(worst, 3.0) << "every tile, near and far of the switch, agrees";
 }
 
-// The index texture has a texel per 64 m sector of the world: a world wider than the device's
-// largest 2D image is refused by init with the numbers (no vkCreateImage beyond the limits), and
-// a world exactly as wide as the limit allows opens.
-TEST(ViewerGpu, AWorldWiderThanTheIndexTextureIsRefusedWithItsNumbers) {
+// The index is sparse (terrain_state.h): the tree buffer below the roots and a texel per root. A
+// world wider than the device's largest 2D image in roots is refused by init with the numbers (no
+// vkCreateImage beyond the limits), and a world exactly that wide opens.
+TEST(ViewerGpu, AWorldWiderThanTheRootImageIsRefusedWithItsNumbers) {
   World world;
   world.synthetic = deep_world().synthetic;
   TV_REQUIRE_GPU(gpu, world.synthetic.world, 64, 32, 32);
   const uint32_t max_side = gpu->ctx.properties.limits.maxImageDimension2D;
-  const uint32_t most_roots = max_side >> kRootLevel;
   WorldInfo wide = world.synthetic.world;
-  wide.roots_x = most_roots + 1;
+  wide.roots_x = max_side + 1;
   wide.roots_y = 4;
   RendererConfig rc;
   rc.slot_count = 64;
@@ -732,13 +731,66 @@ TEST(ViewerGpu, AWorldWiderThanTheIndexTextureIsRefusedWithItsNumbers) {
   refused.destroy();
   ASSERT_FALSE(st.ok());
   EXPECT_EQ(st.code, Error::unsupported_input);
-  EXPECT_NE(st.message.find("at most " + std::to_string(most_roots) + " roots per side"), std::string::npos)
+  EXPECT_NE(st.message.find("at most " + std::to_string(max_side) + " roots per side"), std::string::npos)
       << st.message;
-  wide.roots_x = most_roots;
+  wide.roots_x = max_side;
   TerrainRenderer widest;
   const Status ok = widest.init(gpu->ctx, wide, rc);
   widest.destroy();
   EXPECT_TRUE(ok.ok()) << ok.message;
+}
+
+// The dense index of before (a texel per 64 m sector at level 0) could not hold a world wider
+// than maxImageDimension2D / 32 roots (512 on lavapipe). A world 8 roots wider, with overview
+// levels, refined to level 0 in its last root only: the GPU lists, LOD map and patches equal the
+// CPU reference there, level-0 nodes beyond sector 16 384 included.
+TEST(ViewerGpu, AWorldWiderThanTheDenseIndexDrawsItsFarEastEndToLevelZero) {
+  World world;
+  uint32_t old_limit = 0;
+  {
+    TV_REQUIRE_GPU(probe, deep_world().synthetic.world, 64, 32, 32);
+    old_limit = probe->ctx.properties.limits.maxImageDimension2D >> kRootLevel;
+  }
+  synthetic::Spec o = synthetic::analytic_surface();
+  o.roots_x = old_limit + 8;
+  o.roots_y = 1;
+  o.overview_levels = -1;
+  o.cones = false;
+  const double focus_x = (double(o.roots_x) - 0.5) * node_size_m(kRootLevel), focus_y = 1000;
+  o.keep = [focus_x, focus_y](const NodeKey& k) {
+    if (k.level >= uint32_t(kRootLevel)) return true;
+    return box_distance(k, focus_x, focus_y) < 200.0 * double(1u << k.level);
+  };
+  world.synthetic = synthetic::make_world(o);
+  TV_REQUIRE_GPU(gpu, world.synthetic.world, 2048, 320, 180);
+  std::vector<NodeUpload> uploads;
+  ASSERT_TRUE(make_all_resident(world, *gpu, 2048, uploads).ok());
+  FrameSettings s;
+  s.error_target_px = 0.01;
+  const Camera cam = camera_at(world.synthetic.world, focus_x - 150, focus_y, 300, 90, -35);
+  ASSERT_TRUE(render_frame(*gpu, uploads, cam, s, true).ok());
+  NodeList gpu_nodes;
+  std::vector<uint32_t> gpu_lod;
+  std::vector<GpuPatch> gpu_patches;
+  gpu->renderer.read_lists(gpu_nodes, gpu_lod, gpu_patches);
+  const FrameUniforms& u = gpu->renderer.uniforms();
+  const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
+  EXPECT_EQ(sorted(gpu_nodes.entries), sorted(ref_nodes.entries));
+  EXPECT_EQ(gpu_nodes.level_counts, ref_nodes.level_counts);
+  EXPECT_EQ(gpu_lod, reference_lod_map(gpu->state, u, ref_nodes));
+  const PatchList ref_patches = reference_patches(gpu->state, u, ref_nodes, gpu_lod, gpu->renderer.slot_cpu(),
+                                                  gpu->renderer.cone_sin2_table());
+  EXPECT_EQ(sorted(gpu_patches), sorted(ref_patches.patches));
+  EXPECT_GT(gpu_nodes.level_counts[0], 0u) << "the view must reach level 0 in the far east root";
+  uint32_t east_level0 = 0;
+  for (uint32_t e : gpu_nodes.entries) {
+    const SlotDescriptor& d = gpu->state.descriptor(e & TV_ENTRY_SLOT_MASK);
+    if (d.level == 0 && d.x >= (old_limit << kRootLevel)) ++east_level0;
+  }
+  EXPECT_EQ(east_level0, gpu_nodes.level_counts[0]) << "every level-0 node lies beyond the old index texture";
+  std::printf("%u x %u roots: %zu nodes listed (levels 0..5: %u %u %u %u %u %u), %zu patches\n", o.roots_x, o.roots_y,
+              gpu_nodes.entries.size(), gpu_nodes.level_counts[0], gpu_nodes.level_counts[1], gpu_nodes.level_counts[2],
+              gpu_nodes.level_counts[3], gpu_nodes.level_counts[4], gpu_nodes.level_counts[5], gpu_patches.size());
 }
 
 }  // namespace

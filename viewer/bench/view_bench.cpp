@@ -76,7 +76,7 @@ double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, cons
   const int level = int(std::min<uint32_t>(geo, uint32_t(terrain::kRootLevel)));
   const double size = node_size_m(level);
   const uint32_t nx = uint32_t(lx / size), ny = uint32_t(ly / size);
-  const uint16_t slot = st.index(level, nx, ny);
+  const uint16_t slot = st.slot_of(NodeKey{uint32_t(level), nx, ny});
   if (slot >= TV_SLOT_INVALID) return NAN;
   if (geo == uint32_t(terrain::kRootLevel)) {
     const double patch = size / TV_PATCHES_PER_SIDE;

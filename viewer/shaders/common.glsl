@@ -27,7 +27,7 @@ struct NodeDesc {
 };
 layout(std430, set = 0, binding = 1) readonly buffer NodeDescs { NodeDesc nodes[]; };
 layout(std430, set = 0, binding = 2) readonly buffer PatchBounds { ivec2 patch_bounds[]; };
-layout(set = 0, binding = 3) uniform usampler2D index_tex;  // R16_UINT, mip L = level L
+layout(set = 0, binding = 3) uniform usampler2D root_tex;  // R16_UINT, a texel per root (config.h "Tree buffer")
 // Per slot: total error (m) of the node drawn with coarsening c in component c (roots only).
 layout(std430, set = 0, binding = 15) readonly buffer CoarseErrors { vec4 coarse_error[]; };
 

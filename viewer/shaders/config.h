@@ -52,8 +52,11 @@
 // entries that did not fit anyway and the viewer warns when it is ever non-zero).
 // Tree buffer (uints): [0] start count, [1] slot count, then the start slots from
 // TV_TREE_START, then per slot 2 words of child slots (4 x u16, child c in word c >> 1, half
-// c & 1) from TV_TREE_START + slot count, filled for overview nodes only (levels >= 6: they have no
-// index texture cells; a level-6 node's children are roots, level 5 of the index).
+// c & 1) from TV_TREE_START + slot count, filled for every resident node. With the root grid (an
+// R16_UINT image of a texel per root: slot, TV_SLOT_EMPTY or TV_SLOT_INVALID, for the roots'
+// neighbours and the root under a sector) it is the whole index: sparse, so its memory is 12
+// bytes per slot plus 2 per root whatever the world's area (FC5's dense per-level grids cost 2730
+// bytes per root: 273 MB at 10^5 roots, and an image wider than the device allows past 512 roots).
 #define TV_TREE_START 4
 
 // Node-list entry: slot in bits 0..15, quadrant mask (bit c = child c's quarter is drawn by this

@@ -100,7 +100,7 @@ uint eff_at(int sx, int sy, uint max_e, uint own) {
   uint v = lod_at(sx, sy);
   if (v != uint(TV_ROOT_LEVEL + 1) || max_e == 0u || own >= uint(TV_ROOT_LEVEL) + max_e) return v;
   uint above = own > uint(TV_ROOT_LEVEL) ? own - uint(TV_ROOT_LEVEL) : 0u;
-  uint root = texelFetch(index_tex, ivec2(sx >> TV_ROOT_LEVEL, sy >> TV_ROOT_LEVEL), TV_ROOT_LEVEL).r;
+  uint root = texelFetch(root_tex, ivec2(sx >> TV_ROOT_LEVEL, sy >> TV_ROOT_LEVEL), 0).r;
   const int spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
   return v + root_patch_decimation(root, uint((sx & (TV_SECTORS_PER_ROOT - 1)) / spp),
                                    uint((sy & (TV_SECTORS_PER_ROOT - 1)) / spp), max_e, above);

@@ -21,15 +21,11 @@ shared uint item_count;
 shared uint level_counts[TV_MAX_LEVELS];
 shared uint overflow;
 
-// Child c of the node in `slot` at `level`: overview nodes from the tree buffer, others from the
-// index texture (TV_SLOT_EMPTY: exists, not resident; TV_SLOT_INVALID: no such node).
-uint child_slot(uint slot, NodeDesc d, int level, int c, uint cap) {
-  if (level > TV_ROOT_LEVEL) {
-    uint w = tree[TV_TREE_START + cap + 2u * slot + uint(c >> 1)];
-    return (w >> (16u * uint(c & 1))) & 0xFFFFu;
-  }
-  ivec2 cxy = ivec2(d.x * 2u + uint(c & 1), d.y * 2u + uint(c >> 1));
-  return texelFetch(index_tex, cxy, level - 1).r;
+// Child c of the node in `slot`, from the tree buffer (TV_SLOT_EMPTY: exists, not resident;
+// TV_SLOT_INVALID: no such node).
+uint child_slot(uint slot, int c, uint cap) {
+  uint w = tree[TV_TREE_START + cap + 2u * slot + uint(c >> 1)];
+  return (w >> (16u * uint(c & 1))) & 0xFFFFu;
 }
 
 // Same operations, in the same order, as wants_split() in src/reference.cpp.
@@ -58,7 +54,7 @@ bool neighbour_root_splits(NodeDesc d) {
   for (int k = 0; k < 4; ++k) {
     ivec2 p = ivec2(d.x, d.y) + offsets[k];
     if (p.x < 0 || p.y < 0 || p.x >= int(frame.world.x) || p.y >= int(frame.world.y)) continue;
-    uint s = texelFetch(index_tex, p, TV_ROOT_LEVEL).r;
+    uint s = texelFetch(root_tex, p, 0).r;
     if (s < TV_SLOT_INVALID && root_in_window(uint(p.x), uint(p.y)) && wants_split(nodes[s], nodes[s].geometric_error))
       return true;
   }
@@ -116,7 +112,7 @@ void main() {
         bool any_empty = false, any_resident = false;
         uint resident = 0u;
         for (int c = 0; c < 4; ++c) {
-          child[c] = child_slot(slot, d, level, c, cap);
+          child[c] = child_slot(slot, c, cap);
           any_empty = any_empty || child[c] == TV_SLOT_EMPTY;
           bool res = child[c] < TV_SLOT_INVALID;
           any_resident = any_resident || res;

@@ -109,8 +109,7 @@ NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, c
         uint16_t child[4];
         bool any_empty = false, any_resident = false;
         for (int c = 0; c < 4; ++c) {
-          child[c] = level > kRootLevel ? state.child(slot, c)
-                                        : state.index_or_invalid(level - 1, int64_t(d.x) * 2 + (c & 1), int64_t(d.y) * 2 + (c >> 1));
+          child[c] = state.child(slot, c);
           any_empty |= child[c] == TV_SLOT_EMPTY;
           any_resident |= child[c] < TV_SLOT_INVALID;
         }
@@ -133,7 +132,7 @@ NodeList reference_traverse(const TerrainState& state, const FrameUniforms& u, c
         auto neighbour_splits = [&] {
           const int64_t off[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
           for (const auto& o : off) {
-            const uint16_t s = state.index_or_invalid(kRootLevel, int64_t(d.x) + o[0], int64_t(d.y) + o[1]);
+            const uint16_t s = state.root(int64_t(d.x) + o[0], int64_t(d.y) + o[1]);
             if (s < TV_SLOT_INVALID && root_in_window(u, uint32_t(int64_t(d.x) + o[0]), uint32_t(int64_t(d.y) + o[1])) &&
                 wants_split(state.descriptor(s), u))
               return true;
@@ -253,7 +252,7 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
   auto eff_at = [&](int64_t sx, int64_t sy) -> uint32_t {
     const uint32_t v = lod_at(sx, sy);
     if (v != kRootLevel + 1 || max_e == 0) return v;
-    const uint16_t root = state.index(kRootLevel, uint32_t(sx >> kRootLevel), uint32_t(sy >> kRootLevel));
+    const uint16_t root = state.root(sx >> kRootLevel, sy >> kRootLevel);
     const uint32_t sectors_per_patch = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
     return v + root_patch_decimation(state, u, slots, lod_map, root, uint32_t(sx & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch,
                                      uint32_t(sy & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch, max_e);

@@ -14,13 +14,13 @@
 namespace terrain::view {
 namespace {
 
-enum AtlasImage { kHeights = 0, kNormals = 1, kAlbedo = 2, kSplat = 3, kCones = 4, kIndex = 5 };
+enum AtlasImage { kHeights = 0, kNormals = 1, kAlbedo = 2, kSplat = 3, kCones = 4, kRoots = 5 };
 
 enum Binding : uint32_t {
   kBindFrame = 0,
   kBindNodeDesc = 1,
   kBindPatchBounds = 2,
-  kBindIndexTex = 3,
+  kBindRootTex = 3,
   kBindNodeList = 4,
   kBindPatchWork = 5,
   kBindLodMap = 6,
@@ -70,17 +70,16 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   top_level_ = uint32_t(top_level(world));
   sectors_x_ = level_grid_width(world.roots_x, 0);
   sectors_y_ = level_grid_width(world.roots_y, 0);
-  // The index texture has a texel per 64 m sector of the whole world at level 0 (a mip per level):
-  // a world wider than the device's largest 2D image cannot be drawn. Said before any allocation,
-  // with the numbers, instead of a failed or invalid vkCreateImage (a windowed index would lift it).
+  // The root grid is an image of a texel per root (the sparse index below the roots is the tree
+  // buffer, terrain_state.h): a world wider than the device's largest 2D image (16384 roots, 33 550 km
+  // on lavapipe; the cooker writes at most 2047) cannot be drawn. Said before any allocation.
   const uint32_t max_side = ctx.properties.limits.maxImageDimension2D;
-  if (sectors_x_ > max_side || sectors_y_ > max_side)
+  if (world.roots_x > max_side || world.roots_y > max_side)
     return Status::failure(Error::unsupported_input,
                            "the archive is " + std::to_string(world.roots_x) + " x " + std::to_string(world.roots_y) +
-                               " roots; its index texture would be " + std::to_string(sectors_x_) + " x " +
-                               std::to_string(sectors_y_) + " texels and this device (" + ctx.device_name +
-                               ") allows " + std::to_string(max_side) + " per side: at most " +
-                               std::to_string(max_side >> kRootLevel) + " roots per side");
+                               " roots and this device (" + ctx.device_name + ") allows images of " +
+                               std::to_string(max_side) + " texels per side: at most " + std::to_string(max_side) +
+                               " roots per side");
   lod_map_uints_ = size_t(std::min<uint32_t>(world.roots_x, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) *
                        (std::min<uint32_t>(world.roots_y, TV_LODMAP_WINDOW_ROOTS) << kRootLevel) +
                    size_t(world.roots_x) * world.roots_y;
@@ -100,9 +99,9 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kSplat]));
   TV_TRY(create_image(ctx, VK_FORMAT_BC3_UNORM_BLOCK, kPatchesPerSide, kPatchesPerSide, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kCones]));
-  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, sectors_x_, sectors_y_, 1, kLevelCount, tex_usage,
-                      VK_IMAGE_ASPECT_COLOR_BIT, false, images_[kIndex]));
-  const char* names[6] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "index"};
+  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, world.roots_x, world.roots_y, 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT,
+                      false, images_[kRoots]));
+  const char* names[6] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "roots"};
   for (int i = 0; i < 6; ++i) set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(images_[size_t(i)].image), names[i]);
 
   VkSamplerCreateInfo sci{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
@@ -206,7 +205,7 @@ Status TerrainRenderer::create_pipelines() {
   }
   b[kBindFrame].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   b[kBindPalette].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  for (uint32_t t : {kBindIndexTex, kBindHeights, kBindNormals, kBindAlbedo, kBindSplat, kBindCones})
+  for (uint32_t t : {kBindRootTex, kBindHeights, kBindNormals, kBindAlbedo, kBindSplat, kBindCones})
     b[t].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   VkDescriptorSetLayoutCreateInfo lci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   lci.bindingCount = kBindCount;
@@ -255,7 +254,7 @@ Status TerrainRenderer::create_pipelines() {
   auto img = [&](uint32_t binding, const Image& image, VkSampler sampler) {
     ii[binding] = {sampler, image.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   };
-  img(kBindIndexTex, images_[kIndex], nearest_);
+  img(kBindRootTex, images_[kRoots], nearest_);
   img(kBindHeights, images_[kHeights], nearest_);
   img(kBindNormals, images_[kNormals], linear_);
   img(kBindAlbedo, images_[kAlbedo], linear_);
@@ -476,7 +475,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         {patch_errors_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.patch_error), sizeof(cpu.patch_error)}});
   }
   TerrainState::Dirty dirty = state.take_dirty();
-  // The traversal's start list and the overview nodes' children (small: 12 bytes per slot).
+  // The traversal's start list and every resident node's children (small: 12 bytes per slot).
   {
     const std::vector<uint32_t> tree = state.tree_buffer();
     VkDeviceSize off;
@@ -495,21 +494,20 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         {node_desc_.buffer, {off, VkDeviceSize(first) * sizeof(GpuNodeDesc), VkDeviceSize(count) * sizeof(GpuNodeDesc)}});
     i = j;
   }
-  for (int level = 0; level < kLevelCount; ++level) {
-    const Rect& r = dirty.index[size_t(level)];
-    if (r.empty()) continue;
-    const uint32_t w = r.x1 - r.x0, h = r.y1 - r.y0, grid_w = state.grid_width(level);
+  if (const Rect& r = dirty.roots; !r.empty()) {
+    const uint32_t w = r.x1 - r.x0, h = r.y1 - r.y0;
     scratch_.resize(size_t(w) * h * 2);
     for (uint32_t y = 0; y < h; ++y)
-      std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.grid(level)[size_t(r.y0 + y) * grid_w + r.x0], size_t(w) * 2);
+      std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.root_grid()[size_t(r.y0 + y) * state.roots_x() + r.x0],
+                  size_t(w) * 2);
     VkDeviceSize off;
     TV_TRY(stage_bytes(scratch_.data(), scratch_.size(), 16, off));
     VkBufferImageCopy c{};
     c.bufferOffset = off;
-    c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, uint32_t(level), 0, 1};
+    c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
     c.imageOffset = {int32_t(r.x0), int32_t(r.y0), 0};
     c.imageExtent = {w, h, 1};
-    pending_images_.push_back({kIndex, c});
+    pending_images_.push_back({kRoots, c});
   }
   return Status::success();
 }

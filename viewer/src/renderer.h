@@ -1,5 +1,5 @@
 // The terrain pass (FC5 sections 4-7 on Vulkan): texture-array atlases filled from node
-// deliveries, the index texture and descriptor buffer mirrored from the residency state, and per
+// deliveries, the root grid, tree buffer and descriptor buffer mirrored from the residency state, and per
 // frame: traversal -> LOD map -> patch list (compute) -> one indexed-indirect instanced draw.
 // One frame in flight: the caller waits for a frame's fence before the next upload()/record_frame().
 #pragma once

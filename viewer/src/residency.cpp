@@ -13,11 +13,8 @@ void StaticResidency::init(const WorldInfo& world, std::vector<MemoryNode> nodes
   free_slots_.clear();
   for (uint32_t s = slot_count; s-- > 0;) free_slots_.push_back(s);
   state.init(world, slot_count);
-  for (const MemoryNode& n : nodes_) {
-    const NodeKey& k = n.record.key;
-    if (k.level <= uint32_t(kRootLevel) && k.x < state.grid_width(int(k.level)) && k.y < state.grid_height(int(k.level)))
-      state.set_index(int(k.level), k.x, k.y, uint16_t(TV_SLOT_EMPTY));
-  }
+  for (const MemoryNode& n : nodes_)
+    if (n.record.key.level == uint32_t(kRootLevel)) state.set_node(n.record.key, uint16_t(TV_SLOT_EMPTY));
 }
 
 Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& resident, TerrainState& state,
@@ -41,10 +38,7 @@ Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& residen
     if (it == slot_of_.end() || keep[key_of(k)]) continue;
     free_slots_.push_back(it->second);
     slot_of_.erase(it);
-    if (k.level > uint32_t(kRootLevel))
-      state.set_overview(k, uint16_t(TV_SLOT_INVALID));
-    else
-      state.set_index(int(k.level), k.x, k.y, uint16_t(TV_SLOT_EMPTY));
+    state.set_node(k, uint16_t(TV_SLOT_EMPTY));
   }
   // Load, parents first.
   for (const MemoryNode& n : nodes_) {
@@ -57,10 +51,7 @@ Status StaticResidency::apply(const std::function<bool(const NodeKey&)>& residen
     free_slots_.pop_back();
     slot_of_[key_of(k)] = slot;
     state.set_slot(slot, slot_descriptor_of(n.record, world_));
-    if (k.level > uint32_t(kRootLevel))
-      state.set_overview(k, uint16_t(slot));
-    else
-      state.set_index(int(k.level), k.x, k.y, uint16_t(slot));
+    state.set_node(k, uint16_t(slot));
     uploads.push_back({slot, n.data});
   }
   return Status::success();

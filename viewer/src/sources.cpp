@@ -34,6 +34,8 @@ class StreamSource final : public NodeSource {
                                    std::to_string(roots) + " roots, which stay resident (it has no overview levels, "
                                    "format/SPEC.md section 19): use --budget " + std::to_string(roots) + " or more, or 0");
     }
+    // The viewer keeps its own sparse index (terrain_state.h), not the streamer's dense grids.
+    config.index_grids = false;
     return streamer_.open(path, config);
   }
   const WorldInfo& world() const override { return streamer_.world(); }
@@ -52,6 +54,8 @@ class StreamSource final : public NodeSource {
                 std::vector<NodeUpload>& uploads) override {
     if (!initialised_) {
       state.init(streamer_.world(), streamer_.slot_count());
+      for (const NodeRecord& r : streamer_.archive().nodes())
+        if (r.key.level == uint32_t(kRootLevel)) state.set_node(r.key, uint16_t(TV_SLOT_EMPTY));
       initialised_ = true;
     }
     View v;
@@ -70,19 +74,10 @@ class StreamSource final : public NodeSource {
     // Descriptors first (the upload computes patch bounds with the slot's quantization).
     for (uint16_t s : fu.dirty_slots) state.set_slot(s, streamer_.slots()[s]);
     for (const NodeDelivery& d : fu.delivered) uploads.push_back({d.slot, d.data});
-    // Overview nodes have no index grid cells: the state keeps their slots (children first out).
-    for (const NodeEviction& e : fu.evicted)
-      if (e.key.level > uint32_t(kRootLevel)) state.set_overview(e.key, uint16_t(TV_SLOT_INVALID));
-    for (const NodeDelivery& d : fu.delivered)
-      if (d.key.level > uint32_t(kRootLevel)) state.set_overview(d.key, d.slot);
-    for (int level = 0; level < kLevelCount; ++level) {
-      const DirtyRect& r = fu.dirty_index[size_t(level)];
-      if (r.empty()) continue;
-      const auto grid = streamer_.index_grid(level);
-      const uint32_t w = streamer_.index_grid_size(level).width;
-      for (uint32_t y = r.y0; y < r.y1; ++y)
-        for (uint32_t x = r.x0; x < r.x1; ++x) state.set_index(level, x, y, grid[size_t(y) * w + x]);
-    }
+    // The sparse index (terrain_state.h): children out before parents, parents in before children.
+    for (const NodeEviction& e : fu.evicted) state.set_node(e.key, uint16_t(TV_SLOT_EMPTY));
+    for (const NodeFailure& f : fu.failed) state.set_node(f.key, uint16_t(TV_SLOT_INVALID));
+    for (const NodeDelivery& d : fu.delivered) state.set_node(d.key, d.slot);
     const StreamerStats st = streamer_.stats();
     last_.resident = st.resident;
     last_.delivered = uint32_t(fu.delivered.size());

@@ -15,33 +15,51 @@ void Rect::add(uint32_t x, uint32_t y) {
   y1 = std::max(y1, y + 1);
 }
 
+namespace {
+uint64_t key_bits(const NodeKey& k) { return uint64_t(k.level) << 56 | uint64_t(k.y) << 28 | k.x; }
+}  // namespace
+
 void TerrainState::init(const WorldInfo& world, uint32_t slot_count) {
   world_ = world;
-  for (int level = 0; level < kLevelCount; ++level) {
-    grids_[level].assign(size_t(grid_width(level)) * grid_height(level), uint16_t(TV_SLOT_INVALID));
-    dirty_index_[level] = {0, 0, grid_width(level), grid_height(level)};
-  }
+  roots_.assign(size_t(world.roots_x) * world.roots_y, uint16_t(TV_SLOT_INVALID));
+  dirty_roots_ = roots_.empty() ? Rect{} : Rect{0, 0, world.roots_x, world.roots_y};
   slots_.assign(slot_count, SlotDescriptor{});
-  overview_.clear();
+  resident_.clear();
+  absent_.clear();
   dirty_slots_.clear();
   for (uint32_t s = 0; s < slot_count; ++s) dirty_slots_.push_back(s);
 }
 
-uint16_t TerrainState::index(int level, uint32_t x, uint32_t y) const {
-  return grids_[level][size_t(y) * grid_width(level) + x];
+uint16_t TerrainState::root(int64_t x, int64_t y) const {
+  if (x < 0 || y < 0 || x >= int64_t(world_.roots_x) || y >= int64_t(world_.roots_y)) return uint16_t(TV_SLOT_INVALID);
+  return roots_[size_t(y) * world_.roots_x + size_t(x)];
 }
 
-uint16_t TerrainState::index_or_invalid(int level, int64_t x, int64_t y) const {
-  if (level < 0 || level >= kLevelCount || x < 0 || y < 0 || x >= grid_width(level) || y >= grid_height(level))
-    return uint16_t(TV_SLOT_INVALID);
-  return index(level, uint32_t(x), uint32_t(y));
+void TerrainState::set_node(const NodeKey& key, uint16_t value) {
+  if (key.level == uint32_t(kRootLevel)) {
+    if (key.x >= world_.roots_x || key.y >= world_.roots_y) return;
+    uint16_t& cell = roots_[size_t(key.y) * world_.roots_x + key.x];
+    if (cell == value) return;
+    cell = value;
+    dirty_roots_.add(key.x, key.y);
+    return;
+  }
+  const uint64_t k = key_bits(key);
+  if (value < TV_SLOT_INVALID)
+    resident_[k] = value;
+  else
+    resident_.erase(k);
+  if (value == TV_SLOT_INVALID)
+    absent_.insert(k);
+  else
+    absent_.erase(k);
 }
 
-void TerrainState::set_index(int level, uint32_t x, uint32_t y, uint16_t value) {
-  auto& cell = grids_[level][size_t(y) * grid_width(level) + x];
-  if (cell == value) return;
-  cell = value;
-  dirty_index_[level].add(x, y);
+uint16_t TerrainState::slot_of(const NodeKey& key) const {
+  if (key.level == uint32_t(kRootLevel)) return root(key.x, key.y);
+  const uint64_t k = key_bits(key);
+  if (auto it = resident_.find(k); it != resident_.end()) return it->second;
+  return absent_.count(k) ? uint16_t(TV_SLOT_INVALID) : uint16_t(TV_SLOT_EMPTY);
 }
 
 void TerrainState::set_slot(uint32_t s, const SlotDescriptor& desc) {
@@ -49,32 +67,16 @@ void TerrainState::set_slot(uint32_t s, const SlotDescriptor& desc) {
   dirty_slots_.push_back(s);
 }
 
-namespace {
-uint64_t overview_key(const NodeKey& k) { return uint64_t(k.level) << 56 | uint64_t(k.y) << 28 | k.x; }
-}  // namespace
-
-void TerrainState::set_overview(const NodeKey& key, uint16_t slot) {
-  if (slot >= TV_SLOT_INVALID)
-    overview_.erase(overview_key(key));
-  else
-    overview_[overview_key(key)] = slot;
-}
-
-uint16_t TerrainState::overview_slot(const NodeKey& key) const {
-  auto it = overview_.find(overview_key(key));
-  return it == overview_.end() ? uint16_t(TV_SLOT_EMPTY) : it->second;
-}
-
 std::vector<uint32_t> TerrainState::start_slots() const {
   std::vector<uint32_t> out;
   const int top = top_level();
   if (top == kRootLevel) {
-    for (uint16_t s : grids_[kRootLevel])
+    for (uint16_t s : roots_)
       if (s < TV_SLOT_INVALID) out.push_back(s);
     return out;
   }
   std::vector<std::pair<uint64_t, uint16_t>> tops;
-  for (const auto& [k, s] : overview_)
+  for (const auto& [k, s] : resident_)
     if (int(k >> 56) == top) tops.push_back({k, s});
   std::sort(tops.begin(), tops.end());
   for (const auto& t : tops) out.push_back(t.second);
@@ -84,9 +86,7 @@ std::vector<uint32_t> TerrainState::start_slots() const {
 uint16_t TerrainState::child(uint32_t slot, int c) const {
   const SlotDescriptor& d = slots_[slot];
   if (!(d.child_mask & (1u << c)) || d.level == 0) return uint16_t(TV_SLOT_INVALID);
-  const NodeKey k = child_of(NodeKey{d.level, d.x, d.y}, c);
-  if (k.level <= uint32_t(kRootLevel)) return index_or_invalid(int(k.level), k.x, k.y);
-  return overview_slot(k);
+  return slot_of(child_of(NodeKey{d.level, d.x, d.y}, c));
 }
 
 std::vector<uint32_t> TerrainState::tree_buffer() const {
@@ -97,18 +97,21 @@ std::vector<uint32_t> TerrainState::tree_buffer() const {
   out[1] = cap;
   out[2] = out[3] = 0;
   std::copy(starts.begin(), starts.end(), out.begin() + TV_TREE_START);
-  for (const auto& [k, s] : overview_) {
+  auto children = [&](uint32_t s) {
     uint32_t* w = &out[TV_TREE_START + cap + 2 * size_t(s)];
     w[0] = uint32_t(child(s, 0)) | uint32_t(child(s, 1)) << 16;
     w[1] = uint32_t(child(s, 2)) | uint32_t(child(s, 3)) << 16;
-  }
+  };
+  for (const auto& [k, s] : resident_) children(s);
+  for (uint16_t s : roots_)
+    if (s < TV_SLOT_INVALID) children(s);
   return out;
 }
 
 TerrainState::Dirty TerrainState::take_dirty() {
   Dirty out;
-  out.index = dirty_index_;
-  for (auto& r : dirty_index_) r = {};
+  out.roots = dirty_roots_;
+  dirty_roots_ = {};
   std::sort(dirty_slots_.begin(), dirty_slots_.end());
   dirty_slots_.erase(std::unique(dirty_slots_.begin(), dirty_slots_.end()), dirty_slots_.end());
   out.slots.swap(dirty_slots_);

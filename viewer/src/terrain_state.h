@@ -1,11 +1,13 @@
-// The viewer's copy of the residency state a GPU renderer needs (FC5 section 4.1): per-level index
-// grids of uint16 (slot, TV_SLOT_EMPTY, TV_SLOT_INVALID) and the slot table, with the regions that
-// changed since the renderer last uploaded them. Whoever feeds the viewer (the streamer adapter, a
-// load-everything source, a test) writes here; the renderer and the CPU reference read it.
+// The viewer's copy of the residency state a GPU renderer needs (FC5 section 4.1, made sparse):
+// the slot table, the resident nodes' children and a uint16 per root cell (slot, TV_SLOT_EMPTY,
+// TV_SLOT_INVALID), with what changed since the renderer last uploaded it. Whoever feeds the
+// viewer (the streamer adapter, a load-everything source, a test) writes here; the renderer and
+// the CPU reference read it.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "gpu_types.h"
@@ -28,56 +30,60 @@ struct NodeUpload {
 
 class TerrainState {
  public:
-  // Grids start as TV_SLOT_INVALID everywhere; every slot free.
+  // Every root TV_SLOT_INVALID (no such node), nothing resident, every slot free.
   void init(const WorldInfo& world, uint32_t slot_count);
 
   const WorldInfo& world() const { return world_; }
   uint32_t roots_x() const { return world_.roots_x; }
   uint32_t roots_y() const { return world_.roots_y; }
-  uint32_t grid_width(int level) const { return level_grid_width(world_.roots_x, level); }
-  uint32_t grid_height(int level) const { return level_grid_width(world_.roots_y, level); }
   uint32_t slot_count() const { return uint32_t(slots_.size()); }
 
-  uint16_t index(int level, uint32_t x, uint32_t y) const;
-  // Outside the grid reads as TV_SLOT_INVALID.
-  uint16_t index_or_invalid(int level, int64_t x, int64_t y) const;
-  void set_index(int level, uint32_t x, uint32_t y, uint16_t value);
-  const std::vector<uint16_t>& grid(int level) const { return grids_[level]; }
+  // What the GPU reads (config.h "Tree buffer", "Root grid"): a sparse index, so memory follows
+  // the resident set and the root count, never the world's area at level 0. Per slot, the slots
+  // of its four children (12 bytes per slot with the start list); per root cell, its slot
+  // (2 bytes per root: 200 KB at 10^5 roots, where the dense per-level grids of FC5 cost 2730).
+  //
+  // Records node `key` as resident in `value` (< TV_SLOT_INVALID), as existing but not resident
+  // (TV_SLOT_EMPTY) or as absent (TV_SLOT_INVALID: a node whose payload failed, or a root the
+  // archive does not have). Below the roots, existence comes from the parent's child mask; only
+  // failed nodes need TV_SLOT_INVALID.
+  void set_node(const NodeKey& key, uint16_t value);
+  // Slot of `key` when resident; otherwise TV_SLOT_EMPTY, or TV_SLOT_INVALID for a root cell
+  // without a root, a failed node or a place outside the world.
+  uint16_t slot_of(const NodeKey& key) const;
+  // Root cell (x, y): its slot, TV_SLOT_EMPTY or TV_SLOT_INVALID (also outside the world).
+  uint16_t root(int64_t x, int64_t y) const;
+  const std::vector<uint16_t>& root_grid() const { return roots_; }
 
-  // Overview levels (format/SPEC.md section 19): levels 6 .. top_level() have no index grids;
-  // the state keeps their resident nodes in a small map (at most the resident set).
+  // The top level: kRootLevel, or the overview levels' top (format/SPEC.md section 19).
   int top_level() const { return top_level(world_); }
   static int top_level(const WorldInfo& w) { return terrain::top_level(w); }
-  // Records node `key` (level >= 6) as resident in `slot`, or removes it (slot >= TV_SLOT_INVALID).
-  void set_overview(const NodeKey& key, uint16_t slot);
-  // Slot of an overview node, TV_SLOT_EMPTY when it is not resident.
-  uint16_t overview_slot(const NodeKey& key) const;
-  // Where the GPU traversal starts: the top level's resident nodes (the roots without overview
-  // levels), in key order.
+  // Where the GPU traversal starts: the top level's resident nodes, in key order.
   std::vector<uint32_t> start_slots() const;
   // Child c of the resident node in `slot` (TV_SLOT_EMPTY exists but not resident, TV_SLOT_INVALID
-  // no such node), from the child mask and the index grid or the overview map.
+  // no such node), from the child mask and the resident set.
   uint16_t child(uint32_t slot, int c) const;
-  // The tree buffer of config.h ("Tree buffer"): start list and the child words of overview slots.
+  // The tree buffer of config.h ("Tree buffer"): start list and every resident slot's child words.
   std::vector<uint32_t> tree_buffer() const;
 
   const SlotDescriptor& descriptor(uint32_t s) const { return slots_[s]; }
   const std::vector<SlotDescriptor>& descriptors() const { return slots_; }
   void set_slot(uint32_t s, const SlotDescriptor& desc);
 
-  // Changes since the last take_dirty(): index rectangles per level and slots.
+  // Changes since the last take_dirty(): the root cells and the slots.
   struct Dirty {
-    std::array<Rect, kLevelCount> index;
+    Rect roots;
     std::vector<uint32_t> slots;  // sorted, unique
   };
   Dirty take_dirty();
 
  private:
   WorldInfo world_;
-  std::array<std::vector<uint16_t>, kLevelCount> grids_;
+  std::vector<uint16_t> roots_;                        // roots_x * roots_y, row 0 = south
   std::vector<SlotDescriptor> slots_;
-  std::unordered_map<uint64_t, uint16_t> overview_;  // (level, x, y) -> slot of resident overview nodes
-  std::array<Rect, kLevelCount> dirty_index_;
+  std::unordered_map<uint64_t, uint16_t> resident_;    // (level, x, y) -> slot, levels other than the roots'
+  std::unordered_set<uint64_t> absent_;                // failed nodes below or above the roots
+  Rect dirty_roots_;
   std::vector<uint32_t> dirty_slots_;
 };
 
