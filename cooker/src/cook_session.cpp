@@ -138,6 +138,7 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   report.memory_limit_bytes = memory_limit_of(options);
   s.shares = memory_shares(report.memory_limit_bytes);
   set_gdal_cache_bytes(s.shares.gdal_cache);
+  set_gdal_decode_threads(s.threads);
   if (Status st = open_mosaic_source(options, s.shares.inputs, s.source); !st.ok()) return st;
   const Raster& header = s.source.header();
   report.source_samples = uint64_t(header.width) * uint64_t(header.height);
@@ -162,10 +163,14 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
 Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
   const Raster& header = s.source.header();
   s.source.set_count_implausible(true);
+  // Read ahead on a second thread (2+ threads), in reads wide enough for GDAL to decode several
+  // compressed blocks at once on every thread (open_session): on a cluster the plan's pass is the
+  // serial part, and decoding is most of it.
+  const bool ahead = s.threads > 1;
   const ReadSamples read = [&](int c0, int r0, int w, int h, float* out) { return s.source.read(c0, r0, w, h, out); };
   s.ranges.start(header.width, header.height);
   if (Status st = plan_voids(header.width, header.height, read, s.options.nodata, s.options.fill_max_samples,
-                             kVoidPlanTile, s.voids, progress, &s.ranges);
+                             kVoidPlanTile, s.voids, progress, &s.ranges, ahead);
       !st.ok())
     return st;
   s.ranges.finish();

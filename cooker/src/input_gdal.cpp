@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fmt/format.h>
 #include <mutex>
+#include <thread>
 #include <vector>
 
 #include "crs.h"
@@ -30,9 +31,21 @@ constexpr int64_t kGdalCacheBytes = int64_t(64) << 20;
 // Rows of scratch (doubles) per RasterIO call when a window is read band by band.
 constexpr uint64_t kScratchBytes = uint64_t(8) << 20;
 
+// The thread that set GDAL up (the cook's own); GDAL's decoding threads are others.
+std::thread::id g_gdal_home_thread;
+
+// GDAL's messages as before, but for failures raised on GDAL's own decoding threads: the read that
+// waited on them fails, and its caller names the cause (why_read_failed), so they are not printed.
+void CPL_STDCALL gdal_error_handler(CPLErr level, CPLErrorNum number, const char* message) {
+  if (level >= CE_Failure && std::this_thread::get_id() != g_gdal_home_thread) return;
+  CPLDefaultErrorHandler(level, number, message);
+}
+
 void init_gdal_once() {
   static std::once_flag once;
   std::call_once(once, [] {
+    g_gdal_home_thread = std::this_thread::get_id();
+    CPLSetErrorHandler(gdal_error_handler);
     GDALAllRegister();
     // PixelIsPoint GeoTIFFs: keep the tie point on the sample (as libgeotiff reports it) instead
     // of GDAL's half-pixel shift, so positions stay bit-identical to the libgeotiff reader's.
@@ -55,6 +68,23 @@ struct QuietErrors {
     return m && *m ? m : "no reason given";
   }
 };
+
+// Why a read failed when GDAL's decoding threads (set_gdal_decode_threads) reported it on their own
+// threads, out of the caller's reach: the same read on a single-threaded handle, for its message.
+std::string why_read_failed(const std::string& path, int band, int x0, int y0, int w, int h) {
+  QuietErrors quiet;
+  const char* open_options[] = {"NUM_THREADS=1", nullptr};
+  std::unique_ptr<GDALDataset> ds(
+      GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, open_options, nullptr));
+  if (ds && band >= 1 && band <= ds->GetRasterCount()) {
+    std::vector<float> scratch(size_t(w) * size_t(std::min(h, 64)));
+    for (int y = y0; y < y0 + h; y += 64)
+      if (ds->GetRasterBand(band)->RasterIO(GF_Read, x0, y, w, std::min(64, y0 + h - y), scratch.data(), w,
+                                            std::min(64, y0 + h - y), GDT_Float32, 0, 0, nullptr) != CE_None)
+        break;
+  }
+  return QuietErrors::last();
+}
 
 double inverse_flattening(double a, double b) { return a == b ? 0.0 : a / (a - b); }
 
@@ -213,7 +243,7 @@ class GdalSource final : public SourceRaster {
       QuietErrors quiet;
       if (band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
-                                                           y0 + h - 1, QuietErrors::last()));
+                                                           y0 + h - 1, reason(x0, y0, w, h)));
       info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
       const size_t n = size_t(w) * size_t(h);
       if (type == GDT_Float32 && info_.scale == 1.0 && info_.offset == 0.0) {
@@ -236,7 +266,7 @@ class GdalSource final : public SourceRaster {
       QuietErrors quiet;
       if (band_->RasterIO(GF_Read, x0, y0 + r, w, rows, buf_.data(), w, rows, GDT_Float64, 0, 0, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0 + r,
-                                                           y0 + r + rows - 1, QuietErrors::last()));
+                                                           y0 + r + rows - 1, reason(x0, y0 + r, w, rows)));
       info_.bytes_read += uint64_t(w) * uint64_t(rows) * uint64_t(type_bytes());
       float* dst = out + size_t(r) * size_t(w);
       const size_t n = size_t(w) * size_t(rows);
@@ -246,6 +276,12 @@ class GdalSource final : public SourceRaster {
   }
 
  private:
+  // The message of the failed read on this thread, else the single-threaded read's.
+  std::string reason(int x0, int y0, int w, int h) const {
+    const char* m = CPLGetLastErrorMsg();
+    if (m && *m) return m;
+    return why_read_failed(ds_->GetDescription(), band_->GetBand(), x0, y0, w, h);
+  }
   int type_bytes() const { return GDALGetDataTypeSizeBytes(band_->GetRasterDataType()); }
   bool in_place() const {
     switch (band_->GetRasterDataType()) {
@@ -291,6 +327,12 @@ void set_gdal_cache_bytes(uint64_t bytes) {
   init_gdal_once();
   if (!CPLGetConfigOption("GDAL_CACHEMAX", nullptr))
     GDALSetCacheMax64(GIntBig(std::min<uint64_t>(bytes, uint64_t(INT64_MAX))));
+}
+
+void set_gdal_decode_threads(int threads) {
+  init_gdal_once();
+  static const bool user_set = CPLGetConfigOption("GDAL_NUM_THREADS", nullptr) != nullptr;
+  if (!user_set) CPLSetConfigOption("GDAL_NUM_THREADS", std::to_string(std::max(threads, 1)).c_str());
 }
 
 uint64_t gdal_cache_used_bytes() { return uint64_t(std::max<GIntBig>(GDALGetCacheUsed64(), 0)); }

@@ -58,6 +58,10 @@ void init_gdal();
 // GDAL's block cache (process-wide): init_gdal sets 64 MB; the block-wise cook gives it a share of
 // --memory-limit. An explicit GDAL_CACHEMAX (environment or config option) wins over both.
 void set_gdal_cache_bytes(uint64_t bytes);
+// Decoding threads of the GDAL datasets opened after this call (GDAL_NUM_THREADS, read by the
+// GeoTIFF driver when it opens a file: a read spanning several compressed blocks then decodes them
+// in parallel). An explicit GDAL_NUM_THREADS (environment or config option) wins.
+void set_gdal_decode_threads(int threads);
 // Bytes GDAL's block cache holds now.
 uint64_t gdal_cache_used_bytes();
 // A VRT (by name, .vrt) whose listed tiles do not all exist: an io_read error naming the VRT and the

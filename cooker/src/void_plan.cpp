@@ -2,7 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
 #include <fmt/format.h>
+#include <memory>
+#include <mutex>
+#include <thread>
 #include <tuple>
 
 #include "memory_budget.h"
@@ -17,6 +23,84 @@ struct VoidRecord {
   SampleRect bbox;
   bool touches_border = false;
   float rim_lo = INFINITY, rim_hi = -INFINITY;  // the valid samples next to it (NaN-free)
+};
+
+// Reads the first pass's chunks (a run of tiles of one row of tiles) on a second thread, one
+// chunk ahead of the pass: decoding a compressed source is about half of the pass, and it then
+// overlaps the labelling. One thread, chunks read in the order the pass asks for them and each
+// sample once, so the source sees what it sees without it (implausible-height counts included)
+// and nothing in the plan changes. A persistent thread: per-thread state of the readers (GDAL,
+// PROJ contexts) is made once.
+class ReadAhead {
+ public:
+  explicit ReadAhead(const ReadSamples& read) : read_(read), thread_([this] { run(); }) {}
+  ReadAhead(const ReadAhead&) = delete;
+  ReadAhead& operator=(const ReadAhead&) = delete;
+  ~ReadAhead() {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  // Queues samples [c0, c0 + w) x [r0, r0 + h), read into `buffer` (recycled storage).
+  void request(const SampleRect& r, std::vector<float>&& buffer) {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      jobs_.push_back({r, std::move(buffer), Status::success(), false});
+    }
+    cv_.notify_all();
+  }
+  // Waits for the oldest queued read; its samples are moved into `out`.
+  Status take(std::vector<float>& out) {
+    std::unique_lock<std::mutex> lock(m_);
+    cv_.wait(lock, [&] { return !jobs_.empty() && jobs_.front().done; });
+    Job& j = jobs_.front();
+    out = std::move(j.data);
+    const Status st = j.status;
+    jobs_.pop_front();
+    --started_;
+    return st;
+  }
+
+ private:
+  struct Job {
+    SampleRect rect;  // c0, r0, c1 = width, r1 = height
+    std::vector<float> data;
+    Status status;
+    bool done = false;
+  };
+  void run() {
+    std::unique_lock<std::mutex> lock(m_);
+    for (;;) {
+      cv_.wait(lock, [&] { return stop_ || started_ < jobs_.size(); });
+      if (stop_) return;
+      Job& j = jobs_[started_++];  // deque: references survive push_back, and j is not popped until done
+      const SampleRect r = j.rect;
+      std::vector<float> data = std::move(j.data);
+      lock.unlock();
+      Status st = Status::success();
+      try {  // what would have reached the caller of a read on its own thread
+        data.resize(size_t(r.c1) * size_t(r.r1));
+        st = read_(r.c0, r.r0, r.c1, r.r1, data.data());
+      } catch (const std::exception& e) {
+        st = Status::failure(Error::internal, fmt::format("reading samples: {}", e.what()));
+      }
+      lock.lock();
+      j.data = std::move(data);
+      j.status = std::move(st);
+      j.done = true;
+      cv_.notify_all();
+    }
+  }
+  const ReadSamples& read_;
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<Job> jobs_;
+  size_t started_ = 0;  // jobs_[0, started_) taken by the thread
+  bool stop_ = false;
+  std::thread thread_;
 };
 
 void take(float v, float& lo, float& hi) {
@@ -98,7 +182,7 @@ struct OpenVoids {
 }  // namespace
 
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out, const ProgressFn& progress, RangeSummary* summary) {
+                  int tile, VoidPlan& out, const ProgressFn& progress, RangeSummary* summary, bool read_ahead) {
   out = VoidPlan{};
   if (width < 0 || height < 0 || tile <= 0 || int64_t(tile) * tile > INT32_MAX)  // tile indices are 32-bit
     return Status::failure(Error::invalid_argument,
@@ -123,6 +207,24 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
   struct TileVoid { int64_t samples; SampleRect bbox; bool border, inner_edge; float rim_lo, rim_hi; };
   std::vector<TileVoid> tile_voids;
 
+  // With read-ahead: chunks of kReadAheadTiles tiles of one row of tiles, the next one read while
+  // this one is labelled (chunk: its samples, cw x ch, from column chunk_x0 to chunk_x1).
+  std::unique_ptr<ReadAhead> ahead;
+  std::vector<float> chunk, spare;
+  int chunk_x0 = 0, chunk_x1 = 0;
+  const int64_t chunk_w = int64_t(tile) * kReadAheadTiles;
+  int next_x = 0, next_y = 0;  // the next chunk to ask for
+  auto request_next = [&] {
+    if (next_y >= height) return;
+    const int w = int(std::min<int64_t>(chunk_w, width - next_x)), h = std::min(tile, height - next_y);
+    ahead->request(SampleRect{next_x, next_y, w, h}, std::move(spare));
+    next_x += w;
+    if (next_x >= width) next_x = 0, next_y += tile;
+  };
+  if (read_ahead && width > 0 && height > 0) {
+    ahead = std::make_unique<ReadAhead>(read);
+    request_next();
+  }
   for (int ty = 0; ty < height; ty += tile) {
     const int th = std::min(tile, height - ty);
     left.assign(size_t(th), -1);
@@ -130,7 +232,20 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
     for (int tx = 0; tx < width; tx += tile) {
       const int tw = std::min(tile, width - tx);
       z.resize(size_t(tw) * size_t(th));
-      if (Status st = read(tx, ty, tw, th, z.data()); !st.ok()) return st;
+      if (ahead) {
+        if (tx >= chunk_x1 || tx == 0) {
+          spare = std::move(chunk);
+          if (Status st = ahead->take(chunk); !st.ok()) return st;
+          chunk_x0 = tx;
+          chunk_x1 = int(std::min<int64_t>(int64_t(tx) + chunk_w, width));
+          request_next();
+        }
+        const size_t cw = size_t(chunk_x1 - chunk_x0);
+        for (int y = 0; y < th; ++y)
+          std::memcpy(&z[size_t(y) * size_t(tw)], &chunk[size_t(y) * cw + size_t(tx - chunk_x0)], size_t(tw) * sizeof(float));
+      } else if (Status st = read(tx, ty, tw, th, z.data()); !st.ok()) {
+        return st;
+      }
       // Valid samples.
       for (int y = 0; y < th; ++y) {
         int first = -1, last = -1;

@@ -54,8 +54,14 @@ struct VoidPlan {
 // `progress` (optional) hears the fraction of rows done after each row of tiles. `summary`
 // (optional, started for this raster) is handed every tile read and every void that will be
 // filled, with its rim's [min, max] (the valid samples 4-adjacent to it); the caller finishes it.
+// `read_ahead`: `read` runs on a second thread (one call at a time, never beside the caller's
+// other use of the source), a chunk of kReadAheadTiles tiles of one row of tiles per call, the
+// next chunk read while this one is labelled; the same results, plus two chunks of memory
+// (2 x 32 x 64 x 64 floats = 1 MB at the cook's tile).
+inline constexpr int kReadAheadTiles = 32;
 Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy policy, int64_t max_fill_samples,
-                  int tile, VoidPlan& out, const ProgressFn& progress = {}, RangeSummary* summary = nullptr);
+                  int tile, VoidPlan& out, const ProgressFn& progress = {}, RangeSummary* summary = nullptr,
+                  bool read_ahead = false);
 
 // The rectangle a block must read so that its `need` rectangle can be filled exactly: `need`
 // grown to whole tiles plus a one-sample ring, plus the bounding box and a one-sample ring of

@@ -11,6 +11,7 @@
 
 #include "cooker_test_util.h"
 #include "inputs.h"
+#include "range_summary.h"
 #include "raster.h"
 #include "test_data.h"
 #include "void_fill.h"
@@ -338,6 +339,66 @@ TEST(VoidPlan, FirstPassReadsEachSampleOnceATileAtATime) {
     return Status::failure(Error::io_read, "broken");
   }, NodataPolicy::automatic, 4096, 16, plan);
   EXPECT_EQ(st.code, Error::io_read);
+}
+
+// Read-ahead (the cook's first pass on 2+ threads): the same plan and range summary as reading a
+// tile at a time on the caller's thread, every sample read exactly once, in chunks of at most
+// kReadAheadTiles tiles of one row of tiles, rows in order; a failing read is still the failure.
+TEST(VoidPlan, ReadAheadGivesThePlanOfTileReads) {
+  Raster r = synthetic_raster(700, 230, 5);  // 700 = 10 chunks of 2 x 32 + a partial one at tile 2
+  punch_voids(r, 5);
+  punch_rect(r, 100, 50, 600, 51);  // a filled void across many chunks
+  for (int tile : {2, 16, 37, 64}) {
+    SCOPED_TRACE(testing::Message() << "tile " << tile);
+    VoidPlan plain, ahead;
+    RangeSummary plain_ranges, ahead_ranges;
+    plain_ranges.start(r.width, r.height);
+    ahead_ranges.start(r.width, r.height);
+    ASSERT_TRUE(plan_voids(r.width, r.height, reader_of(r), NodataPolicy::automatic, 4096, tile, plain, {},
+                           &plain_ranges).ok());
+    std::vector<int> reads(r.values.size(), 0);
+    int last_r0 = 0, widest = 0;
+    bool rows_in_order = true, one_tile_row = true;
+    const ReadSamples base = reader_of(r);
+    const ReadSamples counting = [&](int c0, int r0, int w, int h, float* out) {
+      one_tile_row = one_tile_row && r0 % tile == 0 && h == std::min(tile, r.height - r0);
+      rows_in_order = rows_in_order && r0 >= last_r0;
+      last_r0 = r0;
+      widest = std::max(widest, w);
+      for (int y = r0; y < r0 + h; ++y)
+        for (int x = c0; x < c0 + w; ++x) ++reads[size_t(y) * size_t(r.width) + size_t(x)];
+      return base(c0, r0, w, h, out);
+    };
+    ASSERT_TRUE(plan_voids(r.width, r.height, counting, NodataPolicy::automatic, 4096, tile, ahead, {}, &ahead_ranges,
+                           /*read_ahead=*/true).ok());
+    EXPECT_TRUE(one_tile_row);
+    EXPECT_TRUE(rows_in_order);
+    EXPECT_EQ(widest, std::min(r.width, tile * kReadAheadTiles));
+    EXPECT_EQ(std::count(reads.begin(), reads.end(), 1), std::ptrdiff_t(reads.size()));
+    EXPECT_EQ(ahead.stats.filled_samples, plain.stats.filled_samples);
+    EXPECT_EQ(ahead.stats.filled_regions, plain.stats.filled_regions);
+    EXPECT_EQ(ahead.stats.hole_samples, plain.stats.hole_samples);
+    EXPECT_EQ(ahead.stats.hole_regions, plain.stats.hole_regions);
+    EXPECT_EQ(ahead.valid_samples, plain.valid_samples);
+    EXPECT_EQ(ahead.valid_bounds, plain.valid_bounds);
+    EXPECT_EQ(ahead.spanning_fills, plain.spanning_fills);
+    EXPECT_GE(plain.spanning_fills.size(), 1u);
+    plain_ranges.finish();
+    ahead_ranges.finish();
+    for (const SampleRect& q : {SampleRect{0, 0, r.width - 1, r.height - 1}, SampleRect{90, 40, 610, 60},
+                                SampleRect{3, 7, 11, 200}, SampleRect{650, 100, 699, 229}})
+      EXPECT_EQ(ahead_ranges.surface_range_bound(q.c0, q.r0, q.c1, q.r1),
+                plain_ranges.surface_range_bound(q.c0, q.r0, q.c1, q.r1));
+  }
+  // A failing read, here in the third chunk, is the plan's failure (and the thread stops).
+  VoidPlan plan;
+  int calls = 0;
+  const Status st = plan_voids(700, 100, [&](int, int, int w, int h, float* out) {
+    std::fill(out, out + size_t(w) * size_t(h), 1.0f);
+    return ++calls == 3 ? Status::failure(Error::io_read, "broken") : Status::success();
+  }, NodataPolicy::automatic, 4096, 8, plan, {}, nullptr, /*read_ahead=*/true);
+  EXPECT_EQ(st.code, Error::io_read);
+  EXPECT_EQ(st.message, "broken");
 }
 
 TEST(VoidPlan, FillReadRectIsTilesRingAndSpanningFills) {
