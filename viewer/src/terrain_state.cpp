@@ -36,15 +36,19 @@ uint16_t TerrainState::root(int64_t x, int64_t y) const {
 }
 
 void TerrainState::set_node(const NodeKey& key, uint16_t value) {
+  const uint64_t k = key_bits(key);
   if (key.level == uint32_t(kRootLevel)) {
     if (key.x >= world_.roots_x || key.y >= world_.roots_y) return;
     uint16_t& cell = roots_[size_t(key.y) * world_.roots_x + key.x];
     if (cell == value) return;
     cell = value;
     dirty_roots_.add(key.x, key.y);
+    if (value < TV_SLOT_INVALID)
+      resident_[k] = value;
+    else
+      resident_.erase(k);
     return;
   }
-  const uint64_t k = key_bits(key);
   if (value < TV_SLOT_INVALID)
     resident_[k] = value;
   else
@@ -103,8 +107,6 @@ std::vector<uint32_t> TerrainState::tree_buffer() const {
     w[1] = uint32_t(child(s, 2)) | uint32_t(child(s, 3)) << 16;
   };
   for (const auto& [k, s] : resident_) children(s);
-  for (uint16_t s : roots_)
-    if (s < TV_SLOT_INVALID) children(s);
   return out;
 }
 

@@ -81,7 +81,7 @@ class TerrainState {
   WorldInfo world_;
   std::vector<uint16_t> roots_;                        // roots_x * roots_y, row 0 = south
   std::vector<SlotDescriptor> slots_;
-  std::unordered_map<uint64_t, uint16_t> resident_;    // (level, x, y) -> slot, levels other than the roots'
+  std::unordered_map<uint64_t, uint16_t> resident_;    // (level, x, y) -> slot of every resident node
   std::unordered_set<uint64_t> absent_;                // failed nodes below or above the roots
   Rect dirty_roots_;
   std::vector<uint32_t> dirty_slots_;
