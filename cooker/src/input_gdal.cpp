@@ -31,11 +31,12 @@ constexpr int64_t kGdalCacheBytes = int64_t(64) << 20;
 // Rows of scratch (doubles) per RasterIO call when a window is read band by band.
 constexpr uint64_t kScratchBytes = uint64_t(8) << 20;
 
-// The thread that set GDAL up (the cook's own); GDAL's decoding threads are others.
+// The thread that set GDAL up (the cook's own).
 std::thread::id g_gdal_home_thread;
 
-// GDAL's messages as before, but for failures raised on GDAL's own decoding threads: the read that
-// waited on them fails, and its caller names the cause (why_read_failed), so they are not printed.
+// GDAL's messages as before, but for failures raised on other threads: GDAL's decoding threads
+// (the read that waited on them fails, and names the cause: why_read_failed) and the first pass's
+// read-ahead thread (whose reads return their own failures as a Status), so they are not printed.
 void CPL_STDCALL gdal_error_handler(CPLErr level, CPLErrorNum number, const char* message) {
   if (level >= CE_Failure && std::this_thread::get_id() != g_gdal_home_thread) return;
   CPLDefaultErrorHandler(level, number, message);
