@@ -242,7 +242,8 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
         }
         const size_t cw = size_t(chunk_x1 - chunk_x0);
         for (int y = 0; y < th; ++y)
-          std::memcpy(&z[size_t(y) * size_t(tw)], &chunk[size_t(y) * cw + size_t(tx - chunk_x0)], size_t(tw) * sizeof(float));
+          std::memcpy(&z[size_t(y) * size_t(tw)], &chunk[size_t(y) * cw + size_t(tx - chunk_x0)],
+                      size_t(tw) * sizeof(float));
       } else if (Status st = read(tx, ty, tw, th, z.data()); !st.ok()) {
         return st;
       }
