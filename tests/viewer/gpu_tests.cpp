@@ -151,6 +151,31 @@ size_t cracks_only_unstitched(Gpu& gpu, std::vector<NodeUpload>& uploads, const 
   return count_color(rgba, 255, 0, 255);
 }
 
+// The last frame's GPU lists (node list, LOD map, patch list) against the CPU reference of the
+// same state and uniforms; returns the reference lists for the caller's own checks.
+struct ReferenceLists {
+  NodeList nodes;
+  PatchList patches;
+};
+ReferenceLists expect_lists_equal_reference(Gpu& gpu) {
+  NodeList gpu_nodes;
+  std::vector<uint32_t> gpu_lod;
+  std::vector<GpuPatch> gpu_patches;
+  gpu.renderer.read_lists(gpu_nodes, gpu_lod, gpu_patches);
+  const FrameUniforms& u = gpu.renderer.uniforms();
+  ReferenceLists ref;
+  ref.nodes = reference_traverse(gpu.state, u, gpu.renderer.slot_cpu());
+  EXPECT_EQ(sorted(gpu_nodes.entries), sorted(ref.nodes.entries));
+  EXPECT_EQ(gpu_nodes.level_counts, ref.nodes.level_counts);
+  EXPECT_EQ(gpu_nodes.overflow, 0u);
+  const std::vector<uint32_t> ref_lod = reference_lod_map(gpu.state, u, ref.nodes);
+  EXPECT_EQ(gpu_lod, ref_lod);
+  ref.patches = reference_patches(gpu.state, u, ref.nodes, ref_lod, gpu.renderer.slot_cpu(),
+                                  gpu.renderer.cone_sin2_table());
+  EXPECT_EQ(sorted(gpu_patches), sorted(ref.patches.patches));
+  return ref;
+}
+
 TEST(ViewerGpu, ListsEqualCpuReference) {
   TV_ALL_RESIDENT(deep_world().synthetic, 1024, 320, 180);
   struct View {
@@ -172,20 +197,9 @@ TEST(ViewerGpu, ListsEqualCpuReference) {
     const Camera cam = camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch);
     ASSERT_TRUE(render_frame(*gpu, uploads, cam, s, true).ok());
     uploads.clear();
-    NodeList gpu_nodes;
-    std::vector<uint32_t> gpu_lod;
-    std::vector<GpuPatch> gpu_patches;
-    gpu->renderer.read_lists(gpu_nodes, gpu_lod, gpu_patches);
-    const FrameUniforms& u = gpu->renderer.uniforms();
-    const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
-    EXPECT_EQ(sorted(gpu_nodes.entries), sorted(ref_nodes.entries));
-    EXPECT_EQ(gpu_nodes.level_counts, ref_nodes.level_counts);
-    EXPECT_EQ(gpu_nodes.overflow, 0u);
-    const std::vector<uint32_t> ref_lod = reference_lod_map(gpu->state, gpu->renderer.uniforms(), ref_nodes);
-    EXPECT_EQ(gpu_lod, ref_lod);
-    const PatchList ref_patches = reference_patches(gpu->state, u, ref_nodes, ref_lod, gpu->renderer.slot_cpu(),
-                                                    gpu->renderer.cone_sin2_table());
-    EXPECT_EQ(sorted(gpu_patches), sorted(ref_patches.patches));
+    const ReferenceLists ref = expect_lists_equal_reference(*gpu);
+    const NodeList& ref_nodes = ref.nodes;
+    const PatchList& ref_patches = ref.patches;
     const FrameStats st = gpu->renderer.read_stats();
     EXPECT_EQ(st.patches_considered, ref_patches.considered);
     EXPECT_EQ(st.culled_frustum, ref_patches.culled_frustum);
@@ -769,28 +783,18 @@ TEST(ViewerGpu, AWorldWiderThanTheDenseIndexDrawsItsFarEastEndToLevelZero) {
   s.error_target_px = 0.01;
   const Camera cam = camera_at(world.synthetic.world, focus_x - 150, focus_y, 300, 90, -35);
   ASSERT_TRUE(render_frame(*gpu, uploads, cam, s, true).ok());
-  NodeList gpu_nodes;
-  std::vector<uint32_t> gpu_lod;
-  std::vector<GpuPatch> gpu_patches;
-  gpu->renderer.read_lists(gpu_nodes, gpu_lod, gpu_patches);
-  const FrameUniforms& u = gpu->renderer.uniforms();
-  const NodeList ref_nodes = reference_traverse(gpu->state, u, gpu->renderer.slot_cpu());
-  EXPECT_EQ(sorted(gpu_nodes.entries), sorted(ref_nodes.entries));
-  EXPECT_EQ(gpu_nodes.level_counts, ref_nodes.level_counts);
-  EXPECT_EQ(gpu_lod, reference_lod_map(gpu->state, u, ref_nodes));
-  const PatchList ref_patches = reference_patches(gpu->state, u, ref_nodes, gpu_lod, gpu->renderer.slot_cpu(),
-                                                  gpu->renderer.cone_sin2_table());
-  EXPECT_EQ(sorted(gpu_patches), sorted(ref_patches.patches));
-  EXPECT_GT(gpu_nodes.level_counts[0], 0u) << "the view must reach level 0 in the far east root";
+  const ReferenceLists ref = expect_lists_equal_reference(*gpu);  // the GPU's lists equal these
+  const NodeList& nodes = ref.nodes;
+  EXPECT_GT(nodes.level_counts[0], 0u) << "the view must reach level 0 in the far east root";
   uint32_t east_level0 = 0;
-  for (uint32_t e : gpu_nodes.entries) {
+  for (uint32_t e : nodes.entries) {
     const SlotDescriptor& d = gpu->state.descriptor(e & TV_ENTRY_SLOT_MASK);
     if (d.level == 0 && d.x >= (old_limit << kRootLevel)) ++east_level0;
   }
-  EXPECT_EQ(east_level0, gpu_nodes.level_counts[0]) << "every level-0 node lies beyond the old index texture";
+  EXPECT_EQ(east_level0, nodes.level_counts[0]) << "every level-0 node lies beyond the old index texture";
   std::printf("%u x %u roots: %zu nodes listed (levels 0..5: %u %u %u %u %u %u), %zu patches\n", o.roots_x, o.roots_y,
-              gpu_nodes.entries.size(), gpu_nodes.level_counts[0], gpu_nodes.level_counts[1], gpu_nodes.level_counts[2],
-              gpu_nodes.level_counts[3], gpu_nodes.level_counts[4], gpu_nodes.level_counts[5], gpu_patches.size());
+              nodes.entries.size(), nodes.level_counts[0], nodes.level_counts[1], nodes.level_counts[2],
+              nodes.level_counts[3], nodes.level_counts[4], nodes.level_counts[5], ref.patches.patches.size());
 }
 
 }  // namespace
