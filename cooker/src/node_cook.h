@@ -35,6 +35,7 @@ struct CookContext {
   bool heights_only = false;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
+  float normals_rdo = 0;  // CookOptions::normals_rdo
   const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes / --landcover rasters (overlays.cpp), or null
   PayloadOptions payload;
 

@@ -178,6 +178,30 @@ TEST(BlockCook, SurfaceLayersToo) {
   expect_same_bytes_for_every_block_split(o, {{1, 11}}, 4);
 }
 
+// The rate-distortion pass (--bc-rdo) reads only its own node's blocks: the same bytes for any split
+// and order, and fewer normal bytes than without it.
+TEST(BlockCook, NormalsRdoToo) {
+  cook::CookOptions o;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-rdo"), "blocky", blocky_dem(), true, o));
+  o.threads = 2;
+  o.tolerance_m = 2.0;
+  cook::CookOptions plain = o;
+  plain.output += ".plain";
+  cook::CookReport without;
+  ASSERT_TRUE(cook::cook(plain, nullptr, without).ok());
+  o.normals_rdo = 32;
+  expect_same_bytes_for_every_block_split(o, {{1, 11}, {2, 5}}, 4);
+  cook::CookReport with;
+  o.output += ".again";
+  ASSERT_TRUE(cook::cook(o, nullptr, with).ok());
+  // section_stored_bytes: heights, normals, albedo, splat, cones.
+  const auto normals = [](const cook::CookReport& r) { return r.section_stored_bytes[1]; };
+  std::printf("normals: %llu bytes without, %llu with --bc-rdo 32\n", (unsigned long long)normals(without),
+              (unsigned long long)normals(with));
+  EXPECT_LT(normals(with), normals(without));
+  EXPECT_EQ(with.nodes, without.nodes);
+}
+
 // A heights-only cook evaluates only the vertices its payload needs (the node and the hole
 // albedo's apron of kApron vertices), so its blocks read windows narrower than a full cook's by
 // the surface filters' margin, and its nodes' heights, ranges and errors are the full cook's.

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "bc_blocks.h"
+#include "bc_rdo.h"
 #include "cones.h"
 #include "materials.h"
 #include "normals.h"
@@ -183,6 +184,7 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   pack_normal_texels(normals, normal_rgba);
   next_lap(CpuPart::normals_texels);
   encode_bc3_image(normal_rgba.data(), normals_method(in.bc_quality), out.normals_bc3.data());
+  rdo_normal_blocks(normal_rgba.data(), in.normals_rdo, out.normals_bc3.data());
   next_lap(CpuPart::normals_bc3);
 
   // Albedo.

@@ -1,0 +1,25 @@
+// Rate-distortion pass over a node's encoded BC blocks (issue 17): where the error allows it, a
+// block half is replaced by one an earlier block already holds, or takes an earlier block's index
+// bits, so that zstd stores it as a short match instead of literals (the idea of Binomial's
+// bc7enc_rdo, on our normals and albedo). It only chooses among valid blocks: any decoder reads
+// the result, and the format is unchanged.
+#pragma once
+#include <cstdint>
+
+namespace terrain::cook {
+
+struct RdoCounts {
+  uint64_t blocks = 0;
+  uint64_t half_copies = 0;   // an 8-byte half taken whole from an earlier block
+  uint64_t index_copies = 0;  // own endpoints, an earlier block's index bits
+};
+
+// lambda: squared error (8-bit channel units, summed over the block's 16 texels) accepted per
+// byte of literals a substitution is expected to save; 0 leaves the blocks as they are.
+//
+// Normals (BC3 blocks of a 132x132 RGBA8 image, A = x, G = y, R = the block's AO, B = 0): the
+// alpha half and the colour half are chosen separately against x and y. A colour half is only
+// taken from a block with the same R and B endpoint bits (the AO stays exact).
+void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts = nullptr);
+
+}  // namespace terrain::cook
