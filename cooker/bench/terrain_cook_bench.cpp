@@ -826,6 +826,123 @@ terrain::chart::Chart sweep_chart(const std::vector<SweepPoint>& points, int run
   return c;
 }
 
+// --rdo: the rate-distortion pass (--bc-rdo) against the plain encoders, per DEM.
+struct RdoRow {
+  std::string dem;
+  double lambda = 0;
+  uint64_t nodes = 0, archive = 0, normals = 0, albedo = 0;
+  double normal_err_deg = 0, albedo_psnr_db = 0;
+  uint64_t alpha_mismatches = 0;
+  // CPU ms per node (medians): the whole node, the surface stage, the two BC parts (encoder plus the
+  // pass) and zstd of the two sections.
+  double ms_total = 0, ms_surface = 0, ms_bc = 0, ms_zstd = 0;
+};
+
+int rdo_main(const std::string& tool, const std::vector<Dem>& dems, const std::vector<std::string>& only,
+             const std::vector<double>& lambdas, int runs, const std::string& chart_path) {
+  const auto scratch = std::filesystem::temp_directory_path() / fmt::format("terrain-cook-bench-rdo-{}", getpid());
+  std::filesystem::create_directories(scratch);
+  const std::string archive = (scratch / "rdo.terrain").string();
+  std::vector<double> all = {0.0};
+  all.insert(all.end(), lambdas.begin(), lambdas.end());
+  fmt::print("terrain-cook-bench --rdo: default cooks with --bc-rdo 0 (the encoders as they are) and {}; {} run{} per "
+             "row, taken in turn (medians of CPU ms per node from the cook report); sizes and errors are deterministic.\n"
+             "n+a = stored normal + albedo bytes; err = mean angle of the decoded normals against the float normals; "
+             "PSNR of the decoded albedo against the baked one.\n\n",
+             fmt::join(lambdas, ", "), runs, runs == 1 ? "" : "s");
+  fmt::print("{:<16} {:>6} {:>6} {:>9} {:>9} {:>6} {:>8} {:>7} {:>8} {:>7} {:>8} {:>8} {:>8} {:>8}\n", "dem", "lambda",
+             "nodes", "MB", "n+a MB", "x", "err_deg", "+deg", "PSNR_dB", "dB", "ms/node", "surf_ms", "bc_ms", "zstd_ms");
+  std::vector<RdoRow> rows;
+  for (const Dem& dem : dems) {
+    if (!only.empty() && std::find(only.begin(), only.end(), dem.name) == only.end()) continue;
+    if (!std::filesystem::exists(dem.file)) {
+      fmt::print("{:<16} (missing: {})\n", dem.name, dem.file);
+      continue;
+    }
+    std::vector<RdoRow> r(all.size());
+    std::vector<std::vector<double>> total(all.size()), surface(all.size()), bc(all.size()), zstd(all.size());
+    bool ok = true;
+    for (int k = 0; k < runs && ok; ++k)
+      for (size_t l = 0; l < all.size() && ok; ++l) {
+        const auto c = cook(tool, dem, {"--bc-rdo", fmt::format("{}", all[l])}, 1, archive);
+        if (!c) {
+          ok = false;
+          break;
+        }
+        const auto& j = c->report;
+        const auto& ms = j["time_s"]["cpu_ms_per_node"];
+        total[l].push_back(ms["total"]);
+        surface[l].push_back(ms["surface"]);
+        bc[l].push_back(ms["normals_bc3"].get<double>() + ms["albedo_bc1"].get<double>());
+        zstd[l].push_back(ms["zstd_normals"].get<double>() + ms["zstd_albedo"].get<double>());
+        RdoRow& row = r[l];
+        row.dem = dem.name;
+        row.lambda = all[l];
+        row.nodes = c->nodes;
+        row.archive = c->bytes;
+        row.normals = j["output"]["sections"]["normals"]["stored_bytes"];
+        row.albedo = j["output"]["sections"]["albedo"]["stored_bytes"];
+        row.normal_err_deg = j["surface"]["normal_err_mean_deg"];
+        row.albedo_psnr_db = j["surface"]["albedo_psnr_db"];
+        row.alpha_mismatches = j["surface"]["albedo_alpha_mismatches"];
+      }
+    if (!ok) continue;
+    for (size_t l = 0; l < all.size(); ++l) {
+      RdoRow& row = r[l];
+      row.ms_total = median(total[l]);
+      row.ms_surface = median(surface[l]);
+      row.ms_bc = median(bc[l]);
+      row.ms_zstd = median(zstd[l]);
+      const double na = double(row.normals + row.albedo), na0 = double(r[0].normals + r[0].albedo);
+      fmt::print("{:<16} {:>6} {:>6} {:>9} {:>9} {:>6.3f} {:>8.3f} {:>7.3f} {:>8.2f} {:>7.2f} {:>8.3f} {:>8.3f} {:>8.3f} {:>8.3f}{}\n",
+                 dem.name, row.lambda, row.nodes, mb(double(row.archive)), mb(na), na / na0, row.normal_err_deg,
+                 row.normal_err_deg - r[0].normal_err_deg, row.albedo_psnr_db, row.albedo_psnr_db - r[0].albedo_psnr_db,
+                 row.ms_total, row.ms_surface, row.ms_bc, row.ms_zstd,
+                 row.alpha_mismatches ? fmt::format("  ALPHA MISMATCHES {}", row.alpha_mismatches) : "");
+      rows.push_back(row);
+    }
+  }
+  std::filesystem::remove_all(scratch);
+  fmt::print("\nTargets (issue 17): n+a at most 0.7x for at most +0.5 degrees and -0.5 dB; every alpha exact.\n");
+  if (chart_path.empty()) return 0;
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = "terrain-cook-bench --rdo: normal + albedo bytes against the loss, per DEM and lambda";
+  c.note = fmt::format("Default cooks of each DEM with --bc-rdo 0 and {}; bytes = stored normal + albedo sections over "
+                       "those of --bc-rdo 0; loss from the cook report (mean normal angle, albedo PSNR). {}",
+                       fmt::join(lambdas, ", "), ch::machine_note());
+  const ch::Axis ratio{"normal + albedo bytes, x plain", ch::Scale::linear, true};
+  const ch::Axis added{"mean normal error added, degrees"}, lost{"albedo PSNR lost, dB"};
+  ch::Panel p[2] = {{"bytes against mean normal error added", added, ratio, {}, {}, {}},
+                    {"bytes against albedo PSNR lost", lost, ratio, {}, {}, {}}};
+  for (ch::Panel& q : p) q.lines.push_back({"target 0.7x", 0.7, true});
+  p[0].lines.push_back({"+0.5 deg", 0.5, false});
+  p[1].lines.push_back({"0.5 dB", 0.5, false});
+  for (size_t i = 0; i < rows.size();) {
+    size_t e = i;
+    while (e < rows.size() && rows[e].dem == rows[i].dem) ++e;
+    ch::Series s[2];
+    for (ch::Series& x : s) x.name = rows[i].dem, x.label_points = true;
+    const double na0 = double(rows[i].normals + rows[i].albedo);
+    for (size_t k = i; k < e; ++k) {
+      const double y = double(rows[k].normals + rows[k].albedo) / na0;
+      const std::string label = k == i ? "" : fmt::format("{}", rows[k].lambda);
+      s[0].points.push_back({rows[k].normal_err_deg - rows[i].normal_err_deg, y, label});
+      s[1].points.push_back({rows[i].albedo_psnr_db - rows[k].albedo_psnr_db, y, label});
+    }
+    p[0].series.push_back(s[0]);
+    p[1].series.push_back(s[1]);
+    i = e;
+  }
+  c.panels.assign(std::begin(p), std::end(p));
+  if (const std::string e = ch::write_svg(c, chart_path); !e.empty()) {
+    fmt::print(stderr, "terrain-cook-bench: {}\n", e);
+    return 1;
+  }
+  fmt::print("Wrote {}\n", chart_path);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -875,6 +992,16 @@ int main(int argc, char** argv) {
                "--runs rounds (default 3), medians of the per-round ratios");
   app.add_option("--units-dem", units_dem, "--units: the DEM to cook");
   app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots (0: the plan's default size)")->capture_default_str();
+  std::vector<double> rdo_lambdas;
+  std::vector<std::string> rdo_extra;
+  app.add_option("--rdo", rdo_lambdas,
+                 "Instead of the sweep: default cooks of each DEM with --bc-rdo 0 and each of these lambdas, in turn "
+                 "(--runs, default 3): normal + albedo bytes, mean normal error, albedo PSNR, CPU ms per node (--chart: "
+                 "bytes against loss)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--rdo-dems", rdo_extra, "--rdo: more DEM files to cook (e.g. the 1 m lidar-like squares of --scale)")
+      ->delimiter(',');
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -913,6 +1040,13 @@ int main(int argc, char** argv) {
        d + "ps_height_1k.png"},
       {"jacksboro", "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz", {"--crs", "EPSG:4326"}, ""},
   };
+  if (!rdo_lambdas.empty()) {
+    for (const std::string& f : rdo_extra) dems.push_back({std::filesystem::path(f).stem().string(), f, {}, ""});
+    std::vector<std::string> names = only;
+    if (!names.empty())
+      for (const std::string& f : rdo_extra) names.push_back(std::filesystem::path(f).stem().string());
+    return rdo_main(tool, dems, names, rdo_lambdas, runs, chart);
+  }
   const auto scratch = std::filesystem::temp_directory_path() / fmt::format("terrain-cook-bench-{}", getpid());
   std::filesystem::create_directories(scratch);
   const std::string archive = (scratch / "bench.terrain").string(), warped = (scratch / "gdal.tif").string();

@@ -114,7 +114,7 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
                   {"heights_only", o.heights_only},
                   {"zstd_level", o.zstd_level},
                   {"surface_zstd_level", o.surface_zstd_level}};
-  if (o.normals_rdo > 0) j["options"]["normals_rdo"] = o.normals_rdo;  // absent: off (earlier bytes kept)
+  if (o.bc_rdo > 0) j["options"]["bc_rdo"] = o.bc_rdo;  // absent: off (earlier bytes kept)
   if (o.origin) j["options"]["origin"] = *o.origin;
   if (o.spacing) j["options"]["spacing"] = *o.spacing;
   if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
@@ -300,7 +300,7 @@ Status surface_setup(CookSession& s, CookReport& report) {
   so.materials_path = s.options.materials_path;
   so.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
   s.ctx.bc_quality = so.bc_quality;
-  s.ctx.normals_rdo = s.options.normals_rdo;
+  s.ctx.bc_rdo = s.options.bc_rdo;
   if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
   s.ctx.rules = s.rules.get();
   report.surface_layers = !s.options.heights_only;
@@ -395,7 +395,7 @@ OverviewSettings overview_settings(const CookSession& s) {
   o.world.step_log2 = s.ctx.step_log2;
   o.rules = s.rules.get();
   o.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
-  o.normals_rdo = s.options.normals_rdo;
+  o.bc_rdo = s.options.bc_rdo;
   o.payload.zstd_level = s.options.zstd_level;
   o.payload.surface_zstd_level = s.options.surface_zstd_level;
   o.heights_only = s.options.heights_only;

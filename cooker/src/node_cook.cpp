@@ -346,7 +346,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     in.holes = window->hole.data();
     in.rules = ctx.rules;
     in.bc_quality = ctx.bc_quality;
-    in.normals_rdo = ctx.normals_rdo;
+    in.bc_rdo = ctx.bc_rdo;
     in.overlays = ctx.overlays;
     out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
     if (!out.status.ok()) return;

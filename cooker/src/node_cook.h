@@ -35,7 +35,7 @@ struct CookContext {
   bool heights_only = false;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
-  float normals_rdo = 0;  // CookOptions::normals_rdo
+  float bc_rdo = 0;  // CookOptions::bc_rdo
   const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes / --landcover rasters (overlays.cpp), or null
   PayloadOptions payload;
 

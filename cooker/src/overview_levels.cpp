@@ -315,7 +315,7 @@ void build_node(const OverviewSettings& s, const Band& lat, const LevelNodes& be
     in.holes = hole.data();
     in.rules = s.rules;
     in.bc_quality = s.bc_quality;
-    in.normals_rdo = s.normals_rdo;
+    in.bc_rdo = s.bc_rdo;
     SurfaceStats stats;
     if (Status ss = cook_surface_layers(in, data, out.record.height_offset, step, data, &stats); !ss.ok()) {
       out.status = ss;

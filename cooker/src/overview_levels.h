@@ -48,7 +48,7 @@ struct OverviewSettings {
   WorldInfo world;  // origin, roots_x/y, step_log2[5] and overview_step_log2 (K = its size, > 0)
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
-  float normals_rdo = 0;  // CookOptions::normals_rdo
+  float bc_rdo = 0;  // CookOptions::bc_rdo
   PayloadOptions payload;
   bool heights_only = false;
   int threads = 1;

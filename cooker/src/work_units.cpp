@@ -67,7 +67,7 @@ json options_json(const CookOptions& o) {
   j["fill_max_samples"] = o.fill_max_samples;
   j["materials"] = o.materials_path;
   j["surface_quality"] = int(o.surface_quality);
-  if (o.normals_rdo > 0) j["normals_rdo"] = o.normals_rdo;
+  if (o.bc_rdo > 0) j["bc_rdo"] = o.bc_rdo;
   j["albedo"] = o.albedo_path;
   j["holes"] = o.holes_path;
   j["landcover"] = o.landcover_path;
@@ -103,7 +103,7 @@ CookOptions options_of(const json& j) {
   o.fill_max_samples = j.at("fill_max_samples");
   o.materials_path = j.at("materials");
   o.surface_quality = SurfaceQuality(j.at("surface_quality").get<int>());
-  o.normals_rdo = j.value("normals_rdo", 0.0f);
+  o.bc_rdo = j.value("bc_rdo", 0.0f);
   o.albedo_path = j.at("albedo");
   o.holes_path = j.at("holes");
   o.landcover_path = j.at("landcover");

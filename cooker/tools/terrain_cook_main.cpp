@@ -190,10 +190,11 @@ int run(int argc, char** argv) {
   app.add_option("--bc-quality", quality, "Block compression quality of normals and albedo")
       ->check(CLI::IsMember({"fast", "balanced", "best"}))
       ->capture_default_str();
-  app.add_option("--bc-rdo", o.normals_rdo,
-                 "Rate-distortion pass over the normal blocks: where it costs at most LAMBDA squared error (8-bit units "
-                 "over a 4x4 block) per byte saved, a block half reuses bytes of a nearby earlier block so zstd stores a "
-                 "match (0 = off; 32 on 1 m lidar: 0.66x normal bytes at +0.48 degrees mean error)")
+  app.add_option("--bc-rdo", o.bc_rdo,
+                 "Rate-distortion pass over the normal and albedo blocks: where it costs at most LAMBDA squared error "
+                 "(8-bit units over a 4x4 block) per byte saved, a block (half) reuses bytes of a nearby earlier block so "
+                 "zstd stores a match (0 = off; 32 on Kilauea: 0.49x normal+albedo bytes at +0.33 degrees mean normal "
+                 "error and -0.19 dB albedo PSNR)")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   std::string overview = "auto";

@@ -179,8 +179,8 @@ TEST(BlockCook, SurfaceLayersToo) {
 }
 
 // The rate-distortion pass (--bc-rdo) reads only its own node's blocks: the same bytes for any split
-// and order, and fewer normal bytes than without it.
-TEST(BlockCook, NormalsRdoToo) {
+// and order, and fewer normal and albedo bytes than without it.
+TEST(BlockCook, BcRdoToo) {
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-rdo"), "blocky", blocky_dem(), true, o));
   o.threads = 2;
@@ -189,17 +189,20 @@ TEST(BlockCook, NormalsRdoToo) {
   plain.output += ".plain";
   cook::CookReport without;
   ASSERT_TRUE(cook::cook(plain, nullptr, without).ok());
-  o.normals_rdo = 32;
+  o.bc_rdo = 32;
   expect_same_bytes_for_every_block_split(o, {{1, 11}, {2, 5}}, 4);
   cook::CookReport with;
   o.output += ".again";
   ASSERT_TRUE(cook::cook(o, nullptr, with).ok());
   // section_stored_bytes: heights, normals, albedo, splat, cones.
-  const auto normals = [](const cook::CookReport& r) { return r.section_stored_bytes[1]; };
-  std::printf("normals: %llu bytes without, %llu with --bc-rdo 32\n", (unsigned long long)normals(without),
-              (unsigned long long)normals(with));
-  EXPECT_LT(normals(with), normals(without));
+  for (size_t s : {1u, 2u}) {
+    std::printf("section %zu: %llu bytes without, %llu with --bc-rdo 32\n", s, (unsigned long long)without.section_stored_bytes[s],
+                (unsigned long long)with.section_stored_bytes[s]);
+    EXPECT_LT(with.section_stored_bytes[s], without.section_stored_bytes[s]);
+  }
+  EXPECT_EQ(with.section_stored_bytes[0], without.section_stored_bytes[0]);
   EXPECT_EQ(with.nodes, without.nodes);
+  EXPECT_EQ(with.surface.albedo_alpha_mismatches, 0u);
 }
 
 // A heights-only cook evaluates only the vertices its payload needs (the node and the hole

@@ -169,3 +169,69 @@ TEST(BcRdo, NormalsShrinkUnderZstdAsLambdaGrowsForABoundedLoss) {
   EXPECT_LE(bytes[2], 0.85 * bytes[0]);
   EXPECT_LE(error[2] - error[0], 1.0);
 }
+
+namespace {
+
+// A 132x132 albedo: smooth colour ramps with a gentle ripple, and a round hole (sea) in one corner.
+std::vector<uint8_t> albedo_with_a_hole() {
+  std::vector<uint8_t> img(size_t(kTexelCount) * 4);
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      uint8_t* p = &img[(size_t(u) * kTexels + size_t(t)) * 4];
+      p[0] = uint8_t(90 + t / 4 + 6 * std::sin(u / 5.0));
+      p[1] = uint8_t(110 + u / 6 + 5 * std::cos(t / 7.0));
+      p[2] = uint8_t(60 + (t + u) / 10);
+      const double dx = t - 100, dy = u - 100;
+      p[3] = dx * dx + dy * dy < 30.0 * 30.0 ? 0 : 255;
+    }
+  return img;
+}
+
+}  // namespace
+
+// The albedo half of the contract: whole-block copies grow a block's squared RGB error by at most
+// (8 - 3) lambda, selector copies by at most 1 lambda; every hole texel stays exactly transparent
+// and every other texel opaque; the shared ring is kept; zstd stores fewer bytes.
+TEST(BcRdo, AlbedoKeepsItsHolesExactAndEachBlockWithinFiveLambda) {
+  const std::vector<uint8_t> img = albedo_with_a_hole();
+  std::vector<uint8_t> plain(size_t(kTexelBlocks) * kTexelBlocks * 8);
+  encode_bc1_image(img.data(), albedo_method(BcQuality::balanced), plain.data());
+  const auto block_sse = [&](const std::vector<uint8_t>& blocks, int k) {
+    uint8_t px[64];
+    decode_bc1_block(blocks.data() + k * 8, px);
+    const int bx = k % kTexelBlocks, by = k / kTexelBlocks;
+    int64_t sse = 0;
+    for (int p = 0; p < 16; ++p) {
+      const uint8_t* ref = &img[(size_t(by * 4 + p / 4) * kTexels + size_t(bx * 4 + p % 4)) * 4];
+      if (ref[3] < 128) continue;
+      for (int c = 0; c < 3; ++c) sse += (int(px[p * 4 + c]) - ref[c]) * (int(px[p * 4 + c]) - ref[c]);
+    }
+    return sse;
+  };
+  for (float lambda : {8.0f, 32.0f}) {
+    std::vector<uint8_t> b = plain;
+    RdoCounts counts;
+    rdo_albedo_blocks(img.data(), lambda, b.data(), &counts);
+    std::vector<uint8_t> dec(size_t(kTexelCount) * 4);
+    decode_bc1_image(b.data(), kTexelBlocks, kTexelBlocks, dec.data());
+    int wrong_alpha = 0;
+    for (size_t k = 0; k < size_t(kTexelCount); ++k) wrong_alpha += (dec[k * 4 + 3] == 0) != (img[k * 4 + 3] < 128);
+    EXPECT_EQ(wrong_alpha, 0);
+    int changed = 0;
+    for (int k = 0; k < kTexelBlocks * kTexelBlocks; ++k) {
+      const int bx = k % kTexelBlocks, by = k / kTexelBlocks;
+      const bool same = std::equal(b.begin() + k * 8, b.begin() + k * 8 + 8, plain.begin() + k * 8);
+      if (bx == 0 || by == 0 || bx == kTexelBlocks - 1 || by == kTexelBlocks - 1) {
+        EXPECT_TRUE(same) << "ring block " << bx << "," << by;
+        continue;
+      }
+      changed += !same;
+      EXPECT_LE(double(block_sse(b, k) - block_sse(plain, k)), 5.0 * lambda) << "block " << bx << "," << by;
+    }
+    const size_t z0 = zstd_bytes(plain), z1 = zstd_bytes(b);
+    std::printf("lambda %.0f: %d blocks changed (%llu whole, %llu selector copies), zstd %zu -> %zu bytes\n", double(lambda),
+                changed, (unsigned long long)counts.half_copies, (unsigned long long)counts.index_copies, z0, z1);
+    EXPECT_GT(changed, 50);
+    EXPECT_LT(z1, z0);
+  }
+}

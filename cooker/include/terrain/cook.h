@@ -71,9 +71,9 @@ struct CookOptions {
   // Surface layers (cooker/src/surface).
   std::string materials_path;
   SurfaceQuality surface_quality = SurfaceQuality::balanced;
-  // Rate-distortion pass over the normal blocks (--bc-rdo, cooker/src/surface/bc_rdo.h): squared
-  // error accepted per byte of literals saved; 0 = off (the blocks of the encoder as they are).
-  float normals_rdo = 0;
+  // Rate-distortion pass over the normal and albedo blocks (--bc-rdo, cooker/src/surface/bc_rdo.h):
+  // squared error accepted per byte of literals saved; 0 = off (the blocks of the encoder as they are).
+  float bc_rdo = 0;
   // Orthophoto for the albedo: GeoTIFF RGB(A) (8 or 16 bits) in any supported CRS, resampled to
   // the frame (bilinear); where it has no data (alpha 0, GDAL_NODATA, outside) the splat bake stays.
   std::string albedo_path;

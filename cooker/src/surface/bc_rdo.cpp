@@ -18,6 +18,7 @@
 #endif
 
 #include "surface_layers.h"
+#include "terrain/bc_decode.h"
 
 namespace terrain::cook {
 namespace {
@@ -175,8 +176,6 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       // Costs J = squared error + lambda * expected stored bytes; the own halves are 8 literals each.
       const int own_ea = sse16(mine.x, x), own_ec = sse16(mine.y, y);
       float best_ja = float(own_ea) + lambda * 8.0f;
-      // A whole half (kMatchBytes) can only win with squared error below these; by Cauchy-Schwarz
-      // squared error >= SAD^2 / 16, so SAD above the square root rules a candidate out cheaply.
       const float copy_gain = lambda * (8.0f - kMatchBytes);
       // Whole-half copies: the least squared error wins; it must stay under own + copy_gain.
       int lim_a = int(std::ceil(float(own_ea) + copy_gain)), lim_c = int(std::ceil(float(own_ec) + copy_gain));
@@ -226,6 +225,99 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       if (from_c >= 0) std::memcpy(own + 8, blocks + size_t(from_c) * kBlockBytes + 8, 8);
       if (index_copy || from_a >= 0 || from_c >= 0) decode_for_rdo(own, mine);
       n.half_copies += uint64_t(!index_copy && from_a >= 0) + uint64_t(from_c >= 0);
+      n.index_copies += uint64_t(index_copy);
+    }
+  if (counts) {
+    counts->blocks += n.blocks;
+    counts->half_copies += n.half_copies;
+    counts->index_copies += n.index_copies;
+  }
+}
+
+namespace {
+
+// Albedo blocks as the pass keeps them: decoded RGB (hole texels 0, as the decoder gives them),
+// the transparency mask, and for 4-colour blocks each texel's position along c0 -> c1 (0..3).
+struct DecodedColour {
+  uint8_t rgb[48];
+  uint8_t pos[16];
+  uint16_t holes = 0;
+  bool four = false;
+};
+
+void decode_colour_for_rdo(const uint8_t* block, DecodedColour& d) {
+  uint8_t px[64];
+  decode_bc1_block(block, px);
+  for (int i = 0; i < 16; ++i)
+    for (int c = 0; c < 3; ++c) d.rgb[i * 3 + c] = px[i * 4 + 3] ? px[i * 4 + c] : 0;
+  d.holes = bc1_transparent_mask(block);
+  const uint16_t c0 = uint16_t(block[0] | (block[1] << 8)), c1 = uint16_t(block[2] | (block[3] << 8));
+  d.four = c0 > c1;
+  uint32_t sel;
+  std::memcpy(&sel, block + 4, 4);
+  static constexpr uint8_t kPos[4] = {0, 3, 1, 2};
+  for (int i = 0; i < 16; ++i) d.pos[i] = kPos[(sel >> (2 * i)) & 3];
+}
+
+inline int sse48(const uint8_t* a, const uint8_t* b) { return sse16(a, b) + sse16(a + 16, b + 16) + sse16(a + 32, b + 32); }
+
+}  // namespace
+
+void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts) {
+  if (!(lambda > 0)) return;
+  constexpr int kBytes = 8;
+  RdoCounts n;
+  static thread_local DecodedColour dec[kBlocksX * kBlocksX];
+  for (int by = 0; by < kBlocksX; ++by)
+    for (int bx = 0; bx < kBlocksX; ++bx) {
+      const int b = by * kBlocksX + bx;
+      uint8_t* own = blocks + size_t(b) * kBytes;
+      DecodedColour& mine = dec[b];
+      decode_colour_for_rdo(own, mine);
+      if (bx == 0 || by == 0 || bx == kBlocksX - 1 || by == kBlocksX - 1) continue;  // shared ring, as above
+      ++n.blocks;
+      // Reference colours with hole texels at 0: a source must have the same transparency mask, so
+      // those texels decode to 0 on both sides and add nothing.
+      uint8_t ref[48];
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+          const uint8_t* t = rgba + (size_t(by * 4 + r) * kTexels + size_t(bx * 4 + c)) * 4;
+          for (int k = 0; k < 3; ++k) ref[(r * 4 + c) * 3 + k] = t[3] < 128 ? 0 : t[k];
+        }
+      const int own_e = sse48(mine.rgb, ref);
+      int lim = int(std::ceil(float(own_e) + lambda * (8.0f - kMatchBytes)));
+      int from = -1;
+      int near = -1, near_d = 1 << 30;
+      for (int back = 1; back <= kWindowBlocks && back <= b; ++back) {
+        const int c = b - back;
+        const DecodedColour& d = dec[c];
+        if (d.holes != mine.holes) continue;
+        const int e = sse48(d.rgb, ref);
+        if (e < lim) lim = e, from = c;
+        if (mine.four && d.four) {
+          const int dist = sad16(d.pos, mine.pos);
+          if (dist < near_d) near_d = dist, near = c;
+        }
+      }
+      float best_j = from >= 0 ? float(lim) + lambda * kMatchBytes : float(own_e) + lambda * 8.0f;
+      bool index_copy = false;
+      if (near >= 0) {
+        // Own endpoints (4-colour), the nearest source's selectors: 4 literals and a match.
+        uint8_t trial[8];
+        std::memcpy(trial, own, 4);
+        std::memcpy(trial + 4, blocks + size_t(near) * kBytes + 4, 4);
+        DecodedColour t;
+        decode_colour_for_rdo(trial, t);
+        const float j = float(sse48(t.rgb, ref)) + lambda * (4.0f + kMatchBytes);
+        if (j < best_j) {
+          best_j = j;
+          std::memcpy(own + 4, trial + 4, 4);
+          index_copy = true;
+        }
+      }
+      if (!index_copy && from >= 0) std::memcpy(own, blocks + size_t(from) * kBytes, 8);
+      if (index_copy || from >= 0) decode_colour_for_rdo(own, mine);
+      n.half_copies += uint64_t(!index_copy && from >= 0);
       n.index_copies += uint64_t(index_copy);
     }
   if (counts) {

@@ -10,8 +10,8 @@ namespace terrain::cook {
 
 struct RdoCounts {
   uint64_t blocks = 0;
-  uint64_t half_copies = 0;   // an 8-byte half taken whole from an earlier block
-  uint64_t index_copies = 0;  // own endpoints, an earlier block's index bits
+  uint64_t half_copies = 0;   // an 8-byte half (an albedo block) taken whole from an earlier block
+  uint64_t index_copies = 0;  // own (or refitted) endpoints, an earlier block's index bits
 };
 
 // lambda: squared error (8-bit channel units, summed over the block's 16 texels) accepted per
@@ -21,5 +21,11 @@ struct RdoCounts {
 // alpha half and the colour half are chosen separately against x and y. A colour half is only
 // taken from a block with the same R and B endpoint bits (the AO stays exact).
 void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts = nullptr);
+
+// Albedo (BC1 blocks of a 132x132 RGBA8 image, alpha < 128 = hole): a block is taken whole from an
+// earlier block with the same transparency mask, or (4-colour blocks) keeps its endpoints and takes
+// an earlier block's selectors, against the squared RGB error of its texels with data; the hole
+// texels stay exactly transparent.
+void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts = nullptr);
 
 }  // namespace terrain::cook

@@ -184,7 +184,7 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   pack_normal_texels(normals, normal_rgba);
   next_lap(CpuPart::normals_texels);
   encode_bc3_image(normal_rgba.data(), normals_method(in.bc_quality), out.normals_bc3.data());
-  rdo_normal_blocks(normal_rgba.data(), in.normals_rdo, out.normals_bc3.data());
+  rdo_normal_blocks(normal_rgba.data(), in.bc_rdo, out.normals_bc3.data());
   next_lap(CpuPart::normals_bc3);
 
   // Albedo.
@@ -192,6 +192,7 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   bake_albedo(in, rules, lattice, albedo_rgba.data());
   next_lap(CpuPart::albedo_bake);
   encode_bc1_image(albedo_rgba.data(), albedo_method(in.bc_quality), out.albedo_bc1.data());
+  rdo_albedo_blocks(albedo_rgba.data(), in.bc_rdo, out.albedo_bc1.data());
   next_lap(CpuPart::albedo_bc1);
   const auto sum = [&](CpuPart a, CpuPart b) { return lap[size_t(a)] + lap[size_t(b)]; };
   const double t_splat = sum(CpuPart::splat_fields, CpuPart::splat_rules);

@@ -71,7 +71,7 @@ struct SurfaceInput {
   const uint8_t* class_materials = nullptr;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
-  float normals_rdo = 0;  // lambda of rdo_normal_blocks() (bc_rdo.h); 0 = off
+  float bc_rdo = 0;  // lambda of rdo_normal_blocks() and rdo_albedo_blocks() (bc_rdo.h); 0 = off
   // Orthophoto and hole mask of the cook (may be null). Its holes add to `holes`; its colours
   // replace the splat-baked albedo where the orthophoto has data.
   const SurfaceOverlays* overlays = nullptr;
