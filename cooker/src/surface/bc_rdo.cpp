@@ -2,7 +2,8 @@
 //
 // Blocks are visited in stream order. For each block half the candidates are the final halves of
 // the blocks of the last two block rows: zstd finds those bytes within its window and stores a
-// match of a few bytes instead of 8 literals. An alpha half may also take an earlier block's index
+// match of a few bytes instead of 8 literals. The source nearest by absolute difference (one SAD
+// instruction per 16 values) is the one tried; its squared error decides. An alpha half may also take an earlier block's index
 // bits with endpoints refitted to them (least squares), so only the 2 endpoint bytes stay literals.
 // The choice minimises squared error + lambda * expected stored bytes, with literals counted at 1
 // byte each and a match at kMatchBytes. The decoders here follow terrain/bc_decode.h (nearest
@@ -130,6 +131,7 @@ inline int sse16(const uint8_t* a, const uint8_t* b) {
 // 8-value alpha block, each texel's position along a0 -> a1 (0..7; 255 in the other mode).
 struct DecodedBlock {
   uint8_t x[16], y[16], pos[16];
+  uint32_t rb = 0;  // colour_rb_bits of the colour half
 };
 
 void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
@@ -148,6 +150,7 @@ void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
   uint32_t sel;
   std::memcpy(&sel, block + 12, 4);
   for (int i = 0; i < 16; ++i) d.y[i] = uint8_t(g[(sel >> (2 * i)) & 3]);
+  d.rb = colour_rb_bits(block + 8);
 }
 
 }  // namespace
@@ -180,6 +183,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       // Whole-half copies: the least squared error wins; it must stay under own + copy_gain.
       int lim_a = int(std::ceil(float(own_ea) + copy_gain)), lim_c = int(std::ceil(float(own_ec) + copy_gain));
       int from_a = -1, from_c = -1;  // whole-half sources
+      int sad_a = 1 << 30, sad_c = 1 << 30;
       const uint32_t own_rb = colour_rb_bits(own + 8);
       // Index sources: the two whose positions are nearest own (L1), refitted below.
       int near[2] = {-1, -1}, near_d[2] = {1 << 30, 1 << 30};
@@ -187,9 +191,11 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       for (int back = 1; back <= kWindowBlocks && back <= b; ++back) {
         const int c = b - back;
         const DecodedBlock& d = dec[c];
-        const int ea = sse16(d.x, x), ec = sse16(d.y, y);
-        if (ea < lim_a) lim_a = ea, from_a = c;
-        if (ec < lim_c && colour_rb_bits(blocks + size_t(c) * kBlockBytes + 8) == own_rb) lim_c = ec, from_c = c;
+        // Whole halves: the nearest by absolute difference (one instruction); the squared error of
+        // that one decides below.
+        const int da = sad16(d.x, x), dc = sad16(d.y, y);
+        if (da < sad_a) sad_a = da, from_a = c;
+        if (dc < sad_c && d.rb == own_rb) sad_c = dc, from_c = c;
         if (own_eight && d.pos[0] != 255) {
           const int dist = sad16(d.pos, mine.pos);
           if (dist < near_d[1]) {
@@ -202,7 +208,12 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           }
         }
       }
-      if (from_a >= 0) best_ja = float(lim_a) + lambda * kMatchBytes;
+      if (from_a >= 0) {
+        const int e = sse16(dec[from_a].x, x);
+        if (e < lim_a) best_ja = float(e) + lambda * kMatchBytes;
+        else from_a = -1;
+      }
+      if (from_c >= 0 && !(sse16(dec[from_c].y, y) < lim_c)) from_c = -1;
       uint8_t best_a[8];
       std::memcpy(best_a, from_a >= 0 ? blocks + size_t(from_a) * kBlockBytes : own, 8);
       bool index_copy = false;
@@ -286,18 +297,24 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
         }
       const int own_e = sse48(mine.rgb, ref);
       int lim = int(std::ceil(float(own_e) + lambda * (8.0f - kMatchBytes)));
-      int from = -1;
+      int from = -1, best_sad = 1 << 30;
       int near = -1, near_d = 1 << 30;
       for (int back = 1; back <= kWindowBlocks && back <= b; ++back) {
         const int c = b - back;
         const DecodedColour& d = dec[c];
         if (d.holes != mine.holes) continue;
-        const int e = sse48(d.rgb, ref);
-        if (e < lim) lim = e, from = c;
+        const int diff = sad16(d.rgb, ref) + sad16(d.rgb + 16, ref + 16) + sad16(d.rgb + 32, ref + 32);
+        if (diff < best_sad) best_sad = diff, from = c;
         if (mine.four && d.four) {
           const int dist = sad16(d.pos, mine.pos);
           if (dist < near_d) near_d = dist, near = c;
         }
+      }
+      // The source nearest by absolute difference, if its squared error is low enough.
+      if (from >= 0) {
+        const int e = sse48(dec[from].rgb, ref);
+        if (e < lim) lim = e;
+        else from = -1;
       }
       float best_j = from >= 0 ? float(lim) + lambda * kMatchBytes : float(own_e) + lambda * 8.0f;
       bool index_copy = false;
