@@ -190,8 +190,9 @@ std::vector<uint8_t> albedo_with_a_hole() {
 }  // namespace
 
 // The albedo half of the contract: whole-block copies grow a block's squared RGB error by at most
-// (8 - 3) lambda, selector copies by at most 1 lambda; every hole texel stays exactly transparent
-// and every other texel opaque; the shared ring is kept; zstd stores fewer bytes.
+// (8 - 3) lambda, selector copies by at most 1 lambda, and the image's by at most 10 % in all
+// (0.41 dB of PSNR); every hole texel stays exactly transparent and every other texel opaque; the
+// shared ring is kept; zstd stores fewer bytes.
 TEST(BcRdo, AlbedoKeepsItsHolesExactAndEachBlockWithinFiveLambda) {
   const std::vector<uint8_t> img = albedo_with_a_hole();
   std::vector<uint8_t> plain(size_t(kTexelBlocks) * kTexelBlocks * 8);
@@ -218,9 +219,12 @@ TEST(BcRdo, AlbedoKeepsItsHolesExactAndEachBlockWithinFiveLambda) {
     for (size_t k = 0; k < size_t(kTexelCount); ++k) wrong_alpha += (dec[k * 4 + 3] == 0) != (img[k * 4 + 3] < 128);
     EXPECT_EQ(wrong_alpha, 0);
     int changed = 0;
+    int64_t sse_plain = 0, sse_rdo = 0;
     for (int k = 0; k < kTexelBlocks * kTexelBlocks; ++k) {
       const int bx = k % kTexelBlocks, by = k / kTexelBlocks;
       const bool same = std::equal(b.begin() + k * 8, b.begin() + k * 8 + 8, plain.begin() + k * 8);
+      sse_plain += block_sse(plain, k);
+      sse_rdo += block_sse(b, k);
       if (bx == 0 || by == 0 || bx == kTexelBlocks - 1 || by == kTexelBlocks - 1) {
         EXPECT_TRUE(same) << "ring block " << bx << "," << by;
         continue;
@@ -228,6 +232,8 @@ TEST(BcRdo, AlbedoKeepsItsHolesExactAndEachBlockWithinFiveLambda) {
       changed += !same;
       EXPECT_LE(double(block_sse(b, k) - block_sse(plain, k)), 5.0 * lambda) << "block " << bx << "," << by;
     }
+    std::printf("squared error %lld -> %lld\n", (long long)sse_plain, (long long)sse_rdo);
+    EXPECT_LE(double(sse_rdo), 1.1 * double(sse_plain));
     const size_t z0 = zstd_bytes(plain), z1 = zstd_bytes(b);
     std::printf("lambda %.0f: %d blocks changed (%llu whole, %llu selector copies), zstd %zu -> %zu bytes\n", double(lambda),
                 changed, (unsigned long long)counts.half_copies, (unsigned long long)counts.index_copies, z0, z1);
