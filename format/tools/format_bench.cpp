@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "section_bench.h"
 #include "terrain/archive_reader.h"
 #include "terrain/archive_writer.h"
 #include "terrain/format.h"
@@ -531,7 +532,13 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "print JSON instead of the table");
   std::string chart;
   app.add_option("--chart", chart, "also write an SVG chart: bits per sample against decode MB/s per dataset");
+  std::vector<std::string> section_archives;
+  app.add_option("--sections", section_archives,
+                 "instead: zstd levels and trained dictionaries for the normals, albedo, splat and cones sections of "
+                 "these cooked archives (bytes, encode ms per node, decode MB/s; --max-tiles nodes, --runs)")
+      ->check(CLI::ExistingFile);
   CLI11_PARSE(app, argc, argv);
+  if (!section_archives.empty()) return terrain::bench::sections_main(section_archives, max_tiles, runs);
 
   std::vector<Dataset> sets;
   struct Source {
