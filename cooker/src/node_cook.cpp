@@ -1,22 +1,13 @@
 #include "node_cook.h"
 
-#include <time.h>
-
 #include <cmath>
 #include <fmt/format.h>
 
 #include "quantize.h"
+#include "terrain/cpu_clock.h"
 
 namespace terrain::cook {
 namespace {
-
-// Stage times are this thread's CPU time (not wall time): on a loaded machine a preempted thread
-// would otherwise charge other processes' time to the stage, and "per CPU-second" means that.
-double thread_cpu_s() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
 
 // Level-0 lattice index of vertex i (may be negative in the window margin) of a node column.
 int64_t lattice_index(uint32_t node, int i, uint32_t level) {
@@ -274,7 +265,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
 void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   out = NodeResult{};
   out.record.key = key;
-  const double t0 = thread_cpu_s();
+  const double t0 = thread_cpu_seconds();
   // Per-thread buffers (136 KB window, 63 KB node, 109 KB float heights): fresh allocations of this
   // size are mmapped and page-faulted in again for every node.
   static thread_local std::unique_ptr<NodeWindow> window_buffer;
@@ -302,7 +293,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   for (int j = 0; j < kHeightSamples; ++j)
     for (int i = 0; i < kHeightSamples; ++i)
       out.vertices += window->hole[inner + size_t(j) * kWindowSize + size_t(i)] == 0;
-  const double t1 = thread_cpu_s();
+  const double t1 = thread_cpu_seconds();
 
   measure_error(ctx, key, *window, out.error);
   // Stored as float: round up so the recorded error never understates the measured one.
@@ -329,7 +320,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
       if (any) out.record.child_mask = uint8_t(out.record.child_mask | (1u << c));
     }
   }
-  const double t2 = thread_cpu_s();
+  const double t2 = thread_cpu_seconds();
 
   bool surface_done = false;
   if (!ctx.heights_only) {
@@ -352,7 +343,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     if (!out.status.ok()) return;
   }
   if (!surface_done) encode_hole_albedo(window->hole.data(), data->albedo_bc1);
-  const double t3 = thread_cpu_s();
+  const double t3 = thread_cpu_seconds();
   PayloadTiming timing;
   out.status = encode_node_payload(*data, ctx.payload, out.payload, &timing);
   if (!out.status.ok()) return;

@@ -2,14 +2,13 @@
 // the hierarchical predictor's residual planes in zstd, or one value for a constant grid.
 #include "payload.h"
 
-#include <time.h>
-
 #include <algorithm>
 #include <cstring>
 #include <string>
 
 #include "bytes.h"
 #include "terrain/archive_writer.h"
+#include "terrain/cpu_clock.h"
 #include "terrain/height_codec.h"
 #include "zstd_context.h"
 
@@ -61,12 +60,6 @@ Status parse_payload_table(std::span<const uint8_t> payload, PayloadTable& out) 
 }
 
 namespace {
-
-double thread_cpu_s() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
 
 // Height residual planes at levels 9..18 (the cooker's default is 9): optimal parsing (btopt) with
 // a single search attempt and 32 KB tables. Measured on the real DEM tiles (terrain-format-bench):
@@ -201,7 +194,7 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
       st = compress_section(raw[s], surface_level, layout::Codec::zstd, out, entries[s]);
     }
     if (!st.ok()) return st;
-    if (timing) timing->section_end_s[s] = thread_cpu_s();
+    if (timing) timing->section_end_s[s] = thread_cpu_seconds();
   }
   for (uint32_t s = 0; s < layout::kSectionCount; ++s)
     std::memcpy(out.data() + 4 + s * layout::kPayloadTableEntrySize, entries[s], layout::kPayloadTableEntrySize);

@@ -19,15 +19,10 @@
 #include <vector>
 
 #include "terrain/archive_reader.h"
+#include "terrain/cpu_clock.h"
 
 namespace terrain::bench {
 namespace {
-
-double cpu_s() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
 
 struct Config {
   std::string name;
@@ -62,7 +57,7 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
   ZSTD_CDict* cdict = dict.empty() ? nullptr : ZSTD_createCDict(dict.data(), dict.size(), c.level);
   ZSTD_DDict* ddict = dict.empty() ? nullptr : ZSTD_createDDict(dict.data(), dict.size());
   std::vector<std::vector<uint8_t>> packed(test.size());
-  const double t0 = cpu_s();
+  const double t0 = process_cpu_seconds();
   for (size_t i = 0; i < test.size(); ++i) {
     packed[i].resize(ZSTD_compressBound(test[i].size()));
     const size_t n = cdict ? ZSTD_compress_usingCDict(cctx, packed[i].data(), packed[i].size(), test[i].data(), test[i].size(), cdict)
@@ -75,18 +70,18 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
     r.stored += n;
     r.raw += test[i].size();
   }
-  r.enc_ms_per_node = (cpu_s() - t0) * 1e3 / double(std::max<size_t>(1, test.size()));
+  r.enc_ms_per_node = (process_cpu_seconds() - t0) * 1e3 / double(std::max<size_t>(1, test.size()));
   std::vector<uint8_t> out;
   double best = 1e30;
   for (int k = 0; k < runs && ok; ++k) {
-    const double t1 = cpu_s();
+    const double t1 = process_cpu_seconds();
     for (size_t i = 0; i < test.size(); ++i) {
       out.resize(test[i].size());
       const size_t n = ddict ? ZSTD_decompress_usingDDict(dctx, out.data(), out.size(), packed[i].data(), packed[i].size(), ddict)
                              : ZSTD_decompressDCtx(dctx, out.data(), out.size(), packed[i].data(), packed[i].size());
       if (ZSTD_isError(n) || n != test[i].size() || !std::equal(out.begin(), out.end(), test[i].begin())) ok = false;
     }
-    best = std::min(best, cpu_s() - t1);
+    best = std::min(best, process_cpu_seconds() - t1);
   }
   r.dec_mb_s = best > 0 ? double(r.raw) / best / 1e6 : 0;
   r.dict = dict.size();

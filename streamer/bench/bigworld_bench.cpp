@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "synthetic_archive.h"
+#include "terrain/cpu_clock.h"
 #include "terrain/streamer.h"
 
 namespace {
@@ -24,11 +25,7 @@ namespace {
 using namespace terrain;
 using Clock = std::chrono::steady_clock;
 
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+double thread_cpu_ms() { return terrain::thread_cpu_seconds() * 1e3; }
 uint64_t heap_in_use() {
   const struct mallinfo2 mi = mallinfo2();
   return uint64_t(mi.uordblks) + uint64_t(mi.hblkhd);

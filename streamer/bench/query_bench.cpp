@@ -20,6 +20,7 @@
 #include "terrain/bc_decode.h"
 #include "terrain/queries.h"
 #include "terrain/sample.h"
+#include "terrain/cpu_clock.h"
 #include "terrain/streamer.h"
 
 namespace {
@@ -66,11 +67,6 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
-double thread_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 // Median over `runs` of items per second of `work` (which returns how many items it did), per
 // second of this thread's CPU time (a shared machine's other load does not count; "per core").

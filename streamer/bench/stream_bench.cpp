@@ -26,6 +26,7 @@
 #include "synthetic_archive.h"
 #include "terrain/archive_reader.h"
 #include "terrain/sample.h"
+#include "terrain/cpu_clock.h"
 #include "terrain/streamer.h"
 
 namespace terrain::bench {
@@ -34,11 +35,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 // CPU time of the calling thread (unaffected by other processes taking the cores).
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+double thread_cpu_ms() { return terrain::thread_cpu_seconds() * 1e3; }
 
 constexpr const char* kNaiveDescription =
     "synchronous ArchiveReader::decode_node of every wanted, non-resident node on the caller's thread inside its update(), "

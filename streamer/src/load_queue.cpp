@@ -1,17 +1,10 @@
 #include "load_queue.h"
 
-#include <time.h>
-
 #include <chrono>
 
+#include "terrain/cpu_clock.h"
+
 namespace terrain::detail {
-namespace {
-double thread_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + double(ts.tv_nsec) * 1e-9;
-}
-}  // namespace
 
 LoadQueue::LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity)
     : reader_(reader), sections_(sections), surfaces_((sections & kSectionHeights) != 0), capacity_(capacity) {

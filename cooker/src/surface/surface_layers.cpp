@@ -17,13 +17,6 @@
 #include "terrain/surface_contract.h"
 
 namespace terrain::cook {
-// Stage times are CPU time of the calling thread (the cooker runs nodes on several threads; a
-// per-core budget is what matters, and wall time would include other threads' work).
-double thread_cpu_seconds() {
-  timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
 
 const char* cpu_part_name(CpuPart p) {
   static constexpr const char* kNames[kCpuParts] = {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "terrain/cpu_clock.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
@@ -96,8 +97,6 @@ enum class CpuPart : uint8_t {
 };
 inline constexpr size_t kCpuParts = size_t(CpuPart::count);
 const char* cpu_part_name(CpuPart p);
-// Seconds of the calling thread's CPU clock (a system call: call it a few times per node only).
-double thread_cpu_seconds();
 
 struct SurfaceStats {  // summed over nodes by the caller
   // CPU time of the calling thread per stage (compression included; the error statistics below are

@@ -34,12 +34,6 @@ using namespace terrain;
 using namespace terrain::cook;
 namespace {
 
-// CPU time of this thread: the machine is shared, so wall time would charge us for other work.
-double thread_seconds() {
-  timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
 
 // printf into a std::string (chart titles).
 std::string fmt_string(const char* format, ...) __attribute__((format(printf, 1, 2)));
@@ -276,9 +270,9 @@ void print_frontier(const char* name, const std::vector<NodePayload>& payloads, 
     auto measure = [&](const std::string& label, auto&& encode) {
       std::vector<double> t;
       for (int r = 0; r < reps; ++r) {
-        const double t0 = thread_seconds();
+        const double t0 = thread_cpu_seconds();
         for (size_t i = 0; i < n; ++i) encode(&blocks[i * 64], &out[i * 8]);
-        t.push_back(thread_seconds() - t0);
+        t.push_back(thread_cpu_seconds() - t0);
       }
       std::sort(t.begin(), t.end());
       double se = 0;
@@ -449,9 +443,9 @@ int main(int argc, char** argv) {
           double secs = 0;
           for (const NodePayload& p : payloads) {
             const uint8_t* img = which ? p.albedo_relief.data() : p.albedo_splat.data();
-            const double t0 = thread_seconds();
+            const double t0 = thread_cpu_seconds();
             encode_bc1_image(img, m, out.data());
-            secs += thread_seconds() - t0;
+            secs += thread_cpu_seconds() - t0;
             const AlbedoCheck c = check_albedo(img, out.data());
             acc.sq_err += c.sq_err;
             acc.samples += c.samples;
@@ -478,9 +472,9 @@ int main(int argc, char** argv) {
           AngleStats acc;
           for (const NodePayload& p : payloads) {
             const uint8_t* img = variant ? p.normal_rgba_const.data() : p.normal_rgba.data();
-            const double t0 = thread_seconds();
+            const double t0 = thread_cpu_seconds();
             encode_bc3_image(img, m, out.data());
-            secs += thread_seconds() - t0;
+            secs += thread_cpu_seconds() - t0;
             const AngleStats e = normal_error(p.normals, out.data());
             acc.sum_deg += e.sum_deg;
             acc.count += e.count;
@@ -530,9 +524,9 @@ int main(int argc, char** argv) {
         std::vector<double> t, tc;
         for (int r = 0; r < reps; ++r) {
           SurfaceStats st;
-          const double t0 = thread_seconds();
+          const double t0 = thread_cpu_seconds();
           const Status s = cook_surface_layers(n.input(&rules, q), n.node, n.height_offset, n.step_log2, outnode, &st);
-          tc.push_back((thread_seconds() - t0) * 1e3);
+          tc.push_back((thread_cpu_seconds() - t0) * 1e3);
           if (!s.ok()) {
             std::fprintf(stderr, "terrain-bc-bench: %s\n", s.to_string().c_str());
             return 1;
