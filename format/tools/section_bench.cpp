@@ -35,8 +35,8 @@ struct Result {
   double enc_ms_per_node = 0, dec_mb_s = 0;
 };
 
-Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector<std::vector<uint8_t>>& test, const Config& c,
-               int runs, bool& ok) {
+Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector<std::vector<uint8_t>>& test,
+               const Config& c, int runs, bool& ok) {
   Result r;
   std::vector<uint8_t> dict;
   if (c.dict_bytes) {
@@ -44,7 +44,8 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
     std::vector<size_t> sizes;
     for (const auto& s : train) samples.insert(samples.end(), s.begin(), s.end()), sizes.push_back(s.size());
     dict.resize(c.dict_bytes);
-    const size_t n = ZDICT_trainFromBuffer(dict.data(), dict.size(), samples.data(), sizes.data(), unsigned(sizes.size()));
+    const size_t n =
+        ZDICT_trainFromBuffer(dict.data(), dict.size(), samples.data(), sizes.data(), unsigned(sizes.size()));
     if (ZDICT_isError(n)) {
       fmt::print(stderr, "dictionary training failed: {}\n", ZDICT_getErrorName(n));
       ok = false;
@@ -60,8 +61,10 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
   const double t0 = process_cpu_seconds();
   for (size_t i = 0; i < test.size(); ++i) {
     packed[i].resize(ZSTD_compressBound(test[i].size()));
-    const size_t n = cdict ? ZSTD_compress_usingCDict(cctx, packed[i].data(), packed[i].size(), test[i].data(), test[i].size(), cdict)
-                           : ZSTD_compressCCtx(cctx, packed[i].data(), packed[i].size(), test[i].data(), test[i].size(), c.level);
+    const size_t n =
+        cdict
+            ? ZSTD_compress_usingCDict(cctx, packed[i].data(), packed[i].size(), test[i].data(), test[i].size(), cdict)
+            : ZSTD_compressCCtx(cctx, packed[i].data(), packed[i].size(), test[i].data(), test[i].size(), c.level);
     if (ZSTD_isError(n)) {
       ok = false;
       break;
@@ -77,8 +80,9 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
     const double t1 = process_cpu_seconds();
     for (size_t i = 0; i < test.size(); ++i) {
       out.resize(test[i].size());
-      const size_t n = ddict ? ZSTD_decompress_usingDDict(dctx, out.data(), out.size(), packed[i].data(), packed[i].size(), ddict)
-                             : ZSTD_decompressDCtx(dctx, out.data(), out.size(), packed[i].data(), packed[i].size());
+      const size_t n =
+          ddict ? ZSTD_decompress_usingDDict(dctx, out.data(), out.size(), packed[i].data(), packed[i].size(), ddict)
+                : ZSTD_decompressDCtx(dctx, out.data(), out.size(), packed[i].data(), packed[i].size());
       if (ZSTD_isError(n) || n != test[i].size() || !std::equal(out.begin(), out.end(), test[i].begin())) ok = false;
     }
     best = std::min(best, process_cpu_seconds() - t1);
@@ -96,14 +100,21 @@ Result measure(const std::vector<std::vector<uint8_t>>& train, const std::vector
 
 int sections_main(const std::vector<std::string>& archives, size_t max_nodes, int runs) {
   const char* names[4] = {"normals", "albedo", "splat", "cones"};
-  const std::vector<Config> configs = {{"zstd 1", 1, 0},  {"zstd 3", 3, 0},  {"zstd 6 (cooker)", 6, 0}, {"zstd 9", 9, 0},
-                                       {"zstd 19", 19, 0}, {"6 + dict 16K", 6, 16 << 10}, {"6 + dict 64K", 6, 64 << 10},
+  const std::vector<Config> configs = {{"zstd 1", 1, 0},
+                                       {"zstd 3", 3, 0},
+                                       {"zstd 6 (cooker)", 6, 0},
+                                       {"zstd 9", 9, 0},
+                                       {"zstd 19", 19, 0},
+                                       {"6 + dict 16K", 6, 16 << 10},
+                                       {"6 + dict 64K", 6, 64 << 10},
                                        {"19 + dict 64K", 19, 64 << 10}};
-  fmt::print("terrain-format-bench --sections: surface sections of cooked archives; every 4th node trains the "
-             "dictionaries, the other nodes are measured (dictionary bytes not included: one per archive); "
-             "dec MB/s = raw bytes out per CPU second, fastest of {} runs\n\n", runs);
-  fmt::print("{:<20} {:<8} {:<16} {:>6} {:>11} {:>7} {:>7} {:>9} {:>9}\n", "archive", "section", "config", "nodes", "stored B",
-             "dict B", "x zstd6", "enc ms/n", "dec MB/s");
+  fmt::print(
+      "terrain-format-bench --sections: surface sections of cooked archives; every 4th node trains the "
+      "dictionaries, the other nodes are measured (dictionary bytes not included: one per archive); "
+      "dec MB/s = raw bytes out per CPU second, fastest of {} runs\n\n",
+      runs);
+  fmt::print("{:<20} {:<8} {:<16} {:>6} {:>11} {:>7} {:>7} {:>9} {:>9}\n", "archive", "section", "config", "nodes",
+             "stored B", "dict B", "x zstd6", "enc ms/n", "dec MB/s");
   bool all_ok = true;
   for (const std::string& path : archives) {
     ArchiveReader reader;
@@ -117,7 +128,8 @@ int sections_main(const std::vector<std::string>& archives, size_t max_nodes, in
     NodeData node;
     size_t picked = 0;
     for (size_t i = 0; i < total; i += stride, ++picked) {
-      if (Status st = reader.decode_node(i, node, kSectionNormals | kSectionAlbedo | kSectionSplat | kSectionCones); !st.ok()) {
+      if (Status st = reader.decode_node(i, node, kSectionNormals | kSectionAlbedo | kSectionSplat | kSectionCones);
+          !st.ok()) {
         fmt::print(stderr, "terrain-format-bench: {} node {}: {}\n", path, i, st.to_string());
         return 1;
       }
@@ -138,9 +150,10 @@ int sections_main(const std::vector<std::string>& archives, size_t max_nodes, in
         if (c.level == 6 && c.dict_bytes == 0) base = rows.back();
       }
       for (size_t k = 0; k < configs.size(); ++k)
-        fmt::print("{:<20} {:<8} {:<16} {:>6} {:>11} {:>7} {:>7.3f} {:>9.4f} {:>9.0f}\n", label, names[s], configs[k].name,
-                   test[s].size(), rows[k].stored, rows[k].dict, double(rows[k].stored) / double(std::max<size_t>(1, base.stored)),
-                   rows[k].enc_ms_per_node, rows[k].dec_mb_s);
+        fmt::print("{:<20} {:<8} {:<16} {:>6} {:>11} {:>7} {:>7.3f} {:>9.4f} {:>9.0f}\n", label, names[s],
+                   configs[k].name, test[s].size(), rows[k].stored, rows[k].dict,
+                   double(rows[k].stored) / double(std::max<size_t>(1, base.stored)), rows[k].enc_ms_per_node,
+                   rows[k].dec_mb_s);
     }
   }
   if (!all_ok) fmt::print(stderr, "terrain-format-bench: a round trip failed\n");

@@ -22,7 +22,9 @@ using namespace terrain::cook::test;
 namespace {
 
 // Rolling hills with metre-scale undulation (smooth at the texel scale, like the lidar-like bench squares).
-double smooth_hills(double x, double y) { return 30 * std::sin(x / 70.0) * std::cos(y / 90.0) + 0.6 * std::sin(x / 3.1) * std::cos(y / 4.3); }
+double smooth_hills(double x, double y) {
+  return 30 * std::sin(x / 70.0) * std::cos(y / 90.0) + 0.6 * std::sin(x / 3.1) * std::cos(y / 4.3);
+}
 
 struct Encoded {
   NormalTexels ref;
@@ -46,7 +48,8 @@ int64_t block_sse(const Encoded& e, const uint8_t* blocks, int b, int channel) {
   const int bx = b % kTexelBlocks, by = b / kTexelBlocks;
   int64_t sse = 0;
   for (int p = 0; p < 16; ++p) {
-    const int d = int(px[p * 4 + channel]) - e.rgba[(size_t(by * 4 + p / 4) * kTexels + size_t(bx * 4 + p % 4)) * 4 + size_t(channel)];
+    const int d = int(px[p * 4 + channel]) -
+                  e.rgba[(size_t(by * 4 + p / 4) * kTexels + size_t(bx * 4 + p % 4)) * 4 + size_t(channel)];
     sse += d * d;
   }
   return sse;
@@ -116,9 +119,11 @@ TEST(BcRdo, EachHalfStaysWithinFiveLambdaAndTheSharedRingAndAoAreKept) {
         decode_bc3_block(b.data() + k * 16, after);
         for (int p = 0; p < 16; ++p) ASSERT_EQ(after[p * 4], before[p * 4]) << "AO of block " << bx << "," << by;
       }
-      std::printf("level %u lambda %.0f: %d of 961 blocks changed (%llu whole halves, %llu index copies), worst growth %lld (bound %.0f)\n",
-                  level, double(lambda), changed, (unsigned long long)counts.half_copies,
-                  (unsigned long long)counts.index_copies, (long long)worst_growth, 5.0 * lambda);
+      std::printf(
+          "level %u lambda %.0f: %d of 961 blocks changed (%llu whole halves, %llu index copies), worst growth %lld "
+          "(bound %.0f)\n",
+          level, double(lambda), changed, (unsigned long long)counts.half_copies,
+          (unsigned long long)counts.index_copies, (long long)worst_growth, 5.0 * lambda);
       EXPECT_GT(changed, lambda >= 32 ? 100 : 0);
     }
   }
@@ -160,8 +165,9 @@ TEST(BcRdo, NormalsShrinkUnderZstdAsLambdaGrowsForABoundedLoss) {
     }
   }
   for (int l = 1; l < 3; ++l)
-    std::printf("%s, %zu nodes, lambda %.0f: %.3fx the zstd bytes, mean error %.3f -> %.3f deg\n", real ? "Slovenia lidar" : "synthetic",
-                nodes.size(), double(lambdas[l]), bytes[l] / bytes[0], error[0], error[l]);
+    std::printf("%s, %zu nodes, lambda %.0f: %.3fx the zstd bytes, mean error %.3f -> %.3f deg\n",
+                real ? "Slovenia lidar" : "synthetic", nodes.size(), double(lambdas[l]), bytes[l] / bytes[0], error[0],
+                error[l]);
   EXPECT_LT(bytes[1], bytes[0]);
   EXPECT_LT(bytes[2], bytes[1]);
   EXPECT_GT(error[2], error[1]);
@@ -235,8 +241,9 @@ TEST(BcRdo, AlbedoKeepsItsHolesExactAndEachBlockWithinFiveLambda) {
     std::printf("squared error %lld -> %lld\n", (long long)sse_plain, (long long)sse_rdo);
     EXPECT_LE(double(sse_rdo), 1.1 * double(sse_plain));
     const size_t z0 = zstd_bytes(plain), z1 = zstd_bytes(b);
-    std::printf("lambda %.0f: %d blocks changed (%llu whole, %llu selector copies), zstd %zu -> %zu bytes\n", double(lambda),
-                changed, (unsigned long long)counts.half_copies, (unsigned long long)counts.index_copies, z0, z1);
+    std::printf("lambda %.0f: %d blocks changed (%llu whole, %llu selector copies), zstd %zu -> %zu bytes\n",
+                double(lambda), changed, (unsigned long long)counts.half_copies,
+                (unsigned long long)counts.index_copies, z0, z1);
     EXPECT_GT(changed, 50);
     EXPECT_LT(z1, z0);
   }
