@@ -12,17 +12,7 @@
 #include "bc_blocks.h"
 
 namespace terrain::cook {
-namespace {
 
-void write_bc4(int a0, int a1, const uint8_t sel[16], uint8_t out[8]) {
-  out[0] = uint8_t(a0);
-  out[1] = uint8_t(a1);
-  uint64_t bits = 0;
-  for (int i = 0; i < 16; ++i) bits |= uint64_t(sel[i]) << (3 * i);
-  for (int i = 0; i < 6; ++i) out[2 + i] = uint8_t(bits >> (8 * i));
-}
-
-// Palette exactly as decode_bc4_block computes it.
 void bc4_palette(int a0, int a1, int pal[8]) {
   pal[0] = a0;
   pal[1] = a1;
@@ -33,6 +23,16 @@ void bc4_palette(int a0, int a1, int pal[8]) {
     pal[6] = 0;
     pal[7] = 255;
   }
+}
+
+namespace {
+
+void write_bc4(int a0, int a1, const uint8_t sel[16], uint8_t out[8]) {
+  out[0] = uint8_t(a0);
+  out[1] = uint8_t(a1);
+  uint64_t bits = 0;
+  for (int i = 0; i < 16; ++i) bits |= uint64_t(sel[i]) << (3 * i);
+  for (int i = 0; i < 6; ++i) out[2 + i] = uint8_t(bits >> (8 * i));
 }
 
 int64_t bc4_assign(const uint8_t v[16], int a0, int a1, uint8_t sel[16]) {

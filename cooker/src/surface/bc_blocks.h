@@ -86,6 +86,9 @@ void encode_bc1_weighted(const uint8_t rgba[64], const float weights[3], uint8_t
 // Colour block when R and B are constant and exactly representable (normal maps): exhaustive-ish
 // 1D fit of G. Returns false (nothing written) when the block does not qualify.
 bool encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
+// The 8 values a BC4 block with endpoints a0, a1 decodes to, exactly as decode_bc4_block (nearest
+// rounding) computes them (the encoder and the rate-distortion pass, bc_rdo.cpp).
+void bc4_palette(int a0, int a1, int pal[8]);
 // BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
 void encode_bc4(const uint8_t values[16], uint8_t out[8]);
 // BC4 block whose decoded values are >= the targets (and as small as possible): conservative

@@ -19,6 +19,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "bc_blocks.h"
 #include "surface_layers.h"
 #include "terrain/bc_decode.h"
 
@@ -41,19 +42,6 @@ inline uint64_t load48(const uint8_t* b) {
   uint64_t bits = 0;
   for (int i = 0; i < 6; ++i) bits |= uint64_t(b[i]) << (8 * i);
   return bits;
-}
-
-// BC4 (BC3 alpha) palette, as decode_bc4_block with nearest rounding.
-inline void bc4_palette(int a0, int a1, int p[8]) {
-  p[0] = a0;
-  p[1] = a1;
-  if (a0 > a1) {
-    for (int k = 1; k <= 6; ++k) p[1 + k] = ((7 - k) * a0 + k * a1 + 3) / 7;
-  } else {
-    for (int k = 1; k <= 4; ++k) p[1 + k] = ((5 - k) * a0 + k * a1 + 2) / 5;
-    p[6] = 0;
-    p[7] = 255;
-  }
 }
 
 inline int bc4_sse(int a0, int a1, uint64_t bits, const uint8_t ref[16]) {
