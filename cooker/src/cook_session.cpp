@@ -301,6 +301,7 @@ Status surface_setup(CookSession& s, CookReport& report) {
   so.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
   s.ctx.bc_quality = so.bc_quality;
   s.ctx.bc_rdo = s.options.bc_rdo;
+  s.ctx.check_all_errors = s.options.error_checks == ErrorChecks::all;
   if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
   s.ctx.rules = s.rules.get();
   report.surface_layers = !s.options.heights_only;
@@ -396,6 +397,7 @@ OverviewSettings overview_settings(const CookSession& s) {
   o.rules = s.rules.get();
   o.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
   o.bc_rdo = s.options.bc_rdo;
+  o.check_all_errors = s.options.error_checks == ErrorChecks::all;
   o.payload.zstd_level = s.options.zstd_level;
   o.payload.surface_zstd_level = s.options.surface_zstd_level;
   o.heights_only = s.options.heights_only;

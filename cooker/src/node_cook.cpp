@@ -338,6 +338,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     in.rules = ctx.rules;
     in.bc_quality = ctx.bc_quality;
     in.bc_rdo = ctx.bc_rdo;
+    in.measure_errors = ctx.check_all_errors || error_check_sampled(key);
     in.overlays = ctx.overlays;
     out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
     if (!out.status.ok()) return;

@@ -316,6 +316,7 @@ void build_node(const OverviewSettings& s, const Band& lat, const LevelNodes& be
     in.rules = s.rules;
     in.bc_quality = s.bc_quality;
     in.bc_rdo = s.bc_rdo;
+    in.measure_errors = s.check_all_errors || error_check_sampled(key);
     SurfaceStats stats;
     if (Status ss = cook_surface_layers(in, data, out.record.height_offset, step, data, &stats); !ss.ok()) {
       out.status = ss;

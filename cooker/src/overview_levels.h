@@ -49,6 +49,7 @@ struct OverviewSettings {
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
   float bc_rdo = 0;  // CookOptions::bc_rdo
+  bool check_all_errors = false;  // CookOptions::error_checks == all
   PayloadOptions payload;
   bool heights_only = false;
   int threads = 1;

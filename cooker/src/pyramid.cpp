@@ -38,6 +38,8 @@ void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
   t.cone_encoded_deg_sum += n.cone_encoded_deg_sum;
   t.cone_patches += n.cone_patches;
   t.cone_patches_never_cull += n.cone_patches_never_cull;
+  t.nodes += n.nodes;
+  t.checked_nodes += n.checked_nodes;
 }
 
 double rms_of(const ErrorStats& e) { return e.samples ? std::sqrt(e.sum_sq / double(e.samples)) : 0.0; }

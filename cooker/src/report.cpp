@@ -145,6 +145,9 @@ std::string report_json(const CookReport& r) {
                     {"albedo_samples", t.albedo_samples},
                     {"albedo_hole_texels", t.albedo_hole_texels},
                     {"albedo_alpha_mismatches", t.albedo_alpha_mismatches},
+                    // Normal and albedo errors are measured on checked_nodes of nodes (--error-checks).
+                    {"nodes", t.nodes},
+                    {"checked_nodes", t.checked_nodes},
                     {"cones", {{"patches", t.cone_patches},
                                {"patches_never_cull", t.cone_patches_never_cull},
                                {"exact_mean_deg", t.cone_exact_mean_deg()},
@@ -189,10 +192,11 @@ std::string report_summary(const CookReport& r) {
                      r.leaf_uncovered_samples);
   if (r.surface_layers) {
     const SurfaceTotals& t = r.surface;
-    s += fmt::format("surface: normals err max {:.2f} deg, mean {:.2f} deg; albedo PSNR {:.1f} dB; cones over {} "
-                     "patches: mean half-angle {:.1f} deg exact, {:.1f} deg encoded, {} never cull (cpu: normals {:.2f}, "
-                     "albedo {:.2f}, splat {:.2f}, cones {:.2f})\n",
-                     t.normal_err_max_deg, t.normal_err_mean_deg(), t.albedo_psnr_db(), t.cone_patches,
+    s += fmt::format("surface: normals err max {:.2f} deg, mean {:.2f} deg; albedo PSNR {:.1f} dB (measured on {} of {} "
+                     "nodes); cones over {} patches: mean half-angle {:.1f} deg exact, {:.1f} deg encoded, {} never cull "
+                     "(cpu: normals {:.2f}, albedo {:.2f}, splat {:.2f}, cones {:.2f})\n",
+                     t.normal_err_max_deg, t.normal_err_mean_deg(), t.albedo_psnr_db(), t.checked_nodes, t.nodes,
+                     t.cone_patches,
                      t.cone_exact_mean_deg(), t.cone_encoded_mean_deg(), t.cone_patches_never_cull, t.cpu_normals,
                      t.cpu_albedo, t.cpu_splat, t.cpu_cones);
   }

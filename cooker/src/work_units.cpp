@@ -68,6 +68,7 @@ json options_json(const CookOptions& o) {
   j["materials"] = o.materials_path;
   j["surface_quality"] = int(o.surface_quality);
   if (o.bc_rdo > 0) j["bc_rdo"] = o.bc_rdo;
+  if (o.error_checks == ErrorChecks::all) j["error_checks"] = "all";  // absent: sample (earlier plans kept)
   j["albedo"] = o.albedo_path;
   j["holes"] = o.holes_path;
   j["landcover"] = o.landcover_path;
@@ -104,6 +105,7 @@ CookOptions options_of(const json& j) {
   o.materials_path = j.at("materials");
   o.surface_quality = SurfaceQuality(j.at("surface_quality").get<int>());
   o.bc_rdo = j.value("bc_rdo", 0.0f);
+  o.error_checks = j.value("error_checks", std::string("sample")) == "all" ? ErrorChecks::all : ErrorChecks::sample;
   o.albedo_path = j.at("albedo");
   o.holes_path = j.at("holes");
   o.landcover_path = j.at("landcover");
@@ -305,6 +307,7 @@ json stats_json(const UnitStats& u) {
             t.normal_samples, t.albedo_sq_err_sum, t.albedo_samples, t.albedo_hole_texels, t.albedo_alpha_mismatches,
             t.cone_exact_deg_sum, t.cone_encoded_deg_sum, t.cone_patches, t.cone_patches_never_cull}},
           {"cpu_parts", t.cpu_parts},  // absent in units of older tools: read as zeros
+          {"surface_nodes", {t.nodes, t.checked_nodes}},  // ditto
           {"void_fill_residual_m", r.void_fill_residual_m},
           {"window_samples", r.block_window_samples_max},
           {"input_bytes_read", r.input_bytes_read}};
@@ -340,6 +343,10 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
   t.cone_encoded_deg_sum += s.at(12).get<double>();
   t.cone_patches += s.at(13).get<uint64_t>();
   t.cone_patches_never_cull += s.at(14).get<uint64_t>();
+  if (j.contains("surface_nodes")) {
+    t.nodes += j.at("surface_nodes").at(0).get<uint64_t>();
+    t.checked_nodes += j.at("surface_nodes").at(1).get<uint64_t>();
+  }
   if (j.contains("cpu_parts")) {
     const auto parts = j.at("cpu_parts").get<std::vector<double>>();
     for (size_t k = 0; k < std::min(parts.size(), t.cpu_parts.size()); ++k) t.cpu_parts[k] += parts[k];

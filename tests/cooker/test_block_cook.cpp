@@ -205,6 +205,38 @@ TEST(BlockCook, BcRdoToo) {
   EXPECT_EQ(with.surface.albedo_alpha_mismatches, 0u);
 }
 
+// --error-checks: sampled checks measure fewer nodes (every root, one in 8 below) with the same
+// archive bytes; `all` measures every texel of every node; hole alpha is counted on every node both ways.
+TEST(BlockCook, ErrorChecksSampleOrAllSameBytes) {
+  cook::CookOptions o;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-checks"), "blocky", blocky_dem(), true, o));
+  o.threads = 2;
+  o.tolerance_m = 2.0;
+  cook::CookOptions all = o;
+  all.output += ".all";
+  all.error_checks = cook::ErrorChecks::all;
+  cook::CookReport sampled, every;
+  ASSERT_TRUE(cook::cook(o, nullptr, sampled).ok());
+  ASSERT_TRUE(cook::cook(all, nullptr, every).ok());
+  EXPECT_EQ(file_bytes(o.output), file_bytes(all.output));
+  const double texels = double(kTexels) * kTexels;
+  EXPECT_EQ(every.surface.nodes, every.nodes);
+  EXPECT_EQ(every.surface.checked_nodes, every.nodes);
+  EXPECT_EQ(double(every.surface.normal_samples), double(every.nodes) * texels);
+  EXPECT_EQ(double(every.surface.albedo_samples) / 3 + double(every.surface.albedo_hole_texels), double(every.nodes) * texels);
+  EXPECT_EQ(sampled.surface.nodes, sampled.nodes);
+  EXPECT_GE(sampled.surface.checked_nodes, uint64_t(sampled.levels[kRootLevel].nodes));
+  EXPECT_LT(sampled.surface.checked_nodes, sampled.nodes);
+  EXPECT_EQ(double(sampled.surface.normal_samples), double(sampled.surface.checked_nodes) * texels);
+  EXPECT_EQ(sampled.surface.albedo_hole_texels, every.surface.albedo_hole_texels);
+  EXPECT_GT(every.surface.albedo_hole_texels, 0u);  // the DEM has holes: the alpha count is exercised
+  EXPECT_EQ(sampled.surface.albedo_alpha_mismatches, 0u);
+  EXPECT_EQ(every.surface.albedo_alpha_mismatches, 0u);
+  std::printf("%llu nodes, %llu checked; mean normal error %.4f (sampled) vs %.4f (all) degrees\n",
+              (unsigned long long)sampled.nodes, (unsigned long long)sampled.surface.checked_nodes,
+              sampled.surface.normal_err_mean_deg(), every.surface.normal_err_mean_deg());
+}
+
 // A heights-only cook evaluates only the vertices its payload needs (the node and the hole
 // albedo's apron of kApron vertices), so its blocks read windows narrower than a full cook's by
 // the surface filters' margin, and its nodes' heights, ranges and errors are the full cook's.

@@ -6,11 +6,14 @@
 #include <cstring>
 #include <functional>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "bc_blocks.h"
 #include "terrain/surface_contract.h"
 #include "cones.h"
 #include "normals.h"
+#include "surface_encoders.h"
 #include "surface_test_support.h"
 
 using namespace terrain;
@@ -348,4 +351,62 @@ TEST(SurfaceSynthetic, OverlayHolesAndPhotoReachTheAlbedoExactly) {
   EXPECT_GT(mask_holes, 60);
   EXPECT_GT(smooth_checked, 2000);
   EXPECT_EQ(check_cones(node, with, 200, 7).violations, 0u);
+}
+
+// The cheap hole check (block bits) that unchecked nodes get must count what the decoding check
+// counts: random BC1 blocks (both colour modes, every index) against random hole flags, then a
+// cooked node with holes whose blocks are then broken (endpoints swapped: 3-colour <-> 4-colour).
+TEST(SurfaceSynthetic, HoleAlphaFromBlockBitsEqualsTheDecodedCheck) {
+  std::vector<uint8_t> rgba(size_t(kTexelCount) * 4), blocks(size_t(kTexelBlocks * kTexelBlocks) * 8);
+  uint64_t s = 0x9E3779B97F4A7C15ull;
+  auto next = [&] { s ^= s << 13; s ^= s >> 7; s ^= s << 17; return s; };
+  for (int round = 0; round < 20; ++round) {
+    for (uint8_t& b : blocks) b = uint8_t(next());
+    for (size_t k = 0; k < rgba.size(); ++k) rgba[k] = uint8_t(next());
+    if (round % 4 == 0)  // equal endpoints: 3-colour mode on every block
+      for (size_t b = 0; b < blocks.size(); b += 8) blocks[b + 2] = blocks[b], blocks[b + 3] = blocks[b + 1];
+    const AlbedoCheck full = check_albedo(rgba.data(), blocks.data());
+    const AlbedoCheck fast = check_albedo_alpha(rgba.data(), blocks.data());
+    EXPECT_EQ(fast.holes, full.holes);
+    EXPECT_EQ(fast.alpha_mismatches, full.alpha_mismatches);
+    EXPECT_GT(full.alpha_mismatches, 0u);  // random flags against random blocks: the test can fail
+  }
+  auto hole = [](double x, double y) {
+    const int i = int(std::lround(x / 0.5)) - 128, j = int(std::lround(y / 0.5)) - 128;
+    return i >= 20 && i <= 60 && j >= 30 && j <= 41;
+  };
+  const auto node = synthetic_node(rolling, 0, 1, 1, 2, hole);
+  const Cooked c = cook_node(node, default_rules(), BcQuality::balanced);
+  ASSERT_TRUE(c.status.ok());
+  std::vector<uint8_t> want(size_t(kTexelCount) * 4, 255);
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) want[size_t(u * kTexels + t) * 4 + 3] = texel_is_hole(node, t, u) ? 0 : 255;
+  std::vector<uint8_t> bc1(c.data.albedo_bc1.begin(), c.data.albedo_bc1.end());
+  EXPECT_EQ(check_albedo_alpha(want.data(), bc1.data()).alpha_mismatches, 0u);
+  EXPECT_EQ(check_albedo_alpha(want.data(), bc1.data()).holes, check_albedo(want.data(), bc1.data()).holes);
+  EXPECT_GT(check_albedo(want.data(), bc1.data()).holes, 400u);
+  for (size_t b = 0; b < bc1.size(); b += 8) {
+    std::swap(bc1[b], bc1[b + 2]);
+    std::swap(bc1[b + 1], bc1[b + 3]);
+  }
+  const AlbedoCheck broken = check_albedo(want.data(), bc1.data());
+  EXPECT_GT(broken.alpha_mismatches, 0u);
+  EXPECT_EQ(check_albedo_alpha(want.data(), bc1.data()).alpha_mismatches, broken.alpha_mismatches);
+}
+
+// Sampled error checks measure about one node in 8 at every level below the roots, the same nodes
+// every time, and every root and overview node.
+TEST(SurfaceSynthetic, ErrorCheckSampleIsOneNodeInEightBelowTheRoots) {
+  for (uint32_t level = 0; level <= 7; ++level) {
+    int picked = 0, total = 0;
+    for (uint32_t y = 0; y < 200; ++y)
+      for (uint32_t x = 0; x < 200; ++x) {
+        const NodeKey k{level, x + 1000 * level, y};
+        picked += error_check_sampled(k);
+        ++total;
+        ASSERT_EQ(error_check_sampled(k), error_check_sampled(NodeKey{level, x + 1000 * level, y}));
+      }
+    const double share = double(picked) / total;
+    EXPECT_NEAR(share, level >= uint32_t(kRootLevel) ? 1.0 : 0.125, 0.01) << "level " << level;
+  }
 }

@@ -22,6 +22,10 @@ enum class NodataPolicy : uint8_t {
 };
 
 enum class SurfaceQuality : uint8_t { fast, balanced, best };
+// Which nodes the report's surface error statistics (normal degrees, albedo PSNR) decode and
+// measure: one node in 8, chosen by its key (the same nodes at any thread count or unit split), or
+// every node. Hole alpha is checked on every node either way.
+enum class ErrorChecks : uint8_t { sample, all };
 enum class OverviewMode : uint8_t { automatic, on, off };
 
 struct CookOptions {
@@ -71,6 +75,7 @@ struct CookOptions {
   // Surface layers (cooker/src/surface).
   std::string materials_path;
   SurfaceQuality surface_quality = SurfaceQuality::balanced;
+  ErrorChecks error_checks = ErrorChecks::sample;  // --error-checks
   // Rate-distortion pass over the normal and albedo blocks (--bc-rdo, cooker/src/surface/bc_rdo.h):
   // squared error accepted per byte of literals saved; 0 = off (the blocks of the encoder as they are).
   float bc_rdo = 0;
@@ -149,6 +154,8 @@ struct SurfaceTotals {
   // encoded cone can never cull (90 degrees or more).
   double cone_exact_deg_sum = 0, cone_encoded_deg_sum = 0;
   uint64_t cone_patches = 0, cone_patches_never_cull = 0;
+  // Nodes with surface layers, and those of them whose normal and albedo errors were measured.
+  uint64_t nodes = 0, checked_nodes = 0;
 
   double normal_err_mean_deg() const { return normal_samples ? normal_err_sum_deg / double(normal_samples) : 0.0; }
   double albedo_psnr_db() const;  // 0 when nothing was measured or the albedo is exact

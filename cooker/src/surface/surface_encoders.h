@@ -21,6 +21,9 @@ struct AlbedoCheck {
   uint64_t samples = 0;
 };
 AlbedoCheck check_albedo(const uint8_t* rgba, const uint8_t* bc1_blocks);
+// Holes and alpha mismatches only (sq_err and samples stay 0), read from the block bits: a BC1
+// texel is transparent exactly when its block has colour0 <= colour1 and its index is 3.
+AlbedoCheck check_albedo_alpha(const uint8_t* rgba, const uint8_t* bc1_blocks);
 double psnr_db(double sq_err, uint64_t samples);
 
 }  // namespace terrain::cook

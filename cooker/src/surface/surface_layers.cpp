@@ -72,6 +72,32 @@ AlbedoCheck check_albedo(const uint8_t* rgba, const uint8_t* bc1_blocks) {
   return c;
 }
 
+AlbedoCheck check_albedo_alpha(const uint8_t* rgba, const uint8_t* bc1_blocks) {
+  AlbedoCheck c;
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      const uint8_t* b = bc1_blocks + size_t(by * kTexelBlocks + bx) * 8;
+      const bool three_colour = uint32_t(b[0] | (b[1] << 8)) <= uint32_t(b[2] | (b[3] << 8));
+      const uint32_t idx = uint32_t(b[4]) | uint32_t(b[5]) << 8 | uint32_t(b[6]) << 16 | uint32_t(b[7]) << 24;
+      for (int i = 0; i < 16; ++i) {
+        const bool hole = rgba[size_t((by * 4 + i / 4) * kTexels + bx * 4 + i % 4) * 4 + 3] < 128;
+        const bool transparent = three_colour && ((idx >> (2 * i)) & 3u) == 3u;
+        c.holes += hole;
+        c.alpha_mismatches += hole != transparent;
+      }
+    }
+  return c;
+}
+
+bool error_check_sampled(const NodeKey& key) {
+  if (key.level >= uint32_t(kRootLevel)) return true;  // few, and every archive with data has one
+  uint64_t h = (uint64_t(key.level) << 58) ^ (uint64_t(key.y) << 29) ^ uint64_t(key.x);
+  h ^= h >> 33; h *= 0xff51afd7ed558ccdull;
+  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53ull;
+  h ^= h >> 33;
+  return (h & 7u) == 0;
+}
+
 double psnr_db(double sq_err, uint64_t samples) {
   if (samples == 0) return 0;
   if (sq_err <= 0) return 99.0;
@@ -198,11 +224,18 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
     stats->seconds_cones += t_cones;
     stats->seconds_normals += t_normals;
     stats->seconds_albedo += t_albedo;
-    const AngleStats ne = normal_error(normals, out.normals_bc3.data());
-    stats->normal_err_sum_deg += ne.sum_deg;
-    stats->normal_err_max_deg = std::max(stats->normal_err_max_deg, ne.max_deg);
-    stats->normal_samples += ne.count;
-    const AlbedoCheck ac = check_albedo(albedo_rgba.data(), out.albedo_bc1.data());
+    stats->nodes += 1;
+    AlbedoCheck ac;
+    if (in.measure_errors) {
+      stats->checked_nodes += 1;
+      const AngleStats ne = normal_error(normals, out.normals_bc3.data());
+      stats->normal_err_sum_deg += ne.sum_deg;
+      stats->normal_err_max_deg = std::max(stats->normal_err_max_deg, ne.max_deg);
+      stats->normal_samples += ne.count;
+      ac = check_albedo(albedo_rgba.data(), out.albedo_bc1.data());
+    } else {
+      ac = check_albedo_alpha(albedo_rgba.data(), out.albedo_bc1.data());
+    }
     stats->albedo_sq_err_sum += ac.sq_err;
     stats->albedo_samples += ac.samples;
     stats->albedo_hole_texels += ac.holes;
