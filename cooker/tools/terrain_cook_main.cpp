@@ -200,7 +200,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--error-checks", error_checks,
                  "Nodes whose normal and albedo errors the report measures (decoding their blocks): sample = one node in "
-                 "8, chosen by its key; all = every node (0.2 ms more CPU per node). Hole alpha is checked on every node")
+                 "8, chosen by its key (every node when the grid has at most 4 roots); all = every node (0.2 ms more CPU per node). "
+                 "Hole alpha is checked on every node")
       ->check(CLI::IsMember({"sample", "all"}))
       ->capture_default_str();
   std::string overview = "auto";

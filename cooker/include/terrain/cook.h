@@ -23,8 +23,9 @@ enum class NodataPolicy : uint8_t {
 
 enum class SurfaceQuality : uint8_t { fast, balanced, best };
 // Which nodes the report's surface error statistics (normal degrees, albedo PSNR) decode and
-// measure: one node in 8, chosen by its key (the same nodes at any thread count or unit split), or
-// every node. Hole alpha is checked on every node either way.
+// measure: one node in 8, chosen by its key (the same nodes at any thread count or unit split;
+// every node when the root grid has at most 4 cells), or every node. Hole alpha is checked on
+// every node either way.
 enum class ErrorChecks : uint8_t { sample, all };
 enum class OverviewMode : uint8_t { automatic, on, off };
 

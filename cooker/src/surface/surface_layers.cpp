@@ -90,7 +90,6 @@ AlbedoCheck check_albedo_alpha(const uint8_t* rgba, const uint8_t* bc1_blocks) {
 }
 
 bool error_check_sampled(const NodeKey& key) {
-  if (key.level >= uint32_t(kRootLevel)) return true;  // few, and every archive with data has one
   uint64_t h = (uint64_t(key.level) << 58) ^ (uint64_t(key.y) << 29) ^ uint64_t(key.x);
   h ^= h >> 33; h *= 0xff51afd7ed558ccdull;
   h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53ull;

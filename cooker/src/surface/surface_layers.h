@@ -119,9 +119,9 @@ struct SurfaceStats {  // summed over nodes by the caller
   uint64_t nodes = 0, checked_nodes = 0;  // nodes cooked, and those with measure_errors
 };
 
-// The nodes whose errors a sampled cook measures (ErrorChecks::sample): every root and overview
-// node, and one in 8 below the roots by a hash of the key, so the same nodes at any thread count,
-// block or unit split. Decoding and comparing every
+// The nodes whose errors a sampled cook measures (ErrorChecks::sample): one in 8 at every level, by
+// a hash of the key, so the same nodes at any thread count, block or unit split (always checking
+// the roots would bias the figures toward the coarsest level: +5 % mean normal error on Kilauea). Decoding and comparing every
 // node costs 0.2 ms of its 2-3 ms (lidar and SRTM, 2026-12-04).
 bool error_check_sampled(const NodeKey& key);
 
