@@ -224,60 +224,69 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   const int r0 = std::max(0, int(std::floor(rmin)) - 1), r1 = std::min(src.source_height - 1, int(std::ceil(rmax)) + 1);
   const double inv_s = 1.0 / s;
   if (c1 < c0) return;
-  // The node's vertex heights in metres once (NaN at holes: a hole vertex drops its triangles), so
-  // a sample reads three doubles instead of three units and hole flags. Same values as converting
-  // per sample: the bits of every error are unchanged.
+  // Height in metres of node vertex (i, j), NaN at a hole (a hole vertex drops its triangles).
+  const auto vertex_m = [&](int i, int j) {
+    const size_t k = size_t(j + kWindowMargin) * kWindowSize + size_t(i + kWindowMargin);
+    return w.hole[k] ? double(NAN) : double(w.units[k]) * kHeightUnitM;
+  };
+  // Where the source is denser than the node's vertices (coarse nodes over lidar: up to 4 M samples
+  // per root), the vertex heights are converted once, so a sample reads three doubles; sparser
+  // sources convert per sample (16 641 conversions would cost more than their samples). Same values
+  // either way: the bits of every error are unchanged.
+  const bool dense = uint64_t(c1 - c0 + 1) * uint64_t(r1 - r0 + 1) > uint64_t(kHeightSamples) * kHeightSamples;
   thread_local std::vector<double> hv;
-  hv.resize(size_t(kHeightSamples) * kHeightSamples);
-  for (int j = 0; j < kHeightSamples; ++j) {
-    const size_t k0 = size_t(j + kWindowMargin) * kWindowSize + size_t(kWindowMargin);
-    double* dst = &hv[size_t(j) * kHeightSamples];
-    for (int i = 0; i < kHeightSamples; ++i)
-      dst[i] = w.hole[k0 + size_t(i)] ? NAN : double(w.units[k0 + size_t(i)]) * kHeightUnitM;
+  if (dense) {
+    hv.resize(size_t(kHeightSamples) * kHeightSamples);
+    for (int j = 0; j < kHeightSamples; ++j)
+      for (int i = 0; i < kHeightSamples; ++i) hv[size_t(j) * kHeightSamples + size_t(i)] = vertex_m(i, j);
   }
   thread_local std::vector<double> fxs, fys;
   fxs.resize(size_t(c1 - c0 + 1));
   fys.resize(size_t(c1 - c0 + 1));
   const bool any_filled = !src.filled.empty();
-  for (int row = r0; row <= r1; ++row) {
-    ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
-    const size_t row_idx = src.index(c0, row);
-    const float* zs = &src.values[row_idx];
-    const uint8_t* filled = any_filled ? &src.filled[row_idx] : nullptr;
-    // The current quadrant's sums live in registers (a quadrant changes at most a few times per
-    // row); they are loaded and stored back, so each sum sees the same additions in the same order.
-    int cur = -1;
-    ErrorStats acc;
-    for (int col = c0; col <= c1; ++col) {
-      const size_t n = size_t(col - c0);
-      const float z = zs[n];
-      if (std::isnan(z) || (filled && filled[n])) continue;
-      const double u = (fxs[n] - x0) * inv_s, v = (fys[n] - y0) * inv_s;
-      if (!(u >= 0 && v >= 0 && u <= kQuadsPerSide && v <= kQuadsPerSide)) continue;
-      const int i = std::min(int(u), kQuadsPerSide - 1), j = std::min(int(v), kQuadsPerSide - 1);
-      const double fu = u - i, fv = v - j;
-      const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | (v >= 0.5 * kQuadsPerSide ? 2 : 0);
-      if (q != cur) {
-        if (cur >= 0) out.quadrant[size_t(cur)] = acc;
-        cur = q;
-        acc = out.quadrant[size_t(q)];
+  const auto measure_rows = [&](auto&& at) {
+    for (int row = r0; row <= r1; ++row) {
+      ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
+      const size_t row_idx = src.index(c0, row);
+      const float* zs = &src.values[row_idx];
+      const uint8_t* filled = any_filled ? &src.filled[row_idx] : nullptr;
+      // The current quadrant's sums live in registers (a quadrant changes at most a few times per
+      // row); they are loaded and stored back, so each sum sees the same additions in the same order.
+      int cur = -1;
+      ErrorStats acc;
+      for (int col = c0; col <= c1; ++col) {
+        const size_t n = size_t(col - c0);
+        const float z = zs[n];
+        if (std::isnan(z) || (filled && filled[n])) continue;
+        const double u = (fxs[n] - x0) * inv_s, v = (fys[n] - y0) * inv_s;
+        if (!(u >= 0 && v >= 0 && u <= kQuadsPerSide && v <= kQuadsPerSide)) continue;
+        const int i = std::min(int(u), kQuadsPerSide - 1), j = std::min(int(v), kQuadsPerSide - 1);
+        const double fu = u - i, fv = v - j;
+        const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | (v >= 0.5 * kQuadsPerSide ? 2 : 0);
+        if (q != cur) {
+          if (cur >= 0) out.quadrant[size_t(cur)] = acc;
+          cur = q;
+          acc = out.quadrant[size_t(q)];
+        }
+        // Quads split along the south-west to north-east diagonal (format/SPEC.md "Surface").
+        const double h00 = at(i, j), h11 = at(i + 1, j + 1), hc = fu >= fv ? at(i + 1, j) : at(i, j + 1);
+        if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
+          ++acc.uncovered;
+          continue;
+        }
+        const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
+        const double e = std::fabs(h - double(z));
+        acc.max_m = std::max(acc.max_m, e);
+        acc.sum_sq += e * e;
+        ++acc.samples;
       }
-      // Quads split along the south-west to north-east diagonal (format/SPEC.md "Surface").
-      const double* south = &hv[size_t(j) * kHeightSamples + size_t(i)];
-      const double* north = south + kHeightSamples;
-      const double h00 = south[0], h11 = north[1], hc = fu >= fv ? south[1] : north[0];
-      if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
-        ++acc.uncovered;
-        continue;
-      }
-      const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
-      const double e = std::fabs(h - double(z));
-      acc.max_m = std::max(acc.max_m, e);
-      acc.sum_sq += e * e;
-      ++acc.samples;
+      if (cur >= 0) out.quadrant[size_t(cur)] = acc;
     }
-    if (cur >= 0) out.quadrant[size_t(cur)] = acc;
-  }
+  };
+  if (dense)
+    measure_rows([&](int i, int j) { return hv[size_t(j) * kHeightSamples + size_t(i)]; });
+  else
+    measure_rows(vertex_m);
   for (const ErrorStats& q : out.quadrant) out.total.add(q);
 }
 
