@@ -947,6 +947,110 @@ int rdo_main(const std::string& tool, const std::vector<Dem>& dems, const std::v
   return rc;
 }
 
+// --against BIN: the same default cooks with another terrain-cook (the previous commit's build) and
+// this one, in turn; per DEM the CPU per node of every stage and part from the two cook reports,
+// bytes per source sample per section, the error figures, and whether the archives are identical.
+struct AgainstCook {
+  nlohmann::json report;
+  std::string bytes;  // the archive
+};
+
+std::optional<AgainstCook> against_cook(const std::string& tool, const Dem& dem, const std::vector<std::string>& flags,
+                                        const std::string& out) {
+  std::vector<std::string> argv = {tool, dem.file, "-o", out, "--json"};
+  argv.insert(argv.end(), dem.flags.begin(), dem.flags.end());
+  argv.insert(argv.end(), flags.begin(), flags.end());
+  const Run r = run(argv);
+  if (!r.ok) return std::nullopt;
+  AgainstCook c;
+  try {
+    c.report = nlohmann::json::parse(r.out);
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  }
+  std::ifstream f(out, std::ios::binary);
+  c.bytes.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  return c;
+}
+
+int against_main(const std::string& before, const std::string& tool, const std::vector<Dem>& dems,
+                 const std::vector<std::string>& only, const std::vector<std::string>& flags, int runs) {
+  const auto scratch = std::filesystem::temp_directory_path() / fmt::format("terrain-cook-bench-against-{}", getpid());
+  std::filesystem::create_directories(scratch);
+  const std::string archive = (scratch / "against.terrain").string();
+  fmt::print("terrain-cook-bench --against: default cooks{} with\n  before: {}\n  after:  {}\ntaken in turn, {} run{} "
+             "each; CPU ms per node from the cook reports (medians), bytes and errors from the last run.\n",
+             flags.empty() ? "" : fmt::format(" ({})", fmt::join(flags, " ")), before, tool, runs, runs == 1 ? "" : "s");
+  struct Summary {
+    std::string dem;
+    uint64_t nodes = 0;
+    double before_ms = 0, after_ms = 0;
+    bool same = false;
+  };
+  std::vector<Summary> summary;
+  int rc = 0;
+  for (const Dem& dem : dems) {
+    if (!only.empty() && std::find(only.begin(), only.end(), dem.name) == only.end()) continue;
+    if (!std::filesystem::exists(dem.file)) {
+      fmt::print("\n{} (missing: {})\n", dem.name, dem.file);
+      continue;
+    }
+    std::map<std::string, std::vector<double>> ms[2];  // stage -> per-run CPU ms per node
+    std::optional<AgainstCook> last[2];
+    for (int k = 0; k < runs; ++k)
+      for (int side = 0; side < 2; ++side) {
+        auto c = against_cook(side ? tool : before, dem, flags, archive);
+        if (!c) {
+          fmt::print(stderr, "terrain-cook-bench: {} failed on {}\n", side ? tool : before, dem.file);
+          rc = 1;
+          break;
+        }
+        for (const auto& [stage, v] : c->report["time_s"]["cpu_ms_per_node"].items())
+          if (v.is_number()) ms[side][stage].push_back(v.get<double>());
+        last[side] = std::move(c);
+      }
+    if (!last[0] || !last[1]) continue;
+    const nlohmann::json& rb = last[0]->report;
+    const nlohmann::json& ra = last[1]->report;
+    const bool same = last[0]->bytes == last[1]->bytes;
+    const uint64_t nodes = ra["output"]["nodes"].get<uint64_t>();
+    fmt::print("\n{}: {} nodes, archive {:.2f} MB, {}\n", dem.name, nodes, double(last[1]->bytes.size()) / 1e6,
+               same ? "identical bytes" : fmt::format("DIFFERENT bytes (before {:.2f} MB)", double(last[0]->bytes.size()) / 1e6));
+    fmt::print("  {:<16} {:>9} {:>9} {:>8}\n", "CPU ms/node", "before", "after", "after/b");
+    for (const auto& [stage, values] : ms[1]) {
+      const double a = median(values);
+      const double b = ms[0].count(stage) ? median(ms[0].at(stage)) : NAN;
+      if (!(a > 0.0005) && !(b > 0.0005)) continue;  // stages this cook does not have
+      fmt::print("  {:<16} {:>9.3f} {:>9.3f} {:>8.2f}\n", stage, b, a, a / b);
+    }
+    const double samples = ra["source"]["valid_samples"].get<double>();
+    fmt::print("  bytes per source sample:");
+    for (const auto& [section, v] : ra["output"]["sections"].items())
+      fmt::print(" {} {:.3f}", section, v["stored_bytes"].get<double>() / samples);
+    fmt::print("\n");
+    auto errors = [](const nlohmann::json& r) {
+      std::string e = fmt::format("height max {:.3f} m rms {:.4f} m", r["full_detail_error"]["max_m"].get<double>(),
+                                  r["full_detail_error"]["rms_m"].get<double>());
+      if (r.contains("surface")) {
+        const nlohmann::json& s = r["surface"];
+        e += fmt::format("; normals mean {:.4f} deg; albedo {:.3f} dB", s["normal_err_mean_deg"].get<double>(),
+                         s["albedo_psnr_db"].get<double>());
+        if (s.contains("checked_nodes"))
+          e += fmt::format(" ({} of {} nodes measured)", s["checked_nodes"].get<uint64_t>(), s["nodes"].get<uint64_t>());
+      }
+      return e;
+    };
+    fmt::print("  errors before: {}\n  errors after:  {}\n", errors(rb), errors(ra));
+    summary.push_back({dem.name, nodes, median(ms[0]["total"]), median(ms[1]["total"]), same});
+  }
+  std::filesystem::remove_all(scratch);
+  fmt::print("\n{:<16} {:>7} {:>10} {:>10} {:>8} {}\n", "dem", "nodes", "before ms", "after ms", "after/b", "bytes");
+  for (const Summary& r : summary)
+    fmt::print("{:<16} {:>7} {:>10.3f} {:>10.3f} {:>8.2f} {}\n", r.dem, r.nodes, r.before_ms, r.after_ms,
+               r.after_ms / r.before_ms, r.same ? "identical" : "different");
+  return rc;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -1004,7 +1108,16 @@ int main(int argc, char** argv) {
                  "bytes against loss)")
       ->delimiter(',')
       ->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--rdo-dems", rdo_extra, "--rdo: more DEM files to cook (e.g. the 1 m lidar-like squares of --scale)")
+  app.add_option("--rdo-dems", rdo_extra,
+                 "--rdo and --against: more DEM files to cook (e.g. the 1 m lidar-like squares of --scale)")
+      ->delimiter(',');
+  std::string against;
+  std::vector<std::string> against_flags;
+  app.add_option("--against", against,
+                 "Instead of the sweep: default cooks of each DEM with this other terrain-cook (e.g. the previous "
+                 "commit's build) and ours, in turn (--runs, default 3): CPU ms per node of every stage, bytes per "
+                 "source sample per section, the errors, identical archives or not");
+  app.add_option("--against-flags", against_flags, "--against: cook flags for both sides, e.g. --tolerance,0.05")
       ->delimiter(',');
   try {
     app.parse(argc, argv);
@@ -1044,6 +1157,13 @@ int main(int argc, char** argv) {
        d + "ps_height_1k.png"},
       {"jacksboro", "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz", {"--crs", "EPSG:4326"}, ""},
   };
+  if (!against.empty()) {
+    for (const std::string& f : rdo_extra) dems.push_back({std::filesystem::path(f).stem().string(), f, {}, ""});
+    std::vector<std::string> names = only;
+    if (!names.empty())
+      for (const std::string& f : rdo_extra) names.push_back(std::filesystem::path(f).stem().string());
+    return against_main(against, tool, dems, names, against_flags, runs);
+  }
   if (!rdo_lambdas.empty()) {
     for (const std::string& f : rdo_extra) dems.push_back({std::filesystem::path(f).stem().string(), f, {}, ""});
     std::vector<std::string> names = only;
