@@ -28,13 +28,34 @@ inline double fast_floor(double x) {
   return t > x ? t - 1.0 : t;
 }
 
+// The four corner values of the last cell seen per seed slot: the cooker walks its lattices row by
+// row at spacings far below the noise wavelengths (1 m against 12-90 m at level 0), so most calls
+// land in the cell of the call before and skip the four hashes. The values are the same either way.
+struct NoiseCell {
+  int64_t iu = 0, iv = 0;
+  uint32_t seed = 0;
+  bool valid = false;
+  double a = 0, b = 0, c = 0, d = 0;
+};
+inline thread_local NoiseCell noise_cells[16];
+
 inline double value_noise(double u, double v, uint32_t seed) {
   const double fu = fast_floor(u), fv = fast_floor(v);
   const int64_t iu = int64_t(fu), iv = int64_t(fv);
   const double tu = u - fu, tv = v - fv;
   const double su = tu * tu * (3 - 2 * tu), sv = tv * tv * (3 - 2 * tv);  // smoothstep: C1 across cells
-  const double a = lattice_value(iu, iv, seed), b = lattice_value(iu + 1, iv, seed);
-  const double c = lattice_value(iu, iv + 1, seed), d = lattice_value(iu + 1, iv + 1, seed);
+  NoiseCell& cell = noise_cells[(seed ^ (seed >> 4) ^ (seed >> 9)) & 15u];
+  if (!cell.valid || cell.iu != iu || cell.iv != iv || cell.seed != seed) {
+    cell.valid = true;
+    cell.iu = iu;
+    cell.iv = iv;
+    cell.seed = seed;
+    cell.a = lattice_value(iu, iv, seed);
+    cell.b = lattice_value(iu + 1, iv, seed);
+    cell.c = lattice_value(iu, iv + 1, seed);
+    cell.d = lattice_value(iu + 1, iv + 1, seed);
+  }
+  const double a = cell.a, b = cell.b, c = cell.c, d = cell.d;
   const double ab = a + (b - a) * su, cd = c + (d - c) * su;
   return ab + (cd - ab) * sv;
 }
