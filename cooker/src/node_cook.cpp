@@ -244,6 +244,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   fxs.resize(size_t(c1 - c0 + 1));
   fys.resize(size_t(c1 - c0 + 1));
   const bool any_filled = !src.filled.empty();
+  const bool level_rows = ctx.mapping->axis_aligned();
   const auto measure_rows = [&](auto&& at) {
     for (int row = r0; row <= r1; ++row) {
       ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
@@ -254,6 +255,42 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
       // row); they are loaded and stored back, so each sum sees the same additions in the same order.
       int cur = -1;
       ErrorStats acc;
+      if (level_rows) {
+        // Every sample of the row has the same frame y (bitwise: the cross term is zero), so the
+        // same v, quad row and fraction: the row is measured by the loop below with v fixed.
+        const double v = (fys[0] - y0) * inv_s;
+        if (!(v >= 0 && v <= kQuadsPerSide)) continue;
+        const int j = std::min(int(v), kQuadsPerSide - 1);
+        const double fv = v - j;
+        const int qv = v >= 0.5 * kQuadsPerSide ? 2 : 0;
+        for (int col = c0; col <= c1; ++col) {
+          const size_t n = size_t(col - c0);
+          const float z = zs[n];
+          if (std::isnan(z) || (filled && filled[n])) continue;
+          const double u = (fxs[n] - x0) * inv_s;
+          if (!(u >= 0 && u <= kQuadsPerSide)) continue;
+          const int i = std::min(int(u), kQuadsPerSide - 1);
+          const double fu = u - i;
+          const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | qv;
+          if (q != cur) {
+            if (cur >= 0) out.quadrant[size_t(cur)] = acc;
+            cur = q;
+            acc = out.quadrant[size_t(q)];
+          }
+          const double h00 = at(i, j), h11 = at(i + 1, j + 1), hc = fu >= fv ? at(i + 1, j) : at(i, j + 1);
+          if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
+            ++acc.uncovered;
+            continue;
+          }
+          const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
+          const double e = std::fabs(h - double(z));
+          acc.max_m = std::max(acc.max_m, e);
+          acc.sum_sq += e * e;
+          ++acc.samples;
+        }
+        if (cur >= 0) out.quadrant[size_t(cur)] = acc;
+        continue;
+      }
       for (int col = c0; col <= c1; ++col) {
         const size_t n = size_t(col - c0);
         const float z = zs[n];
