@@ -263,6 +263,12 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
         const int j = std::min(int(v), kQuadsPerSide - 1);
         const double fv = v - j;
         const int qv = v >= 0.5 * kQuadsPerSide ? 2 : 0;
+        // Per quad of the row, the parts of the two triangles' interpolation that do not depend on
+        // the sample: south-east (fu >= fv) (h00 + fu d_se) + t_se, north-west t_nw + fu d_nw,
+        // the general formula below with its products and sums grouped as it groups them.
+        int quad = -1;
+        double h00 = 0, d_se = 0, t_se = 0, d_nw = 0, t_nw = 0;
+        bool se_ok = false, nw_ok = false;
         for (int col = c0; col <= c1; ++col) {
           const size_t n = size_t(col - c0);
           const float z = zs[n];
@@ -277,12 +283,23 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
             cur = q;
             acc = out.quadrant[size_t(q)];
           }
-          const double h00 = at(i, j), h11 = at(i + 1, j + 1), hc = fu >= fv ? at(i + 1, j) : at(i, j + 1);
-          if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
+          if (i != quad) {
+            quad = i;
+            h00 = at(i, j);
+            const double h10 = at(i + 1, j), h01 = at(i, j + 1), h11 = at(i + 1, j + 1);
+            se_ok = !(std::isnan(h00) || std::isnan(h11) || std::isnan(h10));
+            nw_ok = !(std::isnan(h00) || std::isnan(h11) || std::isnan(h01));
+            d_se = h10 - h00;
+            t_se = fv * (h11 - h10);
+            t_nw = h00 + fv * (h01 - h00);
+            d_nw = h11 - h01;
+          }
+          const bool se = fu >= fv;
+          if (!(se ? se_ok : nw_ok)) {
             ++acc.uncovered;
             continue;
           }
-          const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
+          const double h = se ? h00 + fu * d_se + t_se : t_nw + fu * d_nw;
           const double e = std::fabs(h - double(z));
           acc.max_m = std::max(acc.max_m, e);
           acc.sum_sq += e * e;
