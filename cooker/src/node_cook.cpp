@@ -245,9 +245,31 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   fys.resize(size_t(c1 - c0 + 1));
   const bool any_filled = !src.filled.empty();
   const bool level_rows = ctx.mapping->axis_aligned();
+  // Axis-aligned: every row has the same frame x per column too (bitwise), so each column's u, quad
+  // column and fraction are computed once per node (column_quad < 0: outside the node).
+  thread_local std::vector<double> column_fu;
+  thread_local std::vector<int> column_quad;
+  if (level_rows) {
+    ctx.mapping->map_sample_row(r0, c0, c1 - c0 + 1, fxs.data(), fys.data());
+    column_fu.resize(fxs.size());
+    column_quad.resize(fxs.size());
+    for (size_t n = 0; n < fxs.size(); ++n) {
+      const double u = (fxs[n] - x0) * inv_s;
+      column_quad[n] = -1;
+      column_fu[n] = 0.0;
+      if (!(u >= 0 && u <= kQuadsPerSide)) continue;
+      const int i = std::min(int(u), kQuadsPerSide - 1);
+      column_quad[n] = i | (u >= 0.5 * kQuadsPerSide ? 1 << 16 : 0);  // bit 16: the east half
+      column_fu[n] = u - i;
+    }
+  }
   const auto measure_rows = [&](auto&& at) {
     for (int row = r0; row <= r1; ++row) {
-      ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
+      if (level_rows) {
+        ctx.mapping->map_sample_row(row, c0, 1, fxs.data(), fys.data());
+      } else {
+        ctx.mapping->map_sample_row(row, c0, c1 - c0 + 1, fxs.data(), fys.data());
+      }
       const size_t row_idx = src.index(c0, row);
       const float* zs = &src.values[row_idx];
       const uint8_t* filled = any_filled ? &src.filled[row_idx] : nullptr;
@@ -273,11 +295,11 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
           const size_t n = size_t(col - c0);
           const float z = zs[n];
           if (std::isnan(z) || (filled && filled[n])) continue;
-          const double u = (fxs[n] - x0) * inv_s;
-          if (!(u >= 0 && u <= kQuadsPerSide)) continue;
-          const int i = std::min(int(u), kQuadsPerSide - 1);
-          const double fu = u - i;
-          const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | qv;
+          const int cq = column_quad[n];
+          if (cq < 0) continue;
+          const int i = cq & 0xFFFF;
+          const double fu = column_fu[n];
+          const int q = (cq >> 16) | qv;
           if (q != cur) {
             if (cur >= 0) out.quadrant[size_t(cur)] = acc;
             cur = q;
