@@ -1157,19 +1157,16 @@ int main(int argc, char** argv) {
        d + "ps_height_1k.png"},
       {"jacksboro", "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz", {"--crs", "EPSG:4326"}, ""},
   };
-  if (!against.empty()) {
-    for (const std::string& f : rdo_extra) dems.push_back({std::filesystem::path(f).stem().string(), f, {}, ""});
+  if (!against.empty() || !rdo_lambdas.empty()) {
+    // The --rdo-dems files join the shared DEMs (and the --dems filter, when one is given).
     std::vector<std::string> names = only;
-    if (!names.empty())
-      for (const std::string& f : rdo_extra) names.push_back(std::filesystem::path(f).stem().string());
-    return against_main(against, tool, dems, names, against_flags, runs);
-  }
-  if (!rdo_lambdas.empty()) {
-    for (const std::string& f : rdo_extra) dems.push_back({std::filesystem::path(f).stem().string(), f, {}, ""});
-    std::vector<std::string> names = only;
-    if (!names.empty())
-      for (const std::string& f : rdo_extra) names.push_back(std::filesystem::path(f).stem().string());
-    return rdo_main(tool, dems, names, rdo_lambdas, runs, chart);
+    for (const std::string& f : rdo_extra) {
+      const std::string name = std::filesystem::path(f).stem().string();
+      dems.push_back({name, f, {}, ""});
+      if (!only.empty()) names.push_back(name);
+    }
+    return !against.empty() ? against_main(against, tool, dems, names, against_flags, runs)
+                            : rdo_main(tool, dems, names, rdo_lambdas, runs, chart);
   }
   const auto scratch = std::filesystem::temp_directory_path() / fmt::format("terrain-cook-bench-{}", getpid());
   std::filesystem::create_directories(scratch);

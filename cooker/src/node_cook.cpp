@@ -277,6 +277,17 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
       // row); they are loaded and stored back, so each sum sees the same additions in the same order.
       int cur = -1;
       ErrorStats acc;
+      const auto enter = [&](int q) {
+        if (q == cur) return;
+        if (cur >= 0) out.quadrant[size_t(cur)] = acc;
+        cur = q;
+        acc = out.quadrant[size_t(q)];
+      };
+      const auto record = [&](double e) {
+        acc.max_m = std::max(acc.max_m, e);
+        acc.sum_sq += e * e;
+        ++acc.samples;
+      };
       if (level_rows) {
         // Every sample of the row has the same frame y (bitwise: the cross term is zero), so the
         // same v, quad row and fraction: the row is measured by the loop below with v fixed.
@@ -300,11 +311,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
           const int i = cq & 0xFFFF;
           const double fu = column_fu[n];
           const int q = (cq >> 16) | qv;
-          if (q != cur) {
-            if (cur >= 0) out.quadrant[size_t(cur)] = acc;
-            cur = q;
-            acc = out.quadrant[size_t(q)];
-          }
+          enter(q);
           if (i != quad) {
             quad = i;
             h00 = at(i, j);
@@ -322,10 +329,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
             continue;
           }
           const double h = se ? h00 + fu * d_se + t_se : t_nw + fu * d_nw;
-          const double e = std::fabs(h - double(z));
-          acc.max_m = std::max(acc.max_m, e);
-          acc.sum_sq += e * e;
-          ++acc.samples;
+          record(std::fabs(h - double(z)));
         }
         if (cur >= 0) out.quadrant[size_t(cur)] = acc;
         continue;
@@ -339,11 +343,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
         const int i = std::min(int(u), kQuadsPerSide - 1), j = std::min(int(v), kQuadsPerSide - 1);
         const double fu = u - i, fv = v - j;
         const int q = (u >= 0.5 * kQuadsPerSide ? 1 : 0) | (v >= 0.5 * kQuadsPerSide ? 2 : 0);
-        if (q != cur) {
-          if (cur >= 0) out.quadrant[size_t(cur)] = acc;
-          cur = q;
-          acc = out.quadrant[size_t(q)];
-        }
+        enter(q);
         // Quads split along the south-west to north-east diagonal (format/SPEC.md "Surface").
         const double h00 = at(i, j), h11 = at(i + 1, j + 1), hc = fu >= fv ? at(i + 1, j) : at(i, j + 1);
         if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
@@ -351,10 +351,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
           continue;
         }
         const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
-        const double e = std::fabs(h - double(z));
-        acc.max_m = std::max(acc.max_m, e);
-        acc.sum_sq += e * e;
-        ++acc.samples;
+        record(std::fabs(h - double(z)));
       }
       if (cur >= 0) out.quadrant[size_t(cur)] = acc;
     }
