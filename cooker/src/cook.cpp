@@ -240,6 +240,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (Status st = writer.open_ordered(options.output, shape_of({&spool, &overview})); !st.ok()) return st;
     if (Status st = spool.drain(writer); !st.ok()) return st;
     if (Status st = overview.drain(writer); !st.ok()) return st;
+    report.spool_bytes_returned = spool.punched_bytes() + overview.punched_bytes();
   }
   finish_levels(s, totals, report);
   report.seconds_pyramid = seconds_since(t_pyr);

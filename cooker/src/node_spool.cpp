@@ -66,14 +66,40 @@ Status NodeSpool::read(const Entry& e, std::vector<uint8_t>& out) const {
   return Status::success();
 }
 
+namespace {
+constexpr int kChunkShift = 20;  // spool space goes back in 1 MiB chunks
+
+// Calls f(chunk, bytes) for each chunk the entry's payload overlaps.
+template <class F>
+void for_each_chunk(const NodeSpool::Entry& e, F&& f) {
+  for (uint64_t a = e.offset, end = e.offset + e.size; a < end;) {
+    const uint64_t c = a >> kChunkShift, next = std::min(end, (c + 1) << kChunkShift);
+    f(size_t(c), uint32_t(next - a));
+    a = next;
+  }
+}
+}  // namespace
+
 Status NodeSpool::drain(ArchiveWriter& writer) {
   const std::vector<Entry> sorted = sorted_entries();
   entries_.clear();
   entries_.shrink_to_fit();
+  // The spool is in block order, the drain in canonical order: a chunk whose every payload byte has
+  // been copied is punched out of the file, so the disk holds the archive plus what is left to copy
+  // (not both in full). Best effort: where the file system cannot punch holes the space stays until
+  // the spool is removed, as before.
+  std::vector<uint32_t> left(size_t((bytes_ + (uint64_t(1) << kChunkShift) - 1) >> kChunkShift), 0);
+  for (const Entry& e : sorted) for_each_chunk(e, [&](size_t c, uint32_t n) { left[c] += n; });
   std::vector<uint8_t> buf;
   for (const Entry& e : sorted) {
     if (Status st = read(e, buf); !st.ok()) return st;
     if (Status st = writer.add_node(e.record, buf); !st.ok()) return st;
+    for_each_chunk(e, [&](size_t c, uint32_t n) {
+      left[c] -= n;
+      if (left[c] == 0 && ::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, off_t(c) << kChunkShift,
+                                      off_t(1) << kChunkShift) == 0)
+        punched_ += uint64_t(1) << kChunkShift;
+    });
   }
   return Status::success();
 }

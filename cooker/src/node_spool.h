@@ -3,8 +3,9 @@
 // Blocks finish in block order, but the archive's payloads go level by level (5 first), then by
 // row and column, whatever the block size or order: that order is what makes the bytes independent
 // of both. Each block's payloads are appended to a spool file next to the archive as they are
-// cooked; drain() then copies them into the writer in canonical order. Cost: every payload byte is
-// written twice and read once more; memory holds one record (56 bytes) per node, not the payloads.
+// cooked; drain() then copies them into the writer in canonical order, punching copied space out of
+// the spool as it goes. Cost: every payload byte is written twice and read once more; memory holds
+// one record (56 bytes) per node and 4 bytes per MiB of spool, not the payloads.
 #pragma once
 #include <cstdint>
 #include <span>
@@ -31,6 +32,8 @@ class NodeSpool {
   // levels from 6 upward; in a level by y, then x).
   Status drain(ArchiveWriter& writer);
   uint64_t bytes() const { return bytes_; }
+  // Bytes of spool space drain() has given back to the file system so far (whole 1 MiB chunks).
+  uint64_t punched_bytes() const { return punched_; }
   // Node count per level and payload bytes: what an ordered writer is told (archive_writer.h).
   ArchiveShape shape() const;
   size_t nodes() const { return entries_.size(); }
@@ -47,7 +50,7 @@ class NodeSpool {
  private:
   std::string path_;
   int fd_ = -1;
-  uint64_t bytes_ = 0;
+  uint64_t bytes_ = 0, punched_ = 0;
   std::vector<Entry> entries_;
 };
 

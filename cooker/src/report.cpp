@@ -135,7 +135,8 @@ std::string report_json(const CookReport& r) {
   j["blocks"] = {{"block_roots", r.block_roots},
                  {"count", r.blocks},
                  {"window_samples_max", r.block_window_samples_max},
-                 {"spool_bytes", r.spool_bytes}};
+                 {"spool_bytes", r.spool_bytes},
+                 {"spool_bytes_returned", r.spool_bytes_returned}};
   if (r.surface_layers) {
     const SurfaceTotals& t = r.surface;
     j["surface"] = {{"normal_err_max_deg", t.normal_err_max_deg},
@@ -232,9 +233,10 @@ std::string report_summary(const CookReport& r) {
   for (uint64_t b : r.input_bytes_read) read += b;
   if (read) s += fmt::format("read: {} bytes of samples from {} inputs (2 passes: the first pass, the blocks)\n", read,
                              r.input_bytes_read.size());
-  s += fmt::format("blocks: {} of {}x{} roots, largest source window {} samples, {} bytes spooled; memory limit {} MB\n",
+  s += fmt::format("blocks: {} of {}x{} roots, largest source window {} samples, {} bytes spooled ({} given back "
+                   "while copied); memory limit {} MB\n",
                    r.blocks, r.block_roots, r.block_roots, r.block_window_samples_max, r.spool_bytes,
-                   r.memory_limit_bytes >> 20);
+                   r.spool_bytes_returned, r.memory_limit_bytes >> 20);
   return s;
 }
 

@@ -1,7 +1,9 @@
 // The block-wise cook (issue 13): the archive must not change by one byte whatever the block size
 // (--block-roots) and the order blocks are cooked in (--block-order), and a block reads only its
 // window of the source. Each case compares whole files against the cook in one block.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -235,6 +237,44 @@ TEST(BlockCook, ErrorChecksSampleOrAllSameBytes) {
   std::printf("%llu nodes, %llu checked; mean normal error %.4f (sampled) vs %.4f (all) degrees\n",
               (unsigned long long)sampled.nodes, (unsigned long long)sampled.surface.checked_nodes,
               sampled.surface.normal_err_mean_deg(), every.surface.normal_err_mean_deg());
+}
+
+// A spooled cook gives the spool's space back while it copies the payloads into the archive
+// (1 MiB chunks punched out once copied), so the disk does not hold the payloads twice at the end;
+// the archive is the one-block cook's.
+TEST(BlockCook, DrainGivesTheSpoolSpaceBack) {
+  cook::CookOptions o;
+  ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-spool"), "blocky", blocky_dem(), true, o));
+  {  // a file system that cannot punch holes keeps the space: nothing to check there
+    const std::string probe = o.output + ".probe";
+    const int fd = ::open(probe.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0600);
+    ASSERT_GE(fd, 0);
+    const std::vector<char> mib(size_t(1) << 20, 'x');
+    const bool wrote = ::pwrite(fd, mib.data(), mib.size(), 0) == ssize_t(mib.size());
+    const bool punches = wrote && ::fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, 0, off_t(mib.size())) == 0;
+    ::close(fd);
+    ::unlink(probe.c_str());
+    if (!punches) GTEST_SKIP() << "the scratch file system cannot punch holes";
+  }
+  o.threads = 2;
+  o.block_roots = 1;
+  cook::CookReport r;
+  ASSERT_TRUE(cook::cook(o, nullptr, r).ok());
+  ASSERT_GT(r.blocks, 1u);
+  ASSERT_GT(r.spool_bytes, 1u << 20);  // more than one chunk
+  const uint64_t mib = uint64_t(1) << 20;
+  std::printf("%u blocks, %llu bytes spooled, %llu given back\n", r.blocks, (unsigned long long)r.spool_bytes,
+              (unsigned long long)r.spool_bytes_returned);
+  EXPECT_GE(r.spool_bytes_returned, r.spool_bytes);  // every chunk, the last partial one included
+  EXPECT_LT(r.spool_bytes_returned, r.spool_bytes + 2 * mib);
+  cook::CookOptions whole = o;
+  whole.output += ".whole";
+  whole.block_roots = 64;
+  cook::CookReport w;
+  ASSERT_TRUE(cook::cook(whole, nullptr, w).ok());
+  EXPECT_EQ(w.spool_bytes, 0u);
+  EXPECT_EQ(w.spool_bytes_returned, 0u);
+  EXPECT_EQ(file_bytes(o.output), file_bytes(whole.output));
 }
 
 // A heights-only cook evaluates only the vertices its payload needs (the node and the hole

@@ -219,6 +219,9 @@ struct CookReport {
   uint32_t block_roots = 0, blocks = 0;
   uint64_t block_window_samples_max = 0;
   uint64_t spool_bytes = 0;
+  // Spool space given back to the file system while the payloads were copied into the archive
+  // (whole 1 MiB chunks; 0 where the file system cannot punch holes).
+  uint64_t spool_bytes_returned = 0;
   // What the cook could not do as asked or had to guess (e.g. implausible heights, an unmet
   // tolerance): printed on stderr by terrain-cook and listed in the JSON report.
   std::vector<std::string> warnings;
