@@ -271,6 +271,52 @@ TEST(BcBlocks, OwnBc4IsAtLeastAsGoodAsStb) {
   EXPECT_LE(own, stb);
 }
 
+// The SSE2 nearest-entry search must give the scalar definition's selectors, positions and error
+// (so archives are the same bytes on any CPU), and both must be the nearest entry: over every
+// endpoint pair a0 > a1, with random values, values on the palette entries +-1 and values exactly
+// halfway between two entries (the ties, where the neighbour checks' order decides).
+TEST(BcBlocks, Bc4NearestEntrySse2EqualsScalarOverEveryEndpointPair) {
+  std::mt19937 rng(21);
+  std::uniform_int_distribution<int> byte(0, 255);
+  long compared = 0, ties = 0;
+  for (int a0 = 1; a0 < 256; ++a0)
+    for (int a1 = 0; a1 < a0; ++a1) {
+      int pal[8];
+      bc4_palette(a0, a1, pal);
+      for (int set = 0; set < 3; ++set) {
+        uint8_t v[16];
+        for (int i = 0; i < 16; ++i) {
+          const int k = byte(rng) % 8, k2 = byte(rng) % 8;
+          int x = byte(rng);
+          if (set == 1) x = pal[k] + byte(rng) % 3 - 1;
+          if (set == 2) x = (pal[k] + pal[k2]) / 2;
+          v[i] = uint8_t(std::clamp(x, 0, 255));
+        }
+        uint8_t sel_s[16], sel_v[16];
+        int u_s[16], u_v[16];
+        const int err_s = bc4_assign8_scalar(v, a0, a1, sel_s, u_s);
+        const int err_v = bc4_assign8(v, a0, a1, sel_v, u_v);
+        ASSERT_EQ(err_s, err_v) << "a0 " << a0 << " a1 " << a1 << " set " << set;
+        ASSERT_EQ(0, std::memcmp(sel_s, sel_v, 16)) << "a0 " << a0 << " a1 " << a1 << " set " << set;
+        ASSERT_EQ(0, std::memcmp(u_s, u_v, sizeof(u_s))) << "a0 " << a0 << " a1 " << a1 << " set " << set;
+        int nearest = 0;
+        for (int i = 0; i < 16; ++i) {
+          int best = 1 << 20, count = 0;
+          for (int k = 0; k < 8; ++k) best = std::min(best, (v[i] - pal[k]) * (v[i] - pal[k]));
+          for (int k = 0; k < 8; ++k) count += (v[i] - pal[k]) * (v[i] - pal[k]) == best;
+          nearest += best;
+          ties += count > 1;
+          ASSERT_EQ((v[i] - pal[sel_s[i]]) * (v[i] - pal[sel_s[i]]), best) << "value " << int(v[i]);
+        }
+        ASSERT_EQ(err_s, nearest);
+        ++compared;
+      }
+    }
+  EXPECT_EQ(compared, 3L * 32640);
+  EXPECT_GT(ties, 10000);  // the halfway values do hit ties
+  std::printf("%ld blocks compared, %ld tied values\n", compared, ties);
+}
+
 TEST(BcBlocks, ConservativeBc4NeverDecodesBelowItsTargets) {
   std::mt19937 rng(13);
   std::uniform_int_distribution<int> byte(0, 255);

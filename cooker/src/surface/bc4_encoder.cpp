@@ -11,6 +11,10 @@
 
 #include "bc_blocks.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace terrain::cook {
 
 void bc4_palette(int a0, int a1, int pal[8]) {
@@ -50,9 +54,11 @@ int64_t bc4_assign(const uint8_t v[16], int a0, int a1, uint8_t sel[16]) {
   return err;
 }
 
+}  // namespace
+
 // 8-value mode: exact nearest entry per value (direct position plus a neighbour check). u = 0..7
 // is the position from a1 (u = 0) to a0 (u = 7); selector = 1 for u 0, 0 for u 7, else 8 - u.
-int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]) {
+int bc4_assign8_scalar(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]) {
   int pal[8];
   bc4_palette(a0, a1, pal);
   int by_u[8];
@@ -71,7 +77,64 @@ int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[
   }
   return err;
 }
+
+#if defined(__SSE2__)
+namespace {
+// The same in SSE2, 8 values per register: the start position in float as above (truncation, no
+// fused multiply-add), the palette entry at position u as (u*a0 + (7-u)*a1 + 3) / 7 (bc4_palette's
+// rounding; x / 7 = (x * 9363) >> 16 exactly for x <= 7 * 255 + 3), the two neighbour checks in
+// the same order. Same selectors, positions and error as bc4_assign8_scalar for every a0 > a1.
+int bc4_assign8_sse2(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]) {
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i bytes = _mm_loadu_si128(reinterpret_cast<const __m128i*>(v));
+  const __m128 scale = _mm_set1_ps(7.0f / float(a0 - a1)), half = _mm_set1_ps(0.5f);
+  const __m128i base32 = _mm_set1_epi32(a1);
+  const __m128i span = _mm_set1_epi16(int16_t(a0 - a1)), offset = _mm_set1_epi16(int16_t(7 * a1 + 3));
+  const __m128i div7 = _mm_set1_epi16(int16_t(9363)), one = _mm_set1_epi16(1), seven = _mm_set1_epi16(7);
+  const __m128i eight = _mm_set1_epi16(8);
+  const auto entry = [&](__m128i u) { return _mm_mulhi_epu16(_mm_add_epi16(_mm_mullo_epi16(u, span), offset), div7); };
+  const auto dist = [](__m128i x, __m128i e) { return _mm_max_epi16(_mm_sub_epi16(x, e), _mm_sub_epi16(e, x)); };
+  const auto pick = [](__m128i m, __m128i a, __m128i b) { return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b)); };
+  __m128i err = zero, sels[2];
+  for (int h = 0; h < 2; ++h) {
+    const __m128i x = h == 0 ? _mm_unpacklo_epi8(bytes, zero) : _mm_unpackhi_epi8(bytes, zero);
+    const auto start = [&](__m128i x32) {
+      return _mm_cvttps_epi32(_mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(_mm_sub_epi32(x32, base32)), scale), half));
+    };
+    __m128i u = _mm_packs_epi32(start(_mm_unpacklo_epi16(x, zero)), start(_mm_unpackhi_epi16(x, zero)));
+    u = _mm_min_epi16(_mm_max_epi16(u, zero), seven);
+    __m128i d = dist(x, entry(u));
+    const __m128i dm = dist(x, entry(_mm_max_epi16(_mm_sub_epi16(u, one), zero)));
+    const __m128i down = _mm_and_si128(_mm_cmpgt_epi16(u, zero), _mm_cmplt_epi16(dm, d));
+    u = _mm_add_epi16(u, down);  // -1 where taken
+    d = pick(down, dm, d);
+    const __m128i dp = dist(x, entry(_mm_min_epi16(_mm_add_epi16(u, one), seven)));
+    const __m128i up = _mm_and_si128(_mm_cmplt_epi16(u, seven), _mm_cmplt_epi16(dp, d));
+    u = _mm_sub_epi16(u, up);
+    d = pick(up, dp, d);
+    err = _mm_add_epi32(err, _mm_madd_epi16(d, d));
+    __m128i s = _mm_sub_epi16(eight, u);
+    s = pick(_mm_cmpeq_epi16(u, zero), one, s);
+    s = _mm_andnot_si128(_mm_cmpeq_epi16(u, seven), s);
+    sels[h] = s;
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(u_out + 8 * h), _mm_unpacklo_epi16(u, zero));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(u_out + 8 * h + 4), _mm_unpackhi_epi16(u, zero));
+  }
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(sel), _mm_packus_epi16(sels[0], sels[1]));
+  err = _mm_add_epi32(err, _mm_shuffle_epi32(err, _MM_SHUFFLE(1, 0, 3, 2)));
+  err = _mm_add_epi32(err, _mm_shuffle_epi32(err, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtsi128_si32(err);
+}
 }  // namespace
+#endif
+
+int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]) {
+#if defined(__SSE2__)
+  return bc4_assign8_sse2(v, a0, a1, sel, u_out);
+#else
+  return bc4_assign8_scalar(v, a0, a1, sel, u_out);
+#endif
+}
 
 void encode_bc4(const uint8_t values[16], uint8_t out[8]) {
   int lo = 255, hi = 0;
@@ -147,18 +210,35 @@ void encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]) {
   int64_t best = INT64_MAX;
   int best_a0 = 255, best_a1 = 255;
   // Sum over texels of (smallest palette entry >= target) - target; INT64_MAX if one has none.
+  // The targets are sorted once and each candidate's palette is listed in ascending order, so one
+  // merge walk finds every texel's entry (the same entries as a search per texel).
+  uint8_t sorted[16];
+  std::memcpy(sorted, targets, 16);
+  std::sort(sorted, sorted + 16);
+  int64_t target_sum = 0;
+  for (int i = 0; i < 16; ++i) target_sum += sorted[i];
   auto cost = [&](int a0, int a1) {
-    int pal[8];
+    int pal[8], asc[8];
     bc4_palette(a0, a1, pal);
-    std::sort(pal, pal + 8);
-    int64_t total = 0;
-    for (int i = 0; i < 16; ++i) {
-      const int t = targets[i];
-      const int* e = std::lower_bound(pal, pal + 8, t);
-      if (e == pal + 8) return INT64_MAX;
-      total += *e - t;
+    if (a0 > a1) {  // a1, the six interpolants from a1 towards a0, a0
+      asc[0] = a1;
+      for (int u = 1; u < 7; ++u) asc[u] = pal[8 - u];
+      asc[7] = a0;
+    } else {  // 0, a0, the four interpolants from a0 towards a1, a1, 255
+      asc[0] = 0;
+      asc[1] = a0;
+      for (int i = 2; i < 6; ++i) asc[i] = pal[i];
+      asc[6] = a1;
+      asc[7] = 255;
     }
-    return total;
+    int64_t total = 0;
+    int k = 0;
+    for (int i = 0; i < 16; ++i) {
+      while (k < 8 && asc[k] < sorted[i]) ++k;
+      if (k == 8) return INT64_MAX;
+      total += asc[k];
+    }
+    return total - target_sum;
   };
   // 8-value mode: a0 = max target (needed exactly), a1 free below it; 6-value mode: 255 comes
   // free, so the range only covers the targets below 255. Coarse scan (step 8), then the

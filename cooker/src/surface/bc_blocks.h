@@ -89,6 +89,11 @@ bool encode_bc1_g_only(const uint8_t rgba[64], uint8_t out[8], int iterations = 
 // The 8 values a BC4 block with endpoints a0, a1 decodes to, exactly as decode_bc4_block (nearest
 // rounding) computes them (the encoder and the rate-distortion pass, bc_rdo.cpp).
 void bc4_palette(int a0, int a1, int pal[8]);
+// Nearest 8-value-mode entry of BC4 endpoints a0 > a1 for each value: selectors, positions u
+// (0 = a1 .. 7 = a0) and the summed squared error. bc4_assign8 is the SSE2 restatement where it
+// is compiled in; both write the same values (tests compare them over every endpoint pair).
+int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]);
+int bc4_assign8_scalar(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]);
 // BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
 void encode_bc4(const uint8_t values[16], uint8_t out[8]);
 // BC4 block whose decoded values are >= the targets (and as small as possible): conservative
