@@ -100,11 +100,12 @@ void encode_bc4(const uint8_t values[16], uint8_t out[8]);
 // storage of cone angles (255 always works, so it never fails).
 void encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]);
 
-// The opaque and weighted encoders have one definition in plain scalar C++ and an SSE2
+// The opaque, weighted and G-only encoders have one definition in plain scalar C++ and an SSE2
 // restatement that writes the same bytes; the functions above take the SSE2 one when it is
 // compiled in (bc1_simd_compiled()). These force the scalar one (tests, terrain-bc-bench).
 bool bc1_simd_compiled();
 void encode_bc1_opaque_scalar(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
 void encode_bc1_weighted_scalar(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
+bool encode_bc1_g_only_scalar(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
 
 }  // namespace terrain::cook
