@@ -5,6 +5,10 @@
 #include <cmath>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "fast_math.h"
 #include "noise.h"
 
@@ -115,7 +119,32 @@ constexpr int kFieldReach = 2 - kFirstVertex;  // 8
 constexpr int kMaxFilterRadius = kWindowMargin - kFieldReach;  // 10
 static_assert(kMaxFilterRadius >= 2, "the window margin leaves no room for the splat filters");
 
-// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:
+// dst[i] = sum over d = 0 .. taps - 1, in that order from +0, of w[d] * src[i + d * tap_stride]:
+// one tap run per output. SSE2 keeps 8 outputs' sums in registers over all the taps (the same
+// operations per output, so the same floats) instead of a pass over the row per tap.
+void weighted_sums(const float* src, ptrdiff_t tap_stride, const float* w, int taps, int n, float* dst) {
+  int i = 0;
+#if defined(__SSE2__)
+  for (; i + 8 <= n; i += 8) {
+    __m128 a = _mm_setzero_ps(), b = _mm_setzero_ps();
+    const float* p = src + i;
+    for (int d = 0; d < taps; ++d, p += tap_stride) {
+      const __m128 wd = _mm_set1_ps(w[d]);
+      a = _mm_add_ps(a, _mm_mul_ps(wd, _mm_loadu_ps(p)));
+      b = _mm_add_ps(b, _mm_mul_ps(wd, _mm_loadu_ps(p + 4)));
+    }
+    _mm_storeu_ps(dst + i, a);
+    _mm_storeu_ps(dst + i + 4, b);
+  }
+#endif
+  for (; i < n; ++i) {
+    float a = 0.0f;
+    for (int d = 0; d < taps; ++d) a += w[d] * src[i + d * tap_stride];
+    dst[i] = a;
+  }
+}
+
+// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:
 // a normalized convolution (missing taps drop out; a vertex without data stays NaN), separable,
 // fixed summation order, so the bits are the same on every thread and in every node that shares
 // the vertex. The radius is 2 sigma, capped by the window margin (sigma is then radius / 2), so at
@@ -164,39 +193,21 @@ bool filter_heights(const float* h, double scale_m, double spacing_m, std::vecto
     }
     float* sv = &sum[at(lo, j)];
     float* sw = &weight[at(lo, j)];
-    for (int i = 0; i < kSpan; ++i) sv[i] = 0.0f;
-    for (int d = 0; d <= 2 * radius; ++d) {
-      const float wd = w[d];
-      const float* src = vals + d;
-      for (int i = 0; i < kSpan; ++i) sv[i] += wd * src[i];
-    }
+    weighted_sums(vals, 1, w, 2 * radius + 1, kSpan, sv);
     if (missing == 0) {
       for (int i = 0; i < kSpan; ++i) sw[i] = wsum;
       continue;
     }
     all_full = false;
-    for (int i = 0; i < kSpan; ++i) sw[i] = 0.0f;
-    for (int d = 0; d <= 2 * radius; ++d) {
-      const float wd = w[d];
-      const float* src = ones + d;
-      for (int i = 0; i < kSpan; ++i) sw[i] += wd * src[i];
-    }
+    weighted_sums(ones, 1, w, 2 * radius + 1, kSpan, sw);
   }
   // Vertical pass. With data everywhere every vertex's weight is the same sum.
   float wtotal = 0;
   for (int d = 0; d <= 2 * radius; ++d) wtotal += w[d] * wsum;
   float acc[kSpan], accw[kSpan];
   for (int j = lo; j <= hi; ++j) {
-    for (int i = 0; i < kSpan; ++i) acc[i] = accw[i] = 0.0f;
-    for (int d = 0; d <= 2 * radius; ++d) {
-      const float wd = w[d];
-      const float* src = &sum[at(lo, j + d - radius)];
-      for (int i = 0; i < kSpan; ++i) acc[i] += wd * src[i];
-      if (!all_full) {
-        const float* srcw = &weight[at(lo, j + d - radius)];
-        for (int i = 0; i < kSpan; ++i) accw[i] += wd * srcw[i];
-      }
-    }
+    weighted_sums(&sum[at(lo, j - radius)], kWindowSize, w, 2 * radius + 1, kSpan, acc);
+    if (!all_full) weighted_sums(&weight[at(lo, j - radius)], kWindowSize, w, 2 * radius + 1, kSpan, accw);
     const float* centre = h + at(lo, j);
     float* dst = &out[at(lo, j)];
     for (int i = 0; i < kSpan; ++i)
