@@ -1,14 +1,18 @@
 // The node-CPU rewrites (cooker/src/surface) against the plain loops they replaced, value for value:
 // the splat height filter on real DEM nodes (inner nodes and data-edge nodes with NaN in the window),
-// the aspect mask's wrap without fmod, and the branch-free atan2 of the normal-error statistics.
+// the aspect mask's wrap without fmod, the branch-free atan2 of the normal-error statistics, and the
+// baked albedo's texel blend.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 
 #include "fast_math.h"
 #include "materials.h"
+#include "noise.h"
 #include "splat.h"
 #include "surface_test_support.h"
 #include "test_data.h"
@@ -105,6 +109,71 @@ TEST(NodeCpuPaths, SplatFilterMatchesThePerVertexLoopOnRealNodes) {
   // Both paths of the filter ran: windows with data everywhere and windows cut by the sea (NaN).
   EXPECT_GT(inner, 5);
   EXPECT_GT(edge, 5);
+}
+
+// bake_albedo's colours (no orthophoto) as the per-texel loop computed them before the planar SSE2
+// blend (splat.cpp at 9fccfc0): every texel's RGB, on real nodes at three levels.
+TEST(NodeCpuPaths, AlbedoBlendMatchesThePerTexelLoopOnRealNodes) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  // The exact sRGB transfer tables of splat.cpp.
+  std::vector<float> to_linear(256);
+  std::vector<uint8_t> to_srgb(4096);
+  for (int i = 0; i < 256; ++i) {
+    const double c = i / 255.0;
+    to_linear[size_t(i)] = float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+  }
+  for (int i = 0; i < 4096; ++i) {
+    const double l = (i + 0.5) / 4096.0;
+    const double c = l <= 0.0031308 ? l * 12.92 : 1.055 * std::pow(l, 1 / 2.4) - 0.055;
+    to_srgb[size_t(i)] = uint8_t(std::clamp(std::lround(c * 255.0), 0L, 255L));
+  }
+  const MaterialRules& rules = cook::test::default_rules();
+  int nodes = 0;
+  long texels = 0;
+  for (uint32_t level : {0u, 2u, 4u}) {
+    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
+      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
+        bench::DemNode n;
+        bench::make_dem_node(dem, level, x, y, 2, n);
+        if (n.data_vertices == 0) continue;
+        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+        SplatLattice lattice;
+        compute_splat_lattice(in, rules, lattice);
+        std::vector<uint8_t> rgba(size_t(kTexels * kTexels) * 4);
+        bake_albedo(in, rules, lattice, rgba.data());
+        const double s = in.spacing_m, scale = std::max(48.0, 6.0 * s);
+        std::vector<float> lin(size_t(kSplatLattice * kSplatLattice) * 3);
+        for (int l = 0; l < kSplatLattice; ++l)
+          for (int k = 0; k < kSplatLattice; ++k) {
+            const size_t e = size_t(l * kSplatLattice + k);
+            const Material& m = rules.palette[lattice.ids[e]];
+            const double v = 1.0 + m.detail_strength * 0.5 *
+                                       fbm_noise(in.x0_m + (2 * k - 2) * s, in.y0_m + (2 * l - 2) * s, scale, 2, 0xA1BED0u);
+            for (int c = 0; c < 3; ++c) lin[e * 3 + size_t(c)] = float(to_linear[m.albedo_srgb[size_t(c)]] * v);
+          }
+        int differ = 0;
+        for (int u = 0; u < kTexels; ++u)
+          for (int t = 0; t < kTexels; ++t)
+            for (int c = 0; c < 3; ++c) {
+              const float fy = (u % 2 == 0) ? 0.25f : 0.75f, fx = (t % 2 == 0) ? 0.25f : 0.75f;
+              auto at = [&](int k, int l) { return lin[size_t(l * kSplatLattice + k) * 3 + size_t(c)]; };
+              const int k0 = t / 2, l0 = u / 2;
+              const float v0 = at(k0, l0) + fy * (at(k0, l0 + 1) - at(k0, l0));
+              const float v1 = at(k0 + 1, l0) + fy * (at(k0 + 1, l0 + 1) - at(k0 + 1, l0));
+              const uint8_t want = to_srgb[size_t(std::clamp(int((v0 + fx * (v1 - v0)) * 4096.0f), 0, 4095))];
+              differ += rgba[size_t(u * kTexels + t) * 4 + size_t(c)] != want;
+              ++texels;
+            }
+        EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
+        ++nodes;
+      }
+  }
+  EXPECT_GT(nodes, 10);
+  std::printf("%d nodes, %ld texel channels compared\n", nodes, texels);
 }
 
 TEST(NodeCpuPaths, AspectMaskEqualsTheFmodFormula) {

@@ -376,20 +376,49 @@ void bake_albedo(const SurfaceInput& in, const MaterialRules& rules, const Splat
     // Texel (t, u) centre is at vertex coordinate (t - 1.5, u - 1.5) = lattice (t + 0.5) / 2:
     // lattice t / 2 with weight 1/4 (t even) or 3/4 (t odd) toward the next sample. Rows first
     // (one vertical blend per lattice column), then the horizontal blend per texel.
-    float row[kSplatLattice * 3];
+    // Texels 2k (1/4) and 2k + 1 (3/4) blend lattice samples k and k + 1 of the row, per channel
+    // (planar rows, so SSE2 blends and converts 4 samples' texel pairs at a time: the same float
+    // operations, then the same table).
+    static_assert(kTexels == 2 * (kSplatLattice - 1));
+    float row[3][kSplatLattice];
+    int16_t index[2][kSplatLattice];  // sRGB table entries of texels 2k and 2k + 1
     for (int u = 0; u < kTexels; ++u) {
       const int l0 = u / 2;
       const float fy = (u % 2 == 0) ? 0.25f : 0.75f;
       const float* a = &lin[size_t(l0 * kSplatLattice) * 3];
       const float* b = &lin[size_t((l0 + 1) * kSplatLattice) * 3];
-      for (int e = 0; e < kSplatLattice * 3; ++e) row[e] = a[e] + fy * (b[e] - a[e]);
+      for (int k = 0; k < kSplatLattice; ++k)
+        for (int c = 0; c < 3; ++c) row[c][k] = a[3 * k + c] + fy * (b[3 * k + c] - a[3 * k + c]);
       uint8_t* dst = rgba + size_t(u * kTexels) * 4;
-      for (int t = 0; t < kTexels; ++t) {
-        const int k0 = t / 2;
-        const float fx = (t % 2 == 0) ? 0.25f : 0.75f;
-        for (int c = 0; c < 3; ++c) {
-          const float v0 = row[k0 * 3 + c], v1 = row[(k0 + 1) * 3 + c];
-          dst[t * 4 + c] = linear_to_srgb8(v0 + fx * (v1 - v0));
+      for (int c = 0; c < 3; ++c) {
+        const float* r = row[c];
+        int k = 0;
+#if defined(__SSE2__)
+        const __m128 quarter = _mm_set1_ps(0.25f), three_quarters = _mm_set1_ps(0.75f), steps = _mm_set1_ps(4096.0f);
+        const __m128i top = _mm_set1_epi16(4095), zero = _mm_setzero_si128();
+        for (; k + 8 <= kSplatLattice - 1; k += 8) {
+          __m128i even[2], odd[2];
+          for (int h = 0; h < 2; ++h) {
+            const __m128 v0 = _mm_loadu_ps(r + k + 4 * h), v1 = _mm_loadu_ps(r + k + 4 * h + 1);
+            const __m128 d = _mm_sub_ps(v1, v0);
+            even[h] = _mm_cvttps_epi32(_mm_mul_ps(_mm_add_ps(v0, _mm_mul_ps(quarter, d)), steps));
+            odd[h] = _mm_cvttps_epi32(_mm_mul_ps(_mm_add_ps(v0, _mm_mul_ps(three_quarters, d)), steps));
+          }
+          // Saturating to 16 bits, then clamping, is the clamp of the 32-bit values.
+          const __m128i e = _mm_min_epi16(_mm_max_epi16(_mm_packs_epi32(even[0], even[1]), zero), top);
+          const __m128i o = _mm_min_epi16(_mm_max_epi16(_mm_packs_epi32(odd[0], odd[1]), zero), top);
+          _mm_storeu_si128(reinterpret_cast<__m128i*>(&index[0][k]), e);
+          _mm_storeu_si128(reinterpret_cast<__m128i*>(&index[1][k]), o);
+        }
+#endif
+        for (; k < kSplatLattice - 1; ++k) {
+          const float v0 = r[k], v1 = r[k + 1];
+          index[0][k] = int16_t(std::clamp(int((v0 + 0.25f * (v1 - v0)) * 4096.0f), 0, 4095));
+          index[1][k] = int16_t(std::clamp(int((v0 + 0.75f * (v1 - v0)) * 4096.0f), 0, 4095));
+        }
+        for (k = 0; k < kSplatLattice - 1; ++k) {
+          dst[8 * k + c] = tab.to_srgb[index[0][k]];
+          dst[8 * k + 4 + c] = tab.to_srgb[index[1][k]];
         }
       }
     }
