@@ -1,7 +1,7 @@
 // The node-CPU rewrites (cooker/src/surface) against the plain loops they replaced, value for value:
 // the splat height filter on real DEM nodes (inner nodes and data-edge nodes with NaN in the window),
-// the aspect mask's wrap without fmod, the branch-free atan2 of the normal-error statistics, and the
-// baked albedo's texel blend.
+// the aspect mask's wrap without fmod, the branch-free atan2 of the normal-error statistics, the
+// baked albedo's texel blend, and the splat lattice's row-wise slope, aspect and curvature.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -174,6 +174,59 @@ TEST(NodeCpuPaths, AlbedoBlendMatchesThePerTexelLoopOnRealNodes) {
   }
   EXPECT_GT(nodes, 10);
   std::printf("%d nodes, %ld texel channels compared\n", nodes, texels);
+}
+
+// measure_lattice_row (loops that vectorise) against measure_field element by element, bit for bit:
+// raw and filtered fields, every combination of attributes, every lattice row of real nodes with
+// data everywhere and nodes cut by the sea (the one-sided fallback and elements without data).
+TEST(NodeCpuPaths, LatticeRowMeasuresEqualMeasureField) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  const MaterialRules& rules = cook::test::default_rules();
+  long compared = 0, fallback = 0, missing = 0;
+  std::vector<float> filtered;
+  for (uint32_t level : {0u, 2u, 4u}) {
+    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
+      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
+        bench::DemNode n;
+        bench::make_dem_node(dem, level, x, y, 2, n);
+        if (n.data_vertices == 0) continue;
+        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+        const bool have_filtered = filter_heights(in.heights_m, 16.0, in.spacing_m, filtered);
+        for (const float* h : {in.heights_m, have_filtered ? filtered.data() : in.heights_m})
+          for (unsigned needs = 0; needs <= kNeedAll; ++needs)
+            for (int l = 0; l < kLatticeRow; ++l) {
+              const int j = 2 * l - 6;
+              SurfaceSample row[kLatticeRow];
+              uint8_t ok[kLatticeRow];
+              measure_lattice_row(in, h, j, needs, row, ok);
+              for (int k = 0; k < kLatticeRow; ++k) {
+                const int i = 2 * k - 6;
+                SurfaceSample want;
+                const bool data = measure_field(in, h, i, j, want, needs);
+                ASSERT_EQ(ok[k] != 0, data) << "level " << level << " vertex " << i << "," << j;
+                missing += !data;
+                if (!data) continue;
+                bool full = true;
+                for (int b = -1; b <= 1; ++b)
+                  for (int a = -1; a <= 1; ++a)
+                    full = full && !std::isnan(h[size_t((j + b + kWindowMargin) * kWindowSize + i + a + kWindowMargin)]);
+                fallback += !full;
+                ASSERT_EQ(std::memcmp(&row[k], &want, sizeof want), 0)
+                    << "level " << level << " vertex " << i << "," << j << " needs " << needs << ": slope "
+                    << row[k].slope_deg << " / " << want.slope_deg << ", aspect " << row[k].aspect_deg << " / "
+                    << want.aspect_deg << ", curvature " << row[k].curvature << " / " << want.curvature;
+                ++compared;
+              }
+            }
+      }
+  }
+  EXPECT_GT(fallback, 100);  // the sea's edge took the fallback
+  EXPECT_GT(missing, 1000);
+  std::printf("%ld elements equal (%ld by the fallback), %ld without data\n", compared, fallback, missing);
 }
 
 TEST(NodeCpuPaths, AspectMaskEqualsTheFmodFormula) {

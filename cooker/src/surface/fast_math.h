@@ -14,6 +14,17 @@ inline double fast_atan(double x) {
   return inv ? 1.5707963267948966 - p : p;
 }
 
+// fast_atan() as selects (no branch, so a loop of it vectorises): the same operations on the path
+// fast_atan() takes, hence the same doubles (1 / x is computed either way, and dropped for x <= 1).
+inline double fast_atan_select(double x) {
+  const bool inv = x > 1.0;
+  const double r = 1.0 / x;
+  const double t = inv ? r : x, t2 = t * t;
+  const double p =
+      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+  return inv ? 1.5707963267948966 - p : p;
+}
+
 // atan2(y, x) for y >= 0 (an angle in [0, pi]), same error bound.
 inline double fast_atan2_pos(double y, double x) {
   if (x == 0) return y == 0 ? 0.0 : 1.5707963267948966;

@@ -56,6 +56,17 @@ double bearing_deg(double east, double north) {
   return a >= 360.0 ? a - 360.0 : a;
 }
 
+// bearing_deg() as selects (a loop of it vectorises): the same operations on each path.
+inline double bearing_deg_select(double east, double north) {
+  const double ae = std::fabs(east), an = std::fabs(north);
+  double a = fast_atan_select(ae / an) * kRadToDeg;
+  a = an == 0 ? 90.0 : a;
+  a = north < 0 ? 180.0 - a : a;
+  a = east < 0 ? 360.0 - a : a;
+  a = a >= 360.0 ? a - 360.0 : a;
+  return (ae == 0 && an == 0) ? 0.0 : a;
+}
+
 // Albedo variation field: wavelength 48 m or 6 vertex spacings, whichever is longer.
 constexpr uint32_t kAlbedoNoiseSeed = 0xA1BED0u;
 
@@ -63,18 +74,9 @@ constexpr uint32_t kAlbedoNoiseSeed = 0xA1BED0u;
 
 namespace {
 
-// Attributes a rule reads (measure_field skips the others: their values would never be looked at).
-constexpr unsigned kNeedAspect = 1, kNeedCurvature = 2, kNeedAll = 3;
-
-// Attributes of vertex (i, j) read from a window-shaped field h (raw or filtered heights).
-bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out, unsigned needs = kNeedAll) {
-  const double s = in.spacing_m;
-  out.x_m = in.x0_m + i * s;
-  out.y_m = in.y0_m + j * s;
-  const float c = wh(h, i, j);
-  if (std::isnan(c)) return false;
-  out.height_m = c;
-  // Horn's 3x3 gradient (as GDAL's slope); falls back to central, then one-sided differences.
+// Horn's 3x3 gradient (as GDAL's slope) of vertex (i, j), whose height c is data; falls back to
+// central, then one-sided differences.
+void field_gradient(const float* h, int i, int j, double s, float c, double& gx, double& gy) {
   float z[3][3];
   bool full = true;
   for (int b = -1; b <= 1; ++b)
@@ -82,36 +84,55 @@ bool measure_field(const SurfaceInput& in, const float* h, int i, int j, Surface
       z[b + 1][a + 1] = wh(h, i + a, j + b);
       full = full && !std::isnan(z[b + 1][a + 1]);
     }
-  double gx = 0, gy = 0;
   if (full) {
     gx = ((z[0][2] + 2.0 * z[1][2] + z[2][2]) - (z[0][0] + 2.0 * z[1][0] + z[2][0])) / (8 * s);
     gy = ((z[2][0] + 2.0 * z[2][1] + z[2][2]) - (z[0][0] + 2.0 * z[0][1] + z[0][2])) / (8 * s);
-  } else {
-    auto one_axis = [&](float m, float p) {
-      if (!std::isnan(m) && !std::isnan(p)) return (double(p) - m) / (2 * s);
-      if (!std::isnan(p)) return (double(p) - c) / s;
-      if (!std::isnan(m)) return (double(c) - m) / s;
-      return 0.0;
-    };
-    gx = one_axis(z[1][0], z[1][2]);
-    gy = one_axis(z[0][1], z[2][1]);
+    return;
   }
-  out.slope_deg = fast_atan(std::sqrt(gx * gx + gy * gy)) * kRadToDeg;
-  if (needs & kNeedAspect) out.aspect_deg = bearing_deg(-gx, -gy);  // the downhill direction
-  if (!(needs & kNeedCurvature)) return true;
-  // Laplacian over +-2 spacings (the splat spacing); missing neighbours contribute nothing.
+  auto one_axis = [&](float m, float p) {
+    if (!std::isnan(m) && !std::isnan(p)) return (double(p) - m) / (2 * s);
+    if (!std::isnan(p)) return (double(p) - c) / s;
+    if (!std::isnan(m)) return (double(c) - m) / s;
+    return 0.0;
+  };
+  gx = one_axis(z[1][0], z[1][2]);
+  gy = one_axis(z[0][1], z[2][1]);
+}
+
+// Laplacian over +-2 spacings (the splat spacing) of vertex (i, j) with height c; missing
+// neighbours contribute nothing.
+double field_curvature(const float* h, int i, int j, double s, float c) {
   const float e = wh(h, i + 2, j), w = wh(h, i - 2, j), n = wh(h, i, j + 2), so = wh(h, i, j - 2);
   double lap = 0;
   int terms = 0;
   if (!std::isnan(e) && !std::isnan(w)) { lap += double(e) + w - 2.0 * c; ++terms; }
   if (!std::isnan(n) && !std::isnan(so)) { lap += double(n) + so - 2.0 * c; ++terms; }
-  out.curvature = terms ? lap * (2.0 / terms) / (4 * s * s) : 0.0;
+  return terms ? lap * (2.0 / terms) / (4 * s * s) : 0.0;
+}
+
+}  // namespace
+
+// Attributes of vertex (i, j) read from a window-shaped field h (raw or filtered heights).
+bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out, unsigned needs) {
+  const double s = in.spacing_m;
+  out.x_m = in.x0_m + i * s;
+  out.y_m = in.y0_m + j * s;
+  const float c = wh(h, i, j);
+  if (std::isnan(c)) return false;
+  out.height_m = c;
+  double gx = 0, gy = 0;
+  field_gradient(h, i, j, s, c, gx, gy);
+  out.slope_deg = fast_atan(std::sqrt(gx * gx + gy * gy)) * kRadToDeg;
+  if (needs & kNeedAspect) out.aspect_deg = bearing_deg(-gx, -gy);  // the downhill direction
+  if (needs & kNeedCurvature) out.curvature = field_curvature(h, i, j, s, c);
   return true;
 }
 
+namespace {
+
 // The ids are first computed on the lattice with two more rings (vertices -6 .. 134, element
 // (k, l) = vertex (2k - 6, 2l - 6)) so the two despeckle passes see every neighbour they read.
-constexpr int kWide = kSplatLattice + 4;  // 71
+constexpr int kWide = kLatticeRow;  // 71
 constexpr int kFirstVertex = -6;
 // Measuring a lattice vertex reads the field 2 vertices out (curvature), the field reads the raw
 // heights kMaxFilterRadius out: -6 - 2 - kMaxFilterRadius >= -kWindowMargin.
@@ -261,7 +282,51 @@ uint8_t despeckled(const std::array<uint8_t, kWide * kWide>& ids, const std::arr
 }  // namespace
 
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
-  return measure_field(in, in.heights_m, i, j, out);
+  return measure_field(in, in.heights_m, i, j, out, kNeedAll);
+}
+
+void measure_lattice_row(const SurfaceInput& in, const float* h, int j, unsigned needs, SurfaceSample* out,
+                         uint8_t* ok) {
+  const double s = in.spacing_m;
+  const float* row = h + size_t((j + kWindowMargin) * kWindowSize + kWindowMargin);  // vertex (0, j)
+  const float* below = row - kWindowSize;
+  const float* above = row + kWindowSize;
+  // Horn's gradient of every element, branch-free. Each of the 8 neighbours appears in gx or gy,
+  // so a missing one makes one of them NaN: exactly the elements field_gradient sends to its
+  // fallback, which they then take.
+  double gx[kLatticeRow], gy[kLatticeRow], slope[kLatticeRow], aspect[kLatticeRow];
+  for (int k = 0; k < kLatticeRow; ++k) {
+    const int i = 2 * k + kFirstVertex;
+    const float z00 = below[i - 1], z01 = below[i], z02 = below[i + 1];
+    const float z10 = row[i - 1], z12 = row[i + 1];
+    const float z20 = above[i - 1], z21 = above[i], z22 = above[i + 1];
+    gx[k] = ((z02 + 2.0 * z12 + z22) - (z00 + 2.0 * z10 + z20)) / (8 * s);
+    gy[k] = ((z20 + 2.0 * z21 + z22) - (z00 + 2.0 * z01 + z02)) / (8 * s);
+  }
+  for (int k = 0; k < kLatticeRow; ++k) {
+    const int i = 2 * k + kFirstVertex;
+    ok[k] = !std::isnan(row[i]);
+    if (!ok[k])
+      gx[k] = gy[k] = 0;  // not measured (keeps the loops below free of NaN)
+    else if (std::isnan(gx[k]) || std::isnan(gy[k]))
+      field_gradient(h, i, j, s, row[i], gx[k], gy[k]);
+  }
+  // Slope and aspect as selects (the loops vectorise): the same doubles as fast_atan, bearing_deg.
+  for (int k = 0; k < kLatticeRow; ++k) slope[k] = fast_atan_select(std::sqrt(gx[k] * gx[k] + gy[k] * gy[k])) * kRadToDeg;
+  if (needs & kNeedAspect)
+    for (int k = 0; k < kLatticeRow; ++k) aspect[k] = bearing_deg_select(-gx[k], -gy[k]);
+  for (int k = 0; k < kLatticeRow; ++k) {
+    const int i = 2 * k + kFirstVertex;
+    SurfaceSample& o = out[k];
+    o = SurfaceSample{};
+    o.x_m = in.x0_m + i * s;
+    o.y_m = in.y0_m + j * s;
+    if (!ok[k]) continue;
+    o.height_m = row[i];
+    o.slope_deg = slope[k];
+    if (needs & kNeedAspect) o.aspect_deg = aspect[k];
+    if (needs & kNeedCurvature) o.curvature = field_curvature(h, i, j, s, row[i]);
+  }
 }
 
 void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
@@ -284,14 +349,20 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
                                     int(std::lround(rules.scale_m / in.spacing_m)));
   std::array<uint8_t, kWide * kWide> wide;
   std::array<uint8_t, kWide * kWide> has{};
-  for (int l = 0; l < kWide; ++l)
+  // Each lattice row measured per scale at once (measure_lattice_row: measure_field's values).
+  SurfaceSample measured[kMaxRuleScales][kWide];
+  uint8_t measured_ok[kMaxRuleScales][kWide];
+  for (int l = 0; l < kWide; ++l) {
+    const int j = 2 * l + kFirstVertex;
+    for (size_t s = 0; s < scales; ++s) measure_lattice_row(in, field[s], j, needs[s], measured[s], measured_ok[s]);
     for (int k = 0; k < kWide; ++k) {
-      const int i = 2 * k + kFirstVertex, j = 2 * l + kFirstVertex;
+      const int i = 2 * k + kFirstVertex;
       const size_t e = size_t(l * kWide + k);
       SurfaceSample per_scale[kMaxRuleScales];
       bool data = !std::isnan(wh(in.heights_m, i, j));
       for (size_t s = 0; s < scales && data; ++s) {
-        data = measure_field(in, field[s], i, j, per_scale[s], needs[s]);
+        data = measured_ok[s][k] != 0;
+        per_scale[s] = measured[s][k];
         if (rules.band_limit_noise) per_scale[s].min_noise_wavelength_m = 4.0 * in.spacing_m;
       }
       has[e] = data;
@@ -312,6 +383,7 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
         wide[e] = choose_material_scaled(rules, per_scale);
       }
     }
+  }
   if (!rules.despeckle) {
     for (int l = 0; l < kSplatLattice; ++l)
       for (int k = 0; k < kSplatLattice; ++k) out.ids[size_t(l * kSplatLattice + k)] = wide[size_t((l + 2) * kWide + k + 2)];

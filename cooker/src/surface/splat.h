@@ -22,6 +22,18 @@ struct SplatLattice {
 // Returns false when the vertex has no data.
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out);
 
+// Attributes a rule reads (the others are not measured: their values would never be looked at).
+inline constexpr unsigned kNeedAspect = 1, kNeedCurvature = 2, kNeedAll = 3;
+// The same from a window-shaped field h (raw or filtered heights), only the attributes in `needs`
+// besides height and slope. False when the vertex has no data.
+bool measure_field(const SurfaceInput& in, const float* h, int i, int j, SurfaceSample& out, unsigned needs);
+// measure_field at the kLatticeRow vertices (2k - 6, j), k = 0 .. kLatticeRow - 1, of one row of
+// the splat lattice with its two extra rings, in loops that vectorise: the same values (out[k],
+// ok[k] = 1 where measure_field returns true; elements without data hold their position only).
+inline constexpr int kLatticeRow = kSplatLattice + 4;  // 71
+void measure_lattice_row(const SurfaceInput& in, const float* h, int j, unsigned needs, SurfaceSample* out,
+                         uint8_t* ok);
+
 // Gaussian-filtered heights of the window (sigma scale_m, radius 2 sigma capped by the margin) at
 // the vertices the splat lattice measures (-8 .. 136; the rest of `out` is NaN): a normalized
 // convolution in a fixed summation order (splat.cpp). False (out untouched) when sigma is under
