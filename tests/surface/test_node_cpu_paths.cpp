@@ -1,7 +1,8 @@
 // The node-CPU rewrites (cooker/src/surface) against the plain loops they replaced, value for value:
 // the splat height filter on real DEM nodes (inner nodes and data-edge nodes with NaN in the window),
 // the aspect mask's wrap without fmod, the branch-free atan2 of the normal-error statistics, the
-// baked albedo's texel blend, and the splat lattice's row-wise slope, aspect and curvature.
+// baked albedo's texel blend, the splat lattice's row-wise slope, aspect and curvature, and the
+// normal texels' row loops.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include "fast_math.h"
 #include "materials.h"
 #include "noise.h"
+#include "normals.h"
 #include "splat.h"
 #include "surface_test_support.h"
 #include "test_data.h"
@@ -227,6 +229,68 @@ TEST(NodeCpuPaths, LatticeRowMeasuresEqualMeasureField) {
   EXPECT_GT(fallback, 100);  // the sea's edge took the fallback
   EXPECT_GT(missing, 1000);
   std::printf("%ld elements equal (%ld by the fallback), %ld without data\n", compared, fallback, missing);
+}
+
+// compute_normal_texels' row loops (gradients without branches, then the cells with a missing
+// corner) against the per-texel loop they replaced (normals.cpp at ca61a28), bit for bit, on real
+// nodes inside the data and cut by the sea.
+TEST(NodeCpuPaths, NormalTexelsMatchThePerTexelLoopOnRealNodes) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  const MaterialRules& rules = cook::test::default_rules();
+  int nodes = 0, edge_cells = 0;
+  for (uint32_t level : {0u, 2u, 4u}) {
+    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
+      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
+        bench::DemNode n;
+        bench::make_dem_node(dem, level, x, y, 2, n);
+        if (n.data_vertices == 0) continue;
+        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+        NormalTexels got;
+        compute_normal_texels(in, got);
+        auto wh = [&](int i, int j) { return in.heights_m[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)]; };
+        auto mean_diff = [](float a0, float a1, float b0, float b1, double& out) {
+          int c = 0;
+          double sum = 0;
+          if (!std::isnan(a0) && !std::isnan(a1)) { sum += double(a1) - a0; ++c; }
+          if (!std::isnan(b0) && !std::isnan(b1)) { sum += double(b1) - b0; ++c; }
+          if (!c) return false;
+          out = sum / c;
+          return true;
+        };
+        const double s = in.spacing_m;
+        const float half_inv_s = float(0.5 / s);
+        int differ = 0;
+        for (int u = 0; u < kTexels; ++u)
+          for (int t = 0; t < kTexels; ++t) {
+            const int i = t - kApron, j = u - kApron;
+            const float h00 = wh(i, j), h10 = wh(i + 1, j), h01 = wh(i, j + 1), h11 = wh(i + 1, j + 1);
+            float gx, gy;
+            if (!std::isnan(h00 + h10 + h01 + h11)) {
+              gx = ((h10 - h00) + (h11 - h01)) * half_inv_s;
+              gy = ((h01 - h00) + (h11 - h10)) * half_inv_s;
+            } else {
+              double dx = 0, dy = 0;
+              if (!mean_diff(h00, h10, h01, h11, dx)) dx = 0;
+              if (!mean_diff(h00, h01, h10, h11, dy)) dy = 0;
+              gx = float(dx / s);
+              gy = float(dy / s);
+              ++edge_cells;
+            }
+            const float inv = 1.0f / std::sqrt(gx * gx + gy * gy + 1.0f);
+            const float want[3] = {-gx * inv, -gy * inv, inv};
+            differ += std::memcmp(&got.n[size_t(u * kTexels + t) * 3], want, sizeof want) != 0;
+          }
+        EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
+        ++nodes;
+      }
+  }
+  EXPECT_GT(nodes, 10);
+  EXPECT_GT(edge_cells, 100);  // the fallback ran
+  std::printf("%d nodes equal, %d cells at the edge of the data\n", nodes, edge_cells);
 }
 
 TEST(NodeCpuPaths, AspectMaskEqualsTheFmodFormula) {
