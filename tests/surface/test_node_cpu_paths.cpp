@@ -76,6 +76,21 @@ int differing(const std::vector<float>& a, const std::vector<float>& b) {
   return n;
 }
 
+// fn(node, level, x, y) for the nodes with data among about per_side x per_side spread over each
+// of the levels 0, 2 and 4 of a real DEM (inner nodes and nodes cut by the data's edge).
+template <class Fn>
+void for_each_real_node(const bench::DemRaster& dem, uint32_t per_side, Fn&& fn) {
+  for (uint32_t level : {0u, 2u, 4u}) {
+    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
+    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / per_side))
+      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / per_side)) {
+        bench::DemNode n;
+        bench::make_dem_node(dem, level, x, y, 2, n);
+        if (n.data_vertices > 0) fn(n, level, x, y);
+      }
+  }
+}
+
 }  // namespace
 
 TEST(NodeCpuPaths, SplatFilterMatchesThePerVertexLoopOnRealNodes) {
@@ -85,29 +100,21 @@ TEST(NodeCpuPaths, SplatFilterMatchesThePerVertexLoopOnRealNodes) {
   ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
   int inner = 0, edge = 0;
   std::vector<float> fast, slow;
-  for (uint32_t level : {0u, 2u, 4u}) {
-    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
-    const uint32_t step_x = std::max(1u, nx / 5), step_y = std::max(1u, ny / 5);
-    for (uint32_t y = 0; y < ny; y += step_y)
-      for (uint32_t x = 0; x < nx; x += step_x) {
-        bench::DemNode n;
-        bench::make_dem_node(dem, level, x, y, 2, n);
-        if (n.data_vertices == 0) continue;
-        bool any_nan = false;
-        for (float v : n.window) any_nan = any_nan || std::isnan(v);
-        (any_nan ? edge : inner) += 1;
-        // The built-in rule scales (16 m, 1 m) and one whose radius is not capped at any level here.
-        for (double scale : {16.0, 1.0, 3.0}) {
-          fast.clear();
-          const bool f = filter_heights(n.window.data(), scale, n.spacing_m, fast);
-          const bool s = reference_filter(n.window.data(), scale, n.spacing_m, slow);
-          ASSERT_EQ(f, s) << "level " << level << " scale " << scale;
-          if (f) {
-            EXPECT_EQ(differing(fast, slow), 0) << "level " << level << " node " << x << "," << y << " scale " << scale;
-          }
-        }
+  for_each_real_node(dem, 5, [&](const bench::DemNode& n, uint32_t level, uint32_t x, uint32_t y) {
+    bool any_nan = false;
+    for (float v : n.window) any_nan = any_nan || std::isnan(v);
+    (any_nan ? edge : inner) += 1;
+    // The built-in rule scales (16 m, 1 m) and one whose radius is not capped at any level here.
+    for (double scale : {16.0, 1.0, 3.0}) {
+      fast.clear();
+      const bool f = filter_heights(n.window.data(), scale, n.spacing_m, fast);
+      const bool s = reference_filter(n.window.data(), scale, n.spacing_m, slow);
+      ASSERT_EQ(f, s) << "level " << level << " scale " << scale;
+      if (f) {
+        EXPECT_EQ(differing(fast, slow), 0) << "level " << level << " node " << x << "," << y << " scale " << scale;
       }
-  }
+    }
+  });
   // Both paths of the filter ran: windows with data everywhere and windows cut by the sea (NaN).
   EXPECT_GT(inner, 5);
   EXPECT_GT(edge, 5);
@@ -135,45 +142,38 @@ TEST(NodeCpuPaths, AlbedoBlendMatchesThePerTexelLoopOnRealNodes) {
   const MaterialRules& rules = cook::test::default_rules();
   int nodes = 0;
   long texels = 0;
-  for (uint32_t level : {0u, 2u, 4u}) {
-    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
-    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
-      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
-        bench::DemNode n;
-        bench::make_dem_node(dem, level, x, y, 2, n);
-        if (n.data_vertices == 0) continue;
-        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
-        SplatLattice lattice;
-        compute_splat_lattice(in, rules, lattice);
-        std::vector<uint8_t> rgba(size_t(kTexels * kTexels) * 4);
-        bake_albedo(in, rules, lattice, rgba.data());
-        const double s = in.spacing_m, scale = std::max(48.0, 6.0 * s);
-        std::vector<float> lin(size_t(kSplatLattice * kSplatLattice) * 3);
-        for (int l = 0; l < kSplatLattice; ++l)
-          for (int k = 0; k < kSplatLattice; ++k) {
-            const size_t e = size_t(l * kSplatLattice + k);
-            const Material& m = rules.palette[lattice.ids[e]];
-            const double v = 1.0 + m.detail_strength * 0.5 *
-                                       fbm_noise(in.x0_m + (2 * k - 2) * s, in.y0_m + (2 * l - 2) * s, scale, 2, 0xA1BED0u);
-            for (int c = 0; c < 3; ++c) lin[e * 3 + size_t(c)] = float(to_linear[m.albedo_srgb[size_t(c)]] * v);
-          }
-        int differ = 0;
-        for (int u = 0; u < kTexels; ++u)
-          for (int t = 0; t < kTexels; ++t)
-            for (int c = 0; c < 3; ++c) {
-              const float fy = (u % 2 == 0) ? 0.25f : 0.75f, fx = (t % 2 == 0) ? 0.25f : 0.75f;
-              auto at = [&](int k, int l) { return lin[size_t(l * kSplatLattice + k) * 3 + size_t(c)]; };
-              const int k0 = t / 2, l0 = u / 2;
-              const float v0 = at(k0, l0) + fy * (at(k0, l0 + 1) - at(k0, l0));
-              const float v1 = at(k0 + 1, l0) + fy * (at(k0 + 1, l0 + 1) - at(k0 + 1, l0));
-              const uint8_t want = to_srgb[size_t(std::clamp(int((v0 + fx * (v1 - v0)) * 4096.0f), 0, 4095))];
-              differ += rgba[size_t(u * kTexels + t) * 4 + size_t(c)] != want;
-              ++texels;
-            }
-        EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
-        ++nodes;
+  for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t level, uint32_t x, uint32_t y) {
+    const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+    SplatLattice lattice;
+    compute_splat_lattice(in, rules, lattice);
+    std::vector<uint8_t> rgba(size_t(kTexels * kTexels) * 4);
+    bake_albedo(in, rules, lattice, rgba.data());
+    const double s = in.spacing_m, scale = std::max(48.0, 6.0 * s);
+    std::vector<float> lin(size_t(kSplatLattice * kSplatLattice) * 3);
+    for (int l = 0; l < kSplatLattice; ++l)
+      for (int k = 0; k < kSplatLattice; ++k) {
+        const size_t e = size_t(l * kSplatLattice + k);
+        const Material& m = rules.palette[lattice.ids[e]];
+        const double v = 1.0 + m.detail_strength * 0.5 *
+                                   fbm_noise(in.x0_m + (2 * k - 2) * s, in.y0_m + (2 * l - 2) * s, scale, 2, 0xA1BED0u);
+        for (int c = 0; c < 3; ++c) lin[e * 3 + size_t(c)] = float(to_linear[m.albedo_srgb[size_t(c)]] * v);
       }
-  }
+    int differ = 0;
+    for (int u = 0; u < kTexels; ++u)
+      for (int t = 0; t < kTexels; ++t)
+        for (int c = 0; c < 3; ++c) {
+          const float fy = (u % 2 == 0) ? 0.25f : 0.75f, fx = (t % 2 == 0) ? 0.25f : 0.75f;
+          auto at = [&](int k, int l) { return lin[size_t(l * kSplatLattice + k) * 3 + size_t(c)]; };
+          const int k0 = t / 2, l0 = u / 2;
+          const float v0 = at(k0, l0) + fy * (at(k0, l0 + 1) - at(k0, l0));
+          const float v1 = at(k0 + 1, l0) + fy * (at(k0 + 1, l0 + 1) - at(k0 + 1, l0));
+          const uint8_t want = to_srgb[size_t(std::clamp(int((v0 + fx * (v1 - v0)) * 4096.0f), 0, 4095))];
+          differ += rgba[size_t(u * kTexels + t) * 4 + size_t(c)] != want;
+          ++texels;
+        }
+    EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
+    ++nodes;
+  });
   EXPECT_GT(nodes, 10);
   std::printf("%d nodes, %ld texel channels compared\n", nodes, texels);
 }
@@ -189,43 +189,36 @@ TEST(NodeCpuPaths, LatticeRowMeasuresEqualMeasureField) {
   const MaterialRules& rules = cook::test::default_rules();
   long compared = 0, fallback = 0, missing = 0;
   std::vector<float> filtered;
-  for (uint32_t level : {0u, 2u, 4u}) {
-    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
-    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
-      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
-        bench::DemNode n;
-        bench::make_dem_node(dem, level, x, y, 2, n);
-        if (n.data_vertices == 0) continue;
-        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
-        const bool have_filtered = filter_heights(in.heights_m, 16.0, in.spacing_m, filtered);
-        for (const float* h : {in.heights_m, have_filtered ? filtered.data() : in.heights_m})
-          for (unsigned needs = 0; needs <= kNeedAll; ++needs)
-            for (int l = 0; l < kLatticeRow; ++l) {
-              const int j = 2 * l - 6;
-              SurfaceSample row[kLatticeRow];
-              uint8_t ok[kLatticeRow];
-              measure_lattice_row(in, h, j, needs, row, ok);
-              for (int k = 0; k < kLatticeRow; ++k) {
-                const int i = 2 * k - 6;
-                SurfaceSample want;
-                const bool data = measure_field(in, h, i, j, want, needs);
-                ASSERT_EQ(ok[k] != 0, data) << "level " << level << " vertex " << i << "," << j;
-                missing += !data;
-                if (!data) continue;
-                bool full = true;
-                for (int b = -1; b <= 1; ++b)
-                  for (int a = -1; a <= 1; ++a)
-                    full = full && !std::isnan(h[size_t((j + b + kWindowMargin) * kWindowSize + i + a + kWindowMargin)]);
-                fallback += !full;
-                ASSERT_EQ(std::memcmp(&row[k], &want, sizeof want), 0)
-                    << "level " << level << " vertex " << i << "," << j << " needs " << needs << ": slope "
-                    << row[k].slope_deg << " / " << want.slope_deg << ", aspect " << row[k].aspect_deg << " / "
-                    << want.aspect_deg << ", curvature " << row[k].curvature << " / " << want.curvature;
-                ++compared;
-              }
-            }
-      }
-  }
+  for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t level, uint32_t, uint32_t) {
+    const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+    const bool have_filtered = filter_heights(in.heights_m, 16.0, in.spacing_m, filtered);
+    for (const float* h : {in.heights_m, have_filtered ? filtered.data() : in.heights_m})
+      for (unsigned needs = 0; needs <= kNeedAll; ++needs)
+        for (int l = 0; l < kLatticeRow; ++l) {
+          const int j = 2 * l - 6;
+          SurfaceSample row[kLatticeRow];
+          uint8_t ok[kLatticeRow];
+          measure_lattice_row(in, h, j, needs, row, ok);
+          for (int k = 0; k < kLatticeRow; ++k) {
+            const int i = 2 * k - 6;
+            SurfaceSample want;
+            const bool data = measure_field(in, h, i, j, want, needs);
+            ASSERT_EQ(ok[k] != 0, data) << "level " << level << " vertex " << i << "," << j;
+            missing += !data;
+            if (!data) continue;
+            bool full = true;
+            for (int b = -1; b <= 1; ++b)
+              for (int a = -1; a <= 1; ++a)
+                full = full && !std::isnan(h[size_t((j + b + kWindowMargin) * kWindowSize + i + a + kWindowMargin)]);
+            fallback += !full;
+            ASSERT_EQ(std::memcmp(&row[k], &want, sizeof want), 0)
+                << "level " << level << " vertex " << i << "," << j << " needs " << needs << ": slope "
+                << row[k].slope_deg << " / " << want.slope_deg << ", aspect " << row[k].aspect_deg << " / "
+                << want.aspect_deg << ", curvature " << row[k].curvature << " / " << want.curvature;
+            ++compared;
+          }
+        }
+  });
   EXPECT_GT(fallback, 100);  // the sea's edge took the fallback
   EXPECT_GT(missing, 1000);
   std::printf("%ld elements equal (%ld by the fallback), %ld without data\n", compared, fallback, missing);
@@ -241,53 +234,46 @@ TEST(NodeCpuPaths, NormalTexelsMatchThePerTexelLoopOnRealNodes) {
   ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
   const MaterialRules& rules = cook::test::default_rules();
   int nodes = 0, edge_cells = 0;
-  for (uint32_t level : {0u, 2u, 4u}) {
-    const uint32_t nx = bench::nodes_across(dem, level, false), ny = bench::nodes_across(dem, level, true);
-    for (uint32_t y = 0; y < ny; y += std::max(1u, ny / 4))
-      for (uint32_t x = 0; x < nx; x += std::max(1u, nx / 4)) {
-        bench::DemNode n;
-        bench::make_dem_node(dem, level, x, y, 2, n);
-        if (n.data_vertices == 0) continue;
-        const SurfaceInput in = n.input(&rules, BcQuality::balanced);
-        NormalTexels got;
-        compute_normal_texels(in, got);
-        auto wh = [&](int i, int j) { return in.heights_m[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)]; };
-        auto mean_diff = [](float a0, float a1, float b0, float b1, double& out) {
-          int c = 0;
-          double sum = 0;
-          if (!std::isnan(a0) && !std::isnan(a1)) { sum += double(a1) - a0; ++c; }
-          if (!std::isnan(b0) && !std::isnan(b1)) { sum += double(b1) - b0; ++c; }
-          if (!c) return false;
-          out = sum / c;
-          return true;
-        };
-        const double s = in.spacing_m;
-        const float half_inv_s = float(0.5 / s);
-        int differ = 0;
-        for (int u = 0; u < kTexels; ++u)
-          for (int t = 0; t < kTexels; ++t) {
-            const int i = t - kApron, j = u - kApron;
-            const float h00 = wh(i, j), h10 = wh(i + 1, j), h01 = wh(i, j + 1), h11 = wh(i + 1, j + 1);
-            float gx, gy;
-            if (!std::isnan(h00 + h10 + h01 + h11)) {
-              gx = ((h10 - h00) + (h11 - h01)) * half_inv_s;
-              gy = ((h01 - h00) + (h11 - h10)) * half_inv_s;
-            } else {
-              double dx = 0, dy = 0;
-              if (!mean_diff(h00, h10, h01, h11, dx)) dx = 0;
-              if (!mean_diff(h00, h01, h10, h11, dy)) dy = 0;
-              gx = float(dx / s);
-              gy = float(dy / s);
-              ++edge_cells;
-            }
-            const float inv = 1.0f / std::sqrt(gx * gx + gy * gy + 1.0f);
-            const float want[3] = {-gx * inv, -gy * inv, inv};
-            differ += std::memcmp(&got.n[size_t(u * kTexels + t) * 3], want, sizeof want) != 0;
-          }
-        EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
-        ++nodes;
+  for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t level, uint32_t x, uint32_t y) {
+    const SurfaceInput in = n.input(&rules, BcQuality::balanced);
+    NormalTexels got;
+    compute_normal_texels(in, got);
+    auto wh = [&](int i, int j) { return in.heights_m[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)]; };
+    auto mean_diff = [](float a0, float a1, float b0, float b1, double& out) {
+      int c = 0;
+      double sum = 0;
+      if (!std::isnan(a0) && !std::isnan(a1)) { sum += double(a1) - a0; ++c; }
+      if (!std::isnan(b0) && !std::isnan(b1)) { sum += double(b1) - b0; ++c; }
+      if (!c) return false;
+      out = sum / c;
+      return true;
+    };
+    const double s = in.spacing_m;
+    const float half_inv_s = float(0.5 / s);
+    int differ = 0;
+    for (int u = 0; u < kTexels; ++u)
+      for (int t = 0; t < kTexels; ++t) {
+        const int i = t - kApron, j = u - kApron;
+        const float h00 = wh(i, j), h10 = wh(i + 1, j), h01 = wh(i, j + 1), h11 = wh(i + 1, j + 1);
+        float gx, gy;
+        if (!std::isnan(h00 + h10 + h01 + h11)) {
+          gx = ((h10 - h00) + (h11 - h01)) * half_inv_s;
+          gy = ((h01 - h00) + (h11 - h10)) * half_inv_s;
+        } else {
+          double dx = 0, dy = 0;
+          if (!mean_diff(h00, h10, h01, h11, dx)) dx = 0;
+          if (!mean_diff(h00, h01, h10, h11, dy)) dy = 0;
+          gx = float(dx / s);
+          gy = float(dy / s);
+          ++edge_cells;
+        }
+        const float inv = 1.0f / std::sqrt(gx * gx + gy * gy + 1.0f);
+        const float want[3] = {-gx * inv, -gy * inv, inv};
+        differ += std::memcmp(&got.n[size_t(u * kTexels + t) * 3], want, sizeof want) != 0;
       }
-  }
+    EXPECT_EQ(differ, 0) << "level " << level << " node " << x << "," << y;
+    ++nodes;
+  });
   EXPECT_GT(nodes, 10);
   EXPECT_GT(edge_cells, 100);  // the fallback ran
   std::printf("%d nodes equal, %d cells at the edge of the data\n", nodes, edge_cells);
