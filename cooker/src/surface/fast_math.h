@@ -5,12 +5,16 @@
 
 namespace terrain::cook {
 
-// atan(x) for x >= 0, |error| < 1.1e-5 rad (minimax polynomial on [0, 1], reflected above 1).
+// The minimax polynomial of atan on [0, 1] (|error| < 1.1e-5 rad): one definition for the forms below.
+inline double atan_poly(double t) {
+  const double t2 = t * t;
+  return t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+}
+
+// atan(x) for x >= 0, |error| < 1.1e-5 rad (the polynomial on [0, 1], reflected above 1).
 inline double fast_atan(double x) {
   const bool inv = x > 1.0;
-  const double t = inv ? 1.0 / x : x, t2 = t * t;
-  const double p =
-      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+  const double p = atan_poly(inv ? 1.0 / x : x);
   return inv ? 1.5707963267948966 - p : p;
 }
 
@@ -19,9 +23,7 @@ inline double fast_atan(double x) {
 inline double fast_atan_select(double x) {
   const bool inv = x > 1.0;
   const double r = 1.0 / x;
-  const double t = inv ? r : x, t2 = t * t;
-  const double p =
-      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+  const double p = atan_poly(inv ? r : x);
   return inv ? 1.5707963267948966 - p : p;
 }
 
@@ -35,12 +37,7 @@ inline double fast_atan2_pos(double y, double x) {
 // fast_atan2_pos() as selects (no branches, so a loop of it vectorises): the same operations on
 // every path that fast_atan2_pos() takes, hence the same doubles.
 inline double fast_atan2_pos_select(double y, double x) {
-  const double q = y / std::fabs(x);  // x == 0: inf or NaN, replaced below
-  const bool inv = q > 1.0;
-  const double t = inv ? 1.0 / q : q, t2 = t * t;
-  const double p =
-      t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
-  const double a = inv ? 1.5707963267948966 - p : p;
+  const double a = fast_atan_select(y / std::fabs(x));  // x == 0: inf or NaN, replaced below
   const double r = x > 0 ? a : 3.141592653589793 - a;
   return x == 0 ? (y == 0 ? 0.0 : 1.5707963267948966) : r;
 }
