@@ -2,7 +2,11 @@
 // rule evaluation.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <limits>
+#include <random>
 #include <set>
 
 #include "materials.h"
@@ -164,4 +168,102 @@ TEST(Materials, RuleEvaluationIsAPureFunctionOfTheSample) {
   // has a 90 m wavelength).
   EXPECT_GT(changes, 2);
   EXPECT_LT(changes, 200);
+}
+
+// choose_materials_row (a row's masks in vector loops, noise only where it can decide) against
+// choose_material_scaled, sample for sample: random rule sets (hard and soft ranges, open ends,
+// aspect arcs that wrap and bounds outside 0..360, zero and non-zero noise, 1..3 scales, and one
+// file of 70 rules for the fallback) on samples placed on each rule's bounds, fade ends and the
+// 1-degree aspect cut, plus NaN and aspects outside 0..360.
+TEST(Materials, RowChoiceEqualsThePerSampleChoice) {
+  std::mt19937_64 rng(20261204);
+  auto uni = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  auto chance = [&](double p) { return uni(0, 1) < p; };
+  auto range = [&](double lo_min, double hi_max) {
+    MaskRange m;
+    if (!chance(0.6)) return m;
+    const double a = uni(lo_min, hi_max), b = uni(lo_min, hi_max);
+    return active_range(chance(0.15) ? -std::numeric_limits<double>::infinity() : std::min(a, b),
+                        chance(0.15) ? std::numeric_limits<double>::infinity() : std::max(a, b),
+                        chance(0.3) ? 0.0 : uni(0.001, (hi_max - lo_min) * 0.3));
+  };
+  // A value on one of the range's edges (bound, fade end, middle), or anywhere in [lo, hi].
+  auto near_edge = [&](const MaskRange& m, double lo, double hi) {
+    if (!m.active || chance(0.3)) return uni(lo, hi);
+    const double e[6] = {m.lo, m.hi, m.lo - m.fade / 2, m.hi + m.fade / 2, m.lo + m.fade / 2, (m.lo + m.hi) / 2};
+    const double v = e[std::uniform_int_distribution<int>(0, 5)(rng)];
+    return std::isfinite(v) ? v : uni(lo, hi);
+  };
+  long samples = 0, outright = 0, by_noise = 0, defaulted = 0, fallback_samples = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    MaterialRules rules;
+    rules.palette.resize(80);
+    rules.default_material = uint8_t(std::uniform_int_distribution<int>(70, 79)(rng));  // no rule's
+    const size_t scales = size_t(std::uniform_int_distribution<int>(1, 3)(rng));
+    for (size_t s = 0; s < scales; ++s) rules.scales.push_back(double(s + 1));
+    const int count = trial == 0 ? 70 : std::uniform_int_distribution<int>(1, 12)(rng);
+    for (int i = 0; i < count; ++i) {
+      MaterialRule r;
+      r.material = uint8_t(i);
+      r.height_m = range(-50, 3000);
+      r.slope_deg = range(0, 90);
+      r.curvature = range(-0.05, 0.05);
+      r.aspect_deg = range(-400, 400);
+      if (r.aspect_deg.active && !std::isfinite(r.aspect_deg.lo)) r.aspect_deg.lo = uni(0, 360);
+      if (r.aspect_deg.active && !std::isfinite(r.aspect_deg.hi)) r.aspect_deg.hi = uni(0, 360);
+      r.noise.amplitude = chance(0.3) ? 0.0 : uni(0.01, 0.5);
+      r.noise.scale_m = uni(5, 100);
+      r.noise.octaves = std::uniform_int_distribution<int>(1, 3)(rng);
+      r.noise.seed = uint32_t(rng());
+      r.scale_index = uint8_t(std::uniform_int_distribution<int>(0, int(scales) - 1)(rng));
+      rules.rules.push_back(r);
+    }
+    const int n = trial % 2 ? kMaxRowSamples : std::uniform_int_distribution<int>(1, kMaxRowSamples)(rng);
+    const double y = uni(-1e6, 1e6), band = chance(0.5) ? 0.0 : uni(1, 8);
+    double attr[kMaxRuleScales][4][kMaxRowSamples], x[kMaxRowSamples];
+    for (int k = 0; k < n; ++k) {
+      x[k] = uni(-1e6, 1e6);
+      // Each attribute aims at the edges of a random rule's range.
+      for (size_t s = 0; s < scales; ++s) {
+        const MaterialRule& r = rules.rules[size_t(std::uniform_int_distribution<int>(0, count - 1)(rng))];
+        attr[s][0][k] = near_edge(r.height_m, -50, 3000);
+        attr[s][1][k] = chance(0.1) ? (chance(0.5) ? 1.0 : std::nextafter(1.0, 0.0)) : near_edge(r.slope_deg, 0, 90);
+        attr[s][2][k] = near_edge(r.curvature, -0.05, 0.05);
+        attr[s][3][k] = chance(0.1) ? (chance(0.5) ? 360.0 : uni(-720, 720)) : near_edge(r.aspect_deg, 0, 360);
+        if (chance(0.02)) attr[s][std::uniform_int_distribution<int>(0, 3)(rng)][k] = std::nan("");
+      }
+    }
+    SampleRow rows[kMaxRuleScales];
+    for (size_t s = 0; s < scales; ++s) rows[s] = SampleRow{attr[s][0], attr[s][1], attr[s][2], attr[s][3]};
+    uint8_t got[kMaxRowSamples];
+    choose_materials_row(rules, rows, x, y, band, n, got);
+    for (int k = 0; k < n; ++k) {
+      SurfaceSample per_scale[kMaxRuleScales];
+      for (size_t s = 0; s < scales; ++s)
+        per_scale[s] = SurfaceSample{x[k], y, attr[s][0][k], attr[s][1][k], attr[s][2][k], attr[s][3][k], band};
+      const uint8_t want = choose_material_scaled(rules, per_scale);
+      ASSERT_EQ(got[k], want) << "trial " << trial << " sample " << k;
+      ++samples;
+      fallback_samples += count > 64;
+      if (want == rules.default_material) {
+        ++defaulted;
+        continue;
+      }
+      // How the winning rule decided (the mask as rule_matches computes it, from the public masks).
+      const MaterialRule& r = rules.rules[want];
+      const SurfaceSample& s = per_scale[r.scale_index];
+      double m = mask_value(r.height_m, s.height_m);
+      if (m > 0) m *= mask_value(r.slope_deg, s.slope_deg);
+      if (m > 0) m *= mask_value(r.curvature, s.curvature);
+      if (m > 0 && s.slope_deg >= 1.0) m *= aspect_mask_value(r.aspect_deg, s.aspect_deg);
+      if (m - r.noise.amplitude >= 0.5) ++outright;
+      else ++by_noise;
+    }
+  }
+  EXPECT_GT(fallback_samples, 0);
+  EXPECT_GT(outright, samples / 10);
+  EXPECT_GT(by_noise, samples / 20);
+  EXPECT_GT(defaulted, samples / 20);
+  std::printf("%ld samples equal: %ld claimed outright, %ld through noise, %ld default\n", samples, outright, by_noise,
+              defaulted);
 }

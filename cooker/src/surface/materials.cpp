@@ -2,6 +2,7 @@
 #include "materials.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -176,6 +177,121 @@ uint8_t choose_material_scaled(const MaterialRules& rules, const SurfaceSample* 
   for (const MaterialRule& r : rules.rules)
     if (rule_matches(r, per_scale[r.scale_index])) return r.material;
   return rules.default_material;
+}
+
+namespace {
+// m[k] = mask_of(r, v[k]) when kFirst, else m[k] * mask_of(r, v[k]) where m[k] > 0 (rule_matches'
+// product, same operations). An inactive range is 1 everywhere: it leaves m as it is.
+template <bool kFirst>
+void range_mask_row(const MaskRange& r, const double* v, int n, double* m) {
+  if (!r.active) {
+    if (kFirst) std::fill(m, m + n, 1.0);
+    return;
+  }
+  const double lo = r.lo, hi = r.hi, inv = r.inv_fade;
+  if (r.fade <= 0) {
+    for (int k = 0; k < n; ++k) {
+      const double x = (v[k] >= lo && v[k] <= hi) ? 1.0 : 0.0;
+      m[k] = kFirst ? x : m[k] > 0 ? m[k] * x : m[k];
+    }
+    return;
+  }
+  for (int k = 0; k < n; ++k) {
+    const double a = (v[k] - lo) * inv + 0.5;
+    const double b = (hi - v[k]) * inv + 0.5;
+    const double x = std::clamp(std::min(a, b), 0.0, 1.0);
+    m[k] = kFirst ? x : m[k] > 0 ? m[k] * x : m[k];
+  }
+}
+
+// m[k] *= aspect_mask_value(r, aspect[k]) where m[k] > 0 and slope[k] >= 1 (rule_matches). The loop
+// takes wrap360's branch for |aspect - lo| < 360 (every measured aspect: 0..360); other samples
+// are done again by aspect_mask_value itself.
+void aspect_mask_row(const MaskRange& r, const double* aspect, const double* slope, int n, double* m) {
+  if (!r.active) return;
+  const double lo = wrap360(r.lo), width = wrap360(r.hi - r.lo), inv = r.inv_fade;
+  const bool hard = r.fade <= 0;
+  double before[kMaxRowSamples];
+  std::copy(m, m + n, before);
+  int slow = 0;
+  for (int k = 0; k < n; ++k) {
+    const double x = aspect[k] - lo;
+    slow += !(x > -360.0 && x < 360.0);
+    const double u = x + 360.0;
+    const double into = u < 360.0 ? u : u - 360.0;
+    const double outside = into > width ? std::min(into - width, 360.0 - into) : 0.0;
+    const double depth = outside > 0 ? -outside : std::min(into, width - into);
+    const double val = hard ? (outside > 0 ? 0.0 : 1.0) : std::clamp(depth * inv + 0.5, 0.0, 1.0);
+    m[k] = m[k] > 0 && slope[k] >= 1.0 ? m[k] * val : m[k];
+  }
+  if (slow == 0) return;
+  for (int k = 0; k < n; ++k) {
+    const double x = aspect[k] - lo;
+    if (!(x > -360.0 && x < 360.0))
+      m[k] = before[k] > 0 && slope[k] >= 1.0 ? before[k] * aspect_mask_value(r, aspect[k]) : before[k];
+  }
+}
+}  // namespace
+
+void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale, const double* x_m, double y_m,
+                          double min_noise_wavelength_m, int n, uint8_t* out) {
+  const size_t count = rules.rules.size();
+  if (count > 64) {  // the bit sets below hold 64 rules; longer files go a sample at a time
+    for (int k = 0; k < n; ++k) {
+      SurfaceSample s[kMaxRuleScales];
+      for (size_t c = 0; c < rules.scales.size(); ++c) {
+        const SampleRow& row = per_scale[c];
+        s[c].x_m = x_m[k];
+        s[c].y_m = y_m;
+        s[c].min_noise_wavelength_m = min_noise_wavelength_m;
+        s[c].height_m = row.height_m[k];
+        s[c].slope_deg = row.slope_deg[k];
+        if (row.curvature) s[c].curvature = row.curvature[k];
+        if (row.aspect_deg) s[c].aspect_deg = row.aspect_deg[k];
+      }
+      out[k] = choose_material_scaled(rules, s);
+    }
+    return;
+  }
+  // Per rule, its mask over the row and which samples it claims outright (mask - amplitude >= 0.5)
+  // or may claim (in the noise band); rule_matches' tests on the same doubles.
+  static thread_local std::vector<double> masks;
+  masks.resize(count * kMaxRowSamples);
+  uint64_t claims[kMaxRowSamples] = {}, maybe[kMaxRowSamples] = {};
+  for (size_t ri = 0; ri < count; ++ri) {
+    const MaterialRule& r = rules.rules[ri];
+    const SampleRow& row = per_scale[r.scale_index];
+    double* m = masks.data() + ri * kMaxRowSamples;
+    range_mask_row<true>(r.height_m, row.height_m, n, m);
+    range_mask_row<false>(r.slope_deg, row.slope_deg, n, m);
+    range_mask_row<false>(r.curvature, row.curvature, n, m);
+    aspect_mask_row(r.aspect_deg, row.aspect_deg, row.slope_deg, n, m);
+    const double amp = r.noise.amplitude;
+    const uint64_t bit = uint64_t(1) << ri;
+    for (int k = 0; k < n; ++k) {
+      const bool yes = m[k] - amp >= 0.5, no = m[k] + amp < 0.5;
+      claims[k] |= yes ? bit : 0;
+      maybe[k] |= !yes && !no ? bit : 0;
+    }
+  }
+  // The first rule in priority order that claims the sample: an outright claim, unless a rule
+  // before it claims it through its noise.
+  for (int k = 0; k < n; ++k) {
+    const uint64_t first = claims[k] & (~claims[k] + 1);
+    uint64_t open = maybe[k] & (first ? first - 1 : ~uint64_t(0));
+    uint8_t pick = first ? rules.rules[size_t(std::countr_zero(first))].material : rules.default_material;
+    while (open) {
+      const size_t ri = size_t(std::countr_zero(open));
+      open &= open - 1;
+      const MaterialRule& r = rules.rules[ri];
+      const double noise = fbm_noise(x_m[k], y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed, min_noise_wavelength_m);
+      if (masks[ri * kMaxRowSamples + size_t(k)] + r.noise.amplitude * noise >= 0.5) {
+        pick = r.material;
+        break;
+      }
+    }
+    out[k] = pick;
+  }
 }
 
 Status parse_material_rules(const std::string& json_text, const std::string& origin, MaterialRules& out) {

@@ -85,4 +85,20 @@ uint8_t choose_material(const MaterialRules& rules, const SurfaceSample& s);
 // Same with one sample per entry of rules.scales (rule r reads per_scale[r.scale_index]).
 uint8_t choose_material_scaled(const MaterialRules& rules, const SurfaceSample* per_scale);
 
+// The attributes of a row of samples at one rule scale, an array per attribute (samples at the
+// same y; attributes no rule reads may be left null).
+struct SampleRow {
+  const double* height_m = nullptr;
+  const double* slope_deg = nullptr;
+  const double* curvature = nullptr;
+  const double* aspect_deg = nullptr;
+};
+// choose_material_scaled for n <= kMaxRowSamples samples of a row at once (sample k: attributes
+// per_scale[s].*[k], noise at (x_m[k], y_m) with min_noise_wavelength_m): the same choices, with
+// each rule's mask computed for the whole row in loops that vectorise and noise only where a mask
+// lies in its rule's noise band before the first rule that claims the sample outright.
+inline constexpr int kMaxRowSamples = 128;
+void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale, const double* x_m, double y_m,
+                          double min_noise_wavelength_m, int n, uint8_t* out);
+
 }  // namespace terrain::cook

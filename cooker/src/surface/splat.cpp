@@ -352,19 +352,36 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
   // Each lattice row measured per scale at once (measure_lattice_row: measure_field's values).
   SurfaceSample measured[kMaxRuleScales][kWide];
   uint8_t measured_ok[kMaxRuleScales][kWide];
+  // The rules' choice for every element of a row at once (choose_materials_row), from the
+  // measures laid out an array per attribute.
+  static_assert(kWide <= kMaxRowSamples);
+  double attr[kMaxRuleScales][4][kWide];
+  SampleRow rows[kMaxRuleScales];
+  for (size_t s = 0; s < scales; ++s) rows[s] = SampleRow{attr[s][0], attr[s][1], attr[s][2], attr[s][3]};
+  double x_m[kWide];
+  uint8_t chosen[kWide];
+  const double min_noise_wavelength_m = rules.band_limit_noise ? 4.0 * in.spacing_m : 0.0;
   for (int l = 0; l < kWide; ++l) {
     const int j = 2 * l + kFirstVertex;
-    for (size_t s = 0; s < scales; ++s) measure_lattice_row(in, field[s], j, needs[s], measured[s], measured_ok[s]);
+    for (size_t s = 0; s < scales; ++s) {
+      measure_lattice_row(in, field[s], j, needs[s], measured[s], measured_ok[s]);
+      for (int k = 0; k < kWide; ++k) {
+        const SurfaceSample& m = measured[s][k];
+        attr[s][0][k] = m.height_m;
+        attr[s][1][k] = m.slope_deg;
+        attr[s][2][k] = m.curvature;
+        attr[s][3][k] = m.aspect_deg;
+      }
+    }
+    if (scales > 0) {
+      for (int k = 0; k < kWide; ++k) x_m[k] = measured[0][k].x_m;
+      choose_materials_row(rules, rows, x_m, measured[0][0].y_m, min_noise_wavelength_m, kWide, chosen);
+    }
     for (int k = 0; k < kWide; ++k) {
       const int i = 2 * k + kFirstVertex;
       const size_t e = size_t(l * kWide + k);
-      SurfaceSample per_scale[kMaxRuleScales];
       bool data = !std::isnan(wh(in.heights_m, i, j));
-      for (size_t s = 0; s < scales && data; ++s) {
-        data = measured_ok[s][k] != 0;
-        per_scale[s] = measured[s][k];
-        if (rules.band_limit_noise) per_scale[s].min_noise_wavelength_m = 4.0 * in.spacing_m;
-      }
+      for (size_t s = 0; s < scales && data; ++s) data = measured_ok[s][k] != 0;
       has[e] = data;
       if (!data) {
         wide[e] = rules.default_material;
@@ -380,7 +397,7 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
       } else if (scales == 0) {
         wide[e] = rules.default_material;
       } else {
-        wide[e] = choose_material_scaled(rules, per_scale);
+        wide[e] = chosen[k];
       }
     }
   }
