@@ -11,6 +11,7 @@
 #include <cstring>
 #include <random>
 
+#include "cones.h"
 #include "fast_math.h"
 #include "materials.h"
 #include "noise.h"
@@ -325,4 +326,61 @@ TEST(NodeCpuPaths, BranchFreeAtan2EqualsTheBranchyOne) {
     ++n;
   }
   EXPECT_EQ(n, 200000);
+}
+
+// argmin_dot (one double pass where the dot products crowd within 4e-5 of their minimum, else
+// the per-candidate loop) against the float-prefiltered, per-candidate loop alone, on the patch normals of real Kilauea nodes (sea-cut, smooth and
+// steep patches): for each patch's cone axis, axes tilted 1e-3 and 0.1 from it, the vertical and
+// random axes, over whole patches and over prefixes of 1..11 normals (the scalar tail); and on
+// lists where every normal ties, or two equal minima lie in different lanes.
+TEST(NodeCpuPaths, ArgminDotEqualsThePerCandidateLoop) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  long queries = 0, crowded = 0, spread = 0;
+  PatchNormals pn;
+  auto check = [&](NormalSpan v, double ax, double ay, double az) {
+    ASSERT_EQ(argmin_dot(v, ax, ay, az), argmin_dot_per_candidate(v, ax, ay, az))
+        << "n " << v.n << " axis " << ax << "," << ay << "," << az;
+    ++queries;
+    // Which path argmin_dot took (its test: every dot product within 4e-5 of the float minimum).
+    float low = 4.0f;
+    for (int i = 0; i < v.n; ++i) low = std::min(low, float(ax) * v.x[i] + float(ay) * v.y[i] + float(az) * v.z[i]);
+    (std::sqrt(ax * ax + ay * ay + az * az) - double(low) <= 4e-5 ? crowded : spread) += 1;
+  };
+  for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t, uint32_t, uint32_t) {
+    collect_patch_normals(n.node, n.height_offset, n.step_log2, n.spacing_m, n.holes.data(), pn);
+    for (int k = 0; k < kPatchCount; ++k) {
+      const NormalSpan v = pn.patch(k);
+      if (v.n == 0) continue;
+      const Cone c = smallest_enclosing_cone(v);
+      check(v, c.axis[0], c.axis[1], c.axis[2]);
+      check(v, 0, 0, 1);
+      for (double tilt : {1e-3, 0.1}) {
+        double a[3] = {c.axis[0] + tilt * gauss(rng), c.axis[1] + tilt * gauss(rng), c.axis[2] + tilt * gauss(rng)};
+        const double len = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        check(v, a[0] / len, a[1] / len, a[2] / len);
+        const double r[3] = {gauss(rng), gauss(rng), gauss(rng)};
+        const double rl = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        check(v, r[0] / rl, r[1] / rl, r[2] / rl);
+      }
+      for (int m = 1; m <= 11 && m < v.n; m += 2) check({v.x, v.y, v.z, m}, c.axis[0], c.axis[1], c.axis[2]);
+    }
+  });
+  // Every normal equal: the first. Two equal minima at 9 (lane 1 of the first pair of the third
+  // group) and 6 (lane 0 of the second pair of the second group): 6.
+  std::vector<float> x(703, 0.0f), y(703, 0.0f), z(703, 1.0f);
+  EXPECT_EQ(argmin_dot({x.data(), y.data(), z.data(), 703}, 0.1, 0.0, 0.995), 0);
+  for (int i : {9, 6}) {
+    x[size_t(i)] = 0.6f;
+    z[size_t(i)] = 0.8f;
+  }
+  check({x.data(), y.data(), z.data(), 703}, -0.6, 0.0, 0.8);
+  EXPECT_EQ(argmin_dot({x.data(), y.data(), z.data(), 703}, -0.6, 0.0, 0.8), 6);
+  EXPECT_GT(crowded, 1000);
+  EXPECT_GT(spread, 1000);
+  std::printf("%ld queries equal: %ld by the double pass, %ld by candidates\n", queries, crowded, spread);
 }

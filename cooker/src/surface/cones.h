@@ -49,6 +49,10 @@ struct Cone {
 Cone smallest_enclosing_cone(NormalSpan normals);
 // Largest angle between `axis` and the normals (0 if none).
 double max_angle_to(const double axis[3], NormalSpan normals);
+// Index of the normal with the smallest dot(axis, normal) in double, the first of equals (0 if
+// none); argmin_dot_per_candidate is the float-prefiltered form it is checked against.
+int argmin_dot(NormalSpan normals, double ax, double ay, double az);
+int argmin_dot_per_candidate(NormalSpan normals, double ax, double ay, double az);
 
 struct ConeStats {
   double mean_exact_deg = 0, mean_encoded_deg = 0;  // over patches with triangles
