@@ -235,9 +235,13 @@ TEST(Materials, RowChoiceEqualsThePerSampleChoice) {
     }
     SampleRow rows[kMaxRuleScales];
     for (size_t s = 0; s < scales; ++s) rows[s] = SampleRow{attr[s][0], attr[s][1], attr[s][2], attr[s][3]};
+    // Every third trial uses only a random half of the row (the others' choices are unspecified).
+    uint8_t wanted[kMaxRowSamples];
+    for (int k = 0; k < n; ++k) wanted[k] = trial % 3 != 2 || chance(0.5);
     uint8_t got[kMaxRowSamples];
-    choose_materials_row(rules, rows, x, y, band, n, got);
+    choose_materials_row(rules, rows, x, y, band, n, trial % 3 == 2 ? wanted : nullptr, got);
     for (int k = 0; k < n; ++k) {
+      if (!wanted[k]) continue;
       SurfaceSample per_scale[kMaxRuleScales];
       for (size_t s = 0; s < scales; ++s)
         per_scale[s] = SurfaceSample{x[k], y, attr[s][0][k], attr[s][1][k], attr[s][2][k], attr[s][3][k], band};

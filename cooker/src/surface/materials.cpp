@@ -234,7 +234,7 @@ void aspect_mask_row(const MaskRange& r, const double* aspect, const double* slo
 }  // namespace
 
 void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale, const double* x_m, double y_m,
-                          double min_noise_wavelength_m, int n, uint8_t* out) {
+                          double min_noise_wavelength_m, int n, const uint8_t* wanted, uint8_t* out) {
   const size_t count = rules.rules.size();
   if (count > 64) {  // the bit sets below hold 64 rules; longer files go a sample at a time
     for (int k = 0; k < n; ++k) {
@@ -268,11 +268,14 @@ void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale
     aspect_mask_row(r.aspect_deg, row.aspect_deg, row.slope_deg, n, m);
     const double amp = r.noise.amplitude;
     const uint64_t bit = uint64_t(1) << ri;
+    int unclaimed = 0;
     for (int k = 0; k < n; ++k) {
       const bool yes = m[k] - amp >= 0.5, no = m[k] + amp < 0.5;
       claims[k] |= yes ? bit : 0;
       maybe[k] |= !yes && !no ? bit : 0;
+      unclaimed += claims[k] == 0 && (!wanted || wanted[k]);
     }
+    if (unclaimed == 0) break;  // later rules cannot change a choice (the sea's rows: after water)
   }
   // The first rule in priority order that claims the sample: an outright claim, unless a rule
   // before it claims it through its noise.

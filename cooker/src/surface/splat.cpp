@@ -373,17 +373,22 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
         attr[s][3][k] = m.aspect_deg;
       }
     }
+    // Elements with data in every field: the ones whose choice is used.
+    uint8_t data[kWide];
+    for (int k = 0; k < kWide; ++k) {
+      const int i = 2 * k + kFirstVertex;
+      data[k] = !std::isnan(wh(in.heights_m, i, j));
+      for (size_t s = 0; s < scales && data[k]; ++s) data[k] = measured_ok[s][k] != 0;
+    }
     if (scales > 0) {
       for (int k = 0; k < kWide; ++k) x_m[k] = measured[0][k].x_m;
-      choose_materials_row(rules, rows, x_m, measured[0][0].y_m, min_noise_wavelength_m, kWide, chosen);
+      choose_materials_row(rules, rows, x_m, measured[0][0].y_m, min_noise_wavelength_m, kWide, data, chosen);
     }
     for (int k = 0; k < kWide; ++k) {
       const int i = 2 * k + kFirstVertex;
       const size_t e = size_t(l * kWide + k);
-      bool data = !std::isnan(wh(in.heights_m, i, j));
-      for (size_t s = 0; s < scales && data; ++s) data = measured_ok[s][k] != 0;
-      has[e] = data;
-      if (!data) {
+      has[e] = data[k];
+      if (!data[k]) {
         wide[e] = rules.default_material;
         continue;
       }
