@@ -109,10 +109,16 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   for (int j = lo; j < hi; ++j) {
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
-    if (anchors)
-      anchors->eval_planned(y, plan, cols.data(), rows.data());
-    else if (!shared_columns)
-      ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
+    // Rows mapped point by point (through the anchors or the mapping): their heights in one call.
+    std::array<double, kWindowSize> mapped_h;
+    std::array<uint8_t, kWindowSize> mapped_ok;
+    if (!shared_columns) {
+      if (anchors)
+        anchors->eval_planned(y, plan, cols.data(), rows.data());
+      else
+        ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
+      ctx.surface.sample_points(cols.data() + lo, rows.data() + lo, hi - lo, mapped_h.data() + lo, mapped_ok.data() + lo);
+    }
     const Surface::Axis& row_axis = row_axes[size_t(j)];
     const double* source_rows[4] = {};
     const bool use_cache = cache_rows > 0 && ctx.surface.y_interior(row_axis);
@@ -152,7 +158,8 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       double h = 0;
       bool ok = false;
       if (!shared_columns) {
-        ok = ctx.surface.sample(cols[size_t(i)], rows[size_t(i)], h);
+        ok = mapped_ok[size_t(i)];
+        h = mapped_h[size_t(i)];
       } else if (use_cache && x_in[size_t(i)]) {
         h = row_sum[size_t(i)];
         ok = !std::isnan(h) || ctx.surface.sample_general(column_axes[size_t(i)], row_axis, h);

@@ -111,6 +111,11 @@ class Surface {
     }
     return sample_general(x, y, h);
   }
+  // Heights of n points (cols[k], rows[k]) at once, each with the bits sample() gives it; ok[k] = 0
+  // where sample() returns false. Points whose rows and columns follow no grid (sources mapped
+  // through the anchors): the axes of a whole run in loops that vectorise, then the 16-tap sums.
+  void sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const;
+
   // Whether (col, row) is covered (nearest sample valid): the hole test of sample() alone.
   bool covered(double col, double row) const {
     if (!(col > -2.0 && row > -2.0 && col < w_ + 1.0 && row < h_ + 1.0)) return false;

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "crs.h"
@@ -191,6 +192,59 @@ TEST(Reconstruct, SharedAxesAndCachedRowsGiveIdenticalBits) {
     }
   }
   EXPECT_GT(compared, 15000);
+}
+
+// sample_points (rows mapped point by point: geographic sources through the anchors) computes the
+// axes of a run in vector lanes; every point must keep sample()'s bits and hole decision: inside,
+// at the raster's edges and beyond them, next to nodata, on integer coordinates and half-sample
+// ties, for NaN and far-off coordinates, and for runs of any length (lanes and the 64-point runs
+// partly filled).
+TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
+  Raster r = plane_raster(37, 29, 0, 0, 0);
+  for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(std::sin(double(i) * 0.37) * 100.0 - 40.0);
+  for (const auto& [c, w] : std::vector<std::pair<int, int>>{{20, 14}, {0, 7}, {36, 28}, {5, 0}, {21, 14}})
+    r.values[size_t(w) * 37 + size_t(c)] = NAN;
+  Surface s(r);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-3.0, 40.0);
+  std::uniform_int_distribution<int> pick(0, 9), len(1, 200);
+  int points = 0, holes = 0, general = 0;
+  for (int run = 0; run < 400; ++run) {
+    const int n = len(rng);
+    std::vector<double> cols(static_cast<size_t>(n)), rows(static_cast<size_t>(n)), h(static_cast<size_t>(n), -1.0);
+    std::vector<uint8_t> ok(size_t(n), 7);
+    for (int k = 0; k < n; ++k) {
+      double c = u(rng), w = u(rng) * 29.0 / 37.0;
+      switch (pick(rng)) {  // special coordinates
+        case 0: c = std::round(c); break;
+        case 1: w = std::floor(w) + 0.5; break;
+        case 2: c = std::numeric_limits<double>::quiet_NaN(); break;
+        case 3: w = (k % 2 ? 1e12 : -1e12); break;
+        case 4: c = std::floor(c) + 0.5, w = std::round(w); break;
+        default: break;
+      }
+      cols[size_t(k)] = c;
+      rows[size_t(k)] = w;
+    }
+    s.sample_points(cols.data(), rows.data(), n, h.data(), ok.data());
+    for (int k = 0; k < n; ++k) {
+      double want = 0;
+      const bool want_ok = s.sample(cols[size_t(k)], rows[size_t(k)], want);
+      ASSERT_EQ(ok[size_t(k)], want_ok ? 1 : 0) << "point " << k << " (" << cols[size_t(k)] << ", " << rows[size_t(k)] << ")";
+      ++points;
+      if (!want_ok) {
+        ++holes;
+        continue;
+      }
+      EXPECT_EQ(std::memcmp(&want, &h[size_t(k)], sizeof want), 0) << cols[size_t(k)] << ", " << rows[size_t(k)];
+      const Surface::Axis x = s.column(cols[size_t(k)]), y = s.row(rows[size_t(k)]);
+      general += !(s.x_interior(x) && s.y_interior(y));
+    }
+  }
+  // The mix the loop is meant to reach: holes (outside, NaN, voids) and edge points of the general path.
+  EXPECT_GT(points, 30000);
+  EXPECT_GT(holes, 3000);
+  EXPECT_GT(general, 2000);
 }
 
 TEST(VoidFill, SmallEnclosedVoidsAreFilledHarmonicallyAndBorderVoidsStayHoles) {
