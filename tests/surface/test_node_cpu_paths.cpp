@@ -384,3 +384,132 @@ TEST(NodeCpuPaths, ArgminDotEqualsThePerCandidateLoop) {
   EXPECT_GT(spread, 1000);
   std::printf("%ld queries equal: %ld by the double pass, %ld by candidates\n", queries, crowded, spread);
 }
+
+namespace {
+
+// collect_patch_normals as it was at 6a60d73, one triangle at a time: per patch, the two
+// unstitched triangles of every quad (their row-form normals; in a node without holes a row's
+// first triangles, then its second ones) unless a vertex is a hole, then
+// every distinct moved, non-degenerate stitched triangle (edge deltas 0..4, in the enumeration
+// order of the stitch table), dropped when a hole kills it both at its collapsed and at its
+// original vertices, kept when its normal faces up.
+void reference_patch_normals(const bench::DemNode& n, std::vector<std::array<float, 3>> out[kPatchCount]) {
+  auto at = [](int i, int j) { return size_t(j * kHeightSamples + i); };
+  std::vector<double> z(static_cast<size_t>(kHeightCount));
+  std::vector<uint8_t> hole(static_cast<size_t>(kHeightCount));
+  for (int j = 0; j < kHeightSamples; ++j)
+    for (int i = 0; i < kHeightSamples; ++i) {
+      z[at(i, j)] = units_to_metres(vertex_units(n.height_offset, n.node.heights[at(i, j)], n.step_log2));
+      hole[at(i, j)] = n.holes[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] != 0;
+    }
+  const double s = n.spacing_m;
+  const float sf = float(s), s2 = sf * sf;
+  struct Tri {
+    int snapped[3][2], orig[3][2];
+    bool operator==(const Tri& o) const { return std::memcmp(this, &o, sizeof o) == 0; }
+  };
+  std::vector<Tri> table;
+  for (int v = 0; v < kQuadsPerPatch; ++v)
+    for (int u = 0; u < kQuadsPerPatch; ++u) {
+      const bool onS = v == 0, onN = v == kQuadsPerPatch - 1, onW = u == 0, onE = u == kQuadsPerPatch - 1;
+      if (!(onS || onN || onW || onE)) continue;
+      const size_t first = table.size();
+      for (int dS = 0; dS <= (onS ? 4 : 0); ++dS)
+        for (int dN = 0; dN <= (onN ? 4 : 0); ++dN)
+          for (int dW = 0; dW <= (onW ? 4 : 0); ++dW)
+            for (int dE = 0; dE <= (onE ? 4 : 0); ++dE)
+              for (int t = 0; t < 2; ++t) {
+                const PatchTriangle a = stitched_quad_triangle(PatchMesh{0, 0, 0, {dS, dW, dN, dE}}, u, v, t);
+                const PatchTriangle b = stitched_quad_triangle(PatchMesh{}, u, v, t);
+                if (a.degenerate()) continue;
+                Tri tri{};
+                bool moved = false;
+                for (int k = 0; k < 3; ++k) {
+                  moved = moved || a.v[k] != b.v[k];
+                  tri.snapped[k][0] = a.v[k].i, tri.snapped[k][1] = a.v[k].j;
+                  tri.orig[k][0] = b.v[k].i, tri.orig[k][1] = b.v[k].j;
+                }
+                if (moved && std::find(table.begin() + long(first), table.end(), tri) == table.end()) table.push_back(tri);
+              }
+    }
+  for (int k = 0; k < kPatchCount; ++k) {
+    out[k].clear();
+    const int gi0 = (k % kPatchesPerSide) * kQuadsPerPatch, gj0 = (k / kPatchesPerSide) * kQuadsPerPatch;
+    const bool node_holes = std::find(hole.begin(), hole.end(), 1) != hole.end();
+    for (int v = 0; v < kQuadsPerPatch; ++v) {
+      std::vector<std::array<float, 3>> second;  // without holes: a row's first triangles, then its second ones
+      for (int u = 0; u < kQuadsPerPatch; ++u) {
+        const int i = gi0 + u, j = gj0 + v;
+        const float x1 = float(z[at(i, j)] - z[at(i + 1, j)]), y1 = float(z[at(i + 1, j)] - z[at(i + 1, j + 1)]);
+        const float x2 = float(z[at(i, j + 1)] - z[at(i + 1, j + 1)]), y2 = float(z[at(i, j)] - z[at(i, j + 1)]);
+        const float i1 = 1.0f / std::sqrt(x1 * x1 + y1 * y1 + s2), i2 = 1.0f / std::sqrt(x2 * x2 + y2 * y2 + s2);
+        const bool common = hole[at(i, j)] || hole[at(i + 1, j + 1)];
+        if (!(common || hole[at(i + 1, j)])) out[k].push_back({x1 * i1, y1 * i1, sf * i1});
+        if (!(common || hole[at(i, j + 1)])) (node_holes ? out[k] : second).push_back({x2 * i2, y2 * i2, sf * i2});
+      }
+      out[k].insert(out[k].end(), second.begin(), second.end());
+    }
+    for (const Tri& t : table) {
+      bool hole_snapped = false, hole_orig = false;
+      for (int c = 0; c < 3; ++c) {
+        hole_snapped = hole_snapped || hole[at(gi0 + t.snapped[c][0], gj0 + t.snapped[c][1])];
+        hole_orig = hole_orig || hole[at(gi0 + t.orig[c][0], gj0 + t.orig[c][1])];
+      }
+      if (hole_snapped && hole_orig) continue;
+      const int i0 = gi0 + t.snapped[0][0], j0 = gj0 + t.snapped[0][1];
+      const int i1 = gi0 + t.snapped[1][0], j1 = gj0 + t.snapped[1][1];
+      const int i2 = gi0 + t.snapped[2][0], j2 = gj0 + t.snapped[2][1];
+      const float ax = float(i1 - i0), ay = float(j1 - j0), az = float((z[at(i1, j1)] - z[at(i0, j0)]) / s);
+      const float bx = float(i2 - i0), by = float(j2 - j0), bz = float((z[at(i2, j2)] - z[at(i0, j0)]) / s);
+      const float nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+      if (!(nz > 0)) continue;
+      const float inv = 1.0f / std::sqrt(nx * nx + ny * ny + nz * nz);
+      out[k].push_back({nx * inv, ny * inv, nz * inv});
+    }
+  }
+}
+
+}  // namespace
+
+// The patch normals (stitched triangles computed for the whole table at once, hole tests only in
+// patches that hold a hole) are, list for list and bit for bit, those of the per-triangle loop, on
+// real Kilauea nodes: inland patches, patches cut by the sea (holes) and hole-free patches of nodes
+// that hold holes elsewhere.
+TEST(NodeCpuPaths, PatchNormalsEqualThePerTriangleLoop) {
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  TERRAIN_REQUIRE_DATA(file);
+  bench::DemRaster dem;
+  ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+  PatchNormals pn;
+  std::vector<std::array<float, 3>> want[kPatchCount];
+  long normals = 0;
+  int patches_with_holes = 0, clear_patches_in_holed_nodes = 0, clear_nodes = 0;
+  for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t level, uint32_t x, uint32_t y) {
+    collect_patch_normals(n.node, n.height_offset, n.step_log2, n.spacing_m, n.holes.data(), pn);
+    reference_patch_normals(n, want);
+    clear_nodes += n.hole_vertices == 0;
+    for (int k = 0; k < kPatchCount; ++k) {
+      const NormalSpan v = pn.patch(k);
+      ASSERT_EQ(size_t(v.n), want[k].size()) << "level " << level << " node " << x << "," << y << " patch " << k;
+      for (int i = 0; i < v.n; ++i) {
+        const float got[3] = {v.x[i], v.y[i], v.z[i]};
+        ASSERT_EQ(std::memcmp(got, want[k][size_t(i)].data(), sizeof got), 0)
+            << "level " << level << " node " << x << "," << y << " patch " << k << " normal " << i;
+      }
+      normals += v.n;
+      if (n.hole_vertices > 0) {
+        bool holed = false;  // a hole among the patch's 17 x 17 vertices
+        const int gi0 = (k % kPatchesPerSide) * kQuadsPerPatch, gj0 = (k / kPatchesPerSide) * kQuadsPerPatch;
+        for (int j = gj0; j <= gj0 + kQuadsPerPatch; ++j)
+          for (int i = gi0; i <= gi0 + kQuadsPerPatch; ++i)
+            holed = holed || n.holes[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] != 0;
+        (holed ? patches_with_holes : clear_patches_in_holed_nodes) += 1;
+      }
+    }
+  });
+  EXPECT_GT(patches_with_holes, 20);
+  EXPECT_GT(clear_patches_in_holed_nodes, 20);
+  EXPECT_GT(clear_nodes, 5);
+  std::printf("%ld normals equal; %d patches with holes, %d clear patches in nodes with holes, %d nodes without holes\n",
+              normals, patches_with_holes, clear_patches_in_holed_nodes, clear_nodes);
+}

@@ -201,6 +201,71 @@ const std::vector<StitchedTriangle>& stitch_table() {
   return table;
 }
 
+// The stitch table as arrays, for its normals in loops that vectorise: each triangle's snapped
+// vertices as offsets into the node's 129-wide grid from the patch's south-west vertex, and its
+// edge vectors in grid steps (exact in float). Only the upward-facing ones (push_tri keeps a
+// triangle when its normal's z > 0, which depends on the grid steps alone).
+struct StitchArrays {
+  std::vector<int32_t> o0, o1, o2;
+  std::vector<float> ax, ay, bx, by;
+  std::vector<uint32_t> entry;  // index into stitch_table()
+};
+
+const StitchArrays& stitch_arrays() {
+  static const StitchArrays arrays = [] {
+    StitchArrays a;
+    const std::vector<StitchedTriangle>& table = stitch_table();
+    for (size_t e = 0; e < table.size(); ++e) {
+      const StitchedTriangle& st = table[e];
+      const int i0 = st.snapped[0][0], j0 = st.snapped[0][1];
+      const float ax = float(st.snapped[1][0] - i0), ay = float(st.snapped[1][1] - j0);
+      const float bx = float(st.snapped[2][0] - i0), by = float(st.snapped[2][1] - j0);
+      if (!(ax * by - ay * bx > 0)) continue;
+      a.o0.push_back(j0 * kHeightSamples + i0);
+      a.o1.push_back(st.snapped[1][1] * kHeightSamples + st.snapped[1][0]);
+      a.o2.push_back(st.snapped[2][1] * kHeightSamples + st.snapped[2][0]);
+      a.ax.push_back(ax);
+      a.ay.push_back(ay);
+      a.bx.push_back(bx);
+      a.by.push_back(by);
+      a.entry.push_back(uint32_t(e));
+    }
+    return a;
+  }();
+  return arrays;
+}
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__)
+#define TERRAIN_CONES_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define TERRAIN_CONES_CLONES
+#endif
+
+// The normal of every stitched triangle of the patch whose south-west vertex is z[0], in float:
+// edge vectors in grid steps (exact) and height differences (double, then float); the normal only
+// needs float precision (the margins are 1e-4 rad and up). No FMA in either clone: the bits do
+// not depend on the CPU.
+TERRAIN_CONES_CLONES void stitched_normals(const StitchArrays& a, const double* z, double s, float* __restrict nx,
+                                           float* __restrict ny, float* __restrict nz) {
+  const int n = int(a.o0.size());
+  const int32_t* o0 = a.o0.data();
+  const int32_t* o1 = a.o1.data();
+  const int32_t* o2 = a.o2.data();
+  const float* ax = a.ax.data();
+  const float* ay = a.ay.data();
+  const float* bx = a.bx.data();
+  const float* by = a.by.data();
+  for (int t = 0; t < n; ++t) {
+    const double z0 = z[o0[t]];
+    const float az = float((z[o1[t]] - z0) / s), bz = float((z[o2[t]] - z0) / s);
+    const float x = ay[t] * bz - az * by[t], y = az * bx[t] - ax[t] * bz, w = ax[t] * by[t] - ay[t] * bx[t];
+    const float inv = 1.0f / std::sqrt(x * x + y * y + w * w);
+    nx[t] = x * inv;
+    ny[t] = y * inv;
+    nz[t] = w * inv;
+  }
+}
+
 }  // namespace
 
 void collect_patch_normals(const NodeData& node, int32_t height_offset, int step_log2, double spacing_m,
@@ -231,20 +296,6 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
   float* dy = out.y.data();
   float* dz = out.z.data();
   size_t count = 0;
-  // General triangle (for stitched variants): grid coordinates, counter-clockwise from above.
-  auto push_tri = [&](int i0, int j0, int i1, int j1, int i2, int j2) {
-    // Edge vectors in grid steps (exact) and height differences (double, then float): the normal
-    // only needs float precision (the margins are 1e-4 rad and up).
-    const float ax = float(i1 - i0), ay = float(j1 - j0), az = float((z[at(i1, j1)] - z[at(i0, j0)]) / s);
-    const float bx = float(i2 - i0), by = float(j2 - j0), bz = float((z[at(i2, j2)] - z[at(i0, j0)]) / s);
-    const float nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
-    if (!(nz > 0)) return;
-    const float inv = 1.0f / std::sqrt(nx * nx + ny * ny + nz * nz);
-    dx[count] = nx * inv;
-    dy[count] = ny * inv;
-    dz[count] = nz * inv;
-    ++count;
-  };
   // Normals of the unstitched triangles of every quad, in float, as branch-free row loops:
   // quad (i,j) -> (i,j),(i+1,j),(i+1,j+1) with normal ~ (h00-h10, h10-h11, s) and
   //               (i,j),(i+1,j+1),(i,j+1) with normal ~ (h01-h11, h00-h01, s).
@@ -278,12 +329,24 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
       bx[i] = x2 * i2; by[i] = y2 * i2; bz[i] = sf * i2;
     }
   }
+  const std::vector<StitchedTriangle>& table = stitch_table();
+  const StitchArrays& stitch = stitch_arrays();
+  static thread_local std::vector<float> snx, sny, snz;
+  snx.resize(stitch.o0.size());
+  sny.resize(stitch.o0.size());
+  snz.resize(stitch.o0.size());
   for (int q = 0; q < kPatchesPerSide; ++q)
     for (int p = 0; p < kPatchesPerSide; ++p) {
       const int k = q * kPatchesPerSide + p;
       out.begin[size_t(k)] = uint32_t(count);
       const int gi0 = p * kQuadsPerPatch, gj0 = q * kQuadsPerPatch;
-      // Unstitched triangles (normals precomputed above for the whole node).
+      // A patch's triangles (stitched ones included) use only its own 17 x 17 vertices.
+      bool patch_hole = false;
+      if (any_hole)
+        for (int v = 0; v <= kQuadsPerPatch && !patch_hole; ++v)
+          for (int u = 0; u <= kQuadsPerPatch; ++u) patch_hole = patch_hole || hole[at(gi0 + u, gj0 + v)];
+      // Unstitched triangles (normals precomputed above for the whole node; a row's first
+      // triangles, then its second ones, or quad by quad where the node holds holes).
       if (!any_hole) {
         for (int v = 0; v < kQuadsPerPatch; ++v) {
           const size_t quad = size_t((gj0 + v) * kQuadsPerSide + gi0);
@@ -309,18 +372,31 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
             ++count;
           }
         }
-      // Stitched variants (same for every patch, so enumerated once in stitch_table()).
-      for (const StitchedTriangle& st : stitch_table()) {
+      // Stitched variants (same for every patch, so enumerated once in stitch_table()), their
+      // normals for the whole table at once, then kept in table order.
+      stitched_normals(stitch, &z[at(gi0, gj0)], s, snx.data(), sny.data(), snz.data());
+      const int ns = int(stitch.o0.size());
+      if (!patch_hole) {
+        std::memcpy(dx + count, snx.data(), size_t(ns) * sizeof(float));
+        std::memcpy(dy + count, sny.data(), size_t(ns) * sizeof(float));
+        std::memcpy(dz + count, snz.data(), size_t(ns) * sizeof(float));
+        count += size_t(ns);
+        continue;
+      }
+      for (int t = 0; t < ns; ++t) {
+        const StitchedTriangle& st = table[stitch.entry[size_t(t)]];
         bool hole_snapped = false, hole_orig = false;
-        for (int t = 0; t < 3; ++t) {
-          hole_snapped = hole_snapped || hole[at(gi0 + st.snapped[t][0], gj0 + st.snapped[t][1])];
-          hole_orig = hole_orig || hole[at(gi0 + st.orig[t][0], gj0 + st.orig[t][1])];
+        for (int c = 0; c < 3; ++c) {
+          hole_snapped = hole_snapped || hole[at(gi0 + st.snapped[c][0], gj0 + st.snapped[c][1])];
+          hole_orig = hole_orig || hole[at(gi0 + st.orig[c][0], gj0 + st.orig[c][1])];
         }
         // Dropped only if a hole kills it under either reading of the hole mask (at the collapsed
         // or at the original grid position).
         if (hole_snapped && hole_orig) continue;
-        push_tri(gi0 + st.snapped[0][0], gj0 + st.snapped[0][1], gi0 + st.snapped[1][0], gj0 + st.snapped[1][1],
-                 gi0 + st.snapped[2][0], gj0 + st.snapped[2][1]);
+        dx[count] = snx[size_t(t)];
+        dy[count] = sny[size_t(t)];
+        dz[count] = snz[size_t(t)];
+        ++count;
       }
     }
   out.begin[kPatchCount] = uint32_t(count);
