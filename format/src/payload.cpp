@@ -64,18 +64,23 @@ namespace {
 // Height residual planes at levels 9..18 (the cooker's is 9): optimal parsing (btopt) with a
 // single search attempt and 32 KB tables. Measured on the real DEM tiles (terrain-format-bench):
 // within 1 % of level 19's bytes and 0.5-18 % fewer than plain level 9's; non-optimal strategies
-// (lazy2, btlazy2) with the same tables lose the gain. Matches of at least 6 bytes, and taking any
+// (lazy2, btlazy2) with the same tables and one attempt lose the gain (with 16, lazy2 keeps most
+// of it: level 9's second parse). Matches of at least 6 bytes, and taking any
 // match of 32 bytes at once, cost the parser far less (residual planes hold few short repeats worth
 // a sequence): on 200 nodes each of cooked Kilauea, Jacksboro and a 1 m lidar-like square, 0.78 %,
 // 0.66 % and 0.08 % fewer bytes than btopt's level-19 defaults (3 and 256) at 30-52 % less encode
 // CPU (1.06 -> 0.74, 1.24 -> 0.77, 0.91 -> 0.43 ms per node), and the fewer, longer sequences
 // decode 40-60 % faster (zstd alone: 0.9-1.05 -> 1.3-1.6 GB/s of residual bytes per CPU second).
 // Levels below 9 stay fast; 19 and up are zstd's own.
+// Level 9's second parse is lazy2 with 16 search attempts on the same tables (see compress_section).
 void set_height_residual_params(ZSTD_CCtx* cctx, int level, ZSTD_strategy strategy) {
   if (level < 9 || level >= 19) return;
   ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, 19);
   ZSTD_CCtx_setParameter(cctx, ZSTD_c_strategy, strategy);
-  ZSTD_CCtx_setParameter(cctx, ZSTD_c_searchLog, 1);
+  ZSTD_CCtx_setParameter(cctx, ZSTD_c_searchLog, strategy == ZSTD_lazy2 ? 4 : 1);
+  // lazy2's row-based match finder, named rather than left to zstd's build-time SIMD test (it
+  // decides which frame is written; ZSTD_c_useRowMatchFinder = 1, ZSTD_ps_enable).
+  if (strategy == ZSTD_lazy2) ZSTD_CCtx_setParameter(cctx, ZSTD_c_experimentalParam14, 1);
   ZSTD_CCtx_setParameter(cctx, ZSTD_c_windowLog, 15);
   ZSTD_CCtx_setParameter(cctx, ZSTD_c_chainLog, 15);
   ZSTD_CCtx_setParameter(cctx, ZSTD_c_hashLog, 15);
@@ -104,20 +109,23 @@ Status compress_section(std::span<const uint8_t> raw, int level, layout::Codec c
   const size_t start = out.size();
   const bool residuals = codec_if_compressed == layout::Codec::height_predictor;
   // Level 9 (the cooker's) parses residual planes the quick way (strategy dfast, same tables)
-  // first, and optimally as well only when that frame is under a quarter of the raw bytes,
-  // keeping the smaller frame. Measured on real DEM tiles (terrain-format-bench tiles and cooked
-  // nodes): there, on smooth, sea- or void-heavy grids (30 m Kilauea, SRTM coasts, 0.5 m bare
-  // earth), the optimal parse is 2-20 % smaller; on rough grids (1 m lidar, Alps, 160 m Puget,
-  // first returns) it saved 0-2.9 % of the height bytes for 5-12x the encode CPU.
+  // first, and with lazy2 (16 attempts) as well only when that frame is under a quarter of the
+  // raw bytes, keeping the smaller frame. On rough grids (1 m lidar, first returns) a second
+  // parse saved 0-2.9 % of the height bytes for 5-12x the encode CPU; on smooth, sea- or
+  // void-heavy grids (30 m DEMs, SRTM coasts, 0.5 m bare earth) the optimal parse of levels
+  // 10-18 is 2-20 % smaller than dfast. There lazy2 keeps most of that: on 336 cooked Oetztal and
+  // 407 Kilauea nodes +1.5 % and +0.7 % height bytes against the optimal parse at 0.38 and 0.41x
+  // its encode CPU (0.40 against 1.05, 0.29 against 0.70 ms per node), and its fewer, longer
+  // matches decode 6-18 % faster.
   const bool probe = residuals && level == 9;
   size_t n = zstd_frame(cctx, raw, level, residuals, probe ? ZSTD_dfast : ZSTD_btopt, out, start);
   if (ZSTD_isError(n)) return Status::failure(Error::internal, std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
   if (probe && n * 4 < raw.size()) {
-    static thread_local std::vector<uint8_t> optimal;
-    const size_t m = zstd_frame(cctx, raw, level, residuals, ZSTD_btopt, optimal, 0);
+    static thread_local std::vector<uint8_t> second;
+    const size_t m = zstd_frame(cctx, raw, level, residuals, ZSTD_lazy2, second, 0);
     if (ZSTD_isError(m)) return Status::failure(Error::internal, std::string("zstd compression failed: ") + ZSTD_getErrorName(m));
     if (m < n) {
-      std::memcpy(out.data() + start, optimal.data(), m);
+      std::memcpy(out.data() + start, second.data(), m);
       n = m;
     }
   }

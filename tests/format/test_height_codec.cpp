@@ -145,14 +145,18 @@ TEST(HeightCodec, ExactOnRealKilaueaWindows) {
   EXPECT_GE(windows, 40);
 }
 
-// Level 9 (the cooker's) parses the residual planes the quick way and optimally only where the
-// quick frame is under a quarter of the raw bytes (payload.cpp); levels 10..18 always parse
-// optimally. On real windows of Kilauea (30 m) and the Slovenian lidar (1 m) at 15.6 and 62.5 mm
-// steps: where level 9 tried the optimal parse its section is never larger than level 10's, both
-// paths are taken, and over all windows level 9 stays within 3 % of level 10's bytes (the worst
-// DEM measured, first-return lidar: +2.9 %).
-TEST(HeightCodec, Level9ParsesOptimallyOnlyWhereItPays) {
-  size_t bytes9 = 0, bytes10 = 0;
+// Level 9 (the cooker's) parses the residual planes the quick way (dfast) and a second time
+// (lazy2, 16 attempts) only where the quick frame is under a quarter of the raw bytes
+// (payload.cpp); levels 10..18 always parse optimally (btopt). On real windows of Kilauea (30 m)
+// and the Slovenian lidar (1 m) at 15.6 and 62.5 mm steps, not resampled (the hardest case for
+// the lazy parse: cooked nodes of 30 m data are upsampled and smoother, and there level 9 costs
+// 0.4-2.3 % of the height bytes, terrain-cook-bench): both paths are taken, every window decodes
+// exactly, and level 9 stays within 8 % of level 10's bytes over all windows and within 10 % over
+// the windows that took the second parse. Those are the bounds of the trade made for a 2-3x
+// faster encode of the compressible nodes.
+TEST(HeightCodec, Level9ParsesTwiceOnlyWhereItPays) {
+  size_t bytes9 = 0, bytes10 = 0, second9 = 0, second10 = 0;
+  double worst = 0;
   int quick = 0, optimal = 0;
   auto node = std::make_unique<NodeData>();
   for (const char* name : {"kilauea_utm5n.tif", "slovenia_TM1_564_146.tif"}) {
@@ -190,7 +194,9 @@ TEST(HeightCodec, Level9ParsesOptimallyOnlyWhereItPays) {
           bytes10 += stored[1];
           if (stored[0] * 4 < 2 * kHeightCount) {
             ++optimal;
-            EXPECT_LE(stored[0], stored[1]) << "window " << x0 << "," << y0 << " step " << step;
+            second9 += stored[0];
+            second10 += stored[1];
+            worst = std::max(worst, double(stored[0]) / double(stored[1]));
           } else {
             ++quick;
           }
@@ -198,10 +204,11 @@ TEST(HeightCodec, Level9ParsesOptimallyOnlyWhereItPays) {
   }
   EXPECT_GT(quick, 10);
   EXPECT_GT(optimal, 10);
-  EXPECT_LE(double(bytes9), 1.03 * double(bytes10));
+  EXPECT_LE(double(bytes9), 1.08 * double(bytes10));
+  EXPECT_LE(double(second9), 1.10 * double(second10));
   EXPECT_NE(bytes9, bytes10);  // the quick frames are other frames (on lidar often smaller ones)
-  std::printf("%d windows quick, %d optimal; level 9 %zu bytes, level 10 %zu (%.4fx)\n", quick, optimal, bytes9,
-              bytes10, double(bytes9) / double(bytes10));
+  std::printf("%d windows quick, %d second parse (%.4fx level 10, worst %.4fx); level 9 %zu bytes, level 10 %zu (%.4fx)\n",
+              quick, optimal, double(second9) / double(second10), worst, bytes9, bytes10, double(bytes9) / double(bytes10));
 }
 
 // ---- codec 3 (constant grid) -----------------------------------------------------------------

@@ -21,8 +21,8 @@ namespace terrain {
 struct PayloadOptions {
   // zstd level of the heights (and of every section unless surface_zstd_level is set). 3 is the
   // quick general default; levels 10-18 switch the height residuals to tuned optimal parsing
-  // (payload.cpp), and level 9, which terrain-cook uses, parses optimally only where a quick pass
-  // finds the residuals compressible (there 2-20 % fewer height bytes than level 3).
+  // (payload.cpp), and level 9, which terrain-cook uses, parses a second time (lazy2, 16
+  // attempts) only where a quick pass finds the residuals compressible.
   int zstd_level = 3;
   bool height_predictor = true;  // predictor + zstd (or plain zstd where smaller); false: plain zstd only (benchmarks)
   // zstd level of the normals, albedo, splat and cones sections (BC blocks and material ids);
