@@ -3,15 +3,10 @@
 #include <algorithm>
 #include <cstring>
 
+#include "avx2_clones.h"
 
 namespace terrain::cook {
 namespace {
-
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__)
-#define TERRAIN_AXES_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define TERRAIN_AXES_CLONES
-#endif
 
 constexpr int kRun = 64;  // points per pass of sample_points (its scratch lives on the stack)
 
@@ -37,7 +32,7 @@ typedef int32_t V4i __attribute__((vector_size(16)));
     std::memcpy((p), &v_, sizeof v_); \
   } while (0)
 
-TERRAIN_AXES_CLONES void run_axes(const double* __restrict cols, const double* __restrict rows, int n, int width,
+TERRAIN_AVX2_CLONES void run_axes(const double* __restrict cols, const double* __restrict rows, int n, int width,
                                   int height, RunAxes& a) {
   alignas(32) double cp[kRun] = {}, rp[kRun] = {};
   std::memcpy(cp, cols, sizeof(double) * size_t(n));

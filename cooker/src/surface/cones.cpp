@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "avx2_clones.h"
 #include "bc_blocks.h"
 
 #if defined(__SSE2__)
@@ -235,17 +236,11 @@ const StitchArrays& stitch_arrays() {
   return arrays;
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__)
-#define TERRAIN_CONES_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define TERRAIN_CONES_CLONES
-#endif
-
 // The normal of every stitched triangle of the patch whose south-west vertex is z[0], in float:
 // edge vectors in grid steps (exact) and height differences (double, then float); the normal only
 // needs float precision (the margins are 1e-4 rad and up). No FMA in either clone: the bits do
 // not depend on the CPU.
-TERRAIN_CONES_CLONES void stitched_normals(const StitchArrays& a, const double* z, double s, float* __restrict nx,
+TERRAIN_AVX2_CLONES void stitched_normals(const StitchArrays& a, const double* z, double s, float* __restrict nx,
                                            float* __restrict ny, float* __restrict nz) {
   const int n = int(a.o0.size());
   const int32_t* o0 = a.o0.data();
