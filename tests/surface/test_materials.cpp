@@ -4,12 +4,15 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <algorithm>
 #include <fstream>
 #include <limits>
 #include <random>
 #include <set>
 
 #include "materials.h"
+#include "noise.h"
 #include "test_data.h"
 
 using namespace terrain;
@@ -221,8 +224,12 @@ TEST(Materials, RowChoiceEqualsThePerSampleChoice) {
     const int n = trial % 2 ? kMaxRowSamples : std::uniform_int_distribution<int>(1, kMaxRowSamples)(rng);
     const double y = uni(-1e6, 1e6), band = chance(0.5) ? 0.0 : uni(1, 8);
     double attr[kMaxRuleScales][4][kMaxRowSamples], x[kMaxRowSamples];
+    // Half the trials place the samples as a lattice row does (evenly, far from the origin), where
+    // the noise comes from the row's lattice tables; the others anywhere (fbm_noise per sample).
+    const bool row_like = trial % 2 == 0;
+    const double x0 = uni(-1e7, 1e7), spacing = uni(0.25, 20);
     for (int k = 0; k < n; ++k) {
-      x[k] = uni(-1e6, 1e6);
+      x[k] = row_like ? x0 + k * spacing : uni(-1e6, 1e6);
       // Each attribute aims at the edges of a random rule's range.
       for (size_t s = 0; s < scales; ++s) {
         const MaterialRule& r = rules.rules[size_t(std::uniform_int_distribution<int>(0, count - 1)(rng))];
@@ -270,4 +277,54 @@ TEST(Materials, RowChoiceEqualsThePerSampleChoice) {
   EXPECT_GT(defaulted, samples / 20);
   std::printf("%ld samples equal: %ld claimed outright, %ld through noise, %ld default\n", samples, outright, by_noise,
               defaulted);
+}
+
+// fbm_noise_row (a row's noise from per-octave lattice tables, kept across rows) against
+// fbm_noise, bit for bit: rows of 1..300 points at 0.1-40 m spacings anywhere within 1e7 m of the
+// origin, walked up in y so tables are kept and rebuilt, random subsets in random order, 1..8
+// octaves, band limits; then points where the tables cannot serve (spans of more than the table's
+// cells, coordinates beyond 2^52 lattice units), which fbm_noise itself answers. (Non-finite
+// coordinates are outside fbm_noise's domain: its floor converts to int64.)
+TEST(Noise, RowGivesEveryPointTheBitsOfFbmNoise) {
+  std::mt19937_64 rng(20261204);
+  auto uni = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  auto same = [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  long points = 0, unusual = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    NoiseRowTables tables;
+    const double scale = uni(1, 120), x0 = uni(-1e7, 1e7), spacing = uni(0.1, 40);
+    const int octaves = std::uniform_int_distribution<int>(1, 8)(rng);
+    const uint32_t seed = uint32_t(rng());
+    const double band = trial % 3 == 0 ? 0.0 : uni(0.2, 60);
+    const int n = std::uniform_int_distribution<int>(1, 300)(rng);
+    std::vector<double> x(static_cast<size_t>(n));
+    for (int k = 0; k < n; ++k) x[size_t(k)] = x0 + k * spacing;
+    const bool odd_points = trial % 10 == 9;
+    if (odd_points) {
+      const double odd[3] = {1e15, -1e15, x0 + 1e6};
+      for (int i = 0; i < 1 + n / 20; ++i)
+        x[size_t(std::uniform_int_distribution<int>(0, n - 1)(rng))] = odd[std::uniform_int_distribution<int>(0, 2)(rng)];
+    }
+    double y = uni(-1e7, 1e7);
+    for (int row = 0; row < 8; ++row, y += uni(0, 3 * spacing)) {
+      std::vector<int> idx;
+      for (int k = 0; k < n; ++k)
+        if (row % 2 == 0 || uni(0, 1) < 0.4) idx.push_back(k);
+      if (row % 4 == 3) std::shuffle(idx.begin(), idx.end(), rng);
+      std::vector<double> got(idx.size() + 1);
+      const bool all = row == 0;
+      fbm_noise_row(x.data(), all ? nullptr : idx.data(), int(idx.size()), y, scale, octaves, seed, band, tables,
+                    got.data());
+      for (size_t i = 0; i < idx.size(); ++i) {
+        const double xi = x[size_t(idx[i])];
+        const double want = fbm_noise(xi, y, scale, octaves, seed, band);
+        ASSERT_TRUE(same(got[i], want)) << "trial " << trial << " row " << row << " x " << xi << ": " << got[i]
+                                        << " against " << want;
+        ++points;
+        unusual += odd_points && (std::fabs(xi) == 1e15 || xi == x0 + 1e6);
+      }
+    }
+  }
+  EXPECT_GT(points, 200000);
+  EXPECT_GT(unusual, 100);
 }

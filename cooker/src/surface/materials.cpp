@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <set>
@@ -11,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "avx2_clones.h"
 #include "noise.h"
 
 namespace terrain::cook {
@@ -180,27 +182,63 @@ uint8_t choose_material_scaled(const MaterialRules& rules, const SurfaceSample* 
 }
 
 namespace {
+// GCC's vector extensions, 4 lanes (one AVX2 register, two SSE2 ones): the auto-vectoriser keeps
+// these loops' selects as branches. Lanes only widen the loops; every lane computes rule_matches'
+// operations in its order, so the doubles are the per-sample ones on every CPU.
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+typedef uint64_t V4u __attribute__((vector_size(32)));
+constexpr int kLanes = 4;
+static_assert(kMaxRowSamples % kLanes == 0);
+
+// Loads and stores as memcpy (unaligned; no function takes a V4d by value: that ABI needs AVX).
+#define TERRAIN_LOAD4(T, var, p) \
+  T var;                          \
+  std::memcpy(&var, (p), sizeof var)
+#define TERRAIN_STORE4(p, v)           \
+  do {                                 \
+    const auto stored_ = (v);          \
+    std::memcpy((p), &stored_, sizeof stored_); \
+  } while (0)
+
+// A row's attribute padded to whole lanes (the padding's masks are never read).
+int padded(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
+
 // m[k] = mask_of(r, v[k]) when kFirst, else m[k] * mask_of(r, v[k]) where m[k] > 0 (rule_matches'
-// product, same operations). An inactive range is 1 everywhere: it leaves m as it is.
+// product, same operations), for k < padded(n): m has room for kMaxRowSamples. An inactive range
+// is 1 everywhere: it leaves m as it is.
 template <bool kFirst>
-void range_mask_row(const MaskRange& r, const double* v, int n, double* m) {
+TERRAIN_AVX2_CLONES void range_mask_row(const MaskRange& r, const double* v_in, int n, double* m) {
   if (!r.active) {
-    if (kFirst) std::fill(m, m + n, 1.0);
+    if (kFirst) std::fill(m, m + padded(n), 1.0);
     return;
   }
-  const double lo = r.lo, hi = r.hi, inv = r.inv_fade;
-  if (r.fade <= 0) {
-    for (int k = 0; k < n; ++k) {
-      const double x = (v[k] >= lo && v[k] <= hi) ? 1.0 : 0.0;
-      m[k] = kFirst ? x : m[k] > 0 ? m[k] * x : m[k];
+  alignas(32) double v[kMaxRowSamples];
+  std::copy(v_in, v_in + n, v);
+  std::fill(v + n, v + padded(n), 0.0);
+  const V4d lo = {r.lo, r.lo, r.lo, r.lo}, hi = {r.hi, r.hi, r.hi, r.hi};
+  const V4d inv = {r.inv_fade, r.inv_fade, r.inv_fade, r.inv_fade};
+  const V4d zero = {0, 0, 0, 0}, half = {0.5, 0.5, 0.5, 0.5}, one = {1, 1, 1, 1};
+  const bool hard = r.fade <= 0;
+  for (int k = 0; k < n; k += kLanes) {
+    TERRAIN_LOAD4(V4d, x, v + k);
+    V4d mask;
+    if (hard) {
+      mask = ((x >= lo) & (x <= hi)) ? one : zero;
+    } else {
+      // std::clamp(std::min(a, b), 0.0, 1.0) as libstdc++ spells it: min(max(t, 0), 1).
+      const V4d a = (x - lo) * inv + half;
+      const V4d b = (hi - x) * inv + half;
+      const V4d t = (b < a) ? b : a;
+      const V4d c = (t < zero) ? zero : t;
+      mask = (one < c) ? one : c;
     }
-    return;
-  }
-  for (int k = 0; k < n; ++k) {
-    const double a = (v[k] - lo) * inv + 0.5;
-    const double b = (hi - v[k]) * inv + 0.5;
-    const double x = std::clamp(std::min(a, b), 0.0, 1.0);
-    m[k] = kFirst ? x : m[k] > 0 ? m[k] * x : m[k];
+    if (kFirst) {
+      TERRAIN_STORE4(m + k, mask);
+    } else {
+      TERRAIN_LOAD4(V4d, before, m + k);
+      TERRAIN_STORE4(m + k, (before > zero) ? before * mask : before);
+    }
   }
 }
 
@@ -231,6 +269,30 @@ void aspect_mask_row(const MaskRange& r, const double* aspect, const double* slo
       m[k] = before[k] > 0 && slope[k] >= 1.0 ? before[k] * aspect_mask_value(r, aspect[k]) : before[k];
   }
 }
+
+// Per sample k < padded(n): bit `bit` of claims[k] where m[k] - amp >= 0.5 (the rule claims it
+// outright), of maybe[k] where it lies in the noise band (neither that nor m[k] + amp < 0.5).
+// Returns how many samples with want[k] set no rule has claimed yet.
+TERRAIN_AVX2_CLONES int mark_claims(const double* m, double amp, uint64_t bit, const uint64_t* want, int n,
+                                    uint64_t* claims, uint64_t* maybe) {
+  const V4d a = {amp, amp, amp, amp}, half = {0.5, 0.5, 0.5, 0.5};
+  const V4u b = {bit, bit, bit, bit}, zero = {0, 0, 0, 0};
+  V4u unclaimed = zero;
+  for (int k = 0; k < n; k += kLanes) {
+    TERRAIN_LOAD4(V4d, x, m + k);
+    TERRAIN_LOAD4(V4u, c, claims + k);
+    TERRAIN_LOAD4(V4u, may, maybe + k);
+    TERRAIN_LOAD4(V4u, w, want + k);
+    const V4u yes = V4u(x - a >= half), no = V4u(x + a < half);
+    c |= yes & b;
+    TERRAIN_STORE4(claims + k, c);
+    TERRAIN_STORE4(maybe + k, may | (~(yes | no) & b));
+    unclaimed -= V4u(c == zero) & w;  // each true lane is all ones: -1
+  }
+  return int(unclaimed[0] + unclaimed[1] + unclaimed[2] + unclaimed[3]);
+}
+#undef TERRAIN_LOAD4
+#undef TERRAIN_STORE4
 }  // namespace
 
 void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale, const double* x_m, double y_m,
@@ -257,7 +319,8 @@ void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale
   // or may claim (in the noise band); rule_matches' tests on the same doubles.
   static thread_local std::vector<double> masks;
   masks.resize(count * kMaxRowSamples);
-  uint64_t claims[kMaxRowSamples] = {}, maybe[kMaxRowSamples] = {};
+  alignas(32) uint64_t claims[kMaxRowSamples] = {}, maybe[kMaxRowSamples] = {}, want[kMaxRowSamples] = {};
+  for (int k = 0; k < n; ++k) want[k] = !wanted || wanted[k] ? ~uint64_t(0) : 0;
   for (size_t ri = 0; ri < count; ++ri) {
     const MaterialRule& r = rules.rules[ri];
     const SampleRow& row = per_scale[r.scale_index];
@@ -266,34 +329,44 @@ void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale
     range_mask_row<false>(r.slope_deg, row.slope_deg, n, m);
     range_mask_row<false>(r.curvature, row.curvature, n, m);
     aspect_mask_row(r.aspect_deg, row.aspect_deg, row.slope_deg, n, m);
-    const double amp = r.noise.amplitude;
-    const uint64_t bit = uint64_t(1) << ri;
-    int unclaimed = 0;
-    for (int k = 0; k < n; ++k) {
-      const bool yes = m[k] - amp >= 0.5, no = m[k] + amp < 0.5;
-      claims[k] |= yes ? bit : 0;
-      maybe[k] |= !yes && !no ? bit : 0;
-      unclaimed += claims[k] == 0 && (!wanted || wanted[k]);
-    }
-    if (unclaimed == 0) break;  // later rules cannot change a choice (the sea's rows: after water)
+    if (mark_claims(m, r.noise.amplitude, uint64_t(1) << ri, want, n, claims, maybe) == 0)
+      break;  // later rules cannot change a choice (the sea's rows: after water)
   }
   // The first rule in priority order that claims the sample: an outright claim, unless a rule
-  // before it claims it through its noise.
+  // before it claims it through its noise. open[k]: the rules before the first outright claim that
+  // may still claim sample k through their noise.
+  uint64_t open[kMaxRowSamples], any_open = 0;
   for (int k = 0; k < n; ++k) {
     const uint64_t first = claims[k] & (~claims[k] + 1);
-    uint64_t open = maybe[k] & (first ? first - 1 : ~uint64_t(0));
-    uint8_t pick = first ? rules.rules[size_t(std::countr_zero(first))].material : rules.default_material;
-    while (open) {
-      const size_t ri = size_t(std::countr_zero(open));
-      open &= open - 1;
-      const MaterialRule& r = rules.rules[ri];
-      const double noise = fbm_noise(x_m[k], y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed, min_noise_wavelength_m);
-      if (masks[ri * kMaxRowSamples + size_t(k)] + r.noise.amplitude * noise >= 0.5) {
-        pick = r.material;
-        break;
+    open[k] = want[k] & maybe[k] & (first ? first - 1 : ~uint64_t(0));
+    any_open |= open[k];
+    out[k] = first ? rules.rules[size_t(std::countr_zero(first))].material : rules.default_material;
+  }
+  // The noise rule by rule, for the samples still open to it (a row's noise at once: noise.h): a
+  // sample takes the first rule whose noise lifts its mask to 0.5, as rule_matches in order would.
+  static thread_local std::vector<NoiseRowTables> tables;
+  tables.resize(count);
+  int idx[kMaxRowSamples];
+  double noise[kMaxRowSamples];
+  while (any_open) {
+    const size_t ri = size_t(std::countr_zero(any_open));
+    const uint64_t bit = uint64_t(1) << ri;
+    any_open &= any_open - 1;
+    int listed = 0;
+    for (int k = 0; k < n; ++k)
+      if (open[k] & bit) idx[listed++] = k;
+    if (listed == 0) continue;
+    const MaterialRule& r = rules.rules[ri];
+    fbm_noise_row(x_m, idx, listed, y_m, r.noise.scale_m, r.noise.octaves, r.noise.seed, min_noise_wavelength_m,
+                  tables[ri], noise);
+    const double* m = masks.data() + ri * kMaxRowSamples;
+    for (int i = 0; i < listed; ++i) {
+      const int k = idx[i];
+      if (m[k] + r.noise.amplitude * noise[i] >= 0.5) {
+        out[k] = r.material;
+        open[k] = 0;  // decided: later rules' noise no longer matters
       }
     }
-    out[k] = pick;
   }
 }
 

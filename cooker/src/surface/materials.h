@@ -95,8 +95,9 @@ struct SampleRow {
 };
 // choose_material_scaled for n <= kMaxRowSamples samples of a row at once (sample k: attributes
 // per_scale[s].*[k], noise at (x_m[k], y_m) with min_noise_wavelength_m): the same choices, with
-// each rule's mask computed for the whole row in loops that vectorise and noise only where a mask
-// lies in its rule's noise band before the first rule that claims the sample outright. `wanted`
+// each rule's mask computed for the whole row in vector loops and noise only where a mask lies in
+// its rule's noise band before the first rule that claims the sample outright (rule by rule, a row
+// at a time: fbm_noise_row). `wanted`
 // (may be null: all) marks the samples whose choice is used; the others' out[k] is unspecified, and
 // once every wanted sample is claimed outright the later rules are not evaluated.
 inline constexpr int kMaxRowSamples = 128;

@@ -4,6 +4,7 @@
 #pragma once
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace terrain::cook {
 
@@ -76,5 +77,24 @@ inline double fbm_noise(double x_m, double y_m, double scale_m, int octaves, uin
   }
   return norm > 0 ? sum / norm : 0.0;
 }
+
+// fbm_noise at many points of one row (the same y) at once, the same bits as fbm_noise point by
+// point. Per octave the row needs only two lattice rows: their values are hashed once into a table
+// (kept while later rows stay between the same lattice rows) instead of a cell check per point.
+// Rows that span more than kMaxNoiseTableCells cells of an octave, or non-finite coordinates, take
+// fbm_noise itself.
+inline constexpr int kMaxNoiseTableCells = 1024;
+struct NoiseRowTable {
+  bool valid = false;
+  uint32_t seed = 0;
+  int64_t iv = 0, iu0 = 0;
+  std::vector<double> below, above;  // lattice values (iu0 + j, iv) and (iu0 + j, iv + 1)
+};
+struct NoiseRowTables {
+  NoiseRowTable octave[8];  // the rules' octave limit (materials.cpp) and the albedo's 2
+};
+// out[i] = fbm_noise(x_m[idx ? idx[i] : i], y_m, scale_m, octaves, seed, min_wavelength_m), i < count.
+void fbm_noise_row(const double* x_m, const int* idx, int count, double y_m, double scale_m, int octaves,
+                   uint32_t seed, double min_wavelength_m, NoiseRowTables& tables, double* out);
 
 }  // namespace terrain::cook

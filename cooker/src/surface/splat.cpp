@@ -459,14 +459,19 @@ void bake_albedo(const SurfaceInput& in, const MaterialRules& rules, const Splat
     // Linear colour per lattice sample, with the material's gentle world-space variation.
     static thread_local std::array<float, kSplatLattice * kSplatLattice * 3> lin;
     const double scale = std::max(48.0, 6.0 * s);
-    for (int l = 0; l < kSplatLattice; ++l)
+    static thread_local NoiseRowTables noise_tables;
+    double x[kSplatLattice], noise[kSplatLattice];
+    for (int k = 0; k < kSplatLattice; ++k) x[k] = in.x0_m + (2 * k - 2) * s;
+    for (int l = 0; l < kSplatLattice; ++l) {
+      const double y = in.y0_m + (2 * l - 2) * s;
+      fbm_noise_row(x, nullptr, kSplatLattice, y, scale, 2, kAlbedoNoiseSeed, 0.0, noise_tables, noise);  // fbm_noise's bits
       for (int k = 0; k < kSplatLattice; ++k) {
         const size_t e = size_t(l * kSplatLattice + k);
         const Material& m = rules.palette[lattice.ids[e]];
-        const double x = in.x0_m + (2 * k - 2) * s, y = in.y0_m + (2 * l - 2) * s;
-        const double v = 1.0 + m.detail_strength * 0.5 * fbm_noise(x, y, scale, 2, kAlbedoNoiseSeed);
+        const double v = 1.0 + m.detail_strength * 0.5 * noise[k];
         for (int c = 0; c < 3; ++c) lin[e * 3 + size_t(c)] = float(tab.to_linear[m.albedo_srgb[size_t(c)]] * v);
       }
+    }
     // Texel (t, u) centre is at vertex coordinate (t - 1.5, u - 1.5) = lattice (t + 0.5) / 2:
     // lattice t / 2 with weight 1/4 (t even) or 3/4 (t odd) toward the next sample. Rows first
     // (one vertical blend per lattice column), then the horizontal blend per texel.
