@@ -3,12 +3,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <vector>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
 
+#include "avx2_clones.h"
 #include "fast_math.h"
 #include "noise.h"
 
@@ -281,6 +284,62 @@ uint8_t despeckled(const std::array<uint8_t, kWide * kWide>& ids, const std::arr
 
 }  // namespace
 
+// GCC's vector extensions, 4 lanes (an AVX2 register, two SSE2 ones): the auto-vectoriser turns
+// fast_atan_select's select back into a branch around the division. Each lane does the scalar
+// forms' operations in their order (no FMA: this file is built without contraction).
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+constexpr int kLaneRow = (kLatticeRow + 3) / 4 * 4;  // a lattice row padded to whole lanes
+
+#define SPLAT4(v) (V4d{(v), (v), (v), (v)})
+
+// fast_atan_select of 4 lanes (out, not a return value: a V4d by value needs the AVX ABI).
+inline void fast_atan_lanes(const V4d& x, V4d& out) {
+  const V4l inv = x > SPLAT4(1.0);
+  const V4d r = SPLAT4(1.0) / x;
+  const V4d t = inv ? r : x;
+  const V4d t2 = t * t;
+  const V4d p = t * (SPLAT4(0.99997726) +
+                     t2 * (SPLAT4(-0.33262347) +
+                           t2 * (SPLAT4(0.19354346) + t2 * (SPLAT4(-0.11643287) + t2 * (SPLAT4(0.05265332) + t2 * SPLAT4(-0.01172120))))));
+  out = inv ? SPLAT4(1.5707963267948966) - p : p;
+}
+
+// slope[k] = fast_atan_select(|(gx, gy)|) in degrees and, when wanted, aspect[k] =
+// bearing_deg_select(-gx, -gy), for k < kLaneRow.
+TERRAIN_AVX2_CLONES void slope_aspect_lanes(const double* gx, const double* gy, bool aspect_too, double* slope,
+                                            double* aspect) {
+  double len[kLaneRow];
+  for (int k = 0; k < kLaneRow; ++k) len[k] = std::sqrt(gx[k] * gx[k] + gy[k] * gy[k]);
+  const V4d deg = SPLAT4(kRadToDeg), zero = SPLAT4(0.0);
+  for (int k = 0; k < kLaneRow; k += 4) {
+    V4d l, a;
+    std::memcpy(&l, len + k, sizeof l);
+    fast_atan_lanes(l, a);
+    a *= deg;
+    std::memcpy(slope + k, &a, sizeof a);
+  }
+  if (!aspect_too) return;
+  const V4l abs_bits = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+  for (int k = 0; k < kLaneRow; k += 4) {
+    V4d x, y;
+    std::memcpy(&x, gx + k, sizeof x);
+    std::memcpy(&y, gy + k, sizeof y);
+    const V4d east = -x, north = -y;
+    const V4d ae = V4d(V4l(east) & abs_bits), an = V4d(V4l(north) & abs_bits);  // fabs
+    V4d a;
+    fast_atan_lanes(ae / an, a);
+    a *= deg;
+    a = an == zero ? SPLAT4(90.0) : a;
+    a = north < zero ? SPLAT4(180.0) - a : a;
+    a = east < zero ? SPLAT4(360.0) - a : a;
+    a = a >= SPLAT4(360.0) ? a - SPLAT4(360.0) : a;
+    a = (ae == zero) & (an == zero) ? zero : a;
+    std::memcpy(aspect + k, &a, sizeof a);
+  }
+}
+#undef SPLAT4
+
 bool measure_sample(const SurfaceInput& in, int i, int j, SurfaceSample& out) {
   return measure_field(in, in.heights_m, i, j, out, kNeedAll);
 }
@@ -294,7 +353,7 @@ void measure_lattice_row(const SurfaceInput& in, const float* h, int j, unsigned
   // Horn's gradient of every element, branch-free. Each of the 8 neighbours appears in gx or gy,
   // so a missing one makes one of them NaN: exactly the elements field_gradient sends to its
   // fallback, which they then take.
-  double gx[kLatticeRow], gy[kLatticeRow], slope[kLatticeRow], aspect[kLatticeRow];
+  alignas(32) double gx[kLaneRow] = {}, gy[kLaneRow] = {}, slope[kLaneRow], aspect[kLaneRow];
   for (int k = 0; k < kLatticeRow; ++k) {
     const int i = 2 * k + kFirstVertex;
     const float z00 = below[i - 1], z01 = below[i], z02 = below[i + 1];
@@ -311,10 +370,8 @@ void measure_lattice_row(const SurfaceInput& in, const float* h, int j, unsigned
     else if (std::isnan(gx[k]) || std::isnan(gy[k]))
       field_gradient(h, i, j, s, row[i], gx[k], gy[k]);
   }
-  // Slope and aspect as selects (the loops vectorise): the same doubles as fast_atan, bearing_deg.
-  for (int k = 0; k < kLatticeRow; ++k) slope[k] = fast_atan_select(std::sqrt(gx[k] * gx[k] + gy[k] * gy[k])) * kRadToDeg;
-  if (needs & kNeedAspect)
-    for (int k = 0; k < kLatticeRow; ++k) aspect[k] = bearing_deg_select(-gx[k], -gy[k]);
+  // Slope and aspect in vector lanes: the same doubles as fast_atan, bearing_deg.
+  slope_aspect_lanes(gx, gy, (needs & kNeedAspect) != 0, slope, aspect);
   for (int k = 0; k < kLatticeRow; ++k) {
     const int i = 2 * k + kFirstVertex;
     SurfaceSample& o = out[k];
