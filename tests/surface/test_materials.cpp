@@ -292,7 +292,13 @@ TEST(Noise, RowGivesEveryPointTheBitsOfFbmNoise) {
   long points = 0, unusual = 0;
   for (int trial = 0; trial < 300; ++trial) {
     NoiseRowTables tables;
-    const double scale = uni(1, 120), x0 = uni(-1e7, 1e7), spacing = uni(0.1, 40);
+    // Every fourth trial puts points and rows on lattice lines (power-of-two scales, spacings of a
+    // quarter cell from a whole cell): the floors of exact integers.
+    const bool on_lines = trial % 4 == 1;
+    const double cell = std::ldexp(1.0, std::uniform_int_distribution<int>(0, 7)(rng));
+    const double scale = on_lines ? cell : uni(1, 120);
+    const double x0 = on_lines ? cell * std::round(uni(-1e5, 1e5)) : uni(-1e7, 1e7);
+    const double spacing = on_lines ? cell / 4 : uni(0.1, 40);
     const int octaves = std::uniform_int_distribution<int>(1, 8)(rng);
     const uint32_t seed = uint32_t(rng());
     const double band = trial % 3 == 0 ? 0.0 : uni(0.2, 60);
@@ -305,8 +311,8 @@ TEST(Noise, RowGivesEveryPointTheBitsOfFbmNoise) {
       for (int i = 0; i < 1 + n / 20; ++i)
         x[size_t(std::uniform_int_distribution<int>(0, n - 1)(rng))] = odd[std::uniform_int_distribution<int>(0, 2)(rng)];
     }
-    double y = uni(-1e7, 1e7);
-    for (int row = 0; row < 8; ++row, y += uni(0, 3 * spacing)) {
+    double y = on_lines ? cell * std::round(uni(-1e5, 1e5)) : uni(-1e7, 1e7);
+    for (int row = 0; row < 8; ++row, y += on_lines ? spacing : uni(0, 3 * spacing)) {
       std::vector<int> idx;
       for (int k = 0; k < n; ++k)
         if (row % 2 == 0 || uni(0, 1) < 0.4) idx.push_back(k);
