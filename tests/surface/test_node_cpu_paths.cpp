@@ -370,8 +370,8 @@ TEST(NodeCpuPaths, ArgminDotEqualsThePerCandidateLoop) {
       for (int m = 1; m <= 11 && m < v.n; m += 2) check({v.x, v.y, v.z, m}, c.axis[0], c.axis[1], c.axis[2]);
     }
   });
-  // Every normal equal: the first. Two equal minima at 9 (lane 1 of the first pair of the third
-  // group) and 6 (lane 0 of the second pair of the second group): 6.
+  // Every normal equal: the first. Two equal minima at 9 and 6, in different lanes of a later
+  // group (4 lanes: lanes 1 and 2; SSE2 pairs: lane 1 of the first pair, lane 0 of the second): 6.
   std::vector<float> x(703, 0.0f), y(703, 0.0f), z(703, 1.0f);
   EXPECT_EQ(argmin_dot({x.data(), y.data(), z.data(), 703}, 0.1, 0.0, 0.995), 0);
   for (int i : {9, 6}) {

@@ -400,21 +400,31 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
 namespace {
 
 // Smallest float dot(axis, v_i) (SSE2: 4 normals per step).
-float min_dot_f(NormalSpan v, float ax, float ay, float az) {
+// GCC's vector extensions (8 floats or 4 doubles: one AVX2 register, two SSE2 ones). Every
+// lane computes the scalar form's products and sums in its order; only the lanes widen.
+typedef float V8f __attribute__((vector_size(32)));
+typedef float V4f __attribute__((vector_size(16)));
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+
+// The smallest float dot product (the set's minimum: the lanes' order does not change it).
+TERRAIN_AVX2_CLONES float min_dot_f(NormalSpan v, float ax, float ay, float az) {
   int i = 0;
   float m = 4.0f;
-#if defined(__SSE2__)
-  __m128 mv = _mm_set1_ps(4.0f);
-  const __m128 vx = _mm_set1_ps(ax), vy = _mm_set1_ps(ay), vz = _mm_set1_ps(az);
-  for (; i + 4 <= v.n; i += 4) {
-    const __m128 d = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, _mm_loadu_ps(v.x + i)), _mm_mul_ps(vy, _mm_loadu_ps(v.y + i))),
-                                _mm_mul_ps(vz, _mm_loadu_ps(v.z + i)));
-    mv = _mm_min_ps(mv, d);
+  if (v.n >= 8) {
+    const V8f vx = {ax, ax, ax, ax, ax, ax, ax, ax}, vy = {ay, ay, ay, ay, ay, ay, ay, ay};
+    const V8f vz = {az, az, az, az, az, az, az, az};
+    V8f mv = {4.0f, 4.0f, 4.0f, 4.0f, 4.0f, 4.0f, 4.0f, 4.0f};
+    for (; i + 8 <= v.n; i += 8) {
+      V8f x, y, z;
+      std::memcpy(&x, v.x + i, sizeof x);
+      std::memcpy(&y, v.y + i, sizeof y);
+      std::memcpy(&z, v.z + i, sizeof z);
+      const V8f d = (vx * x + vy * y) + vz * z;
+      mv = mv < d ? mv : d;
+    }
+    for (int l = 0; l < 8; ++l) m = std::min(m, mv[l]);
   }
-  alignas(16) float lanes[4];
-  _mm_store_ps(lanes, mv);
-  m = std::min(std::min(lanes[0], lanes[1]), std::min(lanes[2], lanes[3]));
-#endif
   for (; i < v.n; ++i) m = std::min(m, ax * v.x[i] + ay * v.y[i] + az * v.z[i]);
   return m;
 }
@@ -447,41 +457,36 @@ int argmin_below(NormalSpan v, double ax, double ay, double az, float limit) {
   return arg;
 }
 
-// The first index of the smallest double dot product in one pass, two lanes of two at a time.
-int argmin_double(NormalSpan v, double ax, double ay, double az) {
+// The first index of the smallest double dot product in one pass, 4 lanes (each keeps its first
+// minimum; the lanes' tie goes to the lower index).
+TERRAIN_AVX2_CLONES int argmin_double(NormalSpan v, double ax, double ay, double az) {
   int i = 0, arg = 0;
   double best = 1e300;
-#if defined(__SSE2__)
   if (v.n >= 4) {
-    const __m128d dx = _mm_set1_pd(ax), dy = _mm_set1_pd(ay), dz = _mm_set1_pd(az), four = _mm_set1_pd(4.0);
-    __m128d low[2] = {_mm_set1_pd(1e300), _mm_set1_pd(1e300)};
-    __m128d at[2] = {_mm_set_pd(1, 0), _mm_set_pd(3, 2)}, index[2] = {at[0], at[1]};
+    const V4d dx = {ax, ax, ax, ax}, dy = {ay, ay, ay, ay}, dz = {az, az, az, az};
+    V4d low = {1e300, 1e300, 1e300, 1e300};
+    V4l at = {0, 1, 2, 3}, index = at;
+    const V4l four = {4, 4, 4, 4};
     for (; i + 4 <= v.n; i += 4) {
-      const __m128 x = _mm_loadu_ps(v.x + i), y = _mm_loadu_ps(v.y + i), z = _mm_loadu_ps(v.z + i);
-      const __m128 xs[2] = {x, _mm_movehl_ps(x, x)}, ys[2] = {y, _mm_movehl_ps(y, y)}, zs[2] = {z, _mm_movehl_ps(z, z)};
-      for (int h = 0; h < 2; ++h) {
-        const __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, _mm_cvtps_pd(xs[h])), _mm_mul_pd(dy, _mm_cvtps_pd(ys[h]))),
-                                     _mm_mul_pd(dz, _mm_cvtps_pd(zs[h])));
-        const __m128d lower = _mm_cmplt_pd(d, low[h]);  // strict: a lane keeps its first minimum
-        low[h] = _mm_or_pd(_mm_and_pd(lower, d), _mm_andnot_pd(lower, low[h]));
-        index[h] = _mm_or_pd(_mm_and_pd(lower, at[h]), _mm_andnot_pd(lower, index[h]));
-        at[h] = _mm_add_pd(at[h], four);
-      }
+      V4f x, y, z;
+      std::memcpy(&x, v.x + i, sizeof x);
+      std::memcpy(&y, v.y + i, sizeof y);
+      std::memcpy(&z, v.z + i, sizeof z);
+      const V4d d = (dx * __builtin_convertvector(x, V4d) + dy * __builtin_convertvector(y, V4d)) +
+                    dz * __builtin_convertvector(z, V4d);
+      const V4l lower = d < low;  // strict: a lane keeps its first minimum
+      low = lower ? d : low;
+      index = lower ? at : index;
+      at += four;
     }
-    alignas(16) double lv[4], li[4];
-    _mm_store_pd(lv, low[0]);
-    _mm_store_pd(lv + 2, low[1]);
-    _mm_store_pd(li, index[0]);
-    _mm_store_pd(li + 2, index[1]);
-    best = lv[0];
-    arg = int(li[0]);
+    best = low[0];
+    arg = int(index[0]);
     for (int l = 1; l < 4; ++l)
-      if (lv[l] < best || (lv[l] == best && int(li[l]) < arg)) {
-        best = lv[l];
-        arg = int(li[l]);
+      if (low[l] < best || (low[l] == best && int(index[l]) < arg)) {
+        best = low[l];
+        arg = int(index[l]);
       }
   }
-#endif
   for (; i < v.n; ++i) {
     const double d = ax * double(v.x[i]) + ay * double(v.y[i]) + az * double(v.z[i]);
     if (d < best) {
