@@ -282,6 +282,33 @@ uint8_t despeckled(const std::array<uint8_t, kWide * kWide>& ids, const std::arr
   return best;
 }
 
+// same[k], k = 1 .. kWide - 2, for the lattice row at ids / has (rows of kWide, with a row above
+// and below): how many of the 4 edge neighbours (and with `diagonals` the 4 corner ones) have
+// data (has is 0 or 1) and the id of element k. 16 elements at a time in GCC's vector extensions
+// (the plain byte loop stayed scalar: its pointers may alias), the rest one by one.
+void same_neighbours(const uint8_t* ids, const uint8_t* has, bool diagonals, uint8_t* same) {
+  typedef uint8_t V16 __attribute__((vector_size(16)));
+  const int offsets[8] = {kWide, 1, -kWide, -1, kWide + 1, kWide - 1, -kWide + 1, -kWide - 1};
+  const int count = diagonals ? 8 : 4;
+  constexpr int kVectorEnd = 1 + (kWide - 2) / 16 * 16;
+  for (int k = 1; k < kVectorEnd; k += 16) {
+    V16 own, sum = {};
+    std::memcpy(&own, ids + k, sizeof own);
+    for (int q = 0; q < count; ++q) {
+      V16 other, other_has;
+      std::memcpy(&other, ids + k + offsets[q], sizeof other);
+      std::memcpy(&other_has, has + k + offsets[q], sizeof other_has);
+      sum += V16(other == own) & other_has;
+    }
+    std::memcpy(same + k, &sum, sizeof sum);
+  }
+  for (int k = kVectorEnd; k + 1 < kWide; ++k) {
+    int n = 0;
+    for (int q = 0; q < count; ++q) n += (ids[k + offsets[q]] == ids[k]) & has[k + offsets[q]];
+    same[k] = uint8_t(n);
+  }
+}
+
 }  // namespace
 
 // GCC's vector extensions, 4 lanes (an AVX2 register, two SSE2 ones): the auto-vectoriser turns
@@ -468,25 +495,51 @@ void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, S
       for (int k = 0; k < kSplatLattice; ++k) out.ids[size_t(l * kSplatLattice + k)] = wide[size_t((l + 2) * kWide + k + 2)];
     return;
   }
-  // Pass 1 (lattice elements 1 .. 69): a sample with fewer than 2 of its own id among its 8
-  // neighbours with data (a speck, a pair, a line's loose end) takes their most common id (ties: the
-  // first in the order N, E, S, W, NE, NW, SE, SW). Along a line one sample wide each sample has 2.
+  despeckle_lattice(wide.data(), has.data(), out.ids.data());
+}
+
+// Pass 1 (lattice elements 1 .. 69): a sample with fewer than 2 of its own id among its 8
+// neighbours with data (a speck, a pair, a line's loose end) takes their most common id (ties: the
+// first in the order N, E, S, W, NE, NW, SE, SW). Along a line one sample wide each sample has 2.
+// Pass 2 (the 67x67 lattice): a sample unlike each of its 4 neighbours with data (at least 2)
+// takes their most common id (ties: N, E, S, W).
+template <bool kCountFirst>
+void despeckle_passes(const uint8_t* wide_ids, const uint8_t* has_data, uint8_t* ids) {
+  std::array<uint8_t, kWide * kWide> wide, has;
+  std::copy(wide_ids, wide_ids + wide.size(), wide.begin());
+  std::copy(has_data, has_data + has.size(), has.begin());
   std::array<uint8_t, kWide * kWide> pass = wide;
-  for (int l = 1; l + 1 < kWide; ++l)
+  uint8_t same[kWide] = {};
+  for (int l = 1; l + 1 < kWide; ++l) {
+    const size_t row = size_t(l * kWide);
+    if (kCountFirst) same_neighbours(wide.data() + row, has.data() + row, true, same);
     for (int k = 1; k + 1 < kWide; ++k) {
-      const size_t e = size_t(l * kWide + k);
-      if (!has[e]) continue;
+      const size_t e = row + size_t(k);
+      if (!has[e] || (kCountFirst && same[k] >= 2)) continue;
       const size_t nb[8] = {e + kWide, e + 1, e - kWide, e - 1, e + kWide + 1, e + kWide - 1, e - kWide + 1, e - kWide - 1};
       pass[e] = despeckled(wide, has, e, nb, 8, 2, 4);
     }
-  // Pass 2 (the 67x67 lattice): a sample unlike each of its 4 neighbours with data (at least 2)
-  // takes their most common id (ties: N, E, S, W).
-  for (int l = 0; l < kSplatLattice; ++l)
+  }
+  for (int l = 0; l < kSplatLattice; ++l) {
+    const size_t row = size_t((l + 2) * kWide);
+    if (kCountFirst) same_neighbours(pass.data() + row, has.data() + row, false, same);
     for (int k = 0; k < kSplatLattice; ++k) {
-      const size_t e = size_t((l + 2) * kWide + k + 2);
+      const size_t e = row + size_t(k + 2);
       const size_t nb[4] = {e + kWide, e + 1, e - kWide, e - 1};
-      out.ids[size_t(l * kSplatLattice + k)] = has[e] ? despeckled(pass, has, e, nb, 4, 1, 2) : pass[e];
+      const bool check = has[e] && (!kCountFirst || same[k + 2] == 0);
+      ids[size_t(l * kSplatLattice + k)] = check ? despeckled(pass, has, e, nb, 4, 1, 2) : pass[e];
     }
+  }
+}
+
+// The passes first count, a row at a time in vector code, the neighbours with data that share a
+// sample's id: despeckled keeps the id of any sample with enough of them, so only the others go
+// through it.
+void despeckle_lattice(const uint8_t* wide, const uint8_t* has, uint8_t* ids) {
+  despeckle_passes<true>(wide, has, ids);
+}
+void despeckle_lattice_per_sample(const uint8_t* wide, const uint8_t* has, uint8_t* ids) {
+  despeckle_passes<false>(wide, has, ids);
 }
 
 void copy_node_splat(const SplatLattice& lattice, std::array<uint8_t, kSplatCount>& splat) {

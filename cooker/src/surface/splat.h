@@ -43,6 +43,12 @@ bool filter_heights(const float* h, double scale_m, double spacing_m, std::vecto
 // fields_seconds (optional): CPU seconds spent on the filtered height fields (the report's split).
 void compute_splat_lattice(const SurfaceInput& in, const MaterialRules& rules, SplatLattice& out,
                            double* fields_seconds = nullptr);
+// The despeckle passes of compute_splat_lattice (format/SPEC.md 16.4) on a kLatticeRow^2 lattice
+// of ids with a data flag (0 or 1) per element, into the kSplatLattice^2 lattice ids (its inner
+// part). _per_sample is the same passes without the neighbour counts that skip most samples:
+// the definition the tests hold the fast form to.
+void despeckle_lattice(const uint8_t* wide, const uint8_t* has, uint8_t* ids);
+void despeckle_lattice_per_sample(const uint8_t* wide, const uint8_t* has, uint8_t* ids);
 void copy_node_splat(const SplatLattice& lattice, std::array<uint8_t, kSplatCount>& splat);
 
 // 132x132 RGBA8 (sRGB colour, alpha 0 = hole at the texel's south-west vertex): the bilinear blend
