@@ -513,3 +513,45 @@ TEST(NodeCpuPaths, PatchNormalsEqualThePerTriangleLoop) {
   std::printf("%ld normals equal; %d patches with holes, %d clear patches in nodes with holes, %d nodes without holes\n",
               normals, patches_with_holes, clear_patches_in_holed_nodes, clear_nodes);
 }
+
+// pack_normal_texels (4 texels at a time in SSE2) against pack_normal_texels_per_texel, byte for
+// byte, with and without AO in red: texels holding every edge of normal_texel_of (components
+// beyond +-1, signed zeros, exactly on its rounding steps) and AO outside 0..1, then the normals of
+// real Kilauea nodes. (Non-finite components are outside its domain: it converts to int.)
+TEST(NodeCpuPaths, PackedNormalTexelsEqualThePerTexelLoop) {
+  std::mt19937 rng(20261204);
+  std::uniform_real_distribution<float> uni(-1.2f, 1.2f);
+  const float odd[] = {-1.0f, 1.0f, 0.0f, -0.0f, -1.2f, 1.2f, -127.5f / 127.0f, -126.5f / 127.0f,
+                       127.0f / 127.0f, 126.5f / 127.0f, 0.5f / 127.0f, 1.5f / 127.0f};
+  long compared = 0;
+  auto check = [&](const NormalTexels& n, const char* what) {
+    for (bool ao : {true, false}) {
+      std::array<uint8_t, kTexelCount * 4> got{}, want{};
+      pack_normal_texels(n, got, ao);
+      pack_normal_texels_per_texel(n, want, ao);
+      for (size_t k = 0; k < kTexelCount; ++k)
+        ASSERT_EQ(std::memcmp(&got[k * 4], &want[k * 4], 4), 0)
+            << what << " texel " << k << ": " << n.n[k * 3] << "," << n.n[k * 3 + 1] << " ao " << ao;
+      compared += kTexelCount;
+    }
+  };
+  NormalTexels synthetic;
+  for (int trial = 0; trial < 20; ++trial) {
+    for (float& c : synthetic.n) c = rng() % 3 == 0 ? odd[rng() % std::size(odd)] : uni(rng);
+    for (float& a : synthetic.ao) a = rng() % 4 == 0 ? odd[rng() % std::size(odd)] : uni(rng);
+    check(synthetic, "synthetic");
+  }
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  if (!file.empty() && std::filesystem::exists(file)) {
+    bench::DemRaster dem;
+    ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+    const MaterialRules& rules = cook::test::default_rules();
+    for_each_real_node(dem, 4, [&](const bench::DemNode& node, uint32_t, uint32_t, uint32_t) {
+      const SurfaceInput in = node.input(&rules, BcQuality::balanced);
+      NormalTexels n;
+      compute_normal_texels(in, n);
+      check(n, "kilauea");
+    });
+  }
+  EXPECT_GT(compared, 20L * 2 * kTexelCount);
+}

@@ -28,6 +28,9 @@ void compute_normal_texels(const SurfaceInput& in, NormalTexels& out);
 // Channel layout: A = x, G = y (v8 = 128 + 127 * c), R = block AO quantised to a 5-bit value
 // (exactly representable in BC1 endpoints; 255 = open), B = 0.
 void pack_normal_texels(const NormalTexels& in, std::array<uint8_t, kTexelCount * 4>& rgba, bool ao_in_red = true);
+// The same, a texel at a time: the definition the 4-texel SSE2 form is tested against.
+void pack_normal_texels_per_texel(const NormalTexels& in, std::array<uint8_t, kTexelCount * 4>& rgba,
+                                  bool ao_in_red = true);
 // Normal rebuilt from a decoded (or uncompressed) texel exactly as the shader does.
 void unpack_normal(const uint8_t rgba[4], float n[3]);
 
