@@ -75,13 +75,15 @@ struct Band {
   int64_t w = 0, h = 0;  // the whole lattice
   int64_t y0 = 0, rows = 0, cols = 0;
   int stride = 1;
+  int stride_log2 = 0;  // stride = 2^stride_log2: shifts, not the divisions of a call per vertex
   std::vector<int32_t> units;
   // Level-6 lattice vertex (x, y), x and y - y0 multiples of the stride.
   bool get(int64_t x, int64_t y, int32_t& u) const {
     if (x < 0 || y < 0 || x >= w || y >= h) return false;
-    const int64_t r = (y - y0) / stride;
-    if (y < y0 || r >= rows) return false;  // never asked: the band covers every row its nodes read
-    u = units[size_t(r * cols + x / stride)];
+    if (y < y0) return false;  // never asked: the band covers every row its nodes read
+    const int64_t r = (y - y0) >> stride_log2;
+    if (r >= rows) return false;
+    u = units[size_t(r * cols + (x >> stride_log2))];
     return u != kNoVertex;
   }
 };
@@ -226,7 +228,8 @@ Status load_band(const LatticeFile& lat, int level, uint32_t y, Band& band, std:
   const int shift = level - kOverviewBase;
   band.w = lat.w;
   band.h = lat.h;
-  band.stride = shift == 0 ? 1 : 1 << (shift - 1);
+  band.stride_log2 = shift == 0 ? 0 : shift - 1;
+  band.stride = 1 << band.stride_log2;
   const int64_t lo = std::max<int64_t>(0, (int64_t(y) * kQuadsPerSide - kWindowMargin) << shift);
   const int64_t hi = std::min<int64_t>(lat.h - 1, (int64_t(y + 1) * kQuadsPerSide + kWindowMargin) << shift);
   band.y0 = lo;
