@@ -555,3 +555,48 @@ TEST(NodeCpuPaths, PackedNormalTexelsEqualThePerTexelLoop) {
   }
   EXPECT_GT(compared, 20L * 2 * kTexelCount);
 }
+
+// append_far_normals (8 dot products at a time, blocks kept whole or lane by lane) against the
+// per-normal test, list for list: 2000 spans of 0..300 normals against limits that keep all, none
+// or some of each block of 8, written after earlier entries.
+TEST(NodeCpuPaths, FarNormalsEqualThePerNormalTest) {
+  std::mt19937 rng(20261204);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  long kept = 0, listed = 0, whole_blocks = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const int n = int(rng() % 301);
+    std::vector<float> x(static_cast<size_t>(n)), y(x), z(x);
+    const float spread = trial % 3 == 0 ? 0.05f : 0.6f;
+    for (int i = 0; i < n; ++i) {
+      float v[3] = {spread * gauss(rng), spread * gauss(rng), 1.0f};
+      const float len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+      x[size_t(i)] = v[0] / len, y[size_t(i)] = v[1] / len, z[size_t(i)] = v[2] / len;
+    }
+    const float ax = 0.1f * gauss(rng), ay = 0.1f * gauss(rng), az = std::sqrt(1.0f - ax * ax - ay * ay);
+    const float limits[4] = {2.0f, -2.0f, 0.999f, float(std::cos(0.3))};
+    const float limit = limits[trial % 4];
+    const size_t m0 = size_t(rng() % 17);
+    std::vector<float> gx(m0 + size_t(n) + 1, -7.0f), gy = gx, gz = gx;
+    const size_t got = append_far_normals({x.data(), y.data(), z.data(), n}, ax, ay, az, limit, gx.data(), gy.data(),
+                                          gz.data(), m0);
+    std::vector<int> want;
+    for (int i = 0; i < n; ++i)
+      if (ax * x[size_t(i)] + ay * y[size_t(i)] + az * z[size_t(i)] <= limit) want.push_back(i);
+    ASSERT_EQ(got, m0 + want.size()) << "trial " << trial;
+    for (size_t k = 0; k < want.size(); ++k) {
+      const size_t i = size_t(want[k]);
+      ASSERT_TRUE(gx[m0 + k] == x[i] && gy[m0 + k] == y[i] && gz[m0 + k] == z[i]) << "trial " << trial << " entry " << k;
+    }
+    for (size_t k = 0; k < m0; ++k) ASSERT_EQ(gx[k], -7.0f);  // earlier entries untouched
+    kept += long(want.size());
+    listed += n;
+    for (int b = 0; b + 8 <= n; b += 8) {
+      int in_block = 0;
+      for (int i : want) in_block += i >= b && i < b + 8;
+      whole_blocks += in_block == 8;
+    }
+  }
+  EXPECT_GT(kept, listed / 10);
+  EXPECT_LT(kept, listed * 9 / 10);
+  EXPECT_GT(whole_blocks, 1000);
+}

@@ -406,6 +406,7 @@ typedef float V8f __attribute__((vector_size(32)));
 typedef float V4f __attribute__((vector_size(16)));
 typedef double V4d __attribute__((vector_size(32)));
 typedef int64_t V4l __attribute__((vector_size(32)));
+typedef int32_t V8i __attribute__((vector_size(32)));
 
 // The smallest float dot product (the set's minimum: the lanes' order does not change it).
 TERRAIN_AVX2_CLONES float min_dot_f(NormalSpan v, float ax, float ay, float az) {
@@ -569,6 +570,49 @@ struct FarNormals {
   }
 };
 
+// Appends the normals i of v with (ax v.x[i] + ay v.y[i]) + az v.z[i] <= limit, in order, at m:
+// 8 float dot products at a time (the scalar expression's operations per lane), then a block
+// kept whole in one copy, or its kept lanes one by one.
+TERRAIN_AVX2_CLONES size_t append_far_vector(NormalSpan v, float ax, float ay, float az, float limit,
+                                             float* __restrict x, float* __restrict y, float* __restrict z, size_t m) {
+  int i = 0;
+  const V8f vx = {ax, ax, ax, ax, ax, ax, ax, ax}, vy = {ay, ay, ay, ay, ay, ay, ay, ay};
+  const V8f vz = {az, az, az, az, az, az, az, az};
+  const V8f lim = {limit, limit, limit, limit, limit, limit, limit, limit};
+  for (; i + 8 <= v.n; i += 8) {
+    V8f nx, ny, nz;
+    std::memcpy(&nx, v.x + i, sizeof nx);
+    std::memcpy(&ny, v.y + i, sizeof ny);
+    std::memcpy(&nz, v.z + i, sizeof nz);
+    const V8i keep = (vx * nx + vy * ny) + vz * nz <= lim;
+    unsigned bits = 0;
+    for (int l = 0; l < 8; ++l) bits |= unsigned(keep[l] & 1) << l;
+    if (bits == 0xFF) {  // all kept: the block as it is
+      std::memcpy(x + m, &nx, sizeof nx);
+      std::memcpy(y + m, &ny, sizeof ny);
+      std::memcpy(z + m, &nz, sizeof nz);
+      m += 8;
+      continue;
+    }
+    while (bits) {
+      const int l = __builtin_ctz(bits);
+      bits &= bits - 1;
+      x[m] = v.x[i + l];
+      y[m] = v.y[i + l];
+      z[m] = v.z[i + l];
+      ++m;
+    }
+  }
+  for (; i < v.n; ++i) {
+    const bool keep = ax * v.x[i] + ay * v.y[i] + az * v.z[i] <= limit;
+    x[m] = v.x[i];
+    y[m] = v.y[i];
+    z[m] = v.z[i];
+    m += keep;
+  }
+  return m;
+}
+
 void build_far_normals(const PatchNormals& normals, const Cone cones[kPatchCount], FarNormals& out) {
   const size_t total = normals.begin[kPatchCount];
   out.x.resize(total);
@@ -580,14 +624,7 @@ void build_far_normals(const PatchNormals& normals, const Cone cones[kPatchCount
     // Float test with a 1e-5 allowance (float dot error < 1e-6): keeping a few extra is harmless.
     const float limit = float(std::cos(std::max(0.0, cones[k].half_angle_rad - 2 * kReach))) + 1e-5f;
     const float ax = float(cones[k].axis[0]), ay = float(cones[k].axis[1]), az = float(cones[k].axis[2]);
-    const NormalSpan v = normals.patch(k);
-    for (int i = 0; i < v.n; ++i) {
-      const bool keep = ax * v.x[i] + ay * v.y[i] + az * v.z[i] <= limit;
-      out.x[m] = v.x[i];
-      out.y[m] = v.y[i];
-      out.z[m] = v.z[i];
-      m += keep;
-    }
+    m = append_far_normals(normals.patch(k), ax, ay, az, limit, out.x.data(), out.y.data(), out.z.data(), m);
   }
   out.begin[kPatchCount] = uint32_t(m);
 }
@@ -744,6 +781,11 @@ double decoded_cone_slack(const PatchNormals& normals, const uint8_t cones_bc3[k
     }
   }
   return slack;
+}
+
+size_t append_far_normals(NormalSpan v, float ax, float ay, float az, float limit, float* x, float* y, float* z,
+                          size_t m) {
+  return append_far_vector(v, ax, ay, az, limit, x, y, z, m);
 }
 
 }  // namespace terrain::cook

@@ -54,6 +54,12 @@ double max_angle_to(const double axis[3], NormalSpan normals);
 int argmin_dot(NormalSpan normals, double ax, double ay, double az);
 int argmin_dot_per_candidate(NormalSpan normals, double ax, double ay, double az);
 
+// The normals i of v with (ax v.x[i] + ay v.y[i]) + az v.z[i] <= limit in float, in order, written
+// from x[m], y[m], z[m] (room for v.n more); returns m plus their count. The encoder's far set:
+// the only normals that can be farthest from an axis near a patch's exact one.
+size_t append_far_normals(NormalSpan v, float ax, float ay, float az, float limit, float* x, float* y, float* z,
+                          size_t m);
+
 struct ConeStats {
   double mean_exact_deg = 0, mean_encoded_deg = 0;  // over patches with triangles
   int patches = 0;                                  // patches with triangles
