@@ -271,13 +271,25 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
   z.resize(size_t(kHeightCount));
   hole.assign(size_t(kHeightCount), 0);
   bool any_hole = false;
-  for (int j = 0; j < kHeightSamples; ++j)
-    for (int i = 0; i < kHeightSamples; ++i) {
-      const size_t k = size_t(j * kHeightSamples + i);
-      z[k] = units_to_metres(vertex_units(height_offset, node.heights[k], step_log2));
-      if (window_holes) hole[k] = window_holes[size_t((j + kWindowMargin) * kWindowSize + i + kWindowMargin)] != 0;
-      any_hole = any_hole || hole[k];
+  {
+    // Through local pointers: a store to a uint8_t may alias the vectors' own pointers, which the
+    // loop would otherwise reload from thread-local storage for every vertex.
+    double* __restrict zs = z.data();
+    uint8_t* __restrict hs = hole.data();
+    for (int j = 0; j < kHeightSamples; ++j) {
+      const size_t row = size_t(j * kHeightSamples);
+      for (int i = 0; i < kHeightSamples; ++i)
+        zs[row + size_t(i)] = units_to_metres(vertex_units(height_offset, node.heights[row + size_t(i)], step_log2));
+      if (!window_holes) continue;
+      const uint8_t* src = window_holes + size_t((j + kWindowMargin) * kWindowSize + kWindowMargin);
+      uint8_t any = 0;
+      for (int i = 0; i < kHeightSamples; ++i) {
+        hs[row + size_t(i)] = src[i] != 0;
+        any |= hs[row + size_t(i)];
+      }
+      any_hole = any_hole || any;
     }
+  }
   auto at = [&](int i, int j) { return size_t(j * kHeightSamples + i); };
   const double s = spacing_m;
   // Upper bound: 2 per quad, plus stitched variants (< 2 per edge quad and level, corners 50).
