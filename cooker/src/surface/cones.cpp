@@ -204,8 +204,8 @@ const std::vector<StitchedTriangle>& stitch_table() {
 
 // The stitch table as arrays, for its normals in loops that vectorise: each triangle's snapped
 // vertices as offsets into the node's 129-wide grid from the patch's south-west vertex, and its
-// edge vectors in grid steps (exact in float). Only the upward-facing ones (push_tri keeps a
-// triangle when its normal's z > 0, which depends on the grid steps alone).
+// edge vectors in grid steps (exact in float). Only the upward-facing ones: a triangle's normal
+// counts when its z > 0, which depends on the grid steps alone, so the others are dropped here.
 struct StitchArrays {
   std::vector<int32_t> o0, o1, o2;
   std::vector<float> ax, ay, bx, by;

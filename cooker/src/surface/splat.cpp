@@ -144,23 +144,27 @@ constexpr int kMaxFilterRadius = kWindowMargin - kFieldReach;  // 10
 static_assert(kMaxFilterRadius >= 2, "the window margin leaves no room for the splat filters");
 
 // dst[i] = sum over d = 0 .. taps - 1, in that order from +0, of w[d] * src[i + d * tap_stride]:
-// one tap run per output. SSE2 keeps 8 outputs' sums in registers over all the taps (the same
-// operations per output, so the same floats) instead of a pass over the row per tap.
-void weighted_sums(const float* src, ptrdiff_t tap_stride, const float* w, int taps, int n, float* dst) {
+// one tap run per output. 16 outputs' sums stay in registers over all the taps (GCC's vector
+// extensions: two AVX2 registers in the AVX2 clone, four SSE2 ones otherwise; the same operations
+// per output, so the same floats) instead of a pass over the row per tap.
+TERRAIN_AVX2_CLONES void weighted_sums(const float* src, ptrdiff_t tap_stride, const float* w, int taps, int n,
+                                       float* dst) {
+  typedef float V8f __attribute__((vector_size(32)));
   int i = 0;
-#if defined(__SSE2__)
-  for (; i + 8 <= n; i += 8) {
-    __m128 a = _mm_setzero_ps(), b = _mm_setzero_ps();
+  for (; i + 16 <= n; i += 16) {
+    V8f a = {}, b = {};
     const float* p = src + i;
     for (int d = 0; d < taps; ++d, p += tap_stride) {
-      const __m128 wd = _mm_set1_ps(w[d]);
-      a = _mm_add_ps(a, _mm_mul_ps(wd, _mm_loadu_ps(p)));
-      b = _mm_add_ps(b, _mm_mul_ps(wd, _mm_loadu_ps(p + 4)));
+      const V8f wd = {w[d], w[d], w[d], w[d], w[d], w[d], w[d], w[d]};
+      V8f x, y;
+      std::memcpy(&x, p, sizeof x);
+      std::memcpy(&y, p + 8, sizeof y);
+      a += wd * x;
+      b += wd * y;
     }
-    _mm_storeu_ps(dst + i, a);
-    _mm_storeu_ps(dst + i + 4, b);
+    std::memcpy(dst + i, &a, sizeof a);
+    std::memcpy(dst + i + 8, &b, sizeof b);
   }
-#endif
   for (; i < n; ++i) {
     float a = 0.0f;
     for (int d = 0; d < taps; ++d) a += w[d] * src[i + d * tap_stride];
@@ -168,7 +172,7 @@ void weighted_sums(const float* src, ptrdiff_t tap_stride, const float* w, int t
   }
 }
 
-// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:
+// Gaussian-filtered heights (sigma = scale_m, in metres) over the vertices the lattice measures:
 // a normalized convolution (missing taps drop out; a vertex without data stays NaN), separable,
 // fixed summation order, so the bits are the same on every thread and in every node that shares
 // the vertex. The radius is 2 sigma, capped by the window margin (sigma is then radius / 2), so at
