@@ -415,10 +415,10 @@ namespace {
 // GCC's vector extensions (8 floats or 4 doubles: one AVX2 register, two SSE2 ones). Every
 // lane computes the scalar form's products and sums in its order; only the lanes widen.
 typedef float V8f __attribute__((vector_size(32)));
+typedef int32_t V8i __attribute__((vector_size(32)));
 typedef float V4f __attribute__((vector_size(16)));
 typedef double V4d __attribute__((vector_size(32)));
 typedef int64_t V4l __attribute__((vector_size(32)));
-typedef int32_t V8i __attribute__((vector_size(32)));
 
 // The smallest float dot product (the set's minimum: the lanes' order does not change it).
 TERRAIN_AVX2_CLONES float min_dot_f(NormalSpan v, float ax, float ay, float az) {
@@ -442,8 +442,19 @@ TERRAIN_AVX2_CLONES float min_dot_f(NormalSpan v, float ax, float ay, float az) 
   return m;
 }
 
-// The exact double comparison among the normals whose float dot product is at most `limit`.
-int argmin_below(NormalSpan v, double ax, double ay, double az, float limit) {
+// Bit l set where lane l is true (all ones): SSE2's movemask on each half, in either clone (a
+// loop over the lanes costs more than the dot products).
+inline unsigned lane_bits(const V8i& mask) {
+  typedef int32_t V4i __attribute__((vector_size(16)));
+  const V4i lo = __builtin_shufflevector(mask, mask, 0, 1, 2, 3), hi = __builtin_shufflevector(mask, mask, 4, 5, 6, 7);
+  return unsigned(_mm_movemask_ps(_mm_castsi128_ps(__m128i(lo)))) |
+         unsigned(_mm_movemask_ps(_mm_castsi128_ps(__m128i(hi)))) << 4;
+}
+
+// The exact double comparison among the normals whose float dot product is at most `limit`: 8
+// float dot products at a time (the scalar expression's operations per lane), the candidates in
+// index order.
+TERRAIN_AVX2_CLONES int argmin_below(NormalSpan v, double ax, double ay, double az, float limit) {
   const float fx = float(ax), fy = float(ay), fz = float(az);
   int arg = 0;
   double best = 1e300;
@@ -452,19 +463,17 @@ int argmin_below(NormalSpan v, double ax, double ay, double az, float limit) {
     if (d < best) { best = d; arg = i; }
   };
   int i = 0;
-#if defined(__SSE2__)
-  const __m128 vx = _mm_set1_ps(fx), vy = _mm_set1_ps(fy), vz = _mm_set1_ps(fz), lim = _mm_set1_ps(limit);
-  for (; i + 4 <= v.n; i += 4) {
-    const __m128 d = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, _mm_loadu_ps(v.x + i)), _mm_mul_ps(vy, _mm_loadu_ps(v.y + i))),
-                                _mm_mul_ps(vz, _mm_loadu_ps(v.z + i)));
-    int mask = _mm_movemask_ps(_mm_cmple_ps(d, lim));
-    while (mask) {
-      const int lane = __builtin_ctz(unsigned(mask));
-      consider(i + lane);
-      mask &= mask - 1;
-    }
+  const V8f vx = {fx, fx, fx, fx, fx, fx, fx, fx}, vy = {fy, fy, fy, fy, fy, fy, fy, fy};
+  const V8f vz = {fz, fz, fz, fz, fz, fz, fz, fz};
+  const V8f lim = {limit, limit, limit, limit, limit, limit, limit, limit};
+  for (; i + 8 <= v.n; i += 8) {
+    V8f x, y, z;
+    std::memcpy(&x, v.x + i, sizeof x);
+    std::memcpy(&y, v.y + i, sizeof y);
+    std::memcpy(&z, v.z + i, sizeof z);
+    for (unsigned mask = lane_bits((vx * x + vy * y) + vz * z <= lim); mask; mask &= mask - 1)
+      consider(i + __builtin_ctz(mask));
   }
-#endif
   for (; i < v.n; ++i)
     if (fx * v.x[i] + fy * v.y[i] + fz * v.z[i] <= limit) consider(i);
   return arg;
@@ -597,8 +606,7 @@ TERRAIN_AVX2_CLONES size_t append_far_vector(NormalSpan v, float ax, float ay, f
     std::memcpy(&ny, v.y + i, sizeof ny);
     std::memcpy(&nz, v.z + i, sizeof nz);
     const V8i keep = (vx * nx + vy * ny) + vz * nz <= lim;
-    unsigned bits = 0;
-    for (int l = 0; l < 8; ++l) bits |= unsigned(keep[l] & 1) << l;
+    unsigned bits = lane_bits(keep);
     if (bits == 0xFF) {  // all kept: the block as it is
       std::memcpy(x + m, &nx, sizeof nx);
       std::memcpy(y + m, &ny, sizeof ny);
