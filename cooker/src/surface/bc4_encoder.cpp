@@ -5,6 +5,7 @@
 // encode_bc4_upper (conservative): every decoded value >= its target, minimising the sum of
 //  excesses over one free endpoint (exhaustive, 256 candidates).
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -136,7 +137,8 @@ int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[
 #endif
 }
 
-void encode_bc4(const uint8_t values[16], uint8_t out[8]) {
+namespace {
+void encode_bc4_path(const uint8_t values[16], uint8_t out[8], bool simd) {
   int lo = 255, hi = 0;
   for (int i = 0; i < 16; ++i) {
     lo = std::min(lo, int(values[i]));
@@ -164,6 +166,44 @@ void encode_bc4(const uint8_t values[16], uint8_t out[8]) {
       const int e0 = int(std::lround((ax * bb - bx * ab) / det)), e1 = int(std::lround((bx * aa - ax * ab) / det));
       float rank = 3.4e38f;
       int c0 = hi, c1 = lo;
+#if defined(__SSE2__)
+      if (simd) {
+        // The same 9 ranks, a row of d1 = -1..1 (and a padding lane) per register: each lane the
+        // expression below in its order of operations, pairs with t0 <= t1 +inf; then the first
+        // smallest in the same order (d0, then d1).
+        alignas(16) int32_t t1s[4];
+        alignas(16) float v1s[4], e[12];
+        for (int d1 = -1; d1 <= 1; ++d1) {
+          t1s[d1 + 1] = std::clamp(e1 + d1, 0, 255);
+          v1s[d1 + 1] = float(t1s[d1 + 1]);
+        }
+        t1s[3] = 256;  // never below t0
+        v1s[3] = 0.0f;
+        const __m128 v1 = _mm_load_ps(v1s), inf = _mm_set1_ps(FLT_MAX * 2.0f);
+        const __m128i t1v = _mm_load_si128(reinterpret_cast<const __m128i*>(t1s));
+        const __m128 t2 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f), v1), _mm_set1_ps(bx));
+        const __m128 t5 = _mm_mul_ps(_mm_mul_ps(v1, v1), _mm_set1_ps(bb));
+        for (int d0 = -1; d0 <= 1; ++d0) {
+          const int t0 = std::clamp(e0 + d0, 0, 255);
+          const float v0 = float(t0);
+          const __m128 t1 = _mm_set1_ps(-2.0f * v0 * ax), t3 = _mm_set1_ps(v0 * v0 * aa);
+          const __m128 t4 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f * v0), v1), _mm_set1_ps(ab));
+          const __m128 ranks = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_sub_ps(t1, t2), t3), t4), t5);
+          const __m128 valid = _mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32(t0), t1v));
+          _mm_store_ps(e + 4 * (d0 + 1), _mm_or_ps(_mm_and_ps(valid, ranks), _mm_andnot_ps(valid, inf)));
+        }
+        int first = -1;
+        for (int i = 0; i < 12; ++i) {
+          const bool lower = e[i] < rank;
+          rank = lower ? e[i] : rank;
+          first = lower ? i : first;
+        }
+        if (first >= 0) {
+          c0 = std::clamp(e0 + first / 4 - 1, 0, 255);
+          c1 = std::clamp(e1 + first % 4 - 1, 0, 255);
+        }
+      } else
+#endif
       for (int d0 = -1; d0 <= 1; ++d0)
         for (int d1 = -1; d1 <= 1; ++d1) {
           const int t0 = std::clamp(e0 + d0, 0, 255), t1 = std::clamp(e1 + d1, 0, 255);
@@ -200,6 +240,10 @@ void encode_bc4(const uint8_t values[16], uint8_t out[8]) {
   }
   write_bc4(best_a0, best_a1, best_sel, out);
 }
+}  // namespace
+
+void encode_bc4(const uint8_t values[16], uint8_t out[8]) { encode_bc4_path(values, out, true); }
+void encode_bc4_scalar(const uint8_t values[16], uint8_t out[8]) { encode_bc4_path(values, out, false); }
 
 void encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]) {
   int hi = 0, hi_below_255 = -1;

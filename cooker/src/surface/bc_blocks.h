@@ -96,6 +96,9 @@ int bc4_assign8(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[
 int bc4_assign8_scalar(const uint8_t v[16], int a0, int a1, uint8_t sel[16], int u_out[16]);
 // BC4 block of 16 values minimising squared error (tries both endpoint orders / modes).
 void encode_bc4(const uint8_t values[16], uint8_t out[8]);
+// The same with the refit's 9 candidate pairs ranked one by one: the definition encode_bc4's SSE2
+// ranking is tested against.
+void encode_bc4_scalar(const uint8_t values[16], uint8_t out[8]);
 // BC4 block whose decoded values are >= the targets (and as small as possible): conservative
 // storage of cone angles (255 always works, so it never fails).
 void encode_bc4_upper(const uint8_t targets[16], uint8_t out[8]);
