@@ -20,6 +20,7 @@
 #include <cstring>
 
 #include "bc_blocks.h"
+#include "pair_ranks_sse2.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -1492,28 +1493,19 @@ bool encode_bc1_g_only_path(const uint8_t rgba[64], uint8_t out[8], int iteratio
           v1s[d1 + 1] = in ? float(ex.e6[c1]) : 0.0f;
           bad1[d1 + 1] = in ? 0.0f : FLT_MAX * 2.0f;  // +inf
         }
-        const __m128 v1 = _mm_load_ps(v1s), inf1 = _mm_load_ps(bad1);
+        const __m128 inf1 = _mm_load_ps(bad1);
         const __m128 bad = _mm_cmpneq_ps(inf1, _mm_setzero_ps());
-        const __m128 t2 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f), v1), _mm_set1_ps(bx));
-        const __m128 t5 = _mm_mul_ps(_mm_mul_ps(v1, v1), _mm_set1_ps(bb));
+        const PairRanks pairs(ax, bx, aa, ab, bb, _mm_load_ps(v1s));
         for (int d0 = -1; d0 <= 2; ++d0) {
           const int c0 = b0 + d0;
           if (c0 < 0 || c0 > 63) {
             _mm_store_ps(e + 4 * (d0 + 1), _mm_set1_ps(FLT_MAX * 2.0f));
             continue;
           }
-          const float v0 = float(ex.e6[c0]);
-          const __m128 t1 = _mm_set1_ps(-2.0f * v0 * ax), t3 = _mm_set1_ps(v0 * v0 * aa);
-          const __m128 t4 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f * v0), v1), _mm_set1_ps(ab));
-          const __m128 ranks = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_sub_ps(t1, t2), t3), t4), t5);
+          const __m128 ranks = pairs.row(float(ex.e6[c0]));
           _mm_store_ps(e + 4 * (d0 + 1), _mm_or_ps(_mm_and_ps(bad, inf1), _mm_andnot_ps(bad, ranks)));
         }
-        int best = -1;
-        for (int i = 0; i < 16; ++i) {
-          const bool lower = e[i] < rank;
-          rank = lower ? e[i] : rank;
-          best = lower ? i : best;
-        }
+        const int best = first_smallest(e, 16, rank);
         if (best >= 0) {
           g0 = b0 + best / 4 - 1;
           g1 = b1 + best % 4 - 1;

@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "bc_blocks.h"
+#include "pair_ranks_sse2.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -179,25 +180,16 @@ void encode_bc4_path(const uint8_t values[16], uint8_t out[8], bool simd) {
         }
         t1s[3] = 256;  // never below t0
         v1s[3] = 0.0f;
-        const __m128 v1 = _mm_load_ps(v1s), inf = _mm_set1_ps(FLT_MAX * 2.0f);
+        const __m128 inf = _mm_set1_ps(FLT_MAX * 2.0f);
         const __m128i t1v = _mm_load_si128(reinterpret_cast<const __m128i*>(t1s));
-        const __m128 t2 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f), v1), _mm_set1_ps(bx));
-        const __m128 t5 = _mm_mul_ps(_mm_mul_ps(v1, v1), _mm_set1_ps(bb));
+        const PairRanks pairs(ax, bx, aa, ab, bb, _mm_load_ps(v1s));
         for (int d0 = -1; d0 <= 1; ++d0) {
           const int t0 = std::clamp(e0 + d0, 0, 255);
-          const float v0 = float(t0);
-          const __m128 t1 = _mm_set1_ps(-2.0f * v0 * ax), t3 = _mm_set1_ps(v0 * v0 * aa);
-          const __m128 t4 = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(2.0f * v0), v1), _mm_set1_ps(ab));
-          const __m128 ranks = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_sub_ps(t1, t2), t3), t4), t5);
+          const __m128 ranks = pairs.row(float(t0));
           const __m128 valid = _mm_castsi128_ps(_mm_cmpgt_epi32(_mm_set1_epi32(t0), t1v));
           _mm_store_ps(e + 4 * (d0 + 1), _mm_or_ps(_mm_and_ps(valid, ranks), _mm_andnot_ps(valid, inf)));
         }
-        int first = -1;
-        for (int i = 0; i < 12; ++i) {
-          const bool lower = e[i] < rank;
-          rank = lower ? e[i] : rank;
-          first = lower ? i : first;
-        }
+        const int first = first_smallest(e, 12, rank);
         if (first >= 0) {
           c0 = std::clamp(e0 + first / 4 - 1, 0, 255);
           c1 = std::clamp(e1 + first % 4 - 1, 0, 255);

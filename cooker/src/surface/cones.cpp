@@ -451,6 +451,24 @@ inline unsigned lane_bits(const V8i& mask) {
          unsigned(_mm_movemask_ps(_mm_castsi128_ps(__m128i(hi)))) << 4;
 }
 
+// An axis and a limit in every lane, for dots_at_most.
+struct LaneAxis {
+  V8f x, y, z, limit;
+  LaneAxis(float ax, float ay, float az, float lim)
+      : x{ax, ax, ax, ax, ax, ax, ax, ax}, y{ay, ay, ay, ay, ay, ay, ay, ay}, z{az, az, az, az, az, az, az, az},
+        limit{lim, lim, lim, lim, lim, lim, lim, lim} {}
+};
+
+// Bit l set where normal i + l's float dot product (ax x + ay y) + az z (the scalar expression's
+// operations) is at most the limit; i + 8 <= v.n.
+inline unsigned dots_at_most(NormalSpan v, int i, const LaneAxis& a) {
+  V8f x, y, z;
+  std::memcpy(&x, v.x + i, sizeof x);
+  std::memcpy(&y, v.y + i, sizeof y);
+  std::memcpy(&z, v.z + i, sizeof z);
+  return lane_bits((a.x * x + a.y * y) + a.z * z <= a.limit);
+}
+
 // The exact double comparison among the normals whose float dot product is at most `limit`: 8
 // float dot products at a time (the scalar expression's operations per lane), the candidates in
 // index order.
@@ -463,17 +481,9 @@ TERRAIN_AVX2_CLONES int argmin_below(NormalSpan v, double ax, double ay, double 
     if (d < best) { best = d; arg = i; }
   };
   int i = 0;
-  const V8f vx = {fx, fx, fx, fx, fx, fx, fx, fx}, vy = {fy, fy, fy, fy, fy, fy, fy, fy};
-  const V8f vz = {fz, fz, fz, fz, fz, fz, fz, fz};
-  const V8f lim = {limit, limit, limit, limit, limit, limit, limit, limit};
-  for (; i + 8 <= v.n; i += 8) {
-    V8f x, y, z;
-    std::memcpy(&x, v.x + i, sizeof x);
-    std::memcpy(&y, v.y + i, sizeof y);
-    std::memcpy(&z, v.z + i, sizeof z);
-    for (unsigned mask = lane_bits((vx * x + vy * y) + vz * z <= lim); mask; mask &= mask - 1)
-      consider(i + __builtin_ctz(mask));
-  }
+  const LaneAxis axis(fx, fy, fz, limit);
+  for (; i + 8 <= v.n; i += 8)
+    for (unsigned mask = dots_at_most(v, i, axis); mask; mask &= mask - 1) consider(i + __builtin_ctz(mask));
   for (; i < v.n; ++i)
     if (fx * v.x[i] + fy * v.y[i] + fz * v.z[i] <= limit) consider(i);
   return arg;
@@ -597,20 +607,13 @@ struct FarNormals {
 TERRAIN_AVX2_CLONES size_t append_far_vector(NormalSpan v, float ax, float ay, float az, float limit,
                                              float* __restrict x, float* __restrict y, float* __restrict z, size_t m) {
   int i = 0;
-  const V8f vx = {ax, ax, ax, ax, ax, ax, ax, ax}, vy = {ay, ay, ay, ay, ay, ay, ay, ay};
-  const V8f vz = {az, az, az, az, az, az, az, az};
-  const V8f lim = {limit, limit, limit, limit, limit, limit, limit, limit};
+  const LaneAxis axis(ax, ay, az, limit);
   for (; i + 8 <= v.n; i += 8) {
-    V8f nx, ny, nz;
-    std::memcpy(&nx, v.x + i, sizeof nx);
-    std::memcpy(&ny, v.y + i, sizeof ny);
-    std::memcpy(&nz, v.z + i, sizeof nz);
-    const V8i keep = (vx * nx + vy * ny) + vz * nz <= lim;
-    unsigned bits = lane_bits(keep);
+    unsigned bits = dots_at_most(v, i, axis);
     if (bits == 0xFF) {  // all kept: the block as it is
-      std::memcpy(x + m, &nx, sizeof nx);
-      std::memcpy(y + m, &ny, sizeof ny);
-      std::memcpy(z + m, &nz, sizeof nz);
+      std::memcpy(x + m, v.x + i, 8 * sizeof(float));
+      std::memcpy(y + m, v.y + i, 8 * sizeof(float));
+      std::memcpy(z + m, v.z + i, 8 * sizeof(float));
       m += 8;
       continue;
     }
