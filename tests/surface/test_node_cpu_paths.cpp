@@ -553,7 +553,7 @@ TEST(NodeCpuPaths, PackedNormalTexelsEqualThePerTexelLoop) {
       check(n, "kilauea");
     });
   }
-  EXPECT_GT(compared, 20L * 2 * kTexelCount);
+  EXPECT_GE(compared, 20L * 2 * kTexelCount);  // more with the Kilauea nodes (skipped without the shared data)
 }
 
 // append_far_normals (8 dot products at a time, blocks kept whole or lane by lane) against the
