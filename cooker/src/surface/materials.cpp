@@ -204,13 +204,12 @@ static_assert(kMaxRowSamples % kLanes == 0);
 // A row's attribute padded to whole lanes (the padding's masks are never read).
 int padded(int n) { return (n + kLanes - 1) / kLanes * kLanes; }
 
-// m[k] = mask_of(r, v[k]) when kFirst, else m[k] * mask_of(r, v[k]) where m[k] > 0 (rule_matches'
+// m[k] = mask_of(r, v[k]) when `first`, else m[k] * mask_of(r, v[k]) where m[k] > 0 (rule_matches'
 // product, same operations), for k < padded(n): m has room for kMaxRowSamples. An inactive range
-// is 1 everywhere: it leaves m as it is.
-template <bool kFirst>
-TERRAIN_AVX2_CLONES void range_mask_row(const MaskRange& r, const double* v_in, int n, double* m) {
+// is 1 everywhere: it leaves m as it is. (Not a template: clang's target_clones refuses those.)
+TERRAIN_AVX2_CLONES void range_mask_row(const MaskRange& r, const double* v_in, int n, bool first, double* m) {
   if (!r.active) {
-    if (kFirst) std::fill(m, m + padded(n), 1.0);
+    if (first) std::fill(m, m + padded(n), 1.0);
     return;
   }
   alignas(32) double v[kMaxRowSamples];
@@ -233,7 +232,7 @@ TERRAIN_AVX2_CLONES void range_mask_row(const MaskRange& r, const double* v_in, 
       const V4d c = (t < zero) ? zero : t;
       mask = (one < c) ? one : c;
     }
-    if (kFirst) {
+    if (first) {
       TERRAIN_STORE4(m + k, mask);
     } else {
       TERRAIN_LOAD4(V4d, before, m + k);
@@ -325,9 +324,9 @@ void choose_materials_row(const MaterialRules& rules, const SampleRow* per_scale
     const MaterialRule& r = rules.rules[ri];
     const SampleRow& row = per_scale[r.scale_index];
     double* m = masks.data() + ri * kMaxRowSamples;
-    range_mask_row<true>(r.height_m, row.height_m, n, m);
-    range_mask_row<false>(r.slope_deg, row.slope_deg, n, m);
-    range_mask_row<false>(r.curvature, row.curvature, n, m);
+    range_mask_row(r.height_m, row.height_m, n, true, m);
+    range_mask_row(r.slope_deg, row.slope_deg, n, false, m);
+    range_mask_row(r.curvature, row.curvature, n, false, m);
     aspect_mask_row(r.aspect_deg, row.aspect_deg, row.slope_deg, n, m);
     if (mark_claims(m, r.noise.amplitude, uint64_t(1) << ri, want, n, claims, maybe) == 0)
       break;  // later rules cannot change a choice (the sea's rows: after water)

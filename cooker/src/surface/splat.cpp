@@ -59,17 +59,6 @@ double bearing_deg(double east, double north) {
   return a >= 360.0 ? a - 360.0 : a;
 }
 
-// bearing_deg() as selects (a loop of it vectorises): the same operations on each path.
-inline double bearing_deg_select(double east, double north) {
-  const double ae = std::fabs(east), an = std::fabs(north);
-  double a = fast_atan_select(ae / an) * kRadToDeg;
-  a = an == 0 ? 90.0 : a;
-  a = north < 0 ? 180.0 - a : a;
-  a = east < 0 ? 360.0 - a : a;
-  a = a >= 360.0 ? a - 360.0 : a;
-  return (ae == 0 && an == 0) ? 0.0 : a;
-}
-
 // Albedo variation field: wavelength 48 m or 6 vertex spacings, whichever is longer.
 constexpr uint32_t kAlbedoNoiseSeed = 0xA1BED0u;
 
@@ -337,7 +326,7 @@ inline void fast_atan_lanes(const V4d& x, V4d& out) {
 }
 
 // slope[k] = fast_atan_select(|(gx, gy)|) in degrees and, when wanted, aspect[k] =
-// bearing_deg_select(-gx, -gy), for k < kLaneRow.
+// bearing_deg(-gx, -gy) (its operations on each path as selects), for k < kLaneRow.
 TERRAIN_AVX2_CLONES void slope_aspect_lanes(const double* gx, const double* gy, bool aspect_too, double* slope,
                                             double* aspect) {
   double len[kLaneRow];
@@ -365,7 +354,7 @@ TERRAIN_AVX2_CLONES void slope_aspect_lanes(const double* gx, const double* gy, 
     a = north < zero ? SPLAT4(180.0) - a : a;
     a = east < zero ? SPLAT4(360.0) - a : a;
     a = a >= SPLAT4(360.0) ? a - SPLAT4(360.0) : a;
-    a = (ae == zero) & (an == zero) ? zero : a;
+    a = ((ae == zero) & (an == zero)) ? zero : a;
     std::memcpy(aspect + k, &a, sizeof a);
   }
 }
