@@ -1,5 +1,6 @@
 #include "node_cook.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
 
@@ -106,18 +107,49 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       cached.assign(size_t(cache_rows), 0);
     }
   }
+  // Rows mapped point by point (through the anchors or the mapping).
+  const auto map_row = [&](double y) {
+    if (anchors)
+      anchors->eval_planned(y, plan, cols.data(), rows.data());
+    else
+      ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
+  };
+  // Zero ground (the sea of SRTM tiles, 91-99 % of the shared ones): when the source around the
+  // window holds only zeros, a mapped row whose every point reads its 16 taps there is +0
+  // throughout (Surface::zero_bounds) and skips the sums. The bounds come from the first and last
+  // rows' extent with two samples to spare; each row checks its own points against them, so the
+  // bits are those of sample_points() whatever the mapping does in between.
+  Surface::ZeroBounds zero;
+  if (!shared_columns && hi > lo) {
+    double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
+    for (const int j : {lo, hi - 1}) {
+      map_row(ctx.lattice_y(lattice_index(key.y, j - kWindowMargin, key.level)));
+      for (int i = lo; i < hi; ++i) {
+        cmin = std::min(cmin, cols[size_t(i)]);
+        cmax = std::max(cmax, cols[size_t(i)]);
+        rmin = std::min(rmin, rows[size_t(i)]);
+        rmax = std::max(rmax, rows[size_t(i)]);
+      }
+    }
+    zero = ctx.surface.zero_bounds(cmin, cmax, rmin, rmax, 2);
+  }
   for (int j = lo; j < hi; ++j) {
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
-    // Rows mapped point by point (through the anchors or the mapping): their heights in one call.
+    // Mapped rows: their heights in one call.
     std::array<double, kWindowSize> mapped_h;
     std::array<uint8_t, kWindowSize> mapped_ok;
     if (!shared_columns) {
-      if (anchors)
-        anchors->eval_planned(y, plan, cols.data(), rows.data());
-      else
-        ctx.mapping->map_frame_row(y, xs.data(), kWindowSize, cols.data(), rows.data());
-      ctx.surface.sample_points(cols.data() + lo, rows.data() + lo, hi - lo, mapped_h.data() + lo, mapped_ok.data() + lo);
+      map_row(y);
+      bool zero_row = true;
+      for (int i = lo; i < hi && zero_row; ++i) zero_row = zero.holds(cols[size_t(i)], rows[size_t(i)]);
+      if (zero_row) {
+        std::fill(mapped_h.begin() + lo, mapped_h.begin() + hi, 0.0);
+        std::fill(mapped_ok.begin() + lo, mapped_ok.begin() + hi, uint8_t(1));
+      } else {
+        ctx.surface.sample_points(cols.data() + lo, rows.data() + lo, hi - lo, mapped_h.data() + lo,
+                                  mapped_ok.data() + lo);
+      }
     }
     const Surface::Axis& row_axis = row_axes[size_t(j)];
     const double* source_rows[4] = {};

@@ -1,6 +1,7 @@
 #include "reconstruct.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "avx2_clones.h"
@@ -111,6 +112,34 @@ void Surface::sample_points(const double* cols, const double* rows, int n, doubl
       ok[k0 + k] = sample_general(x, y, h[k0 + k]);
     }
   }
+}
+
+bool Surface::zeros_in(int c0, int r0, int c1, int r1) const {
+  if (c0 < std::max(0, c0_) || r0 < std::max(0, r0_) || c1 >= std::min(w_, c0_ + int(stride_)) ||
+      r1 >= std::min(h_, r0_ + rows_) || c1 < c0 || r1 < r0)
+    return false;
+  for (int r = r0; r <= r1; ++r) {
+    const float* p = at(c0, r);
+    bool zero = true;  // the whole row at once (no early exit per sample: the loop vectorises)
+    for (int c = 0; c <= c1 - c0; ++c) zero &= p[c] == 0.0f;  // false for NaN
+    if (!zero) return false;
+  }
+  return true;
+}
+
+Surface::ZeroBounds Surface::zero_bounds(double cmin, double cmax, double rmin, double rmax, int spare) const {
+  ZeroBounds b;
+  constexpr double kFar = 1e9;  // beyond any raster (and NaN): no bounds
+  if (!(cmin > -kFar && cmax < kFar && rmin > -kFar && rmax < kFar && cmin <= cmax && rmin <= rmax)) return b;
+  // A point's taps are columns floor(c) - 1 .. floor(c) + 2: inside c0..c1 for c0 + 1 <= c < c1 - 1.
+  const int c0 = int(std::floor(cmin)) - 1 - spare, c1 = int(std::floor(cmax)) + 2 + spare;
+  const int r0 = int(std::floor(rmin)) - 1 - spare, r1 = int(std::floor(rmax)) + 2 + spare;
+  if (!zeros_in(c0, r0, c1, r1)) return b;
+  b.c_lo = c0 + 1.0;
+  b.c_hi = c1 - 1.0;
+  b.r_lo = r0 + 1.0;
+  b.r_hi = r1 - 1.0;
+  return b;
 }
 
 bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {

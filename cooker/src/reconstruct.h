@@ -32,12 +32,13 @@ class Surface {
  public:
   Surface() = default;
   // The whole raster in memory.
-  explicit Surface(const Raster& r) : z_(r.values.data()), stride_(r.width), w_(r.width), h_(r.height) {}
+  explicit Surface(const Raster& r)
+      : z_(r.values.data()), stride_(r.width), rows_(r.height), w_(r.width), h_(r.height) {}
   // A window of the source (block-wise cook): sample coordinates stay the whole source's, and every
   // evaluation that reads only samples inside the window gives the bits the whole raster gives.
   explicit Surface(const SampleWindow& win)
-      : z_(win.values.data()), c0_(win.rect.c0), r0_(win.rect.r0), stride_(win.rect.width()), w_(win.source_width),
-        h_(win.source_height) {}
+      : z_(win.values.data()), c0_(win.rect.c0), r0_(win.rect.r0), stride_(win.rect.width()), rows_(win.rect.height()),
+        w_(win.source_width), h_(win.source_height) {}
   // Keeps the outer apron, replaces the samples.
   void set_samples(const SampleWindow& win) {
     const double ac = apron_c_, ar = apron_r_;
@@ -116,6 +117,21 @@ class Surface {
   // through the anchors): the axes of a whole run in loops that vectorise, then the 16-tap sums.
   void sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const;
 
+  // Whether every sample of columns c0..c1, rows r0..r1 is inside the raster and the window and is
+  // zero (either sign; the sea of SRTM tiles). A point whose 16 taps all lie there has height +0
+  // from sample() and sample_points(): every tap's product is a signed zero and each sum starts at
+  // +0, so callers may write +0 without evaluating it (node_cook.cpp).
+  bool zeros_in(int c0, int r0, int c1, int r1) const;
+  // Points (col, row) with c_lo <= col < c_hi and r_lo <= row < r_hi read all 16 taps from samples
+  // that zeros_in() holds, so sample() gives them +0.
+  struct ZeroBounds {
+    double c_lo = 1, c_hi = 0, r_lo = 1, r_hi = 0;  // empty: no such points
+    bool holds(double c, double r) const { return c >= c_lo && c < c_hi && r >= r_lo && r < r_hi; }  // NaN: false
+  };
+  // Bounds around the extent [cmin, cmax] x [rmin, rmax] of some points, `spare` samples wider on
+  // every side, when every sample their taps could read is zero; empty otherwise.
+  ZeroBounds zero_bounds(double cmin, double cmax, double rmin, double rmax, int spare) const;
+
   // Whether (col, row) is covered (nearest sample valid): the hole test of sample() alone.
   bool covered(double col, double row) const {
     if (!(col > -2.0 && row > -2.0 && col < w_ + 1.0 && row < h_ + 1.0)) return false;
@@ -171,6 +187,7 @@ class Surface {
   const float* z_ = nullptr;
   int c0_ = 0, r0_ = 0;  // the window's first sample
   ptrdiff_t stride_ = 0;  // samples per window row
+  int rows_ = 0;          // rows of the window
   int w_ = 0, h_ = 0;     // the whole source
 
   double apron_c_ = 0.5, apron_r_ = 0.5;

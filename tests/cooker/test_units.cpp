@@ -11,6 +11,7 @@
 #include "quantize.h"
 #include "raster.h"
 #include "reconstruct.h"
+#include "sample_window.h"
 #include "void_fill.h"
 
 using namespace terrain;
@@ -245,6 +246,83 @@ TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
   EXPECT_GT(points, 30000);
   EXPECT_GT(holes, 3000);
   EXPECT_GT(general, 2000);
+}
+
+// Zero ground (the sea of SRTM tiles): compute_window writes +0 for mapped rows whose points all
+// lie inside Surface::zero_bounds. Bound checked: every such point gets exactly sample()'s +0 (and
+// sample_points'), including points on the bounds' lower edges and just below their upper edges;
+// the zero block is ringed by nonzero samples, so bounds one sample too wide read one of them
+// (the points just outside do, below). Extents reaching a nonzero sample, a NaN or the window's
+// edge give no bounds.
+TEST(Reconstruct, ZeroBoundsHoldOnlyPointsWhoseTapsAreAllZero) {
+  constexpr int kW = 64, kH = 48;
+  Raster r = plane_raster(kW, kH, 0, 0, 0);
+  for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(50.0 + 20.0 * std::sin(double(i) * 0.37));
+  for (int row = 8; row <= 30; ++row)  // the zero block: columns 10..40, rows 8..30, signed zeros mixed
+    for (int col = 10; col <= 40; ++col) r.values[size_t(row) * kW + size_t(col)] = (col + row) % 3 ? 0.0f : -0.0f;
+  const Surface s(r);
+  const auto bounded = [](const Surface::ZeroBounds& b) { return b.c_lo < b.c_hi && b.r_lo < b.r_hi; };
+  // Extent 11..38.9 x 9..28.9 without spare reads columns 10..40, rows 8..30: the block exactly.
+  const Surface::ZeroBounds b = s.zero_bounds(11.0, 38.9, 9.0, 28.9, 0);
+  ASSERT_TRUE(bounded(b));
+  EXPECT_EQ(b.c_lo, 11.0);
+  EXPECT_EQ(b.c_hi, 39.0);
+  EXPECT_EQ(b.r_lo, 9.0);
+  EXPECT_EQ(b.r_hi, 29.0);
+  EXPECT_TRUE(bounded(s.zero_bounds(13.0, 36.9, 11.0, 26.9, 2)));
+  EXPECT_FALSE(bounded(s.zero_bounds(10.9, 38.9, 9.0, 28.9, 0)));  // reaches column 9
+  EXPECT_FALSE(bounded(s.zero_bounds(11.0, 39.0, 9.0, 28.9, 0)));  // reaches column 41
+  EXPECT_FALSE(bounded(s.zero_bounds(11.0, 38.9, 8.9, 28.9, 0)));  // reaches row 7
+  EXPECT_FALSE(bounded(s.zero_bounds(11.0, 38.9, 9.0, 29.0, 0)));  // reaches row 31
+  EXPECT_FALSE(bounded(s.zero_bounds(11.0, 38.9, 9.0, 28.9, 1)));
+  EXPECT_FALSE(bounded(s.zero_bounds(std::nan(""), 38.9, 9.0, 28.9, 0)));
+  EXPECT_FALSE(bounded(s.zero_bounds(11.0, INFINITY, 9.0, 28.9, 0)));
+  Raster voided = r;
+  voided.values[size_t(20) * kW + 25] = NAN;
+  EXPECT_FALSE(bounded(Surface(voided).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
+  // A window of the source that ends at column 11: the same zeros, but not all inside it.
+  SampleWindow win;
+  win.rect = {11, 0, kW - 1, kH - 1};
+  win.source_width = kW;
+  win.source_height = kH;
+  win.values.resize(win.rect.samples());
+  for (int row = 0; row < kH; ++row)
+    for (int col = 11; col < kW; ++col) win.values[win.index(col, row)] = r.values[size_t(row) * kW + size_t(col)];
+  EXPECT_FALSE(bounded(Surface(win).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
+  EXPECT_TRUE(bounded(Surface(win).zero_bounds(12.0, 38.9, 9.0, 28.9, 0)));
+
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> uc(b.c_lo, b.c_hi), ur(b.r_lo, b.r_hi);
+  std::vector<double> cols, rows;
+  for (int k = 0; k < 3000; ++k) {
+    double c = uc(rng), w = ur(rng);
+    if (k % 7 == 0) c = std::floor(c);  // integer coordinates, the lower edge among them
+    if (k % 11 == 0) w = b.r_lo;
+    if (k % 13 == 0) c = std::nextafter(b.c_hi, 0.0);  // just below the upper edge
+    if (k % 17 == 0) w = std::nextafter(b.r_hi, 0.0);
+    ASSERT_TRUE(b.holds(c, w));
+    cols.push_back(c);
+    rows.push_back(w);
+  }
+  std::vector<double> h(cols.size(), -1.0);
+  std::vector<uint8_t> ok(cols.size(), 0);
+  s.sample_points(cols.data(), rows.data(), int(cols.size()), h.data(), ok.data());
+  const double plus_zero = 0.0;
+  for (size_t k = 0; k < cols.size(); ++k) {
+    double one = -1.0;
+    ASSERT_TRUE(s.sample(cols[k], rows[k], one));
+    ASSERT_EQ(std::memcmp(&one, &plus_zero, sizeof one), 0) << cols[k] << ", " << rows[k] << ": " << one;
+    ASSERT_EQ(ok[k], 1);
+    ASSERT_EQ(std::memcmp(&h[k], &plus_zero, sizeof plus_zero), 0) << cols[k] << ", " << rows[k];
+  }
+  // Half a sample outside, a tap reads the ring (on the edges themselves it carries no weight).
+  for (const auto& [c, w] : std::vector<std::pair<double, double>>{
+           {b.c_hi + 0.5, 20.0}, {b.c_lo - 0.5, 20.0}, {20.0, b.r_hi + 0.5}, {20.0, b.r_lo - 0.5}}) {
+    EXPECT_FALSE(b.holds(c, w));
+    double one = 0.0;
+    ASSERT_TRUE(s.sample(c, w, one));
+    EXPECT_NE(one, 0.0) << c << ", " << w;
+  }
 }
 
 TEST(VoidFill, SmallEnclosedVoidsAreFilledHarmonicallyAndBorderVoidsStayHoles) {
