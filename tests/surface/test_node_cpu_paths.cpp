@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <random>
 
 #include "cones.h"
@@ -512,6 +513,67 @@ TEST(NodeCpuPaths, PatchNormalsEqualThePerTriangleLoop) {
   EXPECT_GT(clear_nodes, 5);
   std::printf("%ld normals equal; %d patches with holes, %d clear patches in nodes with holes, %d nodes without holes\n",
               normals, patches_with_holes, clear_patches_in_holed_nodes, clear_nodes);
+}
+
+// PatchNormals::same (every normal of the patch equal: flat ground) lets argmin_dot answer 0
+// without a scan. Bound checked: the flag is exactly the per-normal comparison, on real Kilauea
+// nodes (its sea is flat), a flat synthetic node and spans differing in one normal at every
+// position (an 8-lane block or the tail); and where it is set, argmin_dot gives the per-candidate
+// loop's index for axes all around.
+TEST(NodeCpuPaths, SameNormalsFlagIsThePerNormalComparison) {
+  const auto per_normal = [](NormalSpan v) {
+    if (v.n <= 0 || std::isnan(v.x[0]) || std::isnan(v.y[0]) || std::isnan(v.z[0])) return false;
+    for (int i = 1; i < v.n; ++i)
+      if (!(v.x[i] == v.x[0] && v.y[i] == v.y[0] && v.z[i] == v.z[0])) return false;
+    return true;
+  };
+  std::mt19937 rng(5);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  int same = 0, differ = 0;
+  PatchNormals pn;
+  const auto check_node = [&](const bench::DemNode& n) {
+    collect_patch_normals(n.node, n.height_offset, n.step_log2, n.spacing_m, n.holes.data(), pn);
+    for (int k = 0; k < kPatchCount; ++k) {
+      const NormalSpan v = pn.patch(k);
+      ASSERT_EQ(v.same, per_normal(v)) << "patch " << k;
+      (v.same ? same : differ) += 1;
+      if (!v.same) continue;
+      for (int a = 0; a < 8; ++a) {
+        const double r[3] = {gauss(rng), gauss(rng), a < 4 ? std::abs(gauss(rng)) : gauss(rng)};
+        const double len = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        ASSERT_EQ(argmin_dot(v, r[0] / len, r[1] / len, r[2] / len),
+                  argmin_dot_per_candidate(v, r[0] / len, r[1] / len, r[2] / len));
+      }
+    }
+  };
+  check_node(terrain::cook::test::synthetic_node([](double, double) { return 0.0; }, 0, 3, 3));
+  check_node(terrain::cook::test::synthetic_node([](double, double) { return 812.5; }, 3, 1, 2));
+  EXPECT_EQ(same, 2 * kPatchCount);
+  const auto file = terrain::test::data_file("kilauea_utm5n.tif");
+  if (std::filesystem::exists(file)) {
+    bench::DemRaster dem;
+    ASSERT_TRUE(bench::load_dem(file.string(), dem).ok());
+    for_each_real_node(dem, 4, [&](const bench::DemNode& n, uint32_t, uint32_t, uint32_t) { check_node(n); });
+    EXPECT_GT(differ, 500);
+  } else {
+    std::printf("%s not found: synthetic nodes only\n", file.string().c_str());
+  }
+  // One normal off (a signed zero is not off), at every position of 1..40-normal spans (a single
+  // normal equals itself unless it is NaN).
+  for (int n = 1; n <= 40; ++n) {
+    std::vector<float> x(size_t(n), 0.0f), y(size_t(n), -0.0f), z(size_t(n), 1.0f);
+    for (int i = 0; i < n; i += 3) x[size_t(i)] = -0.0f;
+    EXPECT_TRUE(all_normals_equal({x.data(), y.data(), z.data(), n})) << n;
+    for (int off = 0; off < n; ++off) {
+      std::vector<float> zz = z;
+      zz[size_t(off)] = std::nextafter(1.0f, 0.0f);
+      EXPECT_EQ(all_normals_equal({x.data(), y.data(), zz.data(), n}), n == 1) << n << " " << off;
+      zz[size_t(off)] = NAN;
+      EXPECT_EQ(all_normals_equal({x.data(), y.data(), zz.data(), n}), false) << n << " " << off;
+    }
+  }
+  EXPECT_FALSE(all_normals_equal({nullptr, nullptr, nullptr, 0}));
+  std::printf("%d patches with one normal, %d with several\n", same, differ);
 }
 
 // pack_normal_texels (4 texels at a time in SSE2) against pack_normal_texels_per_texel, byte for

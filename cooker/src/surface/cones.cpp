@@ -263,6 +263,30 @@ TERRAIN_AVX2_CLONES void stitched_normals(const StitchArrays& a, const double* z
 
 }  // namespace
 
+// 8 at a time (GCC vector extensions), so a patch with relief stops after its first 8.
+typedef float V8fEq __attribute__((vector_size(32)));
+typedef int32_t V8iEq __attribute__((vector_size(32)));
+TERRAIN_AVX2_CLONES bool all_normals_equal(NormalSpan v) {
+  if (v.n <= 0) return false;
+  const float x0 = v.x[0], y0 = v.y[0], z0 = v.z[0];
+  if (!(x0 == x0 && y0 == y0 && z0 == z0)) return false;
+  const V8fEq vx = {x0, x0, x0, x0, x0, x0, x0, x0}, vy = {y0, y0, y0, y0, y0, y0, y0, y0};
+  const V8fEq vz = {z0, z0, z0, z0, z0, z0, z0, z0};
+  int i = 0;
+  for (; i + 8 <= v.n; i += 8) {
+    V8fEq x, y, z;
+    std::memcpy(&x, v.x + i, sizeof x);
+    std::memcpy(&y, v.y + i, sizeof y);
+    std::memcpy(&z, v.z + i, sizeof z);
+    const V8iEq eq = (x == vx) & (y == vy) & (z == vz);
+    const V8iEq q = eq & __builtin_shufflevector(eq, eq, 4, 5, 6, 7, 0, 1, 2, 3);
+    if ((q[0] & q[1] & q[2] & q[3]) == 0) return false;
+  }
+  for (; i < v.n; ++i)
+    if (!(v.x[i] == x0 && v.y[i] == y0 && v.z[i] == z0)) return false;
+  return true;
+}
+
 void collect_patch_normals(const NodeData& node, int32_t height_offset, int step_log2, double spacing_m,
                            const uint8_t* window_holes, PatchNormals& out) {
   // Vertex positions once (metres, as the shader dequantizes them) and hole flags.
@@ -407,6 +431,7 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
       }
     }
   out.begin[kPatchCount] = uint32_t(count);
+  for (int k = 0; k < kPatchCount; ++k) out.same[size_t(k)] = uint8_t(all_normals_equal(out.patch(k)));
 }
 
 namespace {
@@ -543,7 +568,10 @@ int argmin_dot_per_candidate(NormalSpan v, double ax, double ay, double az) {
 // dot product lies within 4e-5 of the float minimum (they are at most |axis|: a smooth patch, an
 // axis inside its cone), most normals are candidates, and comparing them one at a time was a
 // fifth of an SRTM cook: one double pass over all of them instead.
+// A patch of flat ground (the sea) holds one normal many times over (NormalSpan::same): every dot
+// product is the same value, and both scans answer its first index, 0.
 int argmin_dot(NormalSpan v, double ax, double ay, double az) {
+  if (v.same && v.n > 0) return 0;
   const float low = min_dot_f(v, float(ax), float(ay), float(az));
   if (std::sqrt(ax * ax + ay * ay + az * az) - double(low) <= 4e-5) return argmin_double(v, ax, ay, az);
   return argmin_below(v, ax, ay, az, low + 1e-5f);
@@ -595,9 +623,10 @@ constexpr double kReach = 6.0 * kPi / 180.0;
 struct FarNormals {
   std::vector<float> x, y, z;
   std::array<uint32_t, kPatchCount + 1> begin{};
+  std::array<uint8_t, kPatchCount> same{};  // the patch's PatchNormals::same (a subset of equal normals)
   NormalSpan patch(int k) const {
     const size_t b = begin[size_t(k)];
-    return {x.data() + b, y.data() + b, z.data() + b, int(begin[size_t(k) + 1] - b)};
+    return {x.data() + b, y.data() + b, z.data() + b, int(begin[size_t(k) + 1] - b), same[size_t(k)] != 0};
   }
 };
 
@@ -644,6 +673,7 @@ void build_far_normals(const PatchNormals& normals, const Cone cones[kPatchCount
   size_t m = 0;
   for (int k = 0; k < kPatchCount; ++k) {
     out.begin[size_t(k)] = uint32_t(m);
+    out.same[size_t(k)] = normals.same[size_t(k)];
     // Float test with a 1e-5 allowance (float dot error < 1e-6): keeping a few extra is harmless.
     const float limit = float(std::cos(std::max(0.0, cones[k].half_angle_rad - 2 * kReach))) + 1e-5f;
     const float ax = float(cones[k].axis[0]), ay = float(cones[k].axis[1]), az = float(cones[k].axis[2]);

@@ -19,18 +19,24 @@ struct NormalSpan {
   const float* y = nullptr;
   const float* z = nullptr;
   int n = 0;
+  bool same = false;  // every normal equals the first (flat ground: the sea); false when unknown
 };
 
 // Unit normals of every triangle the renderer can draw, grouped by patch (patch p + 8 q).
 struct PatchNormals {
   std::vector<float> x, y, z;                     // capacity; begin[64] normals are valid
   std::array<uint32_t, kPatchCount + 1> begin{};  // normals of patch k: [begin[k], begin[k+1])
+  std::array<uint8_t, kPatchCount> same{};        // NormalSpan::same of each patch (0: unknown)
   int count(int k) const { return int(begin[size_t(k) + 1] - begin[size_t(k)]); }
   NormalSpan patch(int k) const {
     const size_t b = begin[size_t(k)];
-    return {x.data() + b, y.data() + b, z.data() + b, count(k)};
+    return {x.data() + b, y.data() + b, z.data() + b, count(k), same[size_t(k)] != 0};
   }
 };
+
+// Whether v holds at least one normal and every normal equals the first (==: signed zeros alike,
+// never a NaN): PatchNormals::same.
+bool all_normals_equal(NormalSpan v);
 
 // Triangulation and LOD stitching as in terrain/surface_contract.h (format/SPEC.md section 16.5):
 // the unstitched triangles of every quad, plus every non-degenerate triangle any edge deltas
