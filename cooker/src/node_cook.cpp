@@ -133,12 +133,25 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
     }
     zero = ctx.surface.zero_bounds(cmin, cmax, rmin, rmax, 2);
   }
+  // Each column's scale and step for every row level (a vertex's level is the smaller of its
+  // column's and its row's), for quantize_row.
+  std::array<std::array<double, kWindowSize>, kLevelCount + 1> level_scale, level_step;
+  for (int rl = 0; rl <= top; ++rl)
+    for (int i = 0; i < kWindowSize; ++i) {
+      const size_t vl = size_t(std::min(int(column_level[size_t(i)]), rl));
+      level_scale[size_t(rl)][size_t(i)] = scale[vl];
+      level_step[size_t(rl)][size_t(i)] = std::ldexp(1.0, steps[vl]);
+    }
+  // A row's heights and data flags (mapped rows: from sample_points); zeroed once so that no
+  // element is ever indeterminate (holes leave their height unwritten).
+  std::array<double, kWindowSize> row_h{};
+  std::array<uint8_t, kWindowSize> row_ok{};
   for (int j = lo; j < hi; ++j) {
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
     // Mapped rows: their heights in one call.
-    std::array<double, kWindowSize> mapped_h;
-    std::array<uint8_t, kWindowSize> mapped_ok;
+    std::array<double, kWindowSize>& mapped_h = row_h;
+    std::array<uint8_t, kWindowSize>& mapped_ok = row_ok;
     if (!shared_columns) {
       map_row(y);
       bool zero_row = true;
@@ -185,20 +198,29 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       }
     }
     const int row_level = level_of(gy);
-    for (int i = lo; i < hi; ++i) {
-      const size_t k = size_t(j) * kWindowSize + size_t(i);
-      double h = 0;
-      bool ok = false;
-      if (!shared_columns) {
-        ok = mapped_ok[size_t(i)];
-        h = mapped_h[size_t(i)];
-      } else if (use_cache && x_in[size_t(i)]) {
-        h = row_sum[size_t(i)];
-        ok = !std::isnan(h) || ctx.surface.sample_general(column_axes[size_t(i)], row_axis, h);
-      } else {
-        ok = ctx.surface.sample(column_axes[size_t(i)], row_axis, h);
+    if (shared_columns)
+      for (int i = lo; i < hi; ++i) {
+        double h = 0;
+        bool ok = false;
+        if (use_cache && x_in[size_t(i)]) {
+          h = row_sum[size_t(i)];
+          ok = !std::isnan(h) || ctx.surface.sample_general(column_axes[size_t(i)], row_axis, h);
+        } else {
+          ok = ctx.surface.sample(column_axes[size_t(i)], row_axis, h);
+        }
+        row_h[size_t(i)] = h;
+        row_ok[size_t(i)] = uint8_t(ok);
       }
-      if (!ok) {
+    const size_t k0 = size_t(j) * kWindowSize;
+    if (quantize_row(row_h.data() + lo, row_ok.data() + lo, level_scale[size_t(row_level)].data() + lo,
+                     level_step[size_t(row_level)].data() + lo, hi - lo, w.units.data() + k0 + lo,
+                     w.hole.data() + k0 + lo))
+      continue;
+    // A height beyond the archive's: the per-vertex rule, which names the first.
+    for (int i = lo; i < hi; ++i) {
+      const size_t k = k0 + size_t(i);
+      const double h = row_h[size_t(i)];
+      if (!row_ok[size_t(i)]) {
         w.hole[k] = 1;
         w.units[k] = 0;
         continue;

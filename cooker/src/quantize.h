@@ -36,6 +36,15 @@ inline int64_t quantize_units(double h_m, double scale, int step_log2) {
   return (double(t) > v ? t - 1 : t) * (int64_t(1) << step_log2);
 }
 
+// A row of window vertices at once, each as compute_window's per-vertex loop does it: where ok[i],
+// units[i] = quantize_units(h[i], scale[i], s) with step[i] = 2^s, and hole[i] = 0; elsewhere
+// units 0 and hole 1 (h[i] is not read there). 4 lanes at a time (double arithmetic throughout: the
+// products by powers of two are exact, so the bits are quantize_units'). False when a vertex with
+// data lies beyond +-kMaxHeightUnits (or is NaN): units and holes are then undefined and the
+// caller's per-vertex loop names the vertex.
+bool quantize_row(const double* h, const uint8_t* ok, const double* scale, const double* step, int n, int32_t* units,
+                  uint8_t* hole);
+
 // The coarsest step the tolerance allows: the largest power of two of units <= tolerance / 32
 // (2^4 units = 15.6 mm at 0.5 m), at least 1 unit, at most 2^14. Rounding then costs at most
 // 1/64 of the tolerance, and no bits are spent on sensor noise far below it.

@@ -39,6 +39,78 @@ TEST(Quantize, UnitsAreMultiplesOfTheStepAndWithinHalfAStep) {
     }
 }
 
+// quantize_row (compute_window's rows, 4 lanes at a time) against the per-vertex rule: units bit
+// for bit and the holes, for every step 0..14, heights on exact half steps (where rounding
+// decides), signed zeros, the archive's limits, vertices without data holding NaN or 1e30 (never
+// read), and rows of 1..40 vertices (lanes and tails); false exactly when a vertex with data is
+// NaN or beyond +-kMaxHeightUnits, wherever it sits in the row.
+TEST(Quantize, RowEqualsThePerVertexRule) {
+  std::mt19937 rng(41);
+  std::uniform_int_distribution<int> step_of(0, 14), kind_of(0, 15), len(1, 40);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double limit = double(kMaxHeightUnits) * kHeightUnitM;
+  long vertices = 0, halves = 0, refused = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const int n = len(rng);
+    const size_t m = static_cast<size_t>(n);
+    std::vector<double> h(m), scale(m), step(m);
+    std::vector<int> shift(m);
+    std::vector<uint8_t> ok(m, 1), hole(m, 9);
+    std::vector<int32_t> units(m, -7);
+    for (int i = 0; i < n; ++i) {
+      shift[size_t(i)] = step_of(rng);
+      scale[size_t(i)] = std::ldexp(1024.0, -shift[size_t(i)]);
+      step[size_t(i)] = std::ldexp(1.0, shift[size_t(i)]);
+      double v = 0;
+      const double units_max = double(kMaxHeightUnits) - step[size_t(i)];  // rounds within the limit
+      switch (kind_of(rng)) {
+        case 0: case 1: case 2: case 3:  // an exact half step
+          v = (std::floor(u(rng) * 0.9 * std::ldexp(1.0, 24 - shift[size_t(i)])) + 0.5) / scale[size_t(i)];
+          ++halves;
+          break;
+        case 4: v = u(rng) < 0 ? -0.0 : 0.0; break;
+        case 5: v = (u(rng) < 0 ? -units_max : units_max) * kHeightUnitM; break;
+        case 6: ok[size_t(i)] = 0, v = u(rng) < 0 ? NAN : 1e30; break;
+        case 7: case 8: case 9: v = u(rng) * 16000.0; break;
+        case 15: v = u(rng) < -0.6 ? limit : u(rng) * 300.0; break;  // the limit itself: refused with coarse steps
+        default: v = u(rng) * 300.0; break;
+      }
+      h[size_t(i)] = v;
+    }
+    // The per-vertex rule refuses a vertex whose rounded units pass the limit (at the limit itself
+    // with a coarse step): such rows must be refused too.
+    bool accepted = true;
+    for (int i = 0; i < n; ++i) {
+      if (!ok[size_t(i)]) continue;
+      const int64_t q = quantize_units(h[size_t(i)], scale[size_t(i)], shift[size_t(i)]);
+      accepted = accepted && q <= kMaxHeightUnits && q >= -kMaxHeightUnits;
+    }
+    ASSERT_EQ(quantize_row(h.data(), ok.data(), scale.data(), step.data(), n, units.data(), hole.data()), accepted);
+    refused += !accepted;
+    if (!accepted) continue;
+    for (int i = 0; i < n; ++i) {
+      ++vertices;
+      ASSERT_EQ(hole[size_t(i)], ok[size_t(i)] ? 0 : 1);
+      const int64_t want = ok[size_t(i)] ? quantize_units(h[size_t(i)], scale[size_t(i)], shift[size_t(i)]) : 0;
+      ASSERT_EQ(int64_t(units[size_t(i)]), want) << "h " << h[size_t(i)] << " step 2^" << shift[size_t(i)];
+    }
+    // One vertex with data out of range or NaN, anywhere: refused.
+    const int at = int(rng() % uint32_t(n));
+    for (double bad : {limit * 1.0001, -limit * 1.0001, double(NAN), 1e30}) {
+      std::vector<double> hb = h;
+      std::vector<uint8_t> okb = ok;
+      hb[size_t(at)] = bad;
+      okb[size_t(at)] = 1;
+      EXPECT_FALSE(quantize_row(hb.data(), okb.data(), scale.data(), step.data(), n, units.data(), hole.data()))
+          << "n " << n << " at " << at << " h " << bad;
+    }
+  }
+  EXPECT_GT(vertices, 30000);
+  EXPECT_GT(halves, 8000);
+  EXPECT_GT(refused, 100);
+  std::printf("%ld vertices equal (%ld on half steps), %ld rows refused at the limit\n", vertices, halves, refused);
+}
+
 TEST(Quantize, StepsFitSixteenBitsWithTheRootRounding) {
   // 9278 m in a root (Dead Sea to Everest): 9.5 M units need step 2^8 (0.25 m).
   const int root = required_step(9278.0, -1);
