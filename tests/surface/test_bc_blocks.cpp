@@ -8,7 +8,9 @@
 #include <random>
 
 #include "bc_blocks.h"
+#include "normals.h"
 #include "surface_encoders.h"
+#include "surface_layers.h"
 #include "terrain/bc_decode.h"
 
 using namespace terrain;
@@ -370,4 +372,52 @@ TEST(BcBlocks, Bc4RankingSse2EqualsTheScalarLoop) {
   }
   EXPECT_EQ(differ, 0);
   EXPECT_GT(refits_moved, 6000);  // the refit chose other endpoints than min and max
+}
+
+// encode_bc1_image and encode_bc3_image give a block that repeats the one before it that block's
+// bytes without encoding it again (flat ground: the sea). Bound checked: both images are byte-equal
+// to encoding every block on its own, over images mixing flat runs, two blocks alternating (a
+// cache that keeps the wrong block or the wrong output fails it), single repeats and noise, with
+// every albedo method and every normal method.
+TEST(BcBlocks, ImageEncodersEqualThePerBlockLoop) {
+  std::mt19937 rng(3);
+  std::vector<uint8_t> img(size_t(kTexels) * kTexels * 4);
+  const uint8_t flat[4] = {120, 131, 0, 200}, other[4] = {40, 90, 0, 255};
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      uint8_t* p = &img[(size_t(u) * kTexels + size_t(t)) * 4];
+      const int bx = t / 4, by = u / 4;
+      if (by < 10) {
+        std::memcpy(p, flat, 4);  // flat rows of blocks
+      } else if (by < 20) {
+        std::memcpy(p, (bx % 2) ? other : flat, 4);  // two blocks alternating
+      } else if (by < 25) {
+        std::memcpy(p, (bx / 3 % 2) ? other : flat, 4);  // runs of three
+        if (bx % 7 == 0) p[1] = uint8_t(p[1] + (t + u) % 5);  // a block differing inside a run
+      } else {
+        for (int c = 0; c < 4; ++c) p[c] = uint8_t(rng());
+        p[2] = 0;
+      }
+    }
+  const auto block_of = [&](int bx, int by, uint8_t block[64]) {
+    for (int r = 0; r < 4; ++r) std::memcpy(block + r * 16, &img[(size_t(by * 4 + r) * kTexels + size_t(bx * 4)) * 4], 16);
+  };
+  int repeats = 0;
+  for (const BcQuality q : {BcQuality::fast, BcQuality::balanced, BcQuality::best}) {
+    std::vector<uint8_t> bc1(size_t(kTexelBlocks) * kTexelBlocks * 8), bc3(size_t(kTexelBlocks) * kTexelBlocks * 16);
+    encode_bc1_image(img.data(), albedo_method(q), bc1.data());
+    encode_bc3_image(img.data(), normals_method(q), bc3.data());
+    uint8_t previous[64] = {};
+    for (int k = 0; k < kTexelBlocks * kTexelBlocks; ++k) {
+      uint8_t block[64], want1[8], want3[16];
+      block_of(k % kTexelBlocks, k / kTexelBlocks, block);
+      repeats += k > 0 && std::memcmp(block, previous, 64) == 0;
+      std::memcpy(previous, block, 64);
+      encode_bc1_block(block, albedo_method(q), want1);
+      encode_bc3_block(block, normals_method(q), want3);
+      ASSERT_EQ(std::memcmp(want1, &bc1[size_t(k) * 8], 8), 0) << "BC1 block " << k;
+      ASSERT_EQ(std::memcmp(want3, &bc3[size_t(k) * 16], 16), 0) << "BC3 block " << k;
+    }
+  }
+  EXPECT_GT(repeats, 3 * 400);
 }

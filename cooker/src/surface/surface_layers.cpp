@@ -2,6 +2,7 @@
 #include "surface_layers.h"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <vector>
 #include <ctime>
@@ -44,12 +45,22 @@ Bc3Method normals_method(BcQuality q) {
 }
 
 void encode_bc1_image(const uint8_t* rgba, Bc1Method method, uint8_t* out_blocks) {
+  uint8_t block[64], previous[64];
+  const uint8_t* previous_out = nullptr;
   for (int by = 0; by < kTexelBlocks; ++by)
     for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      uint8_t block[64];
       for (int r = 0; r < 4; ++r)
         for (int b = 0; b < 16; ++b) block[r * 16 + b] = rgba[size_t((by * 4 + r) * kTexels + bx * 4) * 4 + size_t(b)];
-      encode_bc1_block(block, method, out_blocks + size_t(by * kTexelBlocks + bx) * 8);
+      uint8_t* out = out_blocks + size_t(by * kTexelBlocks + bx) * 8;
+      // A repeated block (flat colour) takes the previous one's bytes: the encoder is a function
+      // of the block alone.
+      if (previous_out && std::memcmp(block, previous, sizeof block) == 0) {
+        std::memcpy(out, previous_out, 8);
+        continue;
+      }
+      encode_bc1_block(block, method, out);
+      std::memcpy(previous, block, sizeof block);
+      previous_out = out;
     }
 }
 
