@@ -5,9 +5,12 @@
 // with BC1 punch-through), stb_dxt (fast, 4-colour only) and ours (bc1_encoder.cpp, bc4_encoder.cpp). Every BC1
 // block is verified after encoding: a texel decodes transparent exactly when it is a hole.
 #pragma once
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 #include "terrain/bc_decode.h"
+#include "terrain/format.h"
 
 namespace terrain::cook {
 
@@ -110,5 +113,27 @@ bool bc1_simd_compiled();
 void encode_bc1_opaque_scalar(const uint8_t rgba[64], uint8_t out[8], const Bc1OpaqueEffort& effort);
 void encode_bc1_weighted_scalar(const uint8_t rgba[64], const float weights[3], uint8_t out[8]);
 bool encode_bc1_g_only_scalar(const uint8_t rgba[64], uint8_t out[8], int iterations = 1);
+
+// The 33 x 33 blocks of a 132 x 132 RGBA8 image in stream order, each through encode(block, out)
+// into `block_bytes` bytes; a block equal to the one before it takes that block's bytes without
+// encoding (the encoders are functions of the block alone; flat ground, the sea, repeats its
+// blocks). encode_bc1_image and encode_bc3_image.
+template <class Encode>
+void encode_image_blocks(const uint8_t* rgba, size_t block_bytes, uint8_t* out_blocks, Encode&& encode) {
+  uint8_t block[64], previous[64];
+  const uint8_t* previous_out = nullptr;
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      for (int r = 0; r < 4; ++r) std::memcpy(block + r * 16, rgba + (size_t((by * 4 + r) * kTexels + bx * 4)) * 4, 16);
+      uint8_t* out = out_blocks + size_t(by * kTexelBlocks + bx) * block_bytes;
+      if (previous_out && std::memcmp(block, previous, sizeof block) == 0) {
+        std::memcpy(out, previous_out, block_bytes);
+        continue;
+      }
+      encode(block, out);
+      std::memcpy(previous, block, sizeof block);
+      previous_out = out;
+    }
+}
 
 }  // namespace terrain::cook

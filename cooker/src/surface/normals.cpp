@@ -152,22 +152,8 @@ void unpack_normal(const uint8_t rgba[4], float n[3]) {
 }
 
 void encode_bc3_image(const uint8_t* rgba, Bc3Method method, uint8_t* out_blocks) {
-  uint8_t block[64], previous[64];
-  const uint8_t* previous_out = nullptr;
-  for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      for (int r = 0; r < 4; ++r)
-        std::copy_n(rgba + (size_t((by * 4 + r) * kTexels + bx * 4)) * 4, 16, block + r * 16);
-      uint8_t* out = out_blocks + size_t(by * kTexelBlocks + bx) * 16;
-      // Flat ground (the sea) repeats its block: the encoder is a function of the block alone.
-      if (previous_out && std::memcmp(block, previous, sizeof block) == 0) {
-        std::memcpy(out, previous_out, 16);
-        continue;
-      }
-      encode_bc3_block(block, method, out);
-      std::memcpy(previous, block, sizeof block);
-      previous_out = out;
-    }
+  encode_image_blocks(rgba, 16, out_blocks,
+                      [method](const uint8_t* block, uint8_t* out) { encode_bc3_block(block, method, out); });
 }
 
 AngleStats normal_error(const NormalTexels& ref, const uint8_t* bc3_blocks) {

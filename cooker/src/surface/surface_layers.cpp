@@ -45,23 +45,8 @@ Bc3Method normals_method(BcQuality q) {
 }
 
 void encode_bc1_image(const uint8_t* rgba, Bc1Method method, uint8_t* out_blocks) {
-  uint8_t block[64], previous[64];
-  const uint8_t* previous_out = nullptr;
-  for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      for (int r = 0; r < 4; ++r)
-        for (int b = 0; b < 16; ++b) block[r * 16 + b] = rgba[size_t((by * 4 + r) * kTexels + bx * 4) * 4 + size_t(b)];
-      uint8_t* out = out_blocks + size_t(by * kTexelBlocks + bx) * 8;
-      // A repeated block (flat colour) takes the previous one's bytes: the encoder is a function
-      // of the block alone.
-      if (previous_out && std::memcmp(block, previous, sizeof block) == 0) {
-        std::memcpy(out, previous_out, 8);
-        continue;
-      }
-      encode_bc1_block(block, method, out);
-      std::memcpy(previous, block, sizeof block);
-      previous_out = out;
-    }
+  encode_image_blocks(rgba, 8, out_blocks,
+                      [method](const uint8_t* block, uint8_t* out) { encode_bc1_block(block, method, out); });
 }
 
 AlbedoCheck check_albedo(const uint8_t* rgba, const uint8_t* bc1_blocks) {
