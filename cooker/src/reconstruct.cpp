@@ -76,36 +76,71 @@ TERRAIN_AVX2_CLONES void run_axes(const double* __restrict cols, const double* _
 }
 #undef TERRAIN_STORE4
 
+// The interior 16-tap sums of a run: per point, the four rows' horizontal sums in the lanes of one
+// register (lane j: x0 p0 + x1 p1 + x2 p2 + x3 p3 of row j, the scalar order), then the vertical
+// sum over the lanes in order from +0. Consecutive points in one source cell (sources coarser than
+// the vertices) reuse its taps, already widened and transposed. Points outside the interior are
+// marked 2 in `done` for the general path; 1 = h written (a NaN sum included, see the caller).
+TERRAIN_AVX2_CLONES void interior_sums(const RunAxes& a, int m, const float* z, ptrdiff_t stride, int c0, int r0,
+                                       int width, int height, double* h, uint8_t* done) {
+  typedef float V4f __attribute__((vector_size(16)));
+  V4d col[4] = {};
+  int cell_c = -1 << 30, cell_r = -1 << 30;
+  for (int k = 0; k < m; ++k) {
+    const int ic = a.i[0][k], ir = a.i[1][k];
+    if (!a.in[k] || !(ic >= 1 && ir >= 1 && ic + 2 < width && ir + 2 < height)) {
+      done[k] = 2;
+      continue;
+    }
+    if (ic != cell_c || ir != cell_r) {
+      const float* p = z + ptrdiff_t(ir - 1 - r0) * stride + ptrdiff_t(ic - 1 - c0);
+      V4d row[4];
+      for (int j = 0; j < 4; ++j) {
+        V4f f;
+        std::memcpy(&f, p + j * stride, sizeof f);
+        row[j] = __builtin_convertvector(f, V4d);
+      }
+      // Transpose: col[i] lane j = tap i of row j.
+      const V4d t0 = __builtin_shufflevector(row[0], row[1], 0, 4, 2, 6), t1 = __builtin_shufflevector(row[0], row[1], 1, 5, 3, 7);
+      const V4d t2 = __builtin_shufflevector(row[2], row[3], 0, 4, 2, 6), t3 = __builtin_shufflevector(row[2], row[3], 1, 5, 3, 7);
+      col[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+      col[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+      col[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+      col[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+      cell_c = ic;
+      cell_r = ir;
+    }
+    const double x0 = a.w[0][0][k], x1 = a.w[0][1][k], x2 = a.w[0][2][k], x3 = a.w[0][3][k];
+    const V4d r = ((x0 * col[0] + x1 * col[1]) + x2 * col[2]) + x3 * col[3];
+    double sum = 0;
+    for (int j = 0; j < 4; ++j) sum += a.w[1][j][k] * r[j];
+    h[k] = sum;
+    done[k] = 1;
+  }
+}
+
 }  // namespace
 
 void Surface::sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const {
   RunAxes a;
+  uint8_t done[kRun];
   for (int k0 = 0; k0 < n; k0 += kRun) {
     const int m = std::min(kRun, n - k0);
     run_axes(cols + k0, rows + k0, m, w_, h_, a);
+    interior_sums(a, m, z_, stride_, c0_, r0_, w_, h_, h + k0, done);
     for (int k = 0; k < m; ++k) {
       if (!a.in[k]) {
         ok[k0 + k] = 0;
         continue;
       }
-      const int ic = a.i[0][k], ir = a.i[1][k];
-      if (ic >= 1 && ir >= 1 && ic + 2 < w_ && ir + 2 < h_) {
-        // sample()'s interior sum, term for term (four points a lane each measured no faster:
-        // the 16 loads per point are the cost).
-        const double x0 = a.w[0][0][k], x1 = a.w[0][1][k], x2 = a.w[0][2][k], x3 = a.w[0][3][k];
-        const float* p = at(ic - 1, ir - 1);
-        double sum = 0;
-        for (int j = 0; j < 4; ++j, p += stride_) sum += a.w[1][j][k] * (x0 * p[0] + x1 * p[1] + x2 * p[2] + x3 * p[3]);
-        if (!std::isnan(sum)) {
-          h[k0 + k] = sum;
-          ok[k0 + k] = 1;
-          continue;
-        }
+      if (done[k] == 1 && !std::isnan(h[k0 + k])) {
+        ok[k0 + k] = 1;
+        continue;
       }
       Axis x, y;  // edges and nodata taps: sample()'s general path
       x.in = y.in = true;
-      x.i = ic;
-      y.i = ir;
+      x.i = a.i[0][k];
+      y.i = a.i[1][k];
       x.t = a.t[0][k];
       y.t = a.t[1][k];
       for (int j = 0; j < 4; ++j) x.w[j] = a.w[0][j][k], y.w[j] = a.w[1][j][k];

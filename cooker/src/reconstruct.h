@@ -114,7 +114,8 @@ class Surface {
   }
   // Heights of n points (cols[k], rows[k]) at once, each with the bits sample() gives it; ok[k] = 0
   // where sample() returns false. Points whose rows and columns follow no grid (sources mapped
-  // through the anchors): the axes of a whole run in loops that vectorise, then the 16-tap sums.
+  // through the anchors): the axes of a whole run in loops that vectorise, then the 16-tap sums
+  // with the four rows in vector lanes, a source cell's taps reused by the points that share it.
   void sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const;
 
   // Whether every sample of columns c0..c1, rows r0..r1 is inside the raster and the window and is

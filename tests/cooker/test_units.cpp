@@ -318,6 +318,34 @@ TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
   EXPECT_GT(points, 30000);
   EXPECT_GT(holes, 3000);
   EXPECT_GT(general, 2000);
+  // Vertices denser than the source (lines of points 0.02-0.4 samples apart, in any direction):
+  // consecutive points share a source cell, whose widened taps sample_points reuses.
+  std::uniform_real_distribution<double> step(0.02, 0.4), angle(0.0, 6.2832);
+  int shared = 0;
+  for (int run = 0; run < 300; ++run) {
+    const int n = len(rng);
+    const double a = angle(rng), d = step(rng);
+    double c = u(rng), w = u(rng) * 29.0 / 37.0;
+    std::vector<double> cols, rows;
+    for (int k = 0; k < n; ++k, c += d * std::cos(a), w += d * std::sin(a)) {
+      cols.push_back(c);
+      rows.push_back(w);
+    }
+    std::vector<double> h(cols.size(), -1.0);
+    std::vector<uint8_t> ok(cols.size(), 7);
+    s.sample_points(cols.data(), rows.data(), n, h.data(), ok.data());
+    for (int k = 0; k < n; ++k) {
+      double want = 0;
+      const bool want_ok = s.sample(cols[size_t(k)], rows[size_t(k)], want);
+      ASSERT_EQ(ok[size_t(k)], want_ok ? 1 : 0) << "point " << k;
+      if (want_ok) {
+        ASSERT_EQ(std::memcmp(&want, &h[size_t(k)], sizeof want), 0) << cols[size_t(k)] << ", " << rows[size_t(k)];
+      }
+      shared += k > 0 && std::floor(cols[size_t(k)]) == std::floor(cols[size_t(k) - 1]) &&
+                std::floor(rows[size_t(k)]) == std::floor(rows[size_t(k) - 1]);
+    }
+  }
+  EXPECT_GT(shared, 5000);
 }
 
 // Zero ground (the sea of SRTM tiles): compute_window writes +0 for mapped rows whose points all
