@@ -1,7 +1,7 @@
 // Rate-distortion pass over encoded BC blocks (see bc_rdo.h).
 //
 // Blocks are visited in stream order. For each block half the candidates are the final halves of
-// the blocks of the last two block rows: zstd finds those bytes within its window and stores a
+// the blocks of the last four block rows: zstd finds those bytes within its window and stores a
 // match of a few bytes instead of 8 literals. The source nearest by absolute difference (one SAD
 // instruction per 16 values) is the one tried; its squared error decides. An alpha half may also
 // take an earlier block's index bits with endpoints refitted to them (least squares), so only the
@@ -13,6 +13,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <climits>
+#include <cstddef>
 #include <cstring>
 
 #if defined(__SSE2__)
@@ -30,11 +32,13 @@ constexpr int kBlocksX = kTexelBlocks;
 constexpr int kBlockBytes = 16;
 // Expected stored bytes of a match (offset and length codes): an estimate, not a measurement.
 constexpr float kMatchBytes = 3.0f;
-// Sources: the 66 blocks before this one (two block rows). On the 1 m lidar-like square at lambda
-// 32, tolerance 0.1 (an earlier form that tried every source by squared error, without the ring
-// rule): 36 blocks gave 0.72x the normal bytes at +0.41 degrees, 66 0.66x at +0.48, 100 0.63x at
-// +0.53; each source costs a few ns per block.
-constexpr int kWindowBlocks = 2 * kBlocksX;
+// Normal sources: the 132 blocks before this one (four block rows). On the 1 m lidar-like 8 km
+// square, default tolerance, normal + albedo bytes at +0.5 degrees mean normal error
+// (interpolated between lambdas 32..36): 66 blocks 0.697x, 99 0.691x, 132 0.687x, 264 0.680x; the
+// scan over 132 costs about 0.2 ms per node.
+constexpr int kWindowBlocks = 4 * kBlocksX;
+// Albedo sources: two block rows (33 blocks stored 611.7 KB, 66 606.0, 132 604.9 on that square).
+constexpr int kAlbedoWindowBlocks = 2 * kBlocksX;
 // Albedo: the share by which the pass may raise a node's squared colour error (0.41 dB of PSNR).
 constexpr double kAlbedoBudget = 0.1;
 
@@ -145,6 +149,102 @@ void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
   d.rb = colour_rb_bits(block + 8);
 }
 
+// The sources a block half may take, found among the kWindowBlocks blocks before block b: the
+// nearest x and y halves by absolute difference (a y half only from a block with the same R and B
+// bits) and, for an 8-value alpha block, the two blocks whose index positions are nearest. Each
+// search orders candidates by (distance, how far back), so ties go to the most recent block; a
+// key (distance << 11 | back) makes that one integer minimum, 4 candidates at a time with SSE2.
+struct SourceScan {
+  int whole_x = -1, whole_y = -1;
+  int near[2] = {-1, -1};
+};
+constexpr int kBackBits = 11;  // back <= 33 * 33
+static_assert((kBlocksX * kBlocksX) < (1 << kBackBits));
+constexpr int32_t kNoKey = INT32_MAX;
+
+inline void keep_two_least(int32_t key, int32_t& k0, int32_t& k1) {
+  if (key < k1) {
+    if (key < k0)
+      k1 = k0, k0 = key;
+    else
+      k1 = key;
+  }
+}
+
+SourceScan scan_sources(const DecodedBlock* dec, int b, const uint8_t x[16], const uint8_t y[16],
+                        const DecodedBlock& mine, uint32_t own_rb, bool own_eight) {
+  int32_t kx = kNoKey, ky = kNoKey, kp0 = kNoKey, kp1 = kNoKey;
+  const int window = std::min(kWindowBlocks, b);
+  int back = 1;
+#if defined(__SSE2__)
+  const auto min32 = [](__m128i a, __m128i c) {
+    const __m128i m = _mm_cmpgt_epi32(a, c);
+    return _mm_or_si128(_mm_and_si128(m, c), _mm_andnot_si128(m, a));
+  };
+  const auto max32 = [](__m128i a, __m128i c) {
+    const __m128i m = _mm_cmpgt_epi32(a, c);
+    return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, c));
+  };
+  // Sums of absolute differences of one 16-byte field of 4 blocks against `own`, one per lane.
+  const auto sad4 = [](const DecodedBlock* d, size_t offset, __m128i own) {
+    __m128i t[4];
+    for (int i = 0; i < 4; ++i)
+      t[i] = _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(reinterpret_cast<const uint8_t*>(d + i) + offset)), own);
+    const __m128i u01 = _mm_add_epi32(_mm_unpacklo_epi64(t[0], t[1]), _mm_unpackhi_epi64(t[0], t[1]));
+    const __m128i u23 = _mm_add_epi32(_mm_unpacklo_epi64(t[2], t[3]), _mm_unpackhi_epi64(t[2], t[3]));
+    return _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(u01), _mm_castsi128_ps(u23), _MM_SHUFFLE(2, 0, 2, 0)));
+  };
+  const __m128i ox = _mm_loadu_si128(reinterpret_cast<const __m128i*>(x));
+  const __m128i oy = _mm_loadu_si128(reinterpret_cast<const __m128i*>(y));
+  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mine.pos));
+  const __m128i none = _mm_set1_epi32(kNoKey), rb = _mm_set1_epi32(int32_t(own_rb));
+  __m128i vx = none, vy = none, vp0 = none, vp1 = none;
+  // Lane i of a group holds block b - back - 3 + i, i.e. back + 3 - i.
+  for (; back + 3 <= window; back += 4) {
+    const DecodedBlock* d = dec + (b - back - 3);
+    const __m128i backs = _mm_setr_epi32(back + 3, back + 2, back + 1, back);
+    vx = min32(vx, _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, x), ox), kBackBits), backs));
+    const __m128i same_rb = _mm_cmpeq_epi32(
+        _mm_setr_epi32(int32_t(d[0].rb), int32_t(d[1].rb), int32_t(d[2].rb), int32_t(d[3].rb)), rb);
+    const __m128i key_y = _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, y), oy), kBackBits), backs);
+    vy = min32(vy, _mm_or_si128(_mm_and_si128(same_rb, key_y), _mm_andnot_si128(same_rb, none)));
+    if (own_eight) {
+      const __m128i eight = _mm_setr_epi32(-int32_t(d[0].pos[0] != 255), -int32_t(d[1].pos[0] != 255),
+                                           -int32_t(d[2].pos[0] != 255), -int32_t(d[3].pos[0] != 255));
+      const __m128i key_p = _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, pos), op), kBackBits), backs);
+      const __m128i kp = _mm_or_si128(_mm_and_si128(eight, key_p), _mm_andnot_si128(eight, none));
+      vp1 = min32(vp1, max32(vp0, kp));
+      vp0 = min32(vp0, kp);
+    }
+  }
+  alignas(16) int32_t lx[4], ly[4], lp0[4], lp1[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(lx), vx);
+  _mm_store_si128(reinterpret_cast<__m128i*>(ly), vy);
+  _mm_store_si128(reinterpret_cast<__m128i*>(lp0), vp0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(lp1), vp1);
+  for (int i = 0; i < 4; ++i) {
+    kx = std::min(kx, lx[i]);
+    ky = std::min(ky, ly[i]);
+    keep_two_least(lp0[i], kp0, kp1);
+    keep_two_least(lp1[i], kp0, kp1);
+  }
+#endif
+  for (; back <= window; ++back) {
+    const DecodedBlock& d = dec[b - back];
+    kx = std::min(kx, int32_t((sad16(d.x, x) << kBackBits) | back));
+    if (d.rb == own_rb) ky = std::min(ky, int32_t((sad16(d.y, y) << kBackBits) | back));
+    if (own_eight && d.pos[0] != 255)
+      keep_two_least(int32_t((sad16(d.pos, mine.pos) << kBackBits) | back), kp0, kp1);
+  }
+  const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
+  SourceScan s;
+  s.whole_x = source(kx);
+  s.whole_y = source(ky);
+  s.near[0] = source(kp0);
+  s.near[1] = source(kp1);
+  return s;
+}
+
 }  // namespace
 
 void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts) {
@@ -170,47 +270,23 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       ++n.blocks;
       // Costs J = squared error + lambda * expected stored bytes; the own halves are 8 literals each.
       const int own_ea = sse16(mine.x, x), own_ec = sse16(mine.y, y);
-      float best_ja = float(own_ea) + lambda * 8.0f;
-      const float copy_gain = lambda * (8.0f - kMatchBytes);
-      // A whole-half copy must keep its squared error under own + copy_gain.
-      int lim_a = int(std::ceil(float(own_ea) + copy_gain)), lim_c = int(std::ceil(float(own_ec) + copy_gain));
-      int from_a = -1, from_c = -1;  // whole-half sources
-      int sad_a = 1 << 30, sad_c = 1 << 30;
       const uint32_t own_rb = colour_rb_bits(own + 8);
-      // Index sources: the two whose positions are nearest own (L1), refitted below.
-      int near[2] = {-1, -1}, near_d[2] = {1 << 30, 1 << 30};
       const bool own_eight = own[0] > own[1];
-      for (int back = 1; back <= kWindowBlocks && back <= b; ++back) {
-        const int c = b - back;
-        const DecodedBlock& d = dec[c];
-        // Whole halves: the nearest by absolute difference (one instruction); the squared error of
-        // that one decides below.
-        const int da = sad16(d.x, x), dc = sad16(d.y, y);
-        if (da < sad_a) sad_a = da, from_a = c;
-        if (dc < sad_c && d.rb == own_rb) sad_c = dc, from_c = c;
-        if (own_eight && d.pos[0] != 255) {
-          const int dist = sad16(d.pos, mine.pos);
-          if (dist < near_d[1]) {
-            if (dist < near_d[0]) {
-              near[1] = near[0], near_d[1] = near_d[0];
-              near[0] = c, near_d[0] = dist;
-            } else {
-              near[1] = c, near_d[1] = dist;
-            }
-          }
-        }
-      }
+      const SourceScan scan = scan_sources(dec, b, x, y, mine, own_rb, own_eight);
+      const int from_a = scan.whole_x, from_c = scan.whole_y;
+      // Index sources: the two whose positions are nearest own (L1), refitted below.
+      const int near[2] = {scan.near[0], scan.near[1]};
+      // Alpha half: own, the nearest whole earlier half, or own refitted endpoints with an earlier
+      // block's index bits.
+      float best_ja = float(own_ea) + lambda * 8.0f;
+      int src_a = -1;
       if (from_a >= 0) {
-        const int e = sse16(dec[from_a].x, x);
-        if (e < lim_a)
-          best_ja = float(e) + lambda * kMatchBytes;
-        else
-          from_a = -1;
+        const float j = float(sse16(dec[from_a].x, x)) + lambda * kMatchBytes;
+        if (j < best_ja) best_ja = j, src_a = from_a;
       }
-      if (from_c >= 0 && !(sse16(dec[from_c].y, y) < lim_c)) from_c = -1;
       uint8_t best_a[8];
-      std::memcpy(best_a, from_a >= 0 ? blocks + size_t(from_a) * kBlockBytes : own, 8);
-      bool index_copy = false;
+      std::memcpy(best_a, src_a >= 0 ? blocks + size_t(src_a) * kBlockBytes : own, 8);
+      int index_src = -1;
       for (int c : near) {
         if (c < 0) continue;
         const uint8_t* cand = blocks + size_t(c) * kBlockBytes;
@@ -223,14 +299,19 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           best_a[0] = uint8_t(a0);
           best_a[1] = uint8_t(a1);
           std::memcpy(best_a + 2, cand + 2, 6);
-          index_copy = true;
+          index_src = c;
         }
       }
       std::memcpy(own, best_a, 8);
-      if (from_c >= 0) std::memcpy(own + 8, blocks + size_t(from_c) * kBlockBytes + 8, 8);
-      if (index_copy || from_a >= 0 || from_c >= 0) decode_for_rdo(own, mine);
-      n.half_copies += uint64_t(!index_copy && from_a >= 0) + uint64_t(from_c >= 0);
-      n.index_copies += uint64_t(index_copy);
+      // Colour half: own, or the nearest whole earlier half with the same R and B bits (the AO
+      // stays exact).
+      const float best_jc = float(own_ec) + lambda * 8.0f;
+      int src_c = -1;
+      if (from_c >= 0 && float(sse16(dec[from_c].y, y)) + lambda * kMatchBytes < best_jc) src_c = from_c;
+      if (src_c >= 0) std::memcpy(own + 8, blocks + size_t(src_c) * kBlockBytes + 8, 8);
+      if (index_src >= 0 || src_a >= 0 || src_c >= 0) decode_for_rdo(own, mine);
+      n.half_copies += uint64_t(index_src < 0 && src_a >= 0) + uint64_t(src_c >= 0);
+      n.index_copies += uint64_t(index_src >= 0);
     }
   if (counts) {
     counts->blocks += n.blocks;
@@ -299,9 +380,9 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
   // The node's squared error may grow by kAlbedoBudget of the plain encoding's in all: its PSNR
   // drops by at most 10 log10(1 + kAlbedoBudget) dB however large lambda is.
   int64_t budget = int64_t(std::floor(double(total) * kAlbedoBudget));
-  int64_t blocks_left = int64_t(kBlocksX - 2) * (kBlocksX - 2);
-  for (int by = 1; by < kBlocksX - 1; ++by)
-    for (int bx = 1; bx < kBlocksX - 1; ++bx) {
+  for (int by = 0; by < kBlocksX; ++by)
+    for (int bx = 0; bx < kBlocksX; ++bx) {
+      if (!inner(bx, by)) continue;
       const int b = by * kBlocksX + bx;
       uint8_t* own = blocks + size_t(b) * kBytes;
       DecodedColour& mine = dec[b];
@@ -310,7 +391,7 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       const int own_e = plain_sse[b];
       int from = -1, best_sad = 1 << 30;
       int near = -1, near_d = 1 << 30;
-      for (int back = 1; back <= kWindowBlocks && back <= b; ++back) {
+      for (int back = 1; back <= kAlbedoWindowBlocks && back <= b; ++back) {
         const int c = b - back;
         const DecodedColour& d = dec[c];
         if (d.holes != mine.holes) continue;
@@ -321,11 +402,9 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           if (dist < near_d) near_d = dist, near = c;
         }
       }
-      // Options: own (8 literals), the source nearest by absolute difference (a match), own
-      // endpoints with the nearest source's selectors (4 literals and a match); the least cost
-      // among those within the remaining budget.
-      // This block's share of what is left (unused shares roll over to the blocks after it).
-      const int64_t allowance = budget / (blocks_left--);
+      // Options: own (8 literals), an earlier block whole (the nearest by absolute difference, or
+      // one at a repeat distance), own endpoints with the nearest source's selectors (4 literals
+      // and a match); the least cost among those the remaining budget allows.
       float best_j = float(own_e) + lambda * 8.0f;
       int best_e = own_e;
       uint8_t best[8];
@@ -333,9 +412,14 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       int kind = 0;
       const auto consider = [&](const uint8_t* cand, int e, float bytes, int k) {
         const float j = float(e) + lambda * bytes;
-        if (j < best_j && e - own_e <= allowance) best_j = j, best_e = e, std::memcpy(best, cand, 8), kind = k;
+        if (j < best_j && e - own_e <= budget)
+          best_j = j, best_e = e, std::memcpy(best, cand, 8), kind = k;
       };
-      if (from >= 0) consider(blocks + size_t(from) * kBytes, sse48(dec[from].rgb, ref), kMatchBytes, 1);
+      const auto whole = [&](int c) {
+        if (c >= 0 && c < b && dec[c].holes == mine.holes)
+          consider(blocks + size_t(c) * kBytes, sse48(dec[c].rgb, ref), kMatchBytes, 1);
+      };
+      whole(from);
       if (near >= 0) {
         uint8_t trial[8];
         std::memcpy(trial, own, 4);

@@ -25,8 +25,8 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
 // Albedo (BC1 blocks of a 132x132 RGBA8 image, alpha < 128 = hole): a block is taken whole from an
 // earlier block with the same transparency mask, or (4-colour blocks) keeps its endpoints and takes
 // an earlier block's selectors, against the squared RGB error of its texels with data; the hole
-// texels stay exactly transparent. The image's squared error grows by at most 10 % in all (each
-// block may spend its share of what is left), so its PSNR drops by at most 0.41 dB.
+// texels stay exactly transparent. The image's squared error grows by at most 10 % in all (a block
+// may spend whatever is left, in stream order), so its PSNR drops by at most 0.41 dB.
 void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts = nullptr);
 
 }  // namespace terrain::cook
