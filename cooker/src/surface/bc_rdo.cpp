@@ -129,6 +129,13 @@ struct DecodedBlock {
   uint8_t x[16], y[16], pos[16];
   uint32_t rb = 0;  // colour_rb_bits of the colour half
 };
+// A node's blocks as decoded so far, with the two per-block facts the source scan compares held in
+// their own arrays (4 consecutive blocks are one load).
+struct DecodedNormals {
+  DecodedBlock block[kBlocksX * kBlocksX];
+  int32_t rb[kBlocksX * kBlocksX];     // colour_rb_bits
+  int32_t eight[kBlocksX * kBlocksX];  // -1 for an 8-value alpha block, else 0
+};
 
 void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
   int p[8];
@@ -147,6 +154,12 @@ void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
   std::memcpy(&sel, block + 12, 4);
   for (int i = 0; i < 16; ++i) d.y[i] = uint8_t(g[(sel >> (2 * i)) & 3]);
   d.rb = colour_rb_bits(block + 8);
+}
+
+void decode_for_rdo(const uint8_t* block, DecodedNormals& image, int b) {
+  decode_for_rdo(block, image.block[b]);
+  image.rb[b] = int32_t(image.block[b].rb);
+  image.eight[b] = image.block[b].pos[0] != 255 ? -1 : 0;
 }
 
 // The sources a block half may take, found among the kWindowBlocks blocks before block b: the
@@ -171,29 +184,40 @@ inline void keep_two_least(int32_t key, int32_t& k0, int32_t& k1) {
   }
 }
 
-SourceScan scan_sources(const DecodedBlock* dec, int b, const uint8_t x[16], const uint8_t y[16],
-                        const DecodedBlock& mine, uint32_t own_rb, bool own_eight) {
+#if defined(__SSE2__)
+inline __m128i min32(__m128i a, __m128i c) {
+  const __m128i m = _mm_cmpgt_epi32(a, c);
+  return _mm_or_si128(_mm_and_si128(m, c), _mm_andnot_si128(m, a));
+}
+inline __m128i max32(__m128i a, __m128i c) {
+  const __m128i m = _mm_cmpgt_epi32(a, c);
+  return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, c));
+}
+// Sums of absolute differences of 16 bytes at `first`, first + stride, + 2 stride and + 3 stride
+// against `own`, one per 32-bit lane.
+inline __m128i sad4(const uint8_t* first, size_t stride, __m128i own) {
+  __m128i t[4];
+  for (size_t i = 0; i < 4; ++i)
+    t[i] = _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(first + i * stride)), own);
+  const __m128i u01 = _mm_add_epi32(_mm_unpacklo_epi64(t[0], t[1]), _mm_unpackhi_epi64(t[0], t[1]));
+  const __m128i u23 = _mm_add_epi32(_mm_unpacklo_epi64(t[2], t[3]), _mm_unpackhi_epi64(t[2], t[3]));
+  return _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(u01), _mm_castsi128_ps(u23), _MM_SHUFFLE(2, 0, 2, 0)));
+}
+// Candidate keys (sums << kBackBits | backs) where `valid`, kNoKey elsewhere.
+inline __m128i keys4(__m128i sums, __m128i backs, __m128i valid) {
+  const __m128i key = _mm_or_si128(_mm_slli_epi32(sums, kBackBits), backs);
+  return _mm_or_si128(_mm_and_si128(valid, key), _mm_andnot_si128(valid, _mm_set1_epi32(kNoKey)));
+}
+#endif
+
+SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16], const uint8_t y[16],
+                        uint32_t own_rb, bool own_eight) {
+  const DecodedBlock* dec = image.block;
+  const DecodedBlock& mine = dec[b];
   int32_t kx = kNoKey, ky = kNoKey, kp0 = kNoKey, kp1 = kNoKey;
   const int window = std::min(kWindowBlocks, b);
   int back = 1;
 #if defined(__SSE2__)
-  const auto min32 = [](__m128i a, __m128i c) {
-    const __m128i m = _mm_cmpgt_epi32(a, c);
-    return _mm_or_si128(_mm_and_si128(m, c), _mm_andnot_si128(m, a));
-  };
-  const auto max32 = [](__m128i a, __m128i c) {
-    const __m128i m = _mm_cmpgt_epi32(a, c);
-    return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, c));
-  };
-  // Sums of absolute differences of one 16-byte field of 4 blocks against `own`, one per lane.
-  const auto sad4 = [](const DecodedBlock* d, size_t offset, __m128i own) {
-    __m128i t[4];
-    for (int i = 0; i < 4; ++i)
-      t[i] = _mm_sad_epu8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(reinterpret_cast<const uint8_t*>(d + i) + offset)), own);
-    const __m128i u01 = _mm_add_epi32(_mm_unpacklo_epi64(t[0], t[1]), _mm_unpackhi_epi64(t[0], t[1]));
-    const __m128i u23 = _mm_add_epi32(_mm_unpacklo_epi64(t[2], t[3]), _mm_unpackhi_epi64(t[2], t[3]));
-    return _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(u01), _mm_castsi128_ps(u23), _MM_SHUFFLE(2, 0, 2, 0)));
-  };
   const __m128i ox = _mm_loadu_si128(reinterpret_cast<const __m128i*>(x));
   const __m128i oy = _mm_loadu_si128(reinterpret_cast<const __m128i*>(y));
   const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mine.pos));
@@ -203,16 +227,14 @@ SourceScan scan_sources(const DecodedBlock* dec, int b, const uint8_t x[16], con
   for (; back + 3 <= window; back += 4) {
     const DecodedBlock* d = dec + (b - back - 3);
     const __m128i backs = _mm_setr_epi32(back + 3, back + 2, back + 1, back);
-    vx = min32(vx, _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, x), ox), kBackBits), backs));
-    const __m128i same_rb = _mm_cmpeq_epi32(
-        _mm_setr_epi32(int32_t(d[0].rb), int32_t(d[1].rb), int32_t(d[2].rb), int32_t(d[3].rb)), rb);
-    const __m128i key_y = _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, y), oy), kBackBits), backs);
-    vy = min32(vy, _mm_or_si128(_mm_and_si128(same_rb, key_y), _mm_andnot_si128(same_rb, none)));
+    const uint8_t* first = reinterpret_cast<const uint8_t*>(d);
+    vx = min32(vx, _mm_or_si128(_mm_slli_epi32(sad4(first + offsetof(DecodedBlock, x), sizeof(DecodedBlock), ox), kBackBits), backs));
+    const __m128i same_rb =
+        _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(image.rb + (b - back - 3))), rb);
+    vy = min32(vy, keys4(sad4(first + offsetof(DecodedBlock, y), sizeof(DecodedBlock), oy), backs, same_rb));
     if (own_eight) {
-      const __m128i eight = _mm_setr_epi32(-int32_t(d[0].pos[0] != 255), -int32_t(d[1].pos[0] != 255),
-                                           -int32_t(d[2].pos[0] != 255), -int32_t(d[3].pos[0] != 255));
-      const __m128i key_p = _mm_or_si128(_mm_slli_epi32(sad4(d, offsetof(DecodedBlock, pos), op), kBackBits), backs);
-      const __m128i kp = _mm_or_si128(_mm_and_si128(eight, key_p), _mm_andnot_si128(eight, none));
+      const __m128i eight = _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.eight + (b - back - 3)));
+      const __m128i kp = keys4(sad4(first + offsetof(DecodedBlock, pos), sizeof(DecodedBlock), op), backs, eight);
       vp1 = min32(vp1, max32(vp0, kp));
       vp0 = min32(vp0, kp);
     }
@@ -250,7 +272,8 @@ SourceScan scan_sources(const DecodedBlock* dec, int b, const uint8_t x[16], con
 void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts) {
   if (!(lambda > 0)) return;
   RdoCounts n;
-  static thread_local DecodedBlock dec[kBlocksX * kBlocksX];
+  static thread_local DecodedNormals image;
+  DecodedBlock* dec = image.block;
   for (int by = 0; by < kBlocksX; ++by)
     for (int bx = 0; bx < kBlocksX; ++bx) {
       const int b = by * kBlocksX + bx;
@@ -263,7 +286,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           y[r * 4 + c] = t[1];
         }
       DecodedBlock& mine = dec[b];
-      decode_for_rdo(own, mine);
+      decode_for_rdo(own, image, b);
       // The outer ring of blocks is also the neighbours' (texels 128..131 of a node are texels
       // 0..3 of the next, SPEC 16.2): it stays as encoded so both nodes keep the same bytes there.
       if (bx == 0 || by == 0 || bx == kBlocksX - 1 || by == kBlocksX - 1) continue;
@@ -272,7 +295,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       const int own_ea = sse16(mine.x, x), own_ec = sse16(mine.y, y);
       const uint32_t own_rb = colour_rb_bits(own + 8);
       const bool own_eight = own[0] > own[1];
-      const SourceScan scan = scan_sources(dec, b, x, y, mine, own_rb, own_eight);
+      const SourceScan scan = scan_sources(image, b, x, y, own_rb, own_eight);
       const int from_a = scan.whole_x, from_c = scan.whole_y;
       // Index sources: the two whose positions are nearest own (L1), refitted below.
       const int near[2] = {scan.near[0], scan.near[1]};
@@ -287,13 +310,15 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       uint8_t best_a[8];
       std::memcpy(best_a, src_a >= 0 ? blocks + size_t(src_a) * kBlockBytes : own, 8);
       int index_src = -1;
+      // An index copy costs at least lambda * (2 + kMatchBytes): no use trying once the best costs less.
+      const float index_bytes = lambda * (2.0f + kMatchBytes);
       for (int c : near) {
-        if (c < 0) continue;
+        if (c < 0 || !(index_bytes < best_ja)) continue;
         const uint8_t* cand = blocks + size_t(c) * kBlockBytes;
         const uint64_t bits = load48(cand + 2);
         int a0, a1;
         if (!bc4_refit(dec[c].pos, x, a0, a1)) a0 = own[0], a1 = own[1];
-        const float ji = float(bc4_sse(a0, a1, bits, x)) + lambda * (2.0f + kMatchBytes);
+        const float ji = float(bc4_sse(a0, a1, bits, x)) + index_bytes;
         if (ji < best_ja) {
           best_ja = ji;
           best_a[0] = uint8_t(a0);
@@ -309,7 +334,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       int src_c = -1;
       if (from_c >= 0 && float(sse16(dec[from_c].y, y)) + lambda * kMatchBytes < best_jc) src_c = from_c;
       if (src_c >= 0) std::memcpy(own + 8, blocks + size_t(src_c) * kBlockBytes + 8, 8);
-      if (index_src >= 0 || src_a >= 0 || src_c >= 0) decode_for_rdo(own, mine);
+      if (index_src >= 0 || src_a >= 0 || src_c >= 0) decode_for_rdo(own, image, b);
       n.half_copies += uint64_t(index_src < 0 && src_a >= 0) + uint64_t(src_c >= 0);
       n.index_copies += uint64_t(index_src >= 0);
     }
@@ -331,6 +356,13 @@ struct DecodedColour {
   bool four = false;
 };
 
+// The albedo blocks decoded so far, with the hole mask and the 4-colour flag in their own arrays.
+struct DecodedAlbedo {
+  DecodedColour block[kBlocksX * kBlocksX];
+  int32_t holes[kBlocksX * kBlocksX];
+  int32_t four[kBlocksX * kBlocksX];  // -1 for a 4-colour block, else 0
+};
+
 void decode_colour_for_rdo(const uint8_t* block, DecodedColour& d) {
   uint8_t px[64];
   decode_bc1_block(block, px);
@@ -345,8 +377,67 @@ void decode_colour_for_rdo(const uint8_t* block, DecodedColour& d) {
   for (int i = 0; i < 16; ++i) d.pos[i] = kPos[(sel >> (2 * i)) & 3];
 }
 
+void decode_colour_for_rdo(const uint8_t* block, DecodedAlbedo& image, int b) {
+  decode_colour_for_rdo(block, image.block[b]);
+  image.holes[b] = image.block[b].holes;
+  image.four[b] = image.block[b].four ? -1 : 0;
+}
+
 inline int sse48(const uint8_t* a, const uint8_t* b) {
   return sse16(a, b) + sse16(a + 16, b + 16) + sse16(a + 32, b + 32);
+}
+
+// Albedo sources among the kAlbedoWindowBlocks blocks before block b, all with b's hole mask: the
+// nearest whole block by absolute difference of the decoded colours against `ref`, and (for a
+// 4-colour block) the 4-colour block whose selector positions are nearest. Keys and ties as in
+// scan_sources.
+struct ColourScan {
+  int whole = -1, near = -1;
+};
+
+ColourScan scan_colour_sources(const DecodedAlbedo& image, int b, const uint8_t ref[48]) {
+  const DecodedColour& mine = image.block[b];
+  int32_t kw = kNoKey, kn = kNoKey;
+  const int window = std::min(kAlbedoWindowBlocks, b);
+  int back = 1;
+#if defined(__SSE2__)
+  const __m128i r0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref));
+  const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref + 16));
+  const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref + 32));
+  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mine.pos));
+  const __m128i holes = _mm_set1_epi32(image.holes[b]);
+  __m128i vw = _mm_set1_epi32(kNoKey), vn = vw;
+  constexpr size_t kStride = sizeof(DecodedColour);
+  for (; back + 3 <= window; back += 4) {
+    const int base = b - back - 3;
+    const __m128i backs = _mm_setr_epi32(back + 3, back + 2, back + 1, back);
+    const __m128i same = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(image.holes + base)), holes);
+    const uint8_t* rgb = image.block[base].rgb;
+    const __m128i sums = _mm_add_epi32(_mm_add_epi32(sad4(rgb, kStride, r0), sad4(rgb + 16, kStride, r1)),
+                                       sad4(rgb + 32, kStride, r2));
+    vw = min32(vw, keys4(sums, backs, same));
+    if (mine.four) {
+      const __m128i four = _mm_and_si128(same, _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.four + base)));
+      vn = min32(vn, keys4(sad4(image.block[base].pos, kStride, op), backs, four));
+    }
+  }
+  alignas(16) int32_t lw[4], ln[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(lw), vw);
+  _mm_store_si128(reinterpret_cast<__m128i*>(ln), vn);
+  for (int i = 0; i < 4; ++i) {
+    kw = std::min(kw, lw[i]);
+    kn = std::min(kn, ln[i]);
+  }
+#endif
+  for (; back <= window; ++back) {
+    const DecodedColour& d = image.block[b - back];
+    if (d.holes != mine.holes) continue;
+    const int diff = sad16(d.rgb, ref) + sad16(d.rgb + 16, ref + 16) + sad16(d.rgb + 32, ref + 32);
+    kw = std::min(kw, int32_t((diff << kBackBits) | back));
+    if (mine.four && d.four) kn = std::min(kn, int32_t((sad16(d.pos, mine.pos) << kBackBits) | back));
+  }
+  const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
+  return {source(kw), source(kn)};
 }
 
 }  // namespace
@@ -356,7 +447,8 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
   constexpr int kBytes = 8;
   constexpr int kBlocks = kBlocksX * kBlocksX;
   RdoCounts n;
-  static thread_local DecodedColour dec[kBlocks];
+  static thread_local DecodedAlbedo image;
+  DecodedColour* dec = image.block;
   // Reference colours with hole texels at 0 (a source must have the same transparency mask, so
   // those texels decode to 0 on both sides and add nothing), and the plain blocks' squared error.
   static thread_local uint8_t refs[kBlocks][48];
@@ -366,7 +458,7 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
   for (int by = 0; by < kBlocksX; ++by)
     for (int bx = 0; bx < kBlocksX; ++bx) {
       const int b = by * kBlocksX + bx;
-      decode_colour_for_rdo(blocks + size_t(b) * kBytes, dec[b]);
+      decode_colour_for_rdo(blocks + size_t(b) * kBytes, image, b);
       if (!inner(bx, by)) continue;
       uint8_t* ref = refs[b];
       for (int r = 0; r < 4; ++r)
@@ -385,26 +477,13 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       if (!inner(bx, by)) continue;
       const int b = by * kBlocksX + bx;
       uint8_t* own = blocks + size_t(b) * kBytes;
-      DecodedColour& mine = dec[b];
       const uint8_t* ref = refs[b];
       ++n.blocks;
       const int own_e = plain_sse[b];
-      int from = -1, best_sad = 1 << 30;
-      int near = -1, near_d = 1 << 30;
-      for (int back = 1; back <= kAlbedoWindowBlocks && back <= b; ++back) {
-        const int c = b - back;
-        const DecodedColour& d = dec[c];
-        if (d.holes != mine.holes) continue;
-        const int diff = sad16(d.rgb, ref) + sad16(d.rgb + 16, ref + 16) + sad16(d.rgb + 32, ref + 32);
-        if (diff < best_sad) best_sad = diff, from = c;
-        if (mine.four && d.four) {
-          const int dist = sad16(d.pos, mine.pos);
-          if (dist < near_d) near_d = dist, near = c;
-        }
-      }
-      // Options: own (8 literals), an earlier block whole (the nearest by absolute difference, or
-      // one at a repeat distance), own endpoints with the nearest source's selectors (4 literals
-      // and a match); the least cost among those the remaining budget allows.
+      const ColourScan scan = scan_colour_sources(image, b, ref);
+      // Options: own (8 literals), the nearest earlier block whole (a match), own endpoints with
+      // the nearest source's selectors (4 literals and a match); the least cost among those the
+      // remaining budget allows.
       float best_j = float(own_e) + lambda * 8.0f;
       int best_e = own_e;
       uint8_t best[8];
@@ -415,22 +494,19 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
         if (j < best_j && e - own_e <= budget)
           best_j = j, best_e = e, std::memcpy(best, cand, 8), kind = k;
       };
-      const auto whole = [&](int c) {
-        if (c >= 0 && c < b && dec[c].holes == mine.holes)
-          consider(blocks + size_t(c) * kBytes, sse48(dec[c].rgb, ref), kMatchBytes, 1);
-      };
-      whole(from);
-      if (near >= 0) {
+      if (scan.whole >= 0)
+        consider(blocks + size_t(scan.whole) * kBytes, sse48(dec[scan.whole].rgb, ref), kMatchBytes, 1);
+      if (scan.near >= 0) {
         uint8_t trial[8];
         std::memcpy(trial, own, 4);
-        std::memcpy(trial + 4, blocks + size_t(near) * kBytes + 4, 4);
+        std::memcpy(trial + 4, blocks + size_t(scan.near) * kBytes + 4, 4);
         DecodedColour t;
         decode_colour_for_rdo(trial, t);
         consider(trial, sse48(t.rgb, ref), 4.0f + kMatchBytes, 2);
       }
       if (kind != 0) {
         std::memcpy(own, best, 8);
-        decode_colour_for_rdo(own, mine);
+        decode_colour_for_rdo(own, image, b);
         budget -= best_e - own_e;
       }
       n.half_copies += uint64_t(kind == 1);
