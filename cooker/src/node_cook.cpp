@@ -150,18 +150,16 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
     const int64_t gy = lattice_index(key.y, j - kWindowMargin, key.level);
     const double y = ctx.lattice_y(gy);
     // Mapped rows: their heights in one call.
-    std::array<double, kWindowSize>& mapped_h = row_h;
-    std::array<uint8_t, kWindowSize>& mapped_ok = row_ok;
     if (!shared_columns) {
       map_row(y);
       bool zero_row = true;
       for (int i = lo; i < hi && zero_row; ++i) zero_row = zero.holds(cols[size_t(i)], rows[size_t(i)]);
       if (zero_row) {
-        std::fill(mapped_h.begin() + lo, mapped_h.begin() + hi, 0.0);
-        std::fill(mapped_ok.begin() + lo, mapped_ok.begin() + hi, uint8_t(1));
+        std::fill(row_h.begin() + lo, row_h.begin() + hi, 0.0);
+        std::fill(row_ok.begin() + lo, row_ok.begin() + hi, uint8_t(1));
       } else {
-        ctx.surface.sample_points(cols.data() + lo, rows.data() + lo, hi - lo, mapped_h.data() + lo,
-                                  mapped_ok.data() + lo);
+        ctx.surface.sample_points(cols.data() + lo, rows.data() + lo, hi - lo, row_h.data() + lo,
+                                  row_ok.data() + lo);
       }
     }
     const Surface::Axis& row_axis = row_axes[size_t(j)];

@@ -261,25 +261,31 @@ TERRAIN_AVX2_CLONES void stitched_normals(const StitchArrays& a, const double* z
   }
 }
 
+// GCC's vector extensions (8 floats or 4 doubles: one AVX2 register, two SSE2 ones). Every
+// lane computes the scalar form's products and sums in its order; only the lanes widen.
+typedef float V8f __attribute__((vector_size(32)));
+typedef int32_t V8i __attribute__((vector_size(32)));
+typedef float V4f __attribute__((vector_size(16)));
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+
 }  // namespace
 
-// 8 at a time (GCC vector extensions), so a patch with relief stops after its first 8.
-typedef float V8fEq __attribute__((vector_size(32)));
-typedef int32_t V8iEq __attribute__((vector_size(32)));
+// 8 at a time, so a patch with relief stops after its first 8.
 TERRAIN_AVX2_CLONES bool all_normals_equal(NormalSpan v) {
   if (v.n <= 0) return false;
   const float x0 = v.x[0], y0 = v.y[0], z0 = v.z[0];
   if (!(x0 == x0 && y0 == y0 && z0 == z0)) return false;
-  const V8fEq vx = {x0, x0, x0, x0, x0, x0, x0, x0}, vy = {y0, y0, y0, y0, y0, y0, y0, y0};
-  const V8fEq vz = {z0, z0, z0, z0, z0, z0, z0, z0};
+  const V8f vx = {x0, x0, x0, x0, x0, x0, x0, x0}, vy = {y0, y0, y0, y0, y0, y0, y0, y0};
+  const V8f vz = {z0, z0, z0, z0, z0, z0, z0, z0};
   int i = 0;
   for (; i + 8 <= v.n; i += 8) {
-    V8fEq x, y, z;
+    V8f x, y, z;
     std::memcpy(&x, v.x + i, sizeof x);
     std::memcpy(&y, v.y + i, sizeof y);
     std::memcpy(&z, v.z + i, sizeof z);
-    const V8iEq eq = (x == vx) & (y == vy) & (z == vz);
-    const V8iEq q = eq & __builtin_shufflevector(eq, eq, 4, 5, 6, 7, 0, 1, 2, 3);
+    const V8i eq = (x == vx) & (y == vy) & (z == vz);
+    const V8i q = eq & __builtin_shufflevector(eq, eq, 4, 5, 6, 7, 0, 1, 2, 3);
     if ((q[0] & q[1] & q[2] & q[3]) == 0) return false;
   }
   for (; i < v.n; ++i)
@@ -435,15 +441,6 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
 }
 
 namespace {
-
-// Smallest float dot(axis, v_i) (SSE2: 4 normals per step).
-// GCC's vector extensions (8 floats or 4 doubles: one AVX2 register, two SSE2 ones). Every
-// lane computes the scalar form's products and sums in its order; only the lanes widen.
-typedef float V8f __attribute__((vector_size(32)));
-typedef int32_t V8i __attribute__((vector_size(32)));
-typedef float V4f __attribute__((vector_size(16)));
-typedef double V4d __attribute__((vector_size(32)));
-typedef int64_t V4l __attribute__((vector_size(32)));
 
 // The smallest float dot product (the set's minimum: the lanes' order does not change it).
 TERRAIN_AVX2_CLONES float min_dot_f(NormalSpan v, float ax, float ay, float az) {
