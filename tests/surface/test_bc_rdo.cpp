@@ -176,6 +176,44 @@ TEST(BcRdo, NormalsShrinkUnderZstdAsLambdaGrowsForABoundedLoss) {
   EXPECT_LE(error[2] - error[0], 1.0);
 }
 
+// The source search takes 8 candidates at a time with AVX2 where the CPU has it, else 4 with SSE2
+// and the rest one by one; each form orders candidates by (distance, how far back), so the pass
+// must write the same bytes with the AVX2 search on and off. Nodes: smooth hills at three levels
+// (mostly 8-value alpha blocks, AO varying block to block) and a noisy one (6-value blocks, so the
+// index search is skipped for some blocks), every lambda from almost nothing to very large. A lane
+// order that disagrees with the back numbers, or a mask applied to the wrong lane, changes the
+// chosen source of some block and fails it.
+TEST(BcRdo, TheAvx2SourceSearchWritesTheSameBytes) {
+  const bool had = rdo_avx2_scan(true);
+  if (!rdo_avx2_scan(true)) {
+    rdo_avx2_scan(had);
+    GTEST_SKIP() << "this CPU has no AVX2";
+  }
+  const auto noisy = [](double x, double y) {
+    return 4.0 * std::sin(x * 1.7) * std::cos(y * 2.3) + 2.0 * std::sin(x * y * 0.01);
+  };
+  std::vector<bench::DemNode> nodes;
+  for (uint32_t level : {0u, 1u, 3u}) nodes.push_back(synthetic_node(smooth_hills, level, 2, 3));
+  nodes.push_back(synthetic_node(noisy, 0, 1, 1));
+  size_t blocks_differing = 0, compared = 0;
+  for (const auto& node : nodes) {
+    const Encoded e = encode(node);
+    for (float lambda : {0.5f, 8.0f, 36.0f, 200.0f}) {
+      std::vector<uint8_t> with = e.blocks, without = e.blocks;
+      rdo_avx2_scan(true);
+      rdo_normal_blocks(e.rgba.data(), lambda, with.data());
+      rdo_avx2_scan(false);
+      rdo_normal_blocks(e.rgba.data(), lambda, without.data());
+      for (size_t k = 0; k < with.size(); k += 16)
+        blocks_differing += !std::equal(with.begin() + long(k), with.begin() + long(k) + 16, without.begin() + long(k));
+      compared += with.size() / 16;
+      EXPECT_NE(with, e.blocks) << "lambda " << lambda << ": the pass changed nothing";
+    }
+  }
+  rdo_avx2_scan(had);
+  EXPECT_EQ(blocks_differing, 0u) << "of " << compared << " blocks";
+}
+
 namespace {
 
 // A 132x132 albedo: smooth colour ramps with a gentle ripple, and a round hole (sea) in one corner.

@@ -20,6 +20,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 #include "bc_blocks.h"
 #include "surface_layers.h"
@@ -125,41 +128,38 @@ inline int sse16(const uint8_t* a, const uint8_t* b) {
 
 // What the pass keeps of each final block: its decoded x (alpha) and y (G) values and, for an
 // 8-value alpha block, each texel's position along a0 -> a1 (0..7; 255 in the other mode).
-struct DecodedBlock {
-  uint8_t x[16], y[16], pos[16];
-  uint32_t rb = 0;  // colour_rb_bits of the colour half
-};
-// A node's blocks as decoded so far, with the two per-block facts the source scan compares held in
-// their own arrays (4 consecutive blocks are one load).
+// A node's blocks as decoded so far, one array per field so that the source scan reads
+// consecutive blocks with one load.
 struct DecodedNormals {
-  DecodedBlock block[kBlocksX * kBlocksX];
-  int32_t rb[kBlocksX * kBlocksX];     // colour_rb_bits
-  int32_t eight[kBlocksX * kBlocksX];  // -1 for an 8-value alpha block, else 0
+  static constexpr int kCount = kBlocksX * kBlocksX;
+  alignas(32) uint8_t x[kCount][16];
+  alignas(32) uint8_t y[kCount][16];
+  alignas(32) uint8_t pos[kCount][16];
+  int32_t rb[kCount];     // colour_rb_bits of the colour half
+  int32_t eight[kCount];  // -1 for an 8-value alpha block, else 0
 };
 
-void decode_for_rdo(const uint8_t* block, DecodedBlock& d) {
+void decode_for_rdo(const uint8_t* block, DecodedNormals& image, int b) {
+  uint8_t* const dx = image.x[b];
+  uint8_t* const dy = image.y[b];
+  uint8_t* const dpos = image.pos[b];
   int p[8];
   bc4_palette(block[0], block[1], p);
   const uint64_t bits = load48(block + 2);
   const bool eight = block[0] > block[1];
   for (int i = 0; i < 16; ++i) {
     const int idx = int((bits >> (3 * i)) & 7);
-    d.x[i] = uint8_t(p[idx]);
-    d.pos[i] = eight ? uint8_t(idx == 0 ? 0 : idx == 1 ? 7 : idx - 1) : uint8_t(255);
+    dx[i] = uint8_t(p[idx]);
+    dpos[i] = eight ? uint8_t(idx == 0 ? 0 : idx == 1 ? 7 : idx - 1) : uint8_t(255);
   }
   const uint16_t c0 = uint16_t(block[8] | (block[9] << 8)), c1 = uint16_t(block[10] | (block[11] << 8));
   const int e0 = expand_g(c0), e1 = expand_g(c1);
   const int g[4] = {e0, e1, (2 * e0 + e1 + 1) / 3, (e0 + 2 * e1 + 1) / 3};
   uint32_t sel;
   std::memcpy(&sel, block + 12, 4);
-  for (int i = 0; i < 16; ++i) d.y[i] = uint8_t(g[(sel >> (2 * i)) & 3]);
-  d.rb = colour_rb_bits(block + 8);
-}
-
-void decode_for_rdo(const uint8_t* block, DecodedNormals& image, int b) {
-  decode_for_rdo(block, image.block[b]);
-  image.rb[b] = int32_t(image.block[b].rb);
-  image.eight[b] = image.block[b].pos[0] != 255 ? -1 : 0;
+  for (int i = 0; i < 16; ++i) dy[i] = uint8_t(g[(sel >> (2 * i)) & 3]);
+  image.rb[b] = int32_t(colour_rb_bits(block + 8));
+  image.eight[b] = eight ? -1 : 0;
 }
 
 // The sources a block half may take, found among the kWindowBlocks blocks before block b: the
@@ -210,31 +210,100 @@ inline __m128i keys4(__m128i sums, __m128i backs, __m128i valid) {
 }
 #endif
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define TERRAIN_RDO_AVX2 1
+// Whether scan_sources may take 8 candidates at a time with AVX2 (the CPU has it, and tests did
+// not switch it off): the same keys, so the same sources either way.
+bool cpu_has_avx2() {
+  __builtin_cpu_init();  // may run before the runtime's own constructor
+  return __builtin_cpu_supports("avx2");
+}
+bool avx2_scan_enabled = cpu_has_avx2();
+
+#define TERRAIN_TARGET_AVX2 __attribute__((target("avx2")))
+
+// Sums of absolute differences of the 16-byte fields of 8 consecutive blocks against `own`, in
+// lane order c0 c2 c4 c6 c1 c3 c5 c7 (ci = the i-th block from `first`).
+TERRAIN_TARGET_AVX2 inline __m256i sad8(const uint8_t* first, __m256i own) {
+  __m256i t[4];
+  for (int i = 0; i < 4; ++i)
+    t[i] = _mm256_sad_epu8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(first + 32 * i)), own);
+  const __m256i u01 = _mm256_add_epi32(_mm256_unpacklo_epi64(t[0], t[1]), _mm256_unpackhi_epi64(t[0], t[1]));
+  const __m256i u23 = _mm256_add_epi32(_mm256_unpacklo_epi64(t[2], t[3]), _mm256_unpackhi_epi64(t[2], t[3]));
+  return _mm256_castps_si256(
+      _mm256_shuffle_ps(_mm256_castsi256_ps(u01), _mm256_castsi256_ps(u23), _MM_SHUFFLE(2, 0, 2, 0)));
+}
+TERRAIN_TARGET_AVX2 inline __m256i keys8(__m256i sums, __m256i backs, __m256i valid) {
+  const __m256i key = _mm256_or_si256(_mm256_slli_epi32(sums, kBackBits), backs);
+  return _mm256_or_si256(_mm256_and_si256(valid, key), _mm256_andnot_si256(valid, _mm256_set1_epi32(kNoKey)));
+}
+TERRAIN_TARGET_AVX2 inline __m256i own16(const uint8_t* p) {
+  return _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+
+// The keys of scan_sources for the candidates back .. (while 8 fit in the window), 8 at a time;
+// advances back past them and folds its lanes into the running keys.
+TERRAIN_TARGET_AVX2 void scan_sources_avx2(const DecodedNormals& image, int b, const uint8_t x[16],
+                                           const uint8_t y[16], uint32_t own_rb, bool own_eight, int window,
+                                           int& back, int32_t& kx, int32_t& ky, int32_t& kp0, int32_t& kp1) {
+  const __m256i none = _mm256_set1_epi32(kNoKey);
+  const __m256i ox = own16(x), oy = own16(y), op = own16(image.pos[b]);
+  const __m256i rb = _mm256_set1_epi32(int32_t(own_rb));
+  const __m256i order = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  __m256i vx = none, vy = none, vp0 = none, vp1 = none;
+  for (; back + 7 <= window; back += 8) {
+    const int base = b - back - 7;  // block base + i is back + 7 - i blocks before b
+    const __m256i backs = _mm256_setr_epi32(back + 7, back + 5, back + 3, back + 1, back + 6, back + 4, back + 2, back);
+    vx = _mm256_min_epi32(vx, _mm256_or_si256(_mm256_slli_epi32(sad8(image.x[base], ox), kBackBits), backs));
+    const __m256i rbs = _mm256_permutevar8x32_epi32(
+        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(image.rb + base)), order);
+    vy = _mm256_min_epi32(vy, keys8(sad8(image.y[base], oy), backs, _mm256_cmpeq_epi32(rbs, rb)));
+    if (own_eight) {
+      const __m256i eight = _mm256_permutevar8x32_epi32(
+          _mm256_loadu_si256(reinterpret_cast<const __m256i*>(image.eight + base)), order);
+      const __m256i kp = keys8(sad8(image.pos[base], op), backs, eight);
+      vp1 = _mm256_min_epi32(vp1, _mm256_max_epi32(vp0, kp));
+      vp0 = _mm256_min_epi32(vp0, kp);
+    }
+  }
+  alignas(32) int32_t lx[8], ly[8], lp0[8], lp1[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lx), vx);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(ly), vy);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lp0), vp0);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lp1), vp1);
+  for (int i = 0; i < 8; ++i) {
+    kx = std::min(kx, lx[i]);
+    ky = std::min(ky, ly[i]);
+    keep_two_least(lp0[i], kp0, kp1);
+    keep_two_least(lp1[i], kp0, kp1);
+  }
+}
+#endif
+
 SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16], const uint8_t y[16],
                         uint32_t own_rb, bool own_eight) {
-  const DecodedBlock* dec = image.block;
-  const DecodedBlock& mine = dec[b];
   int32_t kx = kNoKey, ky = kNoKey, kp0 = kNoKey, kp1 = kNoKey;
   const int window = std::min(kWindowBlocks, b);
   int back = 1;
+#if defined(TERRAIN_RDO_AVX2)
+  if (avx2_scan_enabled) scan_sources_avx2(image, b, x, y, own_rb, own_eight, window, back, kx, ky, kp0, kp1);
+#endif
 #if defined(__SSE2__)
   const __m128i ox = _mm_loadu_si128(reinterpret_cast<const __m128i*>(x));
   const __m128i oy = _mm_loadu_si128(reinterpret_cast<const __m128i*>(y));
-  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mine.pos));
+  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.pos[b]));
   const __m128i none = _mm_set1_epi32(kNoKey), rb = _mm_set1_epi32(int32_t(own_rb));
   __m128i vx = none, vy = none, vp0 = none, vp1 = none;
   // Lane i of a group holds block b - back - 3 + i, i.e. back + 3 - i.
   for (; back + 3 <= window; back += 4) {
-    const DecodedBlock* d = dec + (b - back - 3);
+    const int base = b - back - 3;
     const __m128i backs = _mm_setr_epi32(back + 3, back + 2, back + 1, back);
-    const uint8_t* first = reinterpret_cast<const uint8_t*>(d);
-    vx = min32(vx, _mm_or_si128(_mm_slli_epi32(sad4(first + offsetof(DecodedBlock, x), sizeof(DecodedBlock), ox), kBackBits), backs));
-    const __m128i same_rb =
-        _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(image.rb + (b - back - 3))), rb);
-    vy = min32(vy, keys4(sad4(first + offsetof(DecodedBlock, y), sizeof(DecodedBlock), oy), backs, same_rb));
+    vx = min32(vx, _mm_or_si128(_mm_slli_epi32(sad4(image.x[base], 16, ox), kBackBits), backs));
+    const __m128i same_rb = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(image.rb + base)), rb);
+    vy = min32(vy, keys4(sad4(image.y[base], 16, oy), backs, same_rb));
     if (own_eight) {
-      const __m128i eight = _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.eight + (b - back - 3)));
-      const __m128i kp = keys4(sad4(first + offsetof(DecodedBlock, pos), sizeof(DecodedBlock), op), backs, eight);
+      const __m128i eight = _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.eight + base));
+      const __m128i kp = keys4(sad4(image.pos[base], 16, op), backs, eight);
       vp1 = min32(vp1, max32(vp0, kp));
       vp0 = min32(vp0, kp);
     }
@@ -252,11 +321,11 @@ SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16],
   }
 #endif
   for (; back <= window; ++back) {
-    const DecodedBlock& d = dec[b - back];
-    kx = std::min(kx, int32_t((sad16(d.x, x) << kBackBits) | back));
-    if (d.rb == own_rb) ky = std::min(ky, int32_t((sad16(d.y, y) << kBackBits) | back));
-    if (own_eight && d.pos[0] != 255)
-      keep_two_least(int32_t((sad16(d.pos, mine.pos) << kBackBits) | back), kp0, kp1);
+    const int c = b - back;
+    kx = std::min(kx, int32_t((sad16(image.x[c], x) << kBackBits) | back));
+    if (image.rb[c] == int32_t(own_rb)) ky = std::min(ky, int32_t((sad16(image.y[c], y) << kBackBits) | back));
+    if (own_eight && image.eight[c])
+      keep_two_least(int32_t((sad16(image.pos[c], image.pos[b]) << kBackBits) | back), kp0, kp1);
   }
   const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
   SourceScan s;
@@ -269,11 +338,21 @@ SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16],
 
 }  // namespace
 
+bool rdo_avx2_scan(bool enabled) {
+#if defined(TERRAIN_RDO_AVX2)
+  const bool was = avx2_scan_enabled;
+  avx2_scan_enabled = enabled && cpu_has_avx2();
+  return was;
+#else
+  (void)enabled;
+  return false;
+#endif
+}
+
 void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts) {
   if (!(lambda > 0)) return;
   RdoCounts n;
   static thread_local DecodedNormals image;
-  DecodedBlock* dec = image.block;
   for (int by = 0; by < kBlocksX; ++by)
     for (int bx = 0; bx < kBlocksX; ++bx) {
       const int b = by * kBlocksX + bx;
@@ -285,14 +364,13 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           x[r * 4 + c] = t[3];
           y[r * 4 + c] = t[1];
         }
-      DecodedBlock& mine = dec[b];
       decode_for_rdo(own, image, b);
       // The outer ring of blocks is also the neighbours' (texels 128..131 of a node are texels
       // 0..3 of the next, SPEC 16.2): it stays as encoded so both nodes keep the same bytes there.
       if (bx == 0 || by == 0 || bx == kBlocksX - 1 || by == kBlocksX - 1) continue;
       ++n.blocks;
       // Costs J = squared error + lambda * expected stored bytes; the own halves are 8 literals each.
-      const int own_ea = sse16(mine.x, x), own_ec = sse16(mine.y, y);
+      const int own_ea = sse16(image.x[b], x), own_ec = sse16(image.y[b], y);
       const uint32_t own_rb = colour_rb_bits(own + 8);
       const bool own_eight = own[0] > own[1];
       const SourceScan scan = scan_sources(image, b, x, y, own_rb, own_eight);
@@ -304,7 +382,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       float best_ja = float(own_ea) + lambda * 8.0f;
       int src_a = -1;
       if (from_a >= 0) {
-        const float j = float(sse16(dec[from_a].x, x)) + lambda * kMatchBytes;
+        const float j = float(sse16(image.x[from_a], x)) + lambda * kMatchBytes;
         if (j < best_ja) best_ja = j, src_a = from_a;
       }
       uint8_t best_a[8];
@@ -317,7 +395,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
         const uint8_t* cand = blocks + size_t(c) * kBlockBytes;
         const uint64_t bits = load48(cand + 2);
         int a0, a1;
-        if (!bc4_refit(dec[c].pos, x, a0, a1)) a0 = own[0], a1 = own[1];
+        if (!bc4_refit(image.pos[c], x, a0, a1)) a0 = own[0], a1 = own[1];
         const float ji = float(bc4_sse(a0, a1, bits, x)) + index_bytes;
         if (ji < best_ja) {
           best_ja = ji;
@@ -332,7 +410,7 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       // stays exact).
       const float best_jc = float(own_ec) + lambda * 8.0f;
       int src_c = -1;
-      if (from_c >= 0 && float(sse16(dec[from_c].y, y)) + lambda * kMatchBytes < best_jc) src_c = from_c;
+      if (from_c >= 0 && float(sse16(image.y[from_c], y)) + lambda * kMatchBytes < best_jc) src_c = from_c;
       if (src_c >= 0) std::memcpy(own + 8, blocks + size_t(src_c) * kBlockBytes + 8, 8);
       if (index_src >= 0 || src_a >= 0 || src_c >= 0) decode_for_rdo(own, image, b);
       n.half_copies += uint64_t(index_src < 0 && src_a >= 0) + uint64_t(src_c >= 0);

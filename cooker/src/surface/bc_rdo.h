@@ -29,4 +29,8 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
 // may spend whatever is left, in stream order), so its PSNR drops by at most 0.41 dB.
 void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCounts* counts = nullptr);
 
+// Tests: whether the normal pass may search its sources 8 at a time with AVX2 (on by default where
+// the CPU has it); returns the previous setting. Either way the pass gives the same bytes.
+bool rdo_avx2_scan(bool enabled);
+
 }  // namespace terrain::cook
