@@ -180,8 +180,8 @@ TEST(BlockCook, SurfaceLayersToo) {
   expect_same_bytes_for_every_block_split(o, {{1, 11}}, 4);
 }
 
-// The rate-distortion pass (--bc-rdo) reads only its own node's blocks: the same bytes for any split
-// and order, and fewer normal and albedo bytes than without it.
+// The rate-distortion pass (--bc-rdo, on by default) reads only its own node's blocks: the same
+// bytes for any split and order, and fewer normal and albedo bytes than without it (--bc-rdo 0).
 TEST(BlockCook, BcRdoToo) {
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-rdo"), "blocky", blocky_dem(), true, o));
@@ -189,6 +189,7 @@ TEST(BlockCook, BcRdoToo) {
   o.tolerance_m = 2.0;
   cook::CookOptions plain = o;
   plain.output += ".plain";
+  plain.bc_rdo = 0;
   cook::CookReport without;
   ASSERT_TRUE(cook::cook(plain, nullptr, without).ok());
   o.bc_rdo = 32;
