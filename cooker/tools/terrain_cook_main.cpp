@@ -194,8 +194,8 @@ int run(int argc, char** argv) {
   app.add_option("--bc-rdo", o.bc_rdo,
                  "Rate-distortion pass over the normal and albedo blocks: where it costs at most LAMBDA squared error "
                  "(8-bit units over a 4x4 block) per byte saved, a block (half) reuses bytes of a nearby earlier block so "
-                 "zstd stores a match; a node's albedo loses at most 0.41 dB (0 = off; the default 32 on Kilauea: 0.50x normal "
-                 "+ albedo bytes at +0.30 degrees mean normal error and -0.19 dB albedo PSNR, 0.5 ms more CPU per node)")
+                 "zstd stores a match; a node's albedo loses at most 0.41 dB (0 = off; the default 28 on Kilauea: 0.51x normal "
+                 "+ albedo bytes at +0.29 degrees mean normal error and -0.17 dB albedo PSNR, 0.4 ms more CPU per node)")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   app.add_option("--error-checks", error_checks,

@@ -79,9 +79,9 @@ struct CookOptions {
   ErrorChecks error_checks = ErrorChecks::sample;  // --error-checks
   // Rate-distortion pass over the normal and albedo blocks (--bc-rdo, cooker/src/surface/bc_rdo.h):
   // squared error accepted per byte of literals saved; 0 = off (the blocks of the encoder as they are).
-  // The default, 32, keeps every shared DEM within +0.5 degrees mean normal error and -0.5 dB
-  // albedo PSNR (cooker/README.md).
-  float bc_rdo = 32;
+  // The default, 28, keeps every shared DEM and the 1 m lidar-like square (down to level 0) within
+  // +0.5 degrees mean normal error and -0.5 dB albedo PSNR (cooker/README.md).
+  float bc_rdo = 28;
   // Orthophoto for the albedo: GeoTIFF RGB(A) (8 or 16 bits) in any supported CRS, resampled to
   // the frame (bilinear); where it has no data (alpha 0, GDAL_NODATA, outside) the splat bake stays.
   std::string albedo_path;
