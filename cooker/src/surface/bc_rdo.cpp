@@ -184,6 +184,21 @@ inline void keep_two_least(int32_t key, int32_t& k0, int32_t& k1) {
   }
 }
 
+// The least keys found so far: x and y halves, the two nearest index positions.
+struct ScanKeys {
+  int32_t x = kNoKey, y = kNoKey, p0 = kNoKey, p1 = kNoKey;
+  // Folds in the per-lane keys of a vector search (lanes[0..3] = x, y, p0, p1); the two least
+  // overall are among each lane's two least.
+  void fold(const int32_t (*lanes)[8], int count) {
+    for (int i = 0; i < count; ++i) {
+      x = std::min(x, lanes[0][i]);
+      y = std::min(y, lanes[1][i]);
+      keep_two_least(lanes[2][i], p0, p1);
+      keep_two_least(lanes[3][i], p0, p1);
+    }
+  }
+};
+
 #if defined(__SSE2__)
 inline __m128i min32(__m128i a, __m128i c) {
   const __m128i m = _mm_cmpgt_epi32(a, c);
@@ -245,7 +260,7 @@ TERRAIN_TARGET_AVX2 inline __m256i own16(const uint8_t* p) {
 // advances back past them and folds its lanes into the running keys.
 TERRAIN_TARGET_AVX2 void scan_sources_avx2(const DecodedNormals& image, int b, const uint8_t x[16],
                                            const uint8_t y[16], uint32_t own_rb, bool own_eight, int window,
-                                           int& back, int32_t& kx, int32_t& ky, int32_t& kp0, int32_t& kp1) {
+                                           int& back, ScanKeys& keys) {
   const __m256i none = _mm256_set1_epi32(kNoKey);
   const __m256i ox = own16(x), oy = own16(y), op = own16(image.pos[b]);
   const __m256i rb = _mm256_set1_epi32(int32_t(own_rb));
@@ -266,27 +281,20 @@ TERRAIN_TARGET_AVX2 void scan_sources_avx2(const DecodedNormals& image, int b, c
       vp0 = _mm256_min_epi32(vp0, kp);
     }
   }
-  alignas(32) int32_t lx[8], ly[8], lp0[8], lp1[8];
-  _mm256_store_si256(reinterpret_cast<__m256i*>(lx), vx);
-  _mm256_store_si256(reinterpret_cast<__m256i*>(ly), vy);
-  _mm256_store_si256(reinterpret_cast<__m256i*>(lp0), vp0);
-  _mm256_store_si256(reinterpret_cast<__m256i*>(lp1), vp1);
-  for (int i = 0; i < 8; ++i) {
-    kx = std::min(kx, lx[i]);
-    ky = std::min(ky, ly[i]);
-    keep_two_least(lp0[i], kp0, kp1);
-    keep_two_least(lp1[i], kp0, kp1);
-  }
+  alignas(32) int32_t lanes[4][8];
+  const __m256i v[4] = {vx, vy, vp0, vp1};
+  for (int k = 0; k < 4; ++k) _mm256_store_si256(reinterpret_cast<__m256i*>(lanes[k]), v[k]);
+  keys.fold(lanes, 8);
 }
 #endif
 
 SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16], const uint8_t y[16],
                         uint32_t own_rb, bool own_eight) {
-  int32_t kx = kNoKey, ky = kNoKey, kp0 = kNoKey, kp1 = kNoKey;
+  ScanKeys keys;
   const int window = std::min(kWindowBlocks, b);
   int back = 1;
 #if defined(TERRAIN_RDO_AVX2)
-  if (avx2_scan_enabled) scan_sources_avx2(image, b, x, y, own_rb, own_eight, window, back, kx, ky, kp0, kp1);
+  if (avx2_scan_enabled) scan_sources_avx2(image, b, x, y, own_rb, own_eight, window, back, keys);
 #endif
 #if defined(__SSE2__)
   const __m128i ox = _mm_loadu_si128(reinterpret_cast<const __m128i*>(x));
@@ -308,31 +316,24 @@ SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16],
       vp0 = min32(vp0, kp);
     }
   }
-  alignas(16) int32_t lx[4], ly[4], lp0[4], lp1[4];
-  _mm_store_si128(reinterpret_cast<__m128i*>(lx), vx);
-  _mm_store_si128(reinterpret_cast<__m128i*>(ly), vy);
-  _mm_store_si128(reinterpret_cast<__m128i*>(lp0), vp0);
-  _mm_store_si128(reinterpret_cast<__m128i*>(lp1), vp1);
-  for (int i = 0; i < 4; ++i) {
-    kx = std::min(kx, lx[i]);
-    ky = std::min(ky, ly[i]);
-    keep_two_least(lp0[i], kp0, kp1);
-    keep_two_least(lp1[i], kp0, kp1);
-  }
+  alignas(16) int32_t lanes[4][8];
+  const __m128i v[4] = {vx, vy, vp0, vp1};
+  for (int k = 0; k < 4; ++k) _mm_store_si128(reinterpret_cast<__m128i*>(lanes[k]), v[k]);
+  keys.fold(lanes, 4);
 #endif
   for (; back <= window; ++back) {
     const int c = b - back;
-    kx = std::min(kx, int32_t((sad16(image.x[c], x) << kBackBits) | back));
-    if (image.rb[c] == int32_t(own_rb)) ky = std::min(ky, int32_t((sad16(image.y[c], y) << kBackBits) | back));
+    keys.x = std::min(keys.x, int32_t((sad16(image.x[c], x) << kBackBits) | back));
+    if (image.rb[c] == int32_t(own_rb)) keys.y = std::min(keys.y, int32_t((sad16(image.y[c], y) << kBackBits) | back));
     if (own_eight && image.eight[c])
-      keep_two_least(int32_t((sad16(image.pos[c], image.pos[b]) << kBackBits) | back), kp0, kp1);
+      keep_two_least(int32_t((sad16(image.pos[c], image.pos[b]) << kBackBits) | back), keys.p0, keys.p1);
   }
   const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
   SourceScan s;
-  s.whole_x = source(kx);
-  s.whole_y = source(ky);
-  s.near[0] = source(kp0);
-  s.near[1] = source(kp1);
+  s.whole_x = source(keys.x);
+  s.whole_y = source(keys.y);
+  s.near[0] = source(keys.p0);
+  s.near[1] = source(keys.p1);
   return s;
 }
 
