@@ -8,13 +8,12 @@
 // 2 endpoint bytes stay literals.
 // The choice minimises squared error + lambda * expected stored bytes, with literals counted at 1
 // byte each and a match at kMatchBytes. The decoders here follow terrain/bc_decode.h (nearest
-// rounding) exactly; all decisions are integer or exactly rounded, so SSE2 and scalar builds agree.
+// rounding) exactly; all decisions are integer or exactly rounded, so the AVX2, SSE2 and scalar
+// searches choose the same sources.
 #include "bc_rdo.h"
 
 #include <algorithm>
 #include <cmath>
-#include <climits>
-#include <cstddef>
 #include <cstring>
 
 #if defined(__SSE2__)
@@ -37,8 +36,7 @@ constexpr int kBlockBytes = 16;
 constexpr float kMatchBytes = 3.0f;
 // Normal sources: the 132 blocks before this one (four block rows). On the 1 m lidar-like 8 km
 // square, default tolerance, normal + albedo bytes at +0.5 degrees mean normal error
-// (interpolated between lambdas 32..36): 66 blocks 0.697x, 99 0.691x, 132 0.687x, 264 0.680x; the
-// scan over 132 costs about 0.2 ms per node.
+// (interpolated between lambdas 32..36): 66 blocks 0.697x, 99 0.691x, 132 0.687x, 264 0.680x.
 constexpr int kWindowBlocks = 4 * kBlocksX;
 // Albedo sources: two block rows (33 blocks stored 611.7 KB, 66 606.0, 132 604.9 on that square).
 constexpr int kAlbedoWindowBlocks = 2 * kBlocksX;
