@@ -12,15 +12,14 @@ void expand565(uint16_t c, int rgb[3]) {
   rgb[2] = (b << 3) | (b >> 2);
 }
 
-// Colour part shared by BC1 and BC3. `allow_punch_through` is false for BC3 (always 4 colours).
-void decode_colour(const uint8_t* b, bool allow_punch_through, BcRounding rounding, uint8_t rgba[64]) {
+// The colour palette shared by BC1 and BC3. `allow_punch_through` is false for BC3 (always 4 colours).
+void colour_palette(const uint8_t* b, bool allow_punch_through, BcRounding rounding, uint8_t palette[4][4]) {
   const int bias = rounding == BcRounding::nearest ? 1 : 0;
   const uint16_t c0 = uint16_t(b[0] | (b[1] << 8));
   const uint16_t c1 = uint16_t(b[2] | (b[3] << 8));
   int e0[3], e1[3];
   expand565(c0, e0);
   expand565(c1, e1);
-  uint8_t palette[4][4];
   for (int k = 0; k < 3; ++k) {
     palette[0][k] = uint8_t(e0[k]);
     palette[1][k] = uint8_t(e1[k]);
@@ -37,6 +36,12 @@ void decode_colour(const uint8_t* b, bool allow_punch_through, BcRounding roundi
     palette[2][3] = 255;
     palette[3][0] = palette[3][1] = palette[3][2] = palette[3][3] = 0;
   }
+}
+
+// Colour part shared by BC1 and BC3.
+void decode_colour(const uint8_t* b, bool allow_punch_through, BcRounding rounding, uint8_t rgba[64]) {
+  uint8_t palette[4][4];
+  colour_palette(b, allow_punch_through, rounding, palette);
   const uint32_t indices = uint32_t(b[4]) | (uint32_t(b[5]) << 8) | (uint32_t(b[6]) << 16) | (uint32_t(b[7]) << 24);
   for (int p = 0; p < 16; ++p) std::memcpy(rgba + 4 * p, palette[(indices >> (2 * p)) & 3], 4);
 }
@@ -47,6 +52,11 @@ void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64], BcRounding round
   decode_colour(block, true, rounding, rgba);
 }
 void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]) { decode_bc1_block(block, rgba, BcRounding::nearest); }
+void decode_bc1_palette(const uint8_t block[8], uint8_t palette[16]) {
+  uint8_t p[4][4];
+  colour_palette(block, true, BcRounding::nearest, p);
+  std::memcpy(palette, p, 16);
+}
 
 void decode_bc4_block(const uint8_t block[8], uint8_t values[16], BcRounding rounding) {
   const bool nearest = rounding == BcRounding::nearest;

@@ -137,7 +137,8 @@ struct DecodedNormals {
   int32_t eight[kCount];  // -1 for an 8-value alpha block, else 0
 };
 
-void decode_for_rdo(const uint8_t* block, DecodedNormals& image, int b) {
+// The definition; decode_for_rdo takes the AVX2 form where the CPU has it (the same bytes).
+void decode_for_rdo_scalar(const uint8_t* block, DecodedNormals& image, int b) {
   uint8_t* const dx = image.x[b];
   uint8_t* const dy = image.y[b];
   uint8_t* const dpos = image.pos[b];
@@ -253,6 +254,56 @@ TERRAIN_TARGET_AVX2 inline __m256i keys8(__m256i sums, __m256i backs, __m256i va
 TERRAIN_TARGET_AVX2 inline __m256i own16(const uint8_t* p) {
   return _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
 }
+
+// The 3-bit fields of a 24-bit word one per byte (field j in byte j), and the 2-bit fields of a
+// 16-bit word likewise: bit spreading in three shift-and-mask steps.
+inline uint64_t spread3(uint64_t v) {
+  v = (v | (v << 20)) & 0x00000FFF00000FFFull;
+  v = (v | (v << 10)) & 0x003F003F003F003Full;
+  return (v | (v << 5)) & 0x0707070707070707ull;
+}
+inline uint64_t spread2(uint64_t v) {
+  v = (v | (v << 24)) & 0x000000FF000000FFull;
+  v = (v | (v << 12)) & 0x000F000F000F000Full;
+  return (v | (v << 6)) & 0x0303030303030303ull;
+}
+// The 16 2-bit selectors of a BC1 index word, one per byte.
+inline __m128i bc1_selectors(const uint8_t* indices) {
+  uint32_t sel;
+  std::memcpy(&sel, indices, 4);
+  return _mm_set_epi64x(int64_t(spread2(sel >> 16)), int64_t(spread2(sel & 0xFFFFu)));
+}
+
+// decode_for_rdo_scalar with byte shuffles for the palette lookups (SSSE3, part of AVX2).
+TERRAIN_TARGET_AVX2 void decode_for_rdo_avx2(const uint8_t* block, DecodedNormals& image, int b) {
+  int p[8];
+  bc4_palette(block[0], block[1], p);
+  const __m128i palette = _mm_setr_epi8(char(p[0]), char(p[1]), char(p[2]), char(p[3]), char(p[4]), char(p[5]), char(p[6]),
+                                        char(p[7]), 0, 0, 0, 0, 0, 0, 0, 0);
+  const uint64_t bits = load48(block + 2);
+  const __m128i idx = _mm_set_epi64x(int64_t(spread3(bits >> 24)), int64_t(spread3(bits & 0xFFFFFFu)));
+  _mm_store_si128(reinterpret_cast<__m128i*>(image.x[b]), _mm_shuffle_epi8(palette, idx));
+  const bool eight = block[0] > block[1];
+  const __m128i pos = eight ? _mm_shuffle_epi8(_mm_setr_epi8(0, 7, 1, 2, 3, 4, 5, 6, 0, 0, 0, 0, 0, 0, 0, 0), idx)
+                            : _mm_set1_epi8(char(255));
+  _mm_store_si128(reinterpret_cast<__m128i*>(image.pos[b]), pos);
+  const uint16_t c0 = uint16_t(block[8] | (block[9] << 8)), c1 = uint16_t(block[10] | (block[11] << 8));
+  const int e0 = expand_g(c0), e1 = expand_g(c1);
+  const __m128i g = _mm_setr_epi8(char(e0), char(e1), char((2 * e0 + e1 + 1) / 3), char((e0 + 2 * e1 + 1) / 3), 0, 0, 0,
+                                  0, 0, 0, 0, 0, 0, 0, 0, 0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(image.y[b]), _mm_shuffle_epi8(g, bc1_selectors(block + 12)));
+  image.rb[b] = int32_t(colour_rb_bits(block + 8));
+  image.eight[b] = eight ? -1 : 0;
+}
+#endif
+
+void decode_for_rdo(const uint8_t* block, DecodedNormals& image, int b) {
+#if defined(TERRAIN_RDO_AVX2)
+  if (avx2_scan_enabled) return decode_for_rdo_avx2(block, image, b);
+#endif
+  decode_for_rdo_scalar(block, image, b);
+}
+#if defined(TERRAIN_RDO_AVX2)
 
 // The keys of scan_sources for the candidates back .. (while 8 fit in the window), 8 at a time;
 // advances back past them and folds its lanes into the running keys.
@@ -424,44 +475,99 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
 
 namespace {
 
-// Albedo blocks as the pass keeps them: decoded RGB (hole texels 0, as the decoder gives them),
-// the transparency mask, and for 4-colour blocks each texel's position along c0 -> c1 (0..3).
+// Albedo blocks as the pass keeps them: decoded RGB (hole texels 0, as the decoder gives them:
+// 48 bytes, texel-interleaved, in three 16-byte planes so that the source scan reads consecutive
+// blocks with one load), the transparency mask, and for 4-colour blocks each texel's position along
+// c0 -> c1 (0..3).
+struct DecodedAlbedo {
+  static constexpr int kCount = kBlocksX * kBlocksX;
+  alignas(32) uint8_t rgb[3][kCount][16];  // rgb[k][b] = bytes 16k .. 16k + 15 of block b's colours
+  alignas(32) uint8_t pos[kCount][16];
+  int32_t holes[kCount];
+  int32_t four[kCount];  // -1 for a 4-colour block, else 0
+};
+
+// One block's decoded colours (48 bytes, texel-interleaved RGB), its positions and masks; the
+// fields of DecodedAlbedo for one block.
 struct DecodedColour {
   uint8_t rgb[48];
   uint8_t pos[16];
-  uint16_t holes = 0;
+  int32_t holes = 0;
   bool four = false;
 };
 
-// The albedo blocks decoded so far, with the hole mask and the 4-colour flag in their own arrays.
-struct DecodedAlbedo {
-  DecodedColour block[kBlocksX * kBlocksX];
-  int32_t holes[kBlocksX * kBlocksX];
-  int32_t four[kBlocksX * kBlocksX];  // -1 for a 4-colour block, else 0
-};
-
-void decode_colour_for_rdo(const uint8_t* block, DecodedColour& d) {
-  uint8_t px[64];
-  decode_bc1_block(block, px);
-  for (int i = 0; i < 16; ++i)
-    for (int c = 0; c < 3; ++c) d.rgb[i * 3 + c] = px[i * 4 + 3] ? px[i * 4 + c] : 0;
-  d.holes = bc1_transparent_mask(block);
-  const uint16_t c0 = uint16_t(block[0] | (block[1] << 8)), c1 = uint16_t(block[2] | (block[3] << 8));
-  d.four = c0 > c1;
+// Decodes a BC1 block into its colours (bytes 16k .. 16k + 15 of the texel-interleaved RGB at
+// rgb[k]) and positions; returns the hole mask and sets `four`. The definition;
+// decode_colour_for_rdo takes the AVX2 form where the CPU has it (the same bytes).
+int decode_colour_scalar(const uint8_t* block, uint8_t* const rgb[3], uint8_t pos[16], bool& four) {
+  uint8_t palette[16];
+  decode_bc1_palette(block, palette);  // entry 3 of a 3-colour block is transparent black
   uint32_t sel;
   std::memcpy(&sel, block + 4, 4);
+  const uint16_t c0 = uint16_t(block[0] | (block[1] << 8)), c1 = uint16_t(block[2] | (block[3] << 8));
+  four = c0 > c1;
   static constexpr uint8_t kPos[4] = {0, 3, 1, 2};
-  for (int i = 0; i < 16; ++i) d.pos[i] = kPos[(sel >> (2 * i)) & 3];
+  uint8_t rgbx[16 * 3 + 1];  // each texel's 4 palette bytes land at 3i; the 4th is overwritten
+  int holes = 0;
+  for (int i = 0; i < 16; ++i) {
+    const uint32_t k = (sel >> (2 * i)) & 3;
+    std::memcpy(rgbx + 3 * i, palette + 4 * k, 4);
+    pos[i] = kPos[k];
+    holes |= int(!four && k == 3) << i;
+  }
+  for (int k = 0; k < 3; ++k) std::memcpy(rgb[k], rgbx + 16 * k, 16);
+  return holes;
+}
+
+#if defined(TERRAIN_RDO_AVX2)
+TERRAIN_TARGET_AVX2 int decode_colour_avx2(const uint8_t* block, uint8_t* const rgb[3], uint8_t pos[16], bool& four) {
+  uint8_t palette[16];
+  decode_bc1_palette(block, palette);
+  const __m128i pal = _mm_loadu_si128(reinterpret_cast<const __m128i*>(palette));
+  const uint16_t c0 = uint16_t(block[0] | (block[1] << 8)), c1 = uint16_t(block[2] | (block[3] << 8));
+  four = c0 > c1;
+  const __m128i idx = bc1_selectors(block + 4);
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(pos),
+                   _mm_shuffle_epi8(_mm_setr_epi8(0, 3, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), idx));
+  // Byte j of the interleaved colours is channel j % 3 of texel j / 3: palette byte 4 idx + j % 3.
+  const __m128i entry = _mm_slli_epi16(idx, 2);  // idx <= 3: no carry into the next byte
+  const __m128i texel[3] = {_mm_setr_epi8(0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 4, 4, 4, 5),
+                            _mm_setr_epi8(5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 9, 9, 9, 10, 10),
+                            _mm_setr_epi8(10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 14, 14, 14, 15, 15, 15)};
+  const __m128i channel[3] = {_mm_setr_epi8(0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0),
+                              _mm_setr_epi8(1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1),
+                              _mm_setr_epi8(2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2)};
+  for (int k = 0; k < 3; ++k)
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(rgb[k]),
+                     _mm_shuffle_epi8(pal, _mm_add_epi8(_mm_shuffle_epi8(entry, texel[k]), channel[k])));
+  return four ? 0 : _mm_movemask_epi8(_mm_cmpeq_epi8(idx, _mm_set1_epi8(3)));
+}
+#endif
+
+int decode_colour(const uint8_t* block, uint8_t* const rgb[3], uint8_t pos[16], bool& four) {
+#if defined(TERRAIN_RDO_AVX2)
+  if (avx2_scan_enabled) return decode_colour_avx2(block, rgb, pos, four);
+#endif
+  return decode_colour_scalar(block, rgb, pos, four);
+}
+
+void decode_colour_for_rdo(const uint8_t* block, DecodedColour& d) {
+  uint8_t* const rgb[3] = {d.rgb, d.rgb + 16, d.rgb + 32};
+  d.holes = decode_colour(block, rgb, d.pos, d.four);
 }
 
 void decode_colour_for_rdo(const uint8_t* block, DecodedAlbedo& image, int b) {
-  decode_colour_for_rdo(block, image.block[b]);
-  image.holes[b] = image.block[b].holes;
-  image.four[b] = image.block[b].four ? -1 : 0;
+  uint8_t* const rgb[3] = {image.rgb[0][b], image.rgb[1][b], image.rgb[2][b]};
+  bool four = false;
+  image.holes[b] = decode_colour(block, rgb, image.pos[b], four);
+  image.four[b] = four ? -1 : 0;
 }
 
 inline int sse48(const uint8_t* a, const uint8_t* b) {
   return sse16(a, b) + sse16(a + 16, b + 16) + sse16(a + 32, b + 32);
+}
+inline int sse48(const DecodedAlbedo& image, int b, const uint8_t* ref) {
+  return sse16(image.rgb[0][b], ref) + sse16(image.rgb[1][b], ref + 16) + sse16(image.rgb[2][b], ref + 32);
 }
 
 // Albedo sources among the kAlbedoWindowBlocks blocks before block b, all with b's hole mask: the
@@ -472,30 +578,66 @@ struct ColourScan {
   int whole = -1, near = -1;
 };
 
+#if defined(TERRAIN_RDO_AVX2)
+// The keys of scan_colour_sources for the candidates back .. (while 8 fit in the window), 8 at a
+// time; advances back past them and folds its lanes into kw and kn.
+TERRAIN_TARGET_AVX2 void scan_colour_sources_avx2(const DecodedAlbedo& image, int b, const uint8_t ref[48], int window,
+                                                  int& back, int32_t& kw, int32_t& kn) {
+  const __m256i none = _mm256_set1_epi32(kNoKey);
+  const __m256i r0 = own16(ref), r1 = own16(ref + 16), r2 = own16(ref + 32), op = own16(image.pos[b]);
+  const __m256i holes = _mm256_set1_epi32(image.holes[b]);
+  const __m256i order = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  const bool four = image.four[b] != 0;
+  __m256i vw = none, vn = none;
+  for (; back + 7 <= window; back += 8) {
+    const int base = b - back - 7;  // block base + i is back + 7 - i blocks before b
+    const __m256i backs = _mm256_setr_epi32(back + 7, back + 5, back + 3, back + 1, back + 6, back + 4, back + 2, back);
+    const __m256i same = _mm256_cmpeq_epi32(
+        _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(image.holes + base)), order), holes);
+    const __m256i sums = _mm256_add_epi32(_mm256_add_epi32(sad8(image.rgb[0][base], r0), sad8(image.rgb[1][base], r1)),
+                                          sad8(image.rgb[2][base], r2));
+    vw = _mm256_min_epi32(vw, keys8(sums, backs, same));
+    if (four) {
+      const __m256i fours = _mm256_and_si256(
+          same, _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(image.four + base)), order));
+      vn = _mm256_min_epi32(vn, keys8(sad8(image.pos[base], op), backs, fours));
+    }
+  }
+  alignas(32) int32_t lw[8], ln[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lw), vw);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(ln), vn);
+  for (int i = 0; i < 8; ++i) {
+    kw = std::min(kw, lw[i]);
+    kn = std::min(kn, ln[i]);
+  }
+}
+#endif
+
 ColourScan scan_colour_sources(const DecodedAlbedo& image, int b, const uint8_t ref[48]) {
-  const DecodedColour& mine = image.block[b];
   int32_t kw = kNoKey, kn = kNoKey;
   const int window = std::min(kAlbedoWindowBlocks, b);
+  const bool four = image.four[b] != 0;
   int back = 1;
+#if defined(TERRAIN_RDO_AVX2)
+  if (avx2_scan_enabled) scan_colour_sources_avx2(image, b, ref, window, back, kw, kn);
+#endif
 #if defined(__SSE2__)
   const __m128i r0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref));
   const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref + 16));
   const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ref + 32));
-  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mine.pos));
+  const __m128i op = _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.pos[b]));
   const __m128i holes = _mm_set1_epi32(image.holes[b]);
   __m128i vw = _mm_set1_epi32(kNoKey), vn = vw;
-  constexpr size_t kStride = sizeof(DecodedColour);
   for (; back + 3 <= window; back += 4) {
     const int base = b - back - 3;
     const __m128i backs = _mm_setr_epi32(back + 3, back + 2, back + 1, back);
     const __m128i same = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(image.holes + base)), holes);
-    const uint8_t* rgb = image.block[base].rgb;
-    const __m128i sums = _mm_add_epi32(_mm_add_epi32(sad4(rgb, kStride, r0), sad4(rgb + 16, kStride, r1)),
-                                       sad4(rgb + 32, kStride, r2));
+    const __m128i sums = _mm_add_epi32(_mm_add_epi32(sad4(image.rgb[0][base], 16, r0), sad4(image.rgb[1][base], 16, r1)),
+                                       sad4(image.rgb[2][base], 16, r2));
     vw = min32(vw, keys4(sums, backs, same));
-    if (mine.four) {
-      const __m128i four = _mm_and_si128(same, _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.four + base)));
-      vn = min32(vn, keys4(sad4(image.block[base].pos, kStride, op), backs, four));
+    if (four) {
+      const __m128i fours = _mm_and_si128(same, _mm_loadu_si128(reinterpret_cast<const __m128i*>(image.four + base)));
+      vn = min32(vn, keys4(sad4(image.pos[base], 16, op), backs, fours));
     }
   }
   alignas(16) int32_t lw[4], ln[4];
@@ -507,11 +649,11 @@ ColourScan scan_colour_sources(const DecodedAlbedo& image, int b, const uint8_t 
   }
 #endif
   for (; back <= window; ++back) {
-    const DecodedColour& d = image.block[b - back];
-    if (d.holes != mine.holes) continue;
-    const int diff = sad16(d.rgb, ref) + sad16(d.rgb + 16, ref + 16) + sad16(d.rgb + 32, ref + 32);
+    const int c = b - back;
+    if (image.holes[c] != image.holes[b]) continue;
+    const int diff = sad16(image.rgb[0][c], ref) + sad16(image.rgb[1][c], ref + 16) + sad16(image.rgb[2][c], ref + 32);
     kw = std::min(kw, int32_t((diff << kBackBits) | back));
-    if (mine.four && d.four) kn = std::min(kn, int32_t((sad16(d.pos, mine.pos) << kBackBits) | back));
+    if (four && image.four[c]) kn = std::min(kn, int32_t((sad16(image.pos[c], image.pos[b]) << kBackBits) | back));
   }
   const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
   return {source(kw), source(kn)};
@@ -525,7 +667,6 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
   constexpr int kBlocks = kBlocksX * kBlocksX;
   RdoCounts n;
   static thread_local DecodedAlbedo image;
-  DecodedColour* dec = image.block;
   // Reference colours with hole texels at 0 (a source must have the same transparency mask, so
   // those texels decode to 0 on both sides and add nothing), and the plain blocks' squared error.
   static thread_local uint8_t refs[kBlocks][48];
@@ -543,7 +684,7 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           const uint8_t* t = rgba + (size_t(by * 4 + r) * kTexels + size_t(bx * 4 + c)) * 4;
           for (int k = 0; k < 3; ++k) ref[(r * 4 + c) * 3 + k] = t[3] < 128 ? 0 : t[k];
         }
-      plain_sse[b] = sse48(dec[b].rgb, ref);
+      plain_sse[b] = sse48(image, b, ref);
       total += plain_sse[b];
     }
   // The node's squared error may grow by kAlbedoBudget of the plain encoding's in all: its PSNR
@@ -572,7 +713,7 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
           best_j = j, best_e = e, std::memcpy(best, cand, 8), kind = k;
       };
       if (scan.whole >= 0)
-        consider(blocks + size_t(scan.whole) * kBytes, sse48(dec[scan.whole].rgb, ref), kMatchBytes, 1);
+        consider(blocks + size_t(scan.whole) * kBytes, sse48(image, scan.whole, ref), kMatchBytes, 1);
       if (scan.near >= 0) {
         uint8_t trial[8];
         std::memcpy(trial, own, 4);

@@ -13,6 +13,9 @@ namespace terrain {
 // = transparent black (0,0,0,0). Interpolants are (2a+b+1)/3 and (a+b+1)/2 of the 8-bit
 // expanded endpoints (GPUs may differ by 1 in the interpolated colours, never in alpha 0/255).
 void decode_bc1_block(const uint8_t block[8], uint8_t rgba[64]);
+// The four RGBA entries a BC1 block's 2-bit indices select (entry k at palette[4k..4k+3]), as
+// decode_bc1_block gives them: texel i is entry (selector bits >> 2i) & 3.
+void decode_bc1_palette(const uint8_t block[8], uint8_t palette[16]);
 // BC3: BC3 alpha block (8 or 6+{0,255} interpolated values), then a BC1 colour block that always
 // uses the 4-colour mode.
 void decode_bc3_block(const uint8_t block[16], uint8_t rgba[64]);
