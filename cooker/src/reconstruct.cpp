@@ -88,7 +88,7 @@ TERRAIN_AVX2_CLONES void interior_sums(const RunAxes& a, int m, const float* z, 
   int cell_c = -1 << 30, cell_r = -1 << 30;
   for (int k = 0; k < m; ++k) {
     const int ic = a.i[0][k], ir = a.i[1][k];
-    if (!a.in[k] || !(ic >= 1 && ir >= 1 && ic + 2 < width && ir + 2 < height)) {
+    if (!a.in[k] || !(Surface::taps_inside(ic, width) && Surface::taps_inside(ir, height))) {
       done[k] = 2;
       continue;
     }
@@ -184,7 +184,7 @@ bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {
   const double* wy = y.w;
   if (!nearest_valid(ic, ir, tx, ty)) return false;  // the hole test of covered()
   double sum = 0;
-  if (ic >= 1 && ir >= 1 && ic + 2 < w_ && ir + 2 < h_) {
+  if (taps_inside(ic, w_) && taps_inside(ir, h_)) {
     const float* p = at(ic - 1, ir - 1);
     for (int j = 0; j < 4; ++j, p += stride_)
       sum += wy[j] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);

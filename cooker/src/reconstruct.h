@@ -73,13 +73,17 @@ class Surface {
   Axis column(double col) const { return axis(col, w_); }
   Axis row(double r) const { return axis(r, h_); }
 
+  // Whether the 4 taps i - 1 .. i + 2 of a raster axis of `size` samples all lie inside it: the
+  // interior rule of every 16-tap sum below (and of sample_points' vector form).
+  static constexpr bool taps_inside(int i, int size) { return i >= 1 && i + 2 < size; }
+
   // Height (metres) at sample coordinates (col, row) (sample centres at integers); false = hole.
   bool sample(double col, double row, double& h) const { return sample(column(col), this->row(row), h); }
   // The same from precomputed axes (a row or column of vertices shares one): identical bits.
   // Inline for the common case (all 16 taps inside the raster and valid).
   bool sample(const Axis& x, const Axis& y, double& h) const {
     if (!x.in || !y.in) return false;
-    if (x.i >= 1 && y.i >= 1 && x.i + 2 < w_ && y.i + 2 < h_) {
+    if (taps_inside(x.i, w_) && taps_inside(y.i, h_)) {
       // The nearest sample is one of the 16 taps and any NaN tap (nodata) poisons the sum (0 * NaN
       // is NaN), so a finite sum means the point is covered; otherwise the general path decides.
       const float* p = at(x.i - 1, y.i - 1);
@@ -96,8 +100,8 @@ class Surface {
   // Rows of vertices denser than the source's rows share source rows: the horizontal Catmull-Rom
   // sum of source row r at column axis x (x inside the raster with its 4 taps), cached by the
   // caller and combined by sample_rows() with the same operations as sample(): identical bits.
-  bool x_interior(const Axis& x) const { return x.in && x.i >= 1 && x.i + 2 < w_; }
-  bool y_interior(const Axis& y) const { return y.in && y.i >= 1 && y.i + 2 < h_; }
+  bool x_interior(const Axis& x) const { return x.in && taps_inside(x.i, w_); }
+  bool y_interior(const Axis& y) const { return y.in && taps_inside(y.i, h_); }
   double horizontal(const Axis& x, int r) const {
     const float* p = at(x.i - 1, r);
     return x.w[0] * p[0] + x.w[1] * p[1] + x.w[2] * p[2] + x.w[3] * p[3];
