@@ -578,6 +578,15 @@ struct ColourScan {
   int whole = -1, near = -1;
 };
 
+// Folds the per-lane keys of a vector search (lanes[0] whole blocks, lanes[1] selector positions)
+// into the running least keys.
+inline void fold_colour_keys(const int32_t (*lanes)[8], int count, int32_t& kw, int32_t& kn) {
+  for (int i = 0; i < count; ++i) {
+    kw = std::min(kw, lanes[0][i]);
+    kn = std::min(kn, lanes[1][i]);
+  }
+}
+
 #if defined(TERRAIN_RDO_AVX2)
 // The keys of scan_colour_sources for the candidates back .. (while 8 fit in the window), 8 at a
 // time; advances back past them and folds its lanes into kw and kn.
@@ -603,13 +612,10 @@ TERRAIN_TARGET_AVX2 void scan_colour_sources_avx2(const DecodedAlbedo& image, in
       vn = _mm256_min_epi32(vn, keys8(sad8(image.pos[base], op), backs, fours));
     }
   }
-  alignas(32) int32_t lw[8], ln[8];
-  _mm256_store_si256(reinterpret_cast<__m256i*>(lw), vw);
-  _mm256_store_si256(reinterpret_cast<__m256i*>(ln), vn);
-  for (int i = 0; i < 8; ++i) {
-    kw = std::min(kw, lw[i]);
-    kn = std::min(kn, ln[i]);
-  }
+  alignas(32) int32_t lanes[2][8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lanes[0]), vw);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(lanes[1]), vn);
+  fold_colour_keys(lanes, 8, kw, kn);
 }
 #endif
 
@@ -640,13 +646,10 @@ ColourScan scan_colour_sources(const DecodedAlbedo& image, int b, const uint8_t 
       vn = min32(vn, keys4(sad4(image.pos[base], 16, op), backs, fours));
     }
   }
-  alignas(16) int32_t lw[4], ln[4];
-  _mm_store_si128(reinterpret_cast<__m128i*>(lw), vw);
-  _mm_store_si128(reinterpret_cast<__m128i*>(ln), vn);
-  for (int i = 0; i < 4; ++i) {
-    kw = std::min(kw, lw[i]);
-    kn = std::min(kn, ln[i]);
-  }
+  alignas(16) int32_t lanes[2][8];
+  _mm_store_si128(reinterpret_cast<__m128i*>(lanes[0]), vw);
+  _mm_store_si128(reinterpret_cast<__m128i*>(lanes[1]), vn);
+  fold_colour_keys(lanes, 4, kw, kn);
 #endif
   for (; back <= window; ++back) {
     const int c = b - back;
