@@ -120,9 +120,11 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   // rows' extent with two samples to spare; each row checks its own points against them, so the
   // bits are those of sample_points() whatever the mapping does in between.
   Surface::ZeroBounds zero;
+  // The first row is mapped last here, and the row loop takes its points as they are.
+  bool first_row_mapped = false;
   if (!shared_columns && hi > lo) {
     double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
-    for (const int j : {lo, hi - 1}) {
+    for (const int j : {hi - 1, lo}) {
       map_row(ctx.lattice_y(lattice_index(key.y, j - kWindowMargin, key.level)));
       for (int i = lo; i < hi; ++i) {
         cmin = std::min(cmin, cols[size_t(i)]);
@@ -132,6 +134,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       }
     }
     zero = ctx.surface.zero_bounds(cmin, cmax, rmin, rmax, 2);
+    first_row_mapped = true;
   }
   // Each column's scale and step for every row level (a vertex's level is the smaller of its
   // column's and its row's), for quantize_row.
@@ -151,7 +154,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
     const double y = ctx.lattice_y(gy);
     // Mapped rows: their heights in one call.
     if (!shared_columns) {
-      map_row(y);
+      if (!(j == lo && first_row_mapped)) map_row(y);
       bool zero_row = true;
       for (int i = lo; i < hi && zero_row; ++i) zero_row = zero.holds(cols[size_t(i)], rows[size_t(i)]);
       if (zero_row) {
