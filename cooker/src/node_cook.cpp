@@ -1,9 +1,12 @@
 #include "node_cook.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <fmt/format.h>
 
+#include "avx2_clones.h"
 #include "quantize.h"
 #include "terrain/cpu_clock.h"
 
@@ -273,6 +276,123 @@ bool node_has_terrain(const CookContext& ctx, const NodeKey& key) {
   return false;
 }
 
+namespace {
+
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+typedef float V4f __attribute__((vector_size(16)));
+
+std::atomic<bool> dense_rows_enabled{true};
+std::atomic<uint64_t> dense_rows_measured{0};
+
+// measure_error's rows where the source is denser than the node's vertices and the frame's axes
+// are the source's: every sample of a row has the row's frame y, and per column the quad and its
+// fraction are column_quad and column_fu (count + 4 elements: 4 past the last column are read and
+// dropped). Each error is the per-sample loop's, with the same operations in the same order (no
+// FMA in either clone), 4 columns at a time along each run of columns in one quad, the quad's terms
+// computed once per run. Maxima and counts are the per-sample loop's; the squared errors are summed
+// in 4 lanes per quadrant (lane k: every 4th sample of each run), then lane 0 + 1 + 2 + 3, so the
+// rms may differ from a sample-by-sample sum in its last bits.
+TERRAIN_AVX2_CLONES void measure_dense_level_rows(const CookContext& ctx, const SampleWindow& src, int r0, int r1, int c0,
+                                                  int c1, double y0, double inv_s, const double* hv,
+                                                  const int* column_quad, const double* column_fu, NodeError& out) {
+  const int count = c1 - c0 + 1;
+  const bool any_filled = !src.filled.empty();
+  const V4d zero = {0, 0, 0, 0};
+  const V4l none = {0, 0, 0, 0}, lane = {0, 1, 2, 3};
+  const V4l magnitude = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+  struct Lanes {
+    V4d max_m = {0, 0, 0, 0}, sum_sq = {0, 0, 0, 0};
+    V4l samples = {0, 0, 0, 0}, uncovered = {0, 0, 0, 0};
+  };
+  Lanes quadrant[4];
+  uint64_t rows_measured = 0;
+  const auto at = [&](int i, int j) { return hv[size_t(j) * kHeightSamples + size_t(i)]; };
+  // The runs of columns in one quad (the same for every row).
+  struct Run {
+    int a, b, cq;
+  };
+  thread_local std::vector<Run> runs;
+  runs.clear();
+  for (int a = 0; a < count;) {
+    int b = a + 1;
+    while (b < count && column_quad[b] == column_quad[a]) ++b;
+    if (column_quad[a] >= 0) runs.push_back({a, b, column_quad[a]});  // else outside the node
+    a = b;
+  }
+  for (int row = r0; row <= r1; ++row) {
+    double fx = 0, fy = 0;
+    ctx.mapping->map_sample_row(row, c0, 1, &fx, &fy);
+    const double v = (fy - y0) * inv_s;
+    if (!(v >= 0 && v <= kQuadsPerSide)) continue;
+    const int j = std::min(int(v), kQuadsPerSide - 1);
+    const double fv = v - j;
+    const int qv = v >= 0.5 * kQuadsPerSide ? 2 : 0;
+    const V4d fv4 = {fv, fv, fv, fv};
+    ++rows_measured;
+    const size_t row_idx = src.index(c0, row);
+    const float* zs = &src.values[row_idx];
+    const uint8_t* filled = any_filled ? &src.filled[row_idx] : nullptr;
+    for (const Run& run : runs) {
+      const int a = run.a, b = run.b, cq = run.cq;
+      const int i = cq & 0xFFFF;
+      const double h00 = at(i, j), h10 = at(i + 1, j), h01 = at(i, j + 1), h11 = at(i + 1, j + 1);
+      const int64_t se_ok = -int64_t(!(std::isnan(h00) || std::isnan(h11) || std::isnan(h10)));
+      const int64_t nw_ok = -int64_t(!(std::isnan(h00) || std::isnan(h11) || std::isnan(h01)));
+      const double d_se = h10 - h00, t_se = fv * (h11 - h10), t_nw = h00 + fv * (h01 - h00), d_nw = h11 - h01;
+      const V4d h00v = {h00, h00, h00, h00}, d_sev = {d_se, d_se, d_se, d_se}, t_sev = {t_se, t_se, t_se, t_se};
+      const V4d t_nwv = {t_nw, t_nw, t_nw, t_nw}, d_nwv = {d_nw, d_nw, d_nw, d_nw};
+      const V4l se_okv = {se_ok, se_ok, se_ok, se_ok}, nw_okv = {nw_ok, nw_ok, nw_ok, nw_ok};
+      Lanes& q = quadrant[(cq >> 16) | qv];
+      for (int n = a; n < b; n += 4) {
+        const int left = b - n;
+        V4d fu, z;
+        V4l no_data = none;
+        std::memcpy(&fu, column_fu + n, sizeof fu);
+        if (left >= 4) {
+          V4f zf;
+          std::memcpy(&zf, zs + n, sizeof zf);
+          z = __builtin_convertvector(zf, V4d);
+          uint32_t any = 0;
+          if (filled) std::memcpy(&any, filled + n, sizeof any);
+          if (any)
+            for (int k = 0; k < 4; ++k) no_data[k] = -int64_t(filled[n + k] != 0);
+        } else {
+          z = zero;
+          for (int k = 0; k < left; ++k) {
+            z[k] = double(zs[n + k]);
+            if (filled) no_data[k] = -int64_t(filled[n + k] != 0);
+          }
+        }
+        const V4l valid = (lane < int64_t(left)) & ~no_data & (z == z);
+        const V4l se = fu >= fv4;
+        const V4d h = se ? h00v + fu * d_sev + t_sev : t_nwv + fu * d_nwv;
+        const V4l ok = se ? se_okv : nw_okv;
+        const V4d e = (V4d)((V4l)(h - z) & magnitude);  // fabs
+        const V4l measured = valid & ok;
+        q.max_m = (measured & (e > q.max_m)) ? e : q.max_m;
+        q.sum_sq += measured ? e * e : zero;
+        q.samples -= measured;
+        q.uncovered -= valid & ~ok;
+      }
+    }
+  }
+  dense_rows_measured.fetch_add(rows_measured, std::memory_order_relaxed);
+  for (int k = 0; k < 4; ++k) {
+    const Lanes& q = quadrant[k];
+    ErrorStats& s = out.quadrant[size_t(k)];
+    s.max_m = std::max(std::max(q.max_m[0], q.max_m[1]), std::max(q.max_m[2], q.max_m[3]));
+    s.sum_sq = ((q.sum_sq[0] + q.sum_sq[1]) + q.sum_sq[2]) + q.sum_sq[3];
+    s.samples = uint64_t(q.samples[0] + q.samples[1] + q.samples[2] + q.samples[3]);
+    s.uncovered = uint64_t(q.uncovered[0] + q.uncovered[1] + q.uncovered[2] + q.uncovered[3]);
+  }
+}
+
+}  // namespace
+
+bool measure_error_dense_rows(bool enabled) { return dense_rows_enabled.exchange(enabled); }
+uint64_t dense_error_rows_measured() { return dense_rows_measured.load(); }
+
 void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow& w, NodeError& out) {
   out = NodeError{};
   const SampleWindow& src = *ctx.window;
@@ -313,7 +433,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   thread_local std::vector<int> column_quad;
   if (level_rows) {
     ctx.mapping->map_sample_row(r0, c0, c1 - c0 + 1, fxs.data(), fys.data());
-    column_fu.resize(fxs.size());
+    column_fu.resize(fxs.size() + 4);  // measure_dense_level_rows reads 4 at a time past the end
     column_quad.resize(fxs.size());
     for (size_t n = 0; n < fxs.size(); ++n) {
       const double u = (fxs[n] - x0) * inv_s;
@@ -418,7 +538,9 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
       if (cur >= 0) out.quadrant[size_t(cur)] = acc;
     }
   };
-  if (dense)
+  if (dense && level_rows && dense_rows_enabled.load(std::memory_order_relaxed))
+    measure_dense_level_rows(ctx, src, r0, r1, c0, c1, y0, inv_s, hv.data(), column_quad.data(), column_fu.data(), out);
+  else if (dense)
     measure_rows([&](int i, int j) { return hv[size_t(j) * kHeightSamples + size_t(i)]; });
   else
     measure_rows(vertex_m);

@@ -87,6 +87,11 @@ struct NodeError {
   std::array<ErrorStats, 4> quadrant;  // by child index (bit 0 east, bit 1 north)
 };
 void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow& w, NodeError& out);
+// Tests: whether measure_error takes its 4-lane path for sources denser than the node on the
+// frame's axes (on by default; off: the per-sample loop, the definition), returning the previous
+// setting; and how many source rows that path has measured in this process.
+bool measure_error_dense_rows(bool enabled);
+uint64_t dense_error_rows_measured();
 
 struct NodeResult {
   Status status;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cooker_test_util.h"
+#include "node_cook.h"
 #include "test_data.h"
 
 using namespace terrain;
@@ -525,6 +526,65 @@ TEST(Determinism, OneAndTwoThreadsGiveIdenticalBytes) {
   }
   ASSERT_GT(bytes[0].size(), 1000u);
   EXPECT_TRUE(bytes[0] == bytes[1]);
+}
+
+// Bound: the error stage's 4-lane path for sources denser than the node (node_cook.cpp,
+// measure_dense_level_rows) reports what the per-sample loop reports, on 1 m rough relief with an
+// enclosed void (filled samples, skipped by both) and a nodata corner (hole vertices: uncovered
+// samples): per level the same samples, uncovered samples and maximum error (exactly: the same
+// operations per sample), the rms within 1e-12 relative (summed in lanes), and the same archive.
+TEST(ErrorMeasure, DenseRowsGiveThePerSampleLoopsErrors) {
+  SyntheticDem d = utm_dem(1100, 900, 1.0, 511000.5, 5020899.5);
+  uint32_t h = 7;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) {
+      h = h * 1664525u + 1013904223u;
+      d.at(col, row) = 300.0 + 40.0 * std::sin(col * 0.013) * std::cos(row * 0.017) + 2.0 * std::sin(col * 0.9 + row * 0.4) +
+                       0.6 * double(h >> 24) / 256.0;
+    }
+  for (int row = 400; row < 406; ++row)
+    for (int col = 500; col < 507; ++col) d.at(col, row) = NAN;  // enclosed: filled
+  for (int row = 0; row < 150; ++row)
+    for (int col = 0; col < 120 - row / 2; ++col) d.at(col, row) = NAN;  // a corner: holes
+  cook::CookReport reports[2];
+  std::vector<char> bytes[2];
+  uint64_t dense_rows[2] = {};
+  const bool was = cook::measure_error_dense_rows(true);
+  for (int k = 0; k < 2; ++k) {
+    cook::measure_error_dense_rows(k == 0);
+    const uint64_t before = cook::dense_error_rows_measured();
+    Cooked c;
+    cook::CookOptions o;
+    ASSERT_NO_FATAL_FAILURE(cook_dem("dense-rows", d, o, c));  // one name: the archive records its input
+    dense_rows[k] = cook::dense_error_rows_measured() - before;
+    reports[k] = c.report;
+    std::ifstream in(c.path, std::ios::binary);
+    bytes[k].assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  cook::measure_error_dense_rows(was);
+  std::printf("dense path: %llu rows; per-sample loop: %llu\n", (unsigned long long)dense_rows[0],
+              (unsigned long long)dense_rows[1]);
+  EXPECT_GT(dense_rows[0], 10000u);
+  EXPECT_EQ(dense_rows[1], 0u);
+  EXPECT_TRUE(bytes[0] == bytes[1]);
+  EXPECT_EQ(reports[0].voids_filled_samples, 42u);
+  uint64_t uncovered = 0, measured = 0;
+  for (int l = 0; l < kLevelCount; ++l) {
+    const cook::LevelStats& a = reports[0].levels[size_t(l)];
+    const cook::LevelStats& b = reports[1].levels[size_t(l)];
+    EXPECT_EQ(a.error_samples, b.error_samples) << "level " << l;
+    EXPECT_EQ(a.uncovered_samples, b.uncovered_samples) << "level " << l;
+    EXPECT_EQ(a.error_max_m, b.error_max_m) << "level " << l;
+    EXPECT_NEAR(a.error_rms_m, b.error_rms_m, 1e-12 * b.error_rms_m) << "level " << l;
+    uncovered += b.uncovered_samples;
+    measured += b.error_samples;
+  }
+  EXPECT_EQ(reports[0].leaf_error_max_m, reports[1].leaf_error_max_m);
+  EXPECT_EQ(reports[0].leaf_error_samples, reports[1].leaf_error_samples);
+  EXPECT_EQ(reports[0].leaf_uncovered_samples, reports[1].leaf_uncovered_samples);
+  std::printf("%llu samples measured, %llu uncovered, leaf max %.4f m\n", (unsigned long long)measured,
+              (unsigned long long)uncovered, reports[1].leaf_error_max_m);
+  EXPECT_GT(uncovered, 0u);
 }
 
 // A GeoTIFF without geokeys is refused with a message naming --crs; with --crs it cooks.
