@@ -307,6 +307,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
 
 Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSummary& summary, CookReport& report) {
   CookSession s;
+  s.reads_source_again = false;  // the units read it, in their own processes
   PlanFile plan;
   return plan_in_session(options, progress, s, plan, summary, report);
 }
