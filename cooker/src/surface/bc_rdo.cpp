@@ -508,15 +508,13 @@ int decode_colour_scalar(const uint8_t* block, uint8_t* const rgb[3], uint8_t po
   four = c0 > c1;
   static constexpr uint8_t kPos[4] = {0, 3, 1, 2};
   uint8_t rgbx[16 * 3 + 1];  // each texel's 4 palette bytes land at 3i; the 4th is overwritten
-  int holes = 0;
   for (int i = 0; i < 16; ++i) {
     const uint32_t k = (sel >> (2 * i)) & 3;
     std::memcpy(rgbx + 3 * i, palette + 4 * k, 4);
     pos[i] = kPos[k];
-    holes |= int(!four && k == 3) << i;
   }
   for (int k = 0; k < 3; ++k) std::memcpy(rgb[k], rgbx + 16 * k, 16);
-  return holes;
+  return bc1_transparent_mask(block);
 }
 
 #if defined(TERRAIN_RDO_AVX2)
@@ -568,6 +566,9 @@ inline int sse48(const uint8_t* a, const uint8_t* b) {
 }
 inline int sse48(const DecodedAlbedo& image, int b, const uint8_t* ref) {
   return sse16(image.rgb[0][b], ref) + sse16(image.rgb[1][b], ref + 16) + sse16(image.rgb[2][b], ref + 32);
+}
+inline int sad48(const DecodedAlbedo& image, int b, const uint8_t* ref) {
+  return sad16(image.rgb[0][b], ref) + sad16(image.rgb[1][b], ref + 16) + sad16(image.rgb[2][b], ref + 32);
 }
 
 // Albedo sources among the kAlbedoWindowBlocks blocks before block b, all with b's hole mask: the
@@ -654,8 +655,7 @@ ColourScan scan_colour_sources(const DecodedAlbedo& image, int b, const uint8_t 
   for (; back <= window; ++back) {
     const int c = b - back;
     if (image.holes[c] != image.holes[b]) continue;
-    const int diff = sad16(image.rgb[0][c], ref) + sad16(image.rgb[1][c], ref + 16) + sad16(image.rgb[2][c], ref + 32);
-    kw = std::min(kw, int32_t((diff << kBackBits) | back));
+    kw = std::min(kw, int32_t((sad48(image, c, ref) << kBackBits) | back));
     if (four && image.four[c]) kn = std::min(kn, int32_t((sad16(image.pos[c], image.pos[b]) << kBackBits) | back));
   }
   const auto source = [b](int32_t key) { return key == kNoKey ? -1 : b - int(key & ((1 << kBackBits) - 1)); };
