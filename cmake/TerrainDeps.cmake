@@ -38,6 +38,8 @@ find_package(GDAL CONFIG REQUIRED)
 # PROJ (libproj-dev): terrain-inspect's lon/lat datum conversion (format/tools/inspect_lonlat.cpp).
 pkg_check_modules(proj REQUIRED IMPORTED_TARGET proj)
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)
+# libdeflate (libdeflate-dev): deflate-compressed GeoTIFF blocks (cooker/src/tiff_blocks.cpp), as GDAL inflates them.
+pkg_check_modules(libdeflate REQUIRED IMPORTED_TARGET libdeflate)
 pkg_check_modules(squish REQUIRED IMPORTED_TARGET libsquish)
 # Debian 12's libsquish.pc has an empty prefix, so the target carries "-I/include", which CMake
 # rejects at generate time: keep only include dirs that really hold squish.h.

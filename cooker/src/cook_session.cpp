@@ -15,6 +15,7 @@
 #include "quantize.h"
 #include "source_raster.h"
 #include "terrain/archive_reader.h"
+#include "tiff_blocks.h"
 
 namespace terrain::cook {
 namespace {
@@ -127,6 +128,16 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
   return j.dump();
 }
 
+void set_tiff_block_cache(const CookSession& s, uint64_t most) {
+  // Blocks the cooker decodes itself (tiff_blocks.h) are cheap to decode again, and a cache larger
+  // than the blocks a pass reuses only adds fresh pages: two rows of blocks across the source, at
+  // least 16 MB, at most `most`. The 1 m lidar-like 8 km square (512-row tiles: 32 MB), CPU s:
+  // `plan` 0.72 with 24 MB, 0.85 with 64, 1.06 with 128; its unit 2.26 / 2.39 / 2.37 and 2.54 with
+  // the whole source (300 MB).
+  const uint64_t rows = tiff_block_rows_bytes(s.source.header().width);
+  set_tiff_block_cache_bytes(std::min(most, std::max<uint64_t>(rows, uint64_t(16) << 20)));
+}
+
 Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report) {
   if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
     return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
@@ -154,6 +165,7 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
     const uint64_t want = decoded + decoded / 8;
     const uint64_t bounded = std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20);
     set_gdal_cache_bytes(s.reads_source_again && want <= s.shares.gdal_cache ? want : bounded);
+    set_tiff_block_cache(s, bounded);
   }
   s.descriptions.clear();
   report.input_descriptions.clear();

@@ -55,6 +55,9 @@ struct CookSession {
   bool reads_source_again = true;
 };
 
+// Sizes the cache of the blocks the cooker decodes itself (tiff_blocks.h) for this session's
+// source, at most `most` bytes (open_inputs calls it; a unit again with its own GDAL share).
+void set_tiff_block_cache(const CookSession& s, uint64_t most);
 // Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.
 Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report);
 // Reads every sample once: the void plan, the valid samples, the implausible heights, the range

@@ -10,6 +10,7 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -21,6 +22,7 @@
 #include "crs.h"
 #include "inputs.h"
 #include "source_raster.h"
+#include "tiff_blocks.h"
 
 namespace terrain::cook {
 namespace {
@@ -30,6 +32,9 @@ namespace {
 constexpr int64_t kGdalCacheBytes = int64_t(64) << 20;
 // Rows of scratch (doubles) per RasterIO call when a window is read band by band.
 constexpr uint64_t kScratchBytes = uint64_t(8) << 20;
+
+// Threads that decode a window's compressed blocks (set_gdal_decode_threads), for TiffBlockReader.
+std::atomic<int> g_decode_threads{1};
 
 // The thread that set GDAL up (the cook's own).
 std::thread::id g_gdal_home_thread;
@@ -219,8 +224,9 @@ std::string compression_name(GDALDataset* ds) {
 
 class GdalSource final : public SourceRaster {
  public:
-  GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte)
-      : ds_(std::move(ds)), band_(band), is_float_(is_float), signed_byte_(signed_byte) {}
+  GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte,
+             std::unique_ptr<TiffBlockReader> tiff)
+      : ds_(std::move(ds)), band_(band), is_float_(is_float), signed_byte_(signed_byte), tiff_(std::move(tiff)) {}
   SourceInfo& info_mut() { return info_; }
 
   // Types of 4 bytes or fewer are decoded in place in `out` (no scratch); wider ones (Float64,
@@ -230,7 +236,9 @@ class GdalSource final : public SourceRaster {
     band_->GetBlockSize(&bw, &bh);
     const uint64_t block = uint64_t(std::max(bw, 1)) * uint64_t(std::max(bh, 1)) * uint64_t(type_bytes());
     const uint64_t rows = in_place() ? 0 : std::min<uint64_t>(rows_per_call(w, h), uint64_t(h));
-    return rows * uint64_t(w) * 8 + block;
+    // Decoded here, a window holds one row of its blocks while it copies them (tiff_blocks.h).
+    const uint64_t block_row = tiff_ ? (uint64_t(w) / uint64_t(std::max(bw, 1)) + 2) * block : 0;
+    return rows * uint64_t(w) * 8 + block + block_row;
   }
 
   Status read_window(int x0, int y0, int w, int h, float* out) override {
@@ -240,9 +248,12 @@ class GdalSource final : public SourceRaster {
                                          y0, info_.width, info_.height));
     const GDALDataType type = band_->GetRasterDataType();
     if (in_place()) {
-      // Native samples into out's 4-byte slots, then each slot converted where it lies.
+      // Native samples into out's 4-byte slots, then each slot converted where it lies. A plain
+      // GeoTIFF's blocks are decoded here (tiff_blocks.h); GDAL reads the rest, and any block
+      // that does not decode, so that it names the damage.
       QuietErrors quiet;
-      if (band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
+      if (!(tiff_ && tiff_->read_window(x0, y0, w, h, reinterpret_cast<uint8_t*>(out), g_decode_threads.load())) &&
+          band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
                                                            y0 + h - 1, reason(x0, y0, w, h)));
       info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
@@ -317,6 +328,7 @@ class GdalSource final : public SourceRaster {
   GDALRasterBand* band_;
   bool is_float_;
   bool signed_byte_;
+  std::unique_ptr<TiffBlockReader> tiff_;  // null: GDAL decodes every block
   std::vector<double> buf_;
 };
 
@@ -334,6 +346,7 @@ void set_gdal_decode_threads(int threads) {
   init_gdal_once();
   static const bool user_set = CPLGetConfigOption("GDAL_NUM_THREADS", nullptr) != nullptr;
   if (!user_set) CPLSetConfigOption("GDAL_NUM_THREADS", std::to_string(std::max(threads, 1)).c_str());
+  g_decode_threads = std::max(threads, 1);
 }
 
 uint64_t gdal_cache_used_bytes() { return uint64_t(std::max<GIntBig>(GDALGetCacheUsed64(), 0)); }
@@ -483,9 +496,13 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
                                    info.sample_type, width, height, nodata_text, scale_text,
                                    point ? "pixel is point" : "pixel is area");
   }
+  // A plain GeoTIFF of 1-, 2- or 4-byte samples: its blocks decoded by tiff_blocks.cpp.
+  std::unique_ptr<TiffBlockReader> tiff;
+  if (driver == "GTiff" && GDALDataTypeIsComplex(type) == 0 && GDALGetDataTypeSizeBytes(type) <= 4)
+    tiff = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type));
   // The source owns the dataset from here on (the band pointer stays valid with it).
   auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
-                                           info.sample_type == "Int8");
+                                           info.sample_type == "Int8", std::move(tiff));
   src->info_mut() = std::move(info);
   out = std::move(src);
   return Status::success();

@@ -9,6 +9,7 @@
 #include "memory_budget.h"
 #include "resample_inputs.h"
 #include "source_raster.h"
+#include "tiff_blocks.h"
 
 namespace terrain::cook {
 
@@ -210,7 +211,7 @@ uint64_t MosaicSource::resident_bytes() const {
     windowed = windowed || l.input.source || (l.resampled && l.resampled->bytes_read() > 0);
   }
   n += uint64_t(window_.capacity() + scratch_.capacity()) * sizeof(float);
-  return n + (windowed ? gdal_cache_used_bytes() : 0);
+  return n + (windowed ? gdal_cache_used_bytes() + tiff_block_cache_used_bytes() : 0);
 }
 
 Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out) {

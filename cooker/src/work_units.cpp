@@ -726,6 +726,7 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s,
   // of 1 m lidar (perf samples in libtiff over the 9 units of the 16 km square, 4503 -> 3917;
   // all samples 24 779 -> 23 395).
   set_gdal_cache_bytes(std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20));
+  set_tiff_block_cache(s, std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20));
   const Raster& header = s.source.header();
   if (header.width != data.source_width || header.height != data.source_height)
     return Status::failure(Error::unsupported_input,

@@ -1,0 +1,90 @@
+// A plain GeoTIFF's compressed blocks (tiles or strips) decoded by the cooker instead of GDAL, for
+// the one layout lidar DEMs ship in: one band of 8-, 16- or 32-bit samples, zstd or deflate (or no
+// compression), predictor 1, 2 or 3, the host's byte order. libtiff reads the layout (offsets and
+// sizes of the blocks), libzstd and libdeflate inflate, and the predictors are undone here with
+// SSE2: libtiff's floating-point predictor undoes one byte at a time and was a third of the CPU of
+// the first pass over a 1 m Float32 DEM (PREDICTOR=3, the GDAL default for such files), its block
+// cache's fresh pages another fifth. The samples are bit for bit GDAL's (lossless decoding; test
+// TiffBlocks.*), so archives do not change. Anything else (LZW, JPEG, sparse or damaged blocks,
+// other byte order, several samples per pixel) is left to GDAL: open() says why, read_window()
+// returns false and the caller reads through GDAL, which names any damage.
+//
+// Decoded blocks are kept in one process-wide cache (least recently used out first) so the first
+// pass's 64-row reads decode each block once; set_tiff_block_cache_bytes sizes it, and a window
+// holds at most one more row of blocks while it is read. TERRAIN_TIFF_DIRECT=0 in the environment
+// turns the reader off (GDAL then reads everything, as before).
+#pragma once
+#include <cstdint>
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace terrain::cook {
+
+struct TiffBlockLayout {
+  int width = 0, height = 0;        // the image
+  int block_w = 0, block_h = 0;     // a tile, or the width x rows per strip
+  bool tiled = false;
+  int bytes_per_sample = 0;         // 1, 2 or 4
+  bool is_float = false;            // SAMPLEFORMAT_IEEEFP
+  int compression = 1;              // 1 none, 8 / 32946 deflate, 50000 zstd
+  int predictor = 1;                // 1 none, 2 horizontal, 3 floating point
+  std::vector<uint64_t> offsets, byte_counts;  // per block, row-major
+};
+
+// One decoded block's samples (not zeroed when made: the decode writes every byte it is read for).
+struct TiffBlockBytes {
+  std::unique_ptr<uint8_t[]> bytes;
+  size_t size = 0;
+};
+
+class TiffBlockReader {
+ public:
+  ~TiffBlockReader();
+  TiffBlockReader(const TiffBlockReader&) = delete;
+  TiffBlockReader& operator=(const TiffBlockReader&) = delete;
+
+  // The reader of `path` when its first image is the layout above with width x height samples of
+  // `bytes_per_sample` bytes; else nullptr and `why_not` says what it is instead.
+  static std::unique_ptr<TiffBlockReader> open(const std::string& path, int width, int height, int bytes_per_sample,
+                                               std::string* why_not = nullptr);
+
+  // Columns x0 .. x0+w-1 of rows y0 .. y0+h-1 into `slots` (row-major, 4 bytes per sample, each
+  // sample's native bytes at the start of its slot: what GDAL's RasterIO writes with a pixel
+  // spacing of 4). Blocks missing from the cache are decoded on up to `threads` threads. False
+  // (slots undefined) when a block of the window is sparse or does not decode: read it with GDAL.
+  bool read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads) const;
+
+  const TiffBlockLayout& layout() const { return layout_; }
+
+ private:
+  TiffBlockReader() = default;
+  bool decode(uint32_t index, TiffBlockBytes& block) const;
+
+  TiffBlockLayout layout_;
+  std::string path_;
+  int fd_ = -1;
+  uint64_t file_bytes_ = 0;
+  uint64_t id_ = 0;  // this reader's blocks in the shared cache
+};
+
+// Bytes of decoded blocks the process keeps (default 64 MB).
+void set_tiff_block_cache_bytes(uint64_t bytes);
+// Bytes of decoded blocks the cache holds now (with the few it keeps to decode into).
+uint64_t tiff_block_cache_used_bytes();
+// Two rows of blocks across `width` samples, for the tallest blocks of any reader opened so far
+// (0 before any): what a pass over rows of tiles, or windows beside each other, reuses. More cache
+// than that costs a fresh page per decoded block and saves no decoding.
+uint64_t tiff_block_rows_bytes(int width);
+// Whether TERRAIN_TIFF_DIRECT allows the reader (anything but "0").
+bool tiff_direct_enabled();
+
+// The predictors' undo, one row of `samples` samples in place (exposed for the tests; the SSE2
+// forms are used where the CPU has them, `scalar` forces the byte-by-byte definitions).
+void undo_horizontal_predictor(uint8_t* row, int samples, int bytes_per_sample, bool scalar = false);
+// Floating point (32-bit): `row` holds the 4 byte planes (most significant first) differenced along
+// the row; `out` receives the samples in the host's (little-endian) order. `row` is overwritten.
+void undo_float_predictor(uint8_t* row, int samples, uint8_t* out, bool scalar = false);
+
+}  // namespace terrain::cook

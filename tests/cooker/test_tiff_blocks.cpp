@@ -1,0 +1,329 @@
+// The cooker's own decoding of plain GeoTIFF blocks (cooker/src/tiff_blocks.h): the predictors'
+// undo against the TIFF rules written out here, every window of every supported layout bit for bit
+// GDAL's, what it leaves to GDAL (and that the source then reads the same samples), and archives
+// equal with the reader on and off.
+#include <gtest/gtest.h>
+
+#include <gdal_priv.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <iostream>
+#include <random>
+
+#include "cooker_test_util.h"
+#include "inputs.h"
+#include "source_raster.h"
+#include "test_data.h"
+#include "tiff_blocks.h"
+
+using namespace terrain;
+using namespace terrain::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+// TERRAIN_TIFF_DIRECT for one scope.
+struct DirectSwitch {
+  explicit DirectSwitch(bool on) { ::setenv("TERRAIN_TIFF_DIRECT", on ? "1" : "0", 1); }
+  ~DirectSwitch() { ::unsetenv("TERRAIN_TIFF_DIRECT"); }
+};
+
+// TIFF predictor 2 (horizontal differencing) of one row, as a writer applies it.
+void difference_row(uint8_t* row, int samples, int bps) {
+  for (int i = samples - 1; i >= 1; --i) {
+    uint32_t a = 0, b = 0;
+    std::memcpy(&a, row + size_t(i - 1) * size_t(bps), size_t(bps));
+    std::memcpy(&b, row + size_t(i) * size_t(bps), size_t(bps));
+    b -= a;
+    std::memcpy(row + size_t(i) * size_t(bps), &b, size_t(bps));
+  }
+}
+
+// TIFF predictor 3 (Adobe's floating-point predictor) of one row of little-endian floats: the
+// bytes split into planes, most significant first, then differenced byte by byte along the row.
+std::vector<uint8_t> float_predict_row(const std::vector<float>& v) {
+  const size_t n = v.size();
+  std::vector<uint8_t> out(4 * n);
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t u;
+    std::memcpy(&u, &v[i], 4);
+    for (int b = 0; b < 4; ++b) out[size_t(b) * n + i] = uint8_t(u >> (8 * (3 - b)));
+  }
+  for (size_t i = out.size() - 1; i >= 1; --i) out[i] = uint8_t(out[i] - out[i - 1]);
+  return out;
+}
+
+TEST(TiffBlocks, PredictorsUndoWhatAWriterDid) {
+  std::mt19937 rng(7);
+  // Row lengths around the 16-byte vectors, odd tails included, and a 512-sample tile row.
+  for (int samples : {1, 2, 3, 7, 15, 16, 17, 31, 33, 100, 257, 512, 1000}) {
+    for (int bps : {1, 2, 4}) {
+      std::vector<uint8_t> original(size_t(samples) * size_t(bps));
+      for (uint8_t& b : original) b = uint8_t(rng());
+      for (bool scalar : {false, true}) {
+        std::vector<uint8_t> row = original;
+        difference_row(row.data(), samples, bps);
+        cook::undo_horizontal_predictor(row.data(), samples, bps, scalar);
+        EXPECT_EQ(row, original) << samples << " samples of " << bps << " bytes, scalar " << scalar;
+      }
+    }
+    std::vector<float> v(static_cast<size_t>(samples));
+    std::normal_distribution<float> z(800.0f, 300.0f);
+    for (float& f : v) f = z(rng);
+    if (samples > 3) v[2] = -0.0f, v[3] = NAN;
+    for (bool scalar : {false, true}) {
+      std::vector<uint8_t> row = float_predict_row(v), out(4 * size_t(samples));
+      cook::undo_float_predictor(row.data(), samples, out.data(), scalar);
+      EXPECT_EQ(std::memcmp(out.data(), v.data(), out.size()), 0) << samples << " floats, scalar " << scalar;
+    }
+  }
+}
+
+struct Layout {
+  GDALDataType type;
+  std::vector<std::string> options;  // GTiff creation options
+};
+
+// A w x h raster of `type` with relief, noise, a nodata patch and negative values where signed.
+fs::path write_tiff(const fs::path& dir, const std::string& name, int w, int h, const Layout& l) {
+  GDALAllRegister();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  std::unique_ptr<GDALDataset> ds(mem->Create("", w, h, 1, GDT_Float64, nullptr));
+  std::vector<double> v(size_t(w) * size_t(h));
+  std::mt19937 rng(uint32_t(w * 31 + h));
+  std::uniform_real_distribution<double> noise(-3.0, 3.0);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      double z = 120.0 + 60.0 * std::sin(c * 0.013) * std::cos(r * 0.021) + noise(rng);
+      if (l.type == GDT_Float32) z = z * 13.7 - 400.0;  // negative heights, fractions
+      if (l.type == GDT_Int16 || l.type == GDT_Int32) z = z * 50.0 - 3000.0;
+      if (l.type == GDT_UInt16) z *= 200.0;
+      if (c > w / 3 && c < w / 3 + 20 && r > h / 2 && r < h / 2 + 9) z = l.type == GDT_Byte ? 0 : -9999;  // nodata
+      v[size_t(r) * size_t(w) + size_t(c)] = z;
+    }
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Float64, 0, 0, nullptr), CE_None);
+  std::unique_ptr<GDALDataset> typed(mem->Create("", w, h, 1, l.type, nullptr));
+  EXPECT_EQ(typed->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Float64, 0, 0, nullptr), CE_None);
+  if (l.type != GDT_Byte) typed->GetRasterBand(1)->SetNoDataValue(-9999);
+  std::vector<const char*> opts;
+  for (const std::string& o : l.options) opts.push_back(o.c_str());
+  opts.push_back(nullptr);
+  const fs::path path = dir / (name + ".tif");
+  std::unique_ptr<GDALDataset> out(
+      gtiff->CreateCopy(path.c_str(), typed.get(), FALSE, const_cast<char**>(opts.data()), nullptr, nullptr));
+  EXPECT_TRUE(out) << path;
+  return path;
+}
+
+// GDAL's window in 4-byte slots, as GdalSource asks for it.
+std::vector<uint8_t> gdal_window(GDALDataset& ds, int x0, int y0, int w, int h) {
+  GDALRasterBand* b = ds.GetRasterBand(1);
+  std::vector<uint8_t> slots(size_t(w) * size_t(h) * 4, 0);
+  EXPECT_EQ(b->RasterIO(GF_Read, x0, y0, w, h, slots.data(), w, h, b->GetRasterDataType(), 4, GSpacing(w) * 4, nullptr),
+            CE_None);
+  return slots;
+}
+
+// Slots compared on their first `bps` bytes (the rest is not written by either reader).
+bool same_samples(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b, int bps) {
+  for (size_t i = 0; i < a.size(); i += 4)
+    if (std::memcmp(&a[i], &b[i], size_t(bps)) != 0) return false;
+  return true;
+}
+
+TEST(TiffBlocks, EveryWindowIsGdalsBitForBit) {
+  const fs::path dir = scratch_dir("TiffBlocks.EveryWindowIsGdalsBitForBit");
+  const int w = 1001, h = 777;  // partial tiles and a short last strip on both edges
+  const std::vector<std::pair<std::string, Layout>> layouts = {
+      {"f32_zstd_p3_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3", "BLOCKXSIZE=256", "BLOCKYSIZE=128"}}},
+      {"f32_deflate_p3_strips", {GDT_Float32, {"COMPRESS=DEFLATE", "PREDICTOR=3", "BLOCKYSIZE=5"}}},
+      {"f32_deflate_p1_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=DEFLATE", "BLOCKXSIZE=512", "BLOCKYSIZE=512"}}},
+      {"f32_none_tiles", {GDT_Float32, {"TILED=YES", "BLOCKXSIZE=64", "BLOCKYSIZE=64"}}},
+      {"f32_zstd_p2_strips", {GDT_Float32, {"COMPRESS=ZSTD", "PREDICTOR=2", "BLOCKYSIZE=16"}}},
+      {"i16_deflate_p2_strips", {GDT_Int16, {"COMPRESS=DEFLATE", "PREDICTOR=2", "BLOCKYSIZE=7"}}},
+      {"i16_zstd_p2_tiles", {GDT_Int16, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=2", "BLOCKXSIZE=128", "BLOCKYSIZE=256"}}},
+      {"u16_zstd_p1_tiles", {GDT_UInt16, {"TILED=YES", "COMPRESS=ZSTD", "BLOCKXSIZE=256", "BLOCKYSIZE=256"}}},
+      {"i32_none_strips", {GDT_Int32, {"BLOCKYSIZE=100"}}},
+      {"i32_deflate_p2_tiles", {GDT_Int32, {"TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=2"}}},
+      {"u8_deflate_p2_strips", {GDT_Byte, {"COMPRESS=DEFLATE", "PREDICTOR=2"}}},
+  };
+  std::mt19937 rng(11);
+  for (const auto& [name, layout] : layouts) {
+    SCOPED_TRACE(name);
+    const fs::path path = write_tiff(dir, name, w, h, layout);
+    const int bps = GDALGetDataTypeSizeBytes(layout.type);
+    std::string why;
+    auto reader = cook::TiffBlockReader::open(path.string(), w, h, bps, &why);
+    ASSERT_TRUE(reader) << why;
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(ds);
+    // Whole, one sample, the corners, and random windows; a cache of one block for half of them.
+    std::vector<std::array<int, 4>> windows = {{0, 0, w, h}, {0, 0, 1, 1}, {w - 1, h - 1, 1, 1}, {w - 300, 0, 300, 64},
+                                               {0, h - 33, 77, 33}};
+    for (int i = 0; i < 40; ++i) {
+      const int ww = 1 + int(rng() % uint32_t(w)), wh = 1 + int(rng() % 300u);
+      windows.push_back({int(rng() % uint32_t(w - ww + 1)), int(rng() % uint32_t(h - wh + 1)), ww, wh});
+    }
+    int k = 0;
+    for (const auto& [x0, y0, ww, wh] : windows) {
+      cook::set_tiff_block_cache_bytes(k++ % 2 ? uint64_t(1) : uint64_t(64) << 20);
+      std::vector<uint8_t> slots(size_t(ww) * size_t(wh) * 4, 0);
+      ASSERT_TRUE(reader->read_window(x0, y0, ww, wh, slots.data(), 1 + k % 3));
+      ASSERT_TRUE(same_samples(slots, gdal_window(*ds, x0, y0, ww, wh), bps))
+          << "window " << ww << "x" << wh << " at " << x0 << "," << y0;
+    }
+  }
+  cook::set_tiff_block_cache_bytes(uint64_t(64) << 20);
+}
+
+TEST(TiffBlocks, LeavesOtherLayoutsToGdal) {
+  const fs::path dir = scratch_dir("TiffBlocks.LeavesOtherLayoutsToGdal");
+  struct Case {
+    std::string name;
+    Layout layout;
+    std::string why;
+  };
+  const std::vector<Case> cases = {
+      {"lzw", {GDT_Float32, {"COMPRESS=LZW", "PREDICTOR=3"}}, "compression 5"},
+      {"packbits", {GDT_Int16, {"COMPRESS=PACKBITS"}}, "compression 32773"},
+      {"f64", {GDT_Float64, {"COMPRESS=ZSTD"}}, "64-bit"},
+  };
+  for (const Case& c : cases) {
+    const fs::path path = write_tiff(dir, c.name, 300, 200, c.layout);
+    std::string why;
+    EXPECT_FALSE(cook::TiffBlockReader::open(path.string(), 300, 200, GDALGetDataTypeSizeBytes(c.layout.type), &why));
+    EXPECT_NE(why.find(c.why), std::string::npos) << c.name << ": " << why;
+  }
+  const fs::path plain = write_tiff(dir, "plain", 300, 200, {GDT_Float32, {"COMPRESS=ZSTD", "PREDICTOR=3"}});
+  std::string why;
+  EXPECT_FALSE(cook::TiffBlockReader::open(plain.string(), 301, 200, 4, &why)) << "another size than GDAL's";
+  {
+    DirectSwitch off(false);
+    EXPECT_FALSE(cook::TiffBlockReader::open(plain.string(), 300, 200, 4, &why));
+    EXPECT_EQ(why, "TERRAIN_TIFF_DIRECT=0");
+  }
+  EXPECT_TRUE(cook::TiffBlockReader::open(plain.string(), 300, 200, 4, &why)) << why;
+}
+
+// A source's window read through the cooker's GDAL source, with the direct reader on or off.
+std::vector<float> source_window(const fs::path& path, bool direct, int x0, int y0, int w, int h, Status& st) {
+  DirectSwitch sw(direct);
+  std::unique_ptr<cook::SourceRaster> src;
+  cook::ReadOptions ro;
+  std::vector<float> out(size_t(w) * size_t(h));
+  st = cook::open_gdal_source(path.string(), ro, src);
+  if (st.ok()) st = src->read_window(x0, y0, w, h, out.data());
+  return out;
+}
+
+bool same_floats(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
+  const fs::path dir = scratch_dir("TiffBlocks.SparseAndDamagedBlocksAreReadByGdal");
+  GDALAllRegister();
+  // Sparse: two of four 128 x 128 tiles written, the others absent from the file.
+  const fs::path sparse = dir / "sparse.tif";
+  {
+    const char* opts[] = {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3",
+                          "SPARSE_OK=TRUE", nullptr};
+    std::unique_ptr<GDALDataset> ds(GetGDALDriverManager()->GetDriverByName("GTiff")->Create(
+        sparse.c_str(), 256, 256, 1, GDT_Float32, const_cast<char**>(opts)));
+    ASSERT_TRUE(ds);
+    ds->GetRasterBand(1)->SetNoDataValue(-9999);
+    std::vector<float> tile(128 * 128);
+    for (size_t i = 0; i < tile.size(); ++i) tile[i] = 500.0f + float(i % 97) * 0.25f;
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 128, 128, tile.data(), 128, 128, GDT_Float32, 0, 0, nullptr),
+              CE_None);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 128, 128, 128, 128, tile.data(), 128, 128, GDT_Float32, 0, 0,
+                                             nullptr),
+              CE_None);
+  }
+  auto reader = cook::TiffBlockReader::open(sparse.string(), 256, 256, 4);
+  ASSERT_TRUE(reader);
+  std::vector<uint8_t> slots(256 * 256 * 4);
+  EXPECT_TRUE(reader->read_window(0, 0, 128, 128, slots.data(), 1)) << "a written tile";
+  EXPECT_FALSE(reader->read_window(0, 0, 256, 256, slots.data(), 1)) << "a window over an absent tile";
+  Status st_on, st_off;
+  const std::vector<float> on = source_window(sparse, true, 60, 60, 150, 150, st_on);
+  const std::vector<float> off = source_window(sparse, false, 60, 60, 150, 150, st_off);
+  ASSERT_TRUE(st_on.ok()) << st_on.message;
+  ASSERT_TRUE(st_off.ok()) << st_off.message;
+  EXPECT_TRUE(same_floats(on, off));
+  EXPECT_TRUE(std::isnan(on[size_t(149) * 150]) && on[0] == 500.0f + float((60 * 128 + 60) % 97) * 0.25f)
+      << "absent tiles are nodata, written ones their heights";
+
+  // Damaged: tile 1's zstd frame header overwritten. Neither reader makes up samples: the window
+  // fails with GDAL's message naming the file.
+  const fs::path damaged = write_tiff(dir, "damaged", 600, 400, {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3"}});
+  auto good = cook::TiffBlockReader::open(damaged.string(), 600, 400, 4);
+  ASSERT_TRUE(good);
+  {
+    std::fstream f(damaged, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(good->layout().offsets[1]));
+    const std::string junk(8, '\x5a');
+    f.write(junk.data(), std::streamsize(junk.size()));
+  }
+  auto reopened = cook::TiffBlockReader::open(damaged.string(), 600, 400, 4);
+  ASSERT_TRUE(reopened);
+  std::vector<uint8_t> wide(600 * 400 * 4);
+  EXPECT_TRUE(reopened->read_window(0, 0, 256, 256, wide.data(), 1)) << "tile 0 is intact";
+  EXPECT_FALSE(reopened->read_window(0, 0, 600, 400, wide.data(), 2)) << "tile 1 is not";
+  Status st;
+  source_window(damaged, true, 0, 0, 600, 400, st);
+  EXPECT_FALSE(st.ok());
+  EXPECT_NE(st.message.find("damaged.tif"), std::string::npos) << st.message;
+}
+
+// The same archive whichever reader decodes the blocks: a 1 m Float32 square (zstd, predictor 3,
+// the layout of 1 m lidar DEMs) made from a shared DEM when there is one, else a synthetic one.
+TEST(TiffBlocks, ArchivesAreTheSameWithGdalDecoding) {
+  const fs::path dir = scratch_dir("TiffBlocks.ArchivesAreTheSameWithGdalDecoding");
+  fs::path input;
+  const fs::path real = data_file("kilauea_utm5n.tif");
+  if (fs::exists(real)) {
+    // As Float32 with the floating-point predictor: the layout of 1 m lidar DEMs.
+    input = dir / "kilauea_f32_zstd_p3.tif";
+    std::string out;
+    ASSERT_TRUE(run_command(fmt::format("gdal_translate -q -ot Float32 -co TILED=YES -co COMPRESS=ZSTD -co PREDICTOR=3 "
+                                        "-co BLOCKXSIZE=256 -co BLOCKYSIZE=256 '{}' '{}' 2>&1",
+                                        real.string(), input.string()),
+                            out))
+        << out;
+  } else {
+    std::cout << "[ note ] " << real << " not found: a synthetic square instead\n";
+    input = write_tiff(dir, "synthetic", 1500, 1300,
+                       {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3", "BLOCKXSIZE=256", "BLOCKYSIZE=256"}});
+  }
+  std::string why;
+  {
+    GDALAllRegister();
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(input.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(ds) << input;
+    ASSERT_TRUE(cook::TiffBlockReader::open(input.string(), ds->GetRasterXSize(), ds->GetRasterYSize(), 4, &why)) << why;
+  }
+  std::vector<std::vector<uint8_t>> bytes;
+  for (bool direct : {true, false}) {
+    DirectSwitch sw(direct);
+    cook::CookOptions o;
+    o.inputs = {input.string()};
+    o.output = (dir / (direct ? "direct.terrain" : "gdal.terrain")).string();
+    o.threads = 2;
+    cook::CookReport r;
+    const Status st = cook::cook(o, nullptr, r);
+    ASSERT_TRUE(st.ok()) << st.message;
+    std::ifstream f(o.output, std::ios::binary);
+    bytes.emplace_back(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  }
+  ASSERT_GT(bytes[0].size(), 1000u);
+  EXPECT_TRUE(bytes[0] == bytes[1]) << "archives differ";
+}
+
+}  // namespace
