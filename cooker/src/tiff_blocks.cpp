@@ -172,14 +172,16 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
   TIFFGetFieldDefaulted(tif, TIFFTAG_FILLORDER, &fill);
   TIFFGetFieldDefaulted(tif, TIFFTAG_PLANARCONFIG, &planar);
-  if (compression != kCompressionNone) TIFFGetFieldDefaulted(tif, TIFFTAG_PREDICTOR, &predictor);
+  TIFFGetFieldDefaulted(tif, TIFFTAG_PREDICTOR, &predictor);
   if (spp != 1) return fmt::format("{} samples per pixel", spp);
   if (bps != 8 && bps != 16 && bps != 32) return fmt::format("{}-bit samples", bps);
   if (format != SAMPLEFORMAT_UINT && format != SAMPLEFORMAT_INT && format != SAMPLEFORMAT_IEEEFP)
     return fmt::format("sample format {}", format);
   if (format == SAMPLEFORMAT_IEEEFP && bps != 32) return fmt::format("{}-bit floating point", bps);
-  if (compression != kCompressionNone && compression != kCompressionDeflate &&
-      compression != kCompressionAdobeDeflate && compression != kCompressionZstd)
+  // Uncompressed samples GDAL copies straight from the file, reading only a window's columns of a
+  // strip: no decoding to save (1-row strips in 2048-wide windows: 0.19 CPU s here, GDAL 0.11).
+  if (compression == kCompressionNone) return "no compression (GDAL reads it in place)";
+  if (compression != kCompressionDeflate && compression != kCompressionAdobeDeflate && compression != kCompressionZstd)
     return fmt::format("compression {}", compression);
   if (predictor != 1 && predictor != 2 && predictor != 3) return fmt::format("predictor {}", predictor);
   if (predictor == 3 && format != SAMPLEFORMAT_IEEEFP) return "floating-point predictor on integers";
@@ -393,23 +395,19 @@ bool TiffBlockReader::decode(uint32_t index, TiffBlockBytes& block) const {
     }
     return true;
   };
-  if (l.compression == kCompressionNone) {
-    if (count < need || !read_at(out, need)) return false;  // a longer block's tail is padding
+  if (d.compressed.size() < count) d.compressed.resize(size_t(count));
+  if (!read_at(d.compressed.data(), size_t(count))) return false;
+  if (l.compression == kCompressionZstd) {
+    if (!d.zstd) d.zstd = ZSTD_createDCtx();
+    const size_t n = ZSTD_decompressDCtx(d.zstd, out, need, d.compressed.data(), size_t(count));
+    if (ZSTD_isError(n) || n != need) return false;
   } else {
-    if (d.compressed.size() < count) d.compressed.resize(size_t(count));
-    if (!read_at(d.compressed.data(), size_t(count))) return false;
-    if (l.compression == kCompressionZstd) {
-      if (!d.zstd) d.zstd = ZSTD_createDCtx();
-      const size_t n = ZSTD_decompressDCtx(d.zstd, out, need, d.compressed.data(), size_t(count));
-      if (ZSTD_isError(n) || n != need) return false;
-    } else {
-      if (!d.deflate) d.deflate = libdeflate_alloc_decompressor();
-      size_t n = 0;
-      if (!d.deflate ||
-          libdeflate_zlib_decompress(d.deflate, d.compressed.data(), size_t(count), out, need, &n) != LIBDEFLATE_SUCCESS ||
-          n != need)
-        return false;
-    }
+    if (!d.deflate) d.deflate = libdeflate_alloc_decompressor();
+    size_t n = 0;
+    if (!d.deflate ||
+        libdeflate_zlib_decompress(d.deflate, d.compressed.data(), size_t(count), out, need, &n) != LIBDEFLATE_SUCCESS ||
+        n != need)
+      return false;
   }
   if (l.predictor == 2)
     for (int r = 0; r < rows; ++r) undo_horizontal_predictor(out + size_t(r) * row_bytes, l.block_w, l.bytes_per_sample);

@@ -1,13 +1,13 @@
 // A plain GeoTIFF's compressed blocks (tiles or strips) decoded by the cooker instead of GDAL, for
-// the one layout lidar DEMs ship in: one band of 8-, 16- or 32-bit samples, zstd or deflate (or no
-// compression), predictor 1, 2 or 3, the host's byte order. libtiff reads the layout (offsets and
+// the layout lidar DEMs ship in: one band of 8-, 16- or 32-bit samples, zstd or deflate, predictor
+// 1, 2 or 3, the host's byte order. libtiff reads the layout (offsets and
 // sizes of the blocks), libzstd and libdeflate inflate, and the predictors are undone here with
 // SSE2: libtiff's floating-point predictor undoes one byte at a time and was a third of the CPU of
 // the first pass over a 1 m Float32 DEM (PREDICTOR=3, the GDAL default for such files), its block
 // cache's fresh pages another fifth. The samples are bit for bit GDAL's (lossless decoding; test
-// TiffBlocks.*), so archives do not change. Anything else (LZW, JPEG, sparse or damaged blocks,
-// other byte order, several samples per pixel) is left to GDAL: open() says why, read_window()
-// returns false and the caller reads through GDAL, which names any damage.
+// TiffBlocks.*), so archives do not change. Anything else (LZW, JPEG, no compression, another byte
+// order, several samples per pixel; sparse or damaged blocks) is left to GDAL: open() says why,
+// read_window() returns false and the caller reads through GDAL, which names any damage.
 //
 // Decoded blocks are kept in one process-wide cache (least recently used out first) so the first
 // pass's 64-row reads decode each block once; set_tiff_block_cache_bytes sizes it, and a window
@@ -28,7 +28,7 @@ struct TiffBlockLayout {
   bool tiled = false;
   int bytes_per_sample = 0;         // 1, 2 or 4
   bool is_float = false;            // SAMPLEFORMAT_IEEEFP
-  int compression = 1;              // 1 none, 8 / 32946 deflate, 50000 zstd
+  int compression = 0;              // 8 / 32946 deflate, 50000 zstd
   int predictor = 1;                // 1 none, 2 horizontal, 3 floating point
   std::vector<uint64_t> offsets, byte_counts;  // per block, row-major
 };

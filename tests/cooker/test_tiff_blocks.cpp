@@ -144,12 +144,12 @@ TEST(TiffBlocks, EveryWindowIsGdalsBitForBit) {
       {"f32_zstd_p3_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3", "BLOCKXSIZE=256", "BLOCKYSIZE=128"}}},
       {"f32_deflate_p3_strips", {GDT_Float32, {"COMPRESS=DEFLATE", "PREDICTOR=3", "BLOCKYSIZE=5"}}},
       {"f32_deflate_p1_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=DEFLATE", "BLOCKXSIZE=512", "BLOCKYSIZE=512"}}},
-      {"f32_none_tiles", {GDT_Float32, {"TILED=YES", "BLOCKXSIZE=64", "BLOCKYSIZE=64"}}},
+      {"f32_zstd_p3_small_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3", "BLOCKXSIZE=16", "BLOCKYSIZE=16"}}},
       {"f32_zstd_p2_strips", {GDT_Float32, {"COMPRESS=ZSTD", "PREDICTOR=2", "BLOCKYSIZE=16"}}},
       {"i16_deflate_p2_strips", {GDT_Int16, {"COMPRESS=DEFLATE", "PREDICTOR=2", "BLOCKYSIZE=7"}}},
       {"i16_zstd_p2_tiles", {GDT_Int16, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=2", "BLOCKXSIZE=128", "BLOCKYSIZE=256"}}},
       {"u16_zstd_p1_tiles", {GDT_UInt16, {"TILED=YES", "COMPRESS=ZSTD", "BLOCKXSIZE=256", "BLOCKYSIZE=256"}}},
-      {"i32_none_strips", {GDT_Int32, {"BLOCKYSIZE=100"}}},
+      {"i32_zstd_p1_strips", {GDT_Int32, {"COMPRESS=ZSTD", "BLOCKYSIZE=100"}}},
       {"i32_deflate_p2_tiles", {GDT_Int32, {"TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=2"}}},
       {"u8_deflate_p2_strips", {GDT_Byte, {"COMPRESS=DEFLATE", "PREDICTOR=2"}}},
   };
@@ -193,6 +193,7 @@ TEST(TiffBlocks, LeavesOtherLayoutsToGdal) {
       {"lzw", {GDT_Float32, {"COMPRESS=LZW", "PREDICTOR=3"}}, "compression 5"},
       {"packbits", {GDT_Int16, {"COMPRESS=PACKBITS"}}, "compression 32773"},
       {"f64", {GDT_Float64, {"COMPRESS=ZSTD"}}, "64-bit"},
+      {"none", {GDT_Float32, {"TILED=YES"}}, "no compression"},
   };
   for (const Case& c : cases) {
     const fs::path path = write_tiff(dir, c.name, 300, 200, c.layout);
