@@ -346,10 +346,7 @@ bool tiff_direct_enabled() {
   return !(v && std::strcmp(v, "0") == 0);
 }
 
-TiffBlockReader::~TiffBlockReader() {
-  BlockCache::get().forget(id_);
-  if (fd_ >= 0) ::close(fd_);
-}
+TiffBlockReader::~TiffBlockReader() { BlockCache::get().forget(id_); }
 
 std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, int width, int height,
                                                        int bytes_per_sample, std::string* why_not) {
@@ -365,10 +362,11 @@ std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, 
   const TiffBlockLayout& l = r->layout_;
   if (l.width != width || l.height != height || l.bytes_per_sample != bytes_per_sample)
     return refuse("its first image is not the one GDAL reads");
-  r->fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (r->fd_ < 0) return refuse("cannot open");
   r->path_ = path;
   r->file_bytes_ = uint64_t(st.st_size);
+  r->file_dev_ = uint64_t(st.st_dev);
+  r->file_ino_ = uint64_t(st.st_ino);
+  r->file_mtime_ns_ = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
   r->id_ = g_next_reader_id.fetch_add(1);
   const uint64_t column = uint64_t(l.block_h) * uint64_t(l.bytes_per_sample);
   for (uint64_t seen = g_tallest_block_column.load(); column > seen;)
@@ -376,7 +374,7 @@ std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, 
   return r;
 }
 
-bool TiffBlockReader::decode(uint32_t index, TiffBlockBytes& block) const {
+bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) const {
   const TiffBlockLayout& l = layout_;
   const uint64_t offset = l.offsets[index], count = l.byte_counts[index];
   if (offset == 0 || count == 0 || offset > file_bytes_ || count > file_bytes_ - offset) return false;  // sparse, damaged
@@ -389,7 +387,7 @@ bool TiffBlockReader::decode(uint32_t index, TiffBlockBytes& block) const {
   ThreadDecoders& d = thread_decoders();
   auto read_at = [&](uint8_t* dst, size_t bytes) {
     for (size_t got = 0; got < bytes;) {
-      const ssize_t n = ::pread(fd_, dst + got, bytes - got, off_t(offset + got));
+      const ssize_t n = ::pread(fd, dst + got, bytes - got, off_t(offset + got));
       if (n <= 0) return false;
       got += size_t(n);
     }
@@ -435,17 +433,33 @@ bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, 
   // One row of blocks at a time: a window holds at most one row of decoded blocks beyond the cache.
   std::vector<std::shared_ptr<TiffBlockBytes>> blocks(nbx);
   std::vector<size_t> missing;
+  int fd = -1;  // opened at the first block to decode
+  struct CloseFd {
+    int& fd;
+    ~CloseFd() {
+      if (fd >= 0) ::close(fd);
+    }
+  } close_fd{fd};
   for (int by = by0; by <= by1; ++by) {
     missing.clear();
     for (size_t k = 0; k < nbx; ++k)
       if (!(blocks[k] = cache.find(id_ << 32 | (uint32_t(by) * uint32_t(across) + uint32_t(bx0) + uint32_t(k)))))
         missing.push_back(k);
+    if (!missing.empty() && fd < 0) {
+      // The file, if it is still the one read at open (else GDAL reads the one it holds open).
+      fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+      struct stat st {};
+      if (fd < 0 || ::fstat(fd, &st) != 0 || uint64_t(st.st_size) != file_bytes_ || uint64_t(st.st_dev) != file_dev_ ||
+          uint64_t(st.st_ino) != file_ino_ ||
+          int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec != file_mtime_ns_)
+        return false;
+    }
     std::atomic<bool> ok{true};
     parallel_for(missing.size(), std::max(threads, 1), [&](size_t m) {
       const size_t k = missing[m];
       const uint32_t index = uint32_t(by) * uint32_t(across) + uint32_t(bx0) + uint32_t(k);
       std::shared_ptr<TiffBlockBytes> decoded = cache.fresh(block_bytes);
-      if (!decode(index, *decoded)) {
+      if (!decode(fd, index, *decoded)) {
         ok = false;
         return;
       }

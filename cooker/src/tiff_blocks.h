@@ -60,12 +60,14 @@ class TiffBlockReader {
 
  private:
   TiffBlockReader() = default;
-  bool decode(uint32_t index, TiffBlockBytes& block) const;
+  bool decode(int fd, uint32_t index, TiffBlockBytes& block) const;
 
   TiffBlockLayout layout_;
+  // The file is opened by each read that decodes (GDAL already holds a descriptor per input, and a
+  // mosaic may have thousands) and must still be the one whose layout was read.
   std::string path_;
-  int fd_ = -1;
-  uint64_t file_bytes_ = 0;
+  uint64_t file_bytes_ = 0, file_dev_ = 0, file_ino_ = 0;
+  int64_t file_mtime_ns_ = 0;
   uint64_t id_ = 0;  // this reader's blocks in the shared cache
 };
 
