@@ -1,13 +1,17 @@
 // libFuzzer target (CMake option TERRAIN_FUZZ, clang): arbitrary bytes as a GeoTIFF for the
 // cooker's own block reader (cooker/src/tiff_blocks.h), without GDAL. Whatever the layout and the
 // blocks say, open() either refuses or gives a reader whose windows decode or return false: no
-// read outside the file or a block, no crash. The first corpus directory, when empty, is filled
+// read outside the file or a block, no crash, and where libtiff decodes every block too, its
+// samples (GDAL reads GeoTIFFs through libtiff). The first corpus directory, when empty, is filled
 // with seeds written by libtiff (Float32 zstd predictor 3 tiles, Int16 deflate predictor 2 strips,
-// UInt16 zstd tiles).
+// UInt16 zstd tiles, Float32 LZW predictor 3 tiles, Int16 LZW predictor 2 strips).
 #include <tiffio.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstdarg>
 #include <cstring>
 #include <filesystem>
@@ -87,7 +91,9 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
       const std::vector<std::vector<uint8_t>> seeds = {
           seed(40, 37, 16, 32, SAMPLEFORMAT_IEEEFP, COMPRESSION_ZSTD, PREDICTOR_FLOATINGPOINT),
           seed(33, 20, 0, 16, SAMPLEFORMAT_INT, COMPRESSION_ADOBE_DEFLATE, PREDICTOR_HORIZONTAL),
-          seed(50, 50, 32, 16, SAMPLEFORMAT_UINT, COMPRESSION_ZSTD, PREDICTOR_NONE)};
+          seed(50, 50, 32, 16, SAMPLEFORMAT_UINT, COMPRESSION_ZSTD, PREDICTOR_NONE),
+          seed(45, 40, 16, 32, SAMPLEFORMAT_IEEEFP, COMPRESSION_LZW, PREDICTOR_FLOATINGPOINT),
+          seed(37, 21, 0, 16, SAMPLEFORMAT_INT, COMPRESSION_LZW, PREDICTOR_HORIZONTAL)};
       int k = 0;
       for (const auto& s : seeds) {
         std::ofstream f(corpus / ("seed" + std::to_string(k++)), std::ios::binary);
@@ -118,7 +124,38 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (!reader) return 0;
   terrain::cook::set_tiff_block_cache_bytes(uint64_t(1) << 20);
   std::vector<uint8_t> slots(size_t(w) * size_t(h) * 4);
-  reader->read_window(0, 0, int(w), int(h), slots.data(), 2);
-  reader->read_window(int(w) / 2, int(h) / 3, int(w) - int(w) / 2, int(h) - int(h) / 3, slots.data(), 1);
+  const bool ours = reader->read_window(0, 0, int(w), int(h), slots.data(), 2);
+  std::vector<uint8_t> part(slots.size());
+  reader->read_window(int(w) / 2, int(h) / 3, int(w) - int(w) / 2, int(h) - int(h) / 3, part.data(), 1);
+  // Where libtiff decodes every block too, the samples must be libtiff's (GDAL reads through it).
+  const terrain::cook::TiffBlockLayout& l = reader->layout();
+  if (!ours || uint64_t(l.block_w) * uint64_t(l.block_h) > (uint64_t(1) << 22)) return 0;
+  TIFF* tif = TIFFOpen(g_file.c_str(), "r");
+  if (!tif) return 0;
+  const size_t bps = size_t(l.bytes_per_sample), block_bytes = size_t(l.block_w) * size_t(l.block_h) * bps;
+  std::vector<uint8_t> block(block_bytes);
+  const int across = (l.width + l.block_w - 1) / l.block_w;
+  bool same = true, decoded = true;
+  for (size_t i = 0; i < l.offsets.size() && decoded; ++i) {
+    const int bx = int(i % size_t(across)), by = int(i / size_t(across));
+    const int rows = l.tiled ? l.block_h : std::min(l.block_h, l.height - by * l.block_h);
+    const tmsize_t want = tmsize_t(size_t(rows) * size_t(l.block_w) * bps);
+    const tmsize_t got = l.tiled ? TIFFReadEncodedTile(tif, uint32_t(i), block.data(), tmsize_t(block_bytes))
+                                 : TIFFReadEncodedStrip(tif, uint32_t(i), block.data(), want);
+    if (got != want) {
+      decoded = false;
+      break;
+    }
+    for (int r = 0; r < rows && by * l.block_h + r < l.height; ++r)
+      for (int c = 0; c < l.block_w && bx * l.block_w + c < l.width; ++c) {
+        const size_t at = (size_t(by * l.block_h + r) * size_t(w) + size_t(bx * l.block_w + c)) * 4;
+        same = same && std::memcmp(&slots[at], &block[(size_t(r) * size_t(l.block_w) + size_t(c)) * bps], bps) == 0;
+      }
+  }
+  TIFFClose(tif);
+  if (decoded && !same) {
+    std::fprintf(stderr, "fuzz_tiff_blocks: samples differ from libtiff's\n");
+    std::abort();
+  }
   return 0;
 }

@@ -27,8 +27,10 @@
 namespace terrain::cook {
 namespace {
 
-constexpr int kCompressionNone = 1, kCompressionDeflate = 8, kCompressionAdobeDeflate = 32946,
+constexpr int kCompressionNone = 1, kCompressionLzw = 5, kCompressionDeflate = 8, kCompressionAdobeDeflate = 32946,
               kCompressionZstd = 50000;
+// Bytes past a decoded block that its buffer keeps, so that the LZW decoder may store 16 at a time.
+constexpr size_t kBlockSlack = 16;
 
 // The process-wide cache of decoded blocks: key = reader id << 32 | block index. Blocks it drops
 // that nobody else holds are kept (a few) for the next decode to write into: a fresh block is
@@ -78,7 +80,7 @@ class BlockCache {
         }
     }
     auto b = std::make_shared<TiffBlockBytes>();
-    b->bytes.reset(new uint8_t[size]);  // not zeroed: every byte is written by the decode
+    b->bytes.reset(new uint8_t[size + kBlockSlack]);  // not zeroed: every byte is written by the decode
     b->size = size;
     return b;
   }
@@ -181,7 +183,8 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   // Uncompressed samples GDAL copies straight from the file, reading only a window's columns of a
   // strip: no decoding to save (1-row strips in 2048-wide windows: 0.19 CPU s here, GDAL 0.11).
   if (compression == kCompressionNone) return "no compression (GDAL reads it in place)";
-  if (compression != kCompressionDeflate && compression != kCompressionAdobeDeflate && compression != kCompressionZstd)
+  if (compression != kCompressionLzw && compression != kCompressionDeflate &&
+      compression != kCompressionAdobeDeflate && compression != kCompressionZstd)
     return fmt::format("compression {}", compression);
   if (predictor != 1 && predictor != 2 && predictor != 3) return fmt::format("predictor {}", predictor);
   if (predictor == 3 && format != SAMPLEFORMAT_IEEEFP) return "floating-point predictor on integers";
@@ -268,6 +271,103 @@ __m128i running_sum(uint8_t* p, size_t n, __m128i carry) {
 }
 #endif
 
+// TIFF's LZW (TIFF 6.0 section 13: codes of 9 to 12 bits, most significant bit first, Clear 256,
+// EndOfInformation 257, the width growing one code early) into out[0, need), which has kBlockSlack
+// writable bytes past it. Every table entry is the previous code's string plus one byte, and the
+// output holds that string where the previous code was written, so an entry is kept as a start in
+// the output and a length: decoding copies ranges of the output, with no prefix chains to walk.
+// False wherever libtiff's decoder fails (no Clear first, a code not yet in the table, a literal
+// expected after Clear, too little data) and on the pre-6.0 bit order (left to GDAL).
+bool lzw_decode_impl(const uint8_t* in, size_t n, uint8_t* out, size_t need) {
+  if (n >= 2 && in[0] == 0 && (in[1] & 1)) return false;  // old-style LZW (libtiff's "compat" decoder)
+  constexpr int kClear = 256, kEnd = 257, kFirst = 258, kMaxCodes = 4096;
+  uint32_t start[kMaxCodes], length[kMaxCodes];
+  uint64_t bits = 0;  // the next input bits, most significant first: `have` of them
+  int have = 0;
+  size_t at = 0;      // next input byte
+  auto read_code = [&](int width) -> int {
+    if (have < width) {
+      if (at + 8 <= n) {  // whole bytes, as many as fit
+        uint64_t w;
+        std::memcpy(&w, in + at, 8);
+        w = __builtin_bswap64(w);
+        const int take = (64 - have) / 8;  // 6 to 8: have < width <= 12
+        if (take < 8) w &= ~uint64_t(0) << (64 - 8 * take);
+        bits |= w >> have;
+        at += size_t(take);
+        have += 8 * take;
+      } else {
+        while (have <= 56 && at < n) {
+          bits |= uint64_t(in[at++]) << (56 - have);
+          have += 8;
+        }
+        if (have < width) return kEnd;  // the data ended without EndOfInformation
+      }
+    }
+    const int code = int(bits >> (64 - width));
+    bits <<= width;
+    have -= width;
+    return code;
+  };
+  int width = 9, next = kFirst;
+  bool cleared = false;       // libtiff's streams start with Clear
+  size_t pos = 0;             // next output byte
+  size_t prev_at = 0;         // where the previous code's string was written ...
+  uint32_t prev_len = 0;      // ... and its length; 0 just after a Clear
+  while (pos < need) {
+    const int code = read_code(width);
+    if (code == kEnd) break;
+    if (code == kClear) {
+      width = 9;
+      next = kFirst;
+      prev_len = 0;
+      cleared = true;
+      continue;
+    }
+    if (!cleared) return false;
+    const size_t here = pos;
+    uint32_t len = 0;
+    if (code < 256) {
+      out[pos] = uint8_t(code);
+      len = 1;
+      pos += 1;
+    } else if (prev_len == 0) {
+      return false;  // after Clear a literal must come
+    } else if (code < next) {
+      len = length[code];
+      const size_t copy = std::min<size_t>(len, need - pos);
+      const uint8_t* from = out + start[code];  // a string written before `here`
+      if (copy <= 16) {
+        uint8_t tmp[16];
+        std::memcpy(tmp, from, 16);  // may read past the string, never past the buffer's slack
+        std::memcpy(out + pos, tmp, 16);
+      } else {
+        std::memcpy(out + pos, from, copy);
+      }
+      pos += copy;
+    } else if (code == next) {
+      // The previous string and its own first byte: copied forward, overlapping itself.
+      len = prev_len + 1;
+      const size_t copy = std::min<size_t>(len, need - pos);
+      const uint8_t* from = out + prev_at;
+      for (size_t i = 0; i < copy; ++i) out[pos + i] = from[i];
+      pos += copy;
+    } else {
+      return false;  // a code beyond the table
+    }
+    if (prev_len > 0 && next < kMaxCodes) {
+      // The previous string plus this one's first byte, which follows it in the output.
+      start[next] = uint32_t(prev_at);
+      length[next] = prev_len + 1;
+      ++next;
+      if (next == (1 << width) - 1 && width < 12) ++width;
+    }
+    prev_at = here;
+    prev_len = len;
+  }
+  return pos == need;
+}
+
 template <typename T>
 void running_sum_scalar(uint8_t* p, size_t from, size_t samples) {
   for (size_t i = std::max<size_t>(from, 1); i < samples; ++i) {
@@ -333,6 +433,8 @@ void undo_float_predictor(uint8_t* row, int samples, uint8_t* out, bool scalar) 
   }
 }
 
+bool lzw_decode(const uint8_t* in, size_t n, uint8_t* out, size_t need) { return lzw_decode_impl(in, n, out, need); }
+
 void set_tiff_block_cache_bytes(uint64_t bytes) { BlockCache::get().set_budget(bytes); }
 
 uint64_t tiff_block_cache_used_bytes() { return BlockCache::get().used(); }
@@ -395,7 +497,9 @@ bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) cons
   };
   if (d.compressed.size() < count) d.compressed.resize(size_t(count));
   if (!read_at(d.compressed.data(), size_t(count))) return false;
-  if (l.compression == kCompressionZstd) {
+  if (l.compression == kCompressionLzw) {
+    if (!lzw_decode_impl(d.compressed.data(), size_t(count), out, need)) return false;
+  } else if (l.compression == kCompressionZstd) {
     if (!d.zstd) d.zstd = ZSTD_createDCtx();
     const size_t n = ZSTD_decompressDCtx(d.zstd, out, need, d.compressed.data(), size_t(count));
     if (ZSTD_isError(n) || n != need) return false;

@@ -1,13 +1,14 @@
 // A plain GeoTIFF's compressed blocks (tiles or strips) decoded by the cooker instead of GDAL, for
-// the layout lidar DEMs ship in: one band of 8-, 16- or 32-bit samples, zstd or deflate, predictor
-// 1, 2 or 3, the host's byte order. libtiff reads the layout (offsets and
-// sizes of the blocks), libzstd and libdeflate inflate, and the predictors are undone here with
-// SSE2: libtiff's floating-point predictor undoes one byte at a time and was a third of the CPU of
-// the first pass over a 1 m Float32 DEM (PREDICTOR=3, the GDAL default for such files), its block
-// cache's fresh pages another fifth. The samples are bit for bit GDAL's (lossless decoding; test
-// TiffBlocks.*), so archives do not change. Anything else (LZW, JPEG, no compression, another byte
-// order, several samples per pixel; sparse or damaged blocks) is left to GDAL: open() says why,
-// read_window() returns false and the caller reads through GDAL, which names any damage.
+// the layouts lidar DEMs ship in: one band of 8-, 16- or 32-bit samples, LZW, deflate or zstd,
+// predictor 1, 2 or 3, the host's byte order. libtiff reads the layout (offsets and sizes of the
+// blocks), libdeflate and libzstd inflate, LZW is decoded here (as copies of earlier output), and
+// the predictors are undone with SSE2: libtiff's floating-point predictor undoes one byte at a time
+// and was a third of the CPU of the first pass over a 1 m Float32 DEM (PREDICTOR=3, the GDAL
+// default for such files), its block cache's fresh pages another fifth. The samples are bit for
+// bit GDAL's (lossless decoding; tests TiffBlocks.*, and fuzz_tiff_blocks against libtiff), so
+// archives do not change. Anything else (JPEG, LERC, no compression, another byte order, several
+// samples per pixel; sparse or damaged blocks) is left to GDAL: open() says why, read_window()
+// returns false and the caller reads through GDAL, which names any damage.
 //
 // Decoded blocks are kept in one process-wide cache (least recently used out first) so the first
 // pass's 64-row reads decode each block once; set_tiff_block_cache_bytes sizes it, and a window
@@ -28,7 +29,7 @@ struct TiffBlockLayout {
   bool tiled = false;
   int bytes_per_sample = 0;         // 1, 2 or 4
   bool is_float = false;            // SAMPLEFORMAT_IEEEFP
-  int compression = 0;              // 8 / 32946 deflate, 50000 zstd
+  int compression = 0;              // 5 LZW, 8 / 32946 deflate, 50000 zstd
   int predictor = 1;                // 1 none, 2 horizontal, 3 floating point
   std::vector<uint64_t> offsets, byte_counts;  // per block, row-major
 };
@@ -81,6 +82,10 @@ uint64_t tiff_block_cache_used_bytes();
 uint64_t tiff_block_rows_bytes(int width);
 // Whether TERRAIN_TIFF_DIRECT allows the reader (anything but "0").
 bool tiff_direct_enabled();
+
+// TIFF LZW (compression 5) of n bytes into out[0, need); `out` must have 16 writable bytes past
+// `need`. False on a stream libtiff would not decode (exposed for the benchmark's floor).
+bool lzw_decode(const uint8_t* in, size_t n, uint8_t* out, size_t need);
 
 // The predictors' undo, one row of `samples` samples in place (exposed for the tests; the SSE2
 // forms are used where the CPU has them, `scalar` forces the byte-by-byte definitions).

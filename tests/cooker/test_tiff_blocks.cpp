@@ -153,6 +153,10 @@ TEST(TiffBlocks, EveryWindowIsGdalsBitForBit) {
       {"i32_zstd_p1_strips", {GDT_Int32, {"COMPRESS=ZSTD", "BLOCKYSIZE=100"}}},
       {"i32_deflate_p2_tiles", {GDT_Int32, {"TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=2"}}},
       {"u8_deflate_p2_strips", {GDT_Byte, {"COMPRESS=DEFLATE", "PREDICTOR=2"}}},
+      {"f32_lzw_p3_tiles", {GDT_Float32, {"TILED=YES", "COMPRESS=LZW", "PREDICTOR=3", "BLOCKXSIZE=256", "BLOCKYSIZE=256"}}},
+      {"f32_lzw_p1_strips", {GDT_Float32, {"COMPRESS=LZW", "BLOCKYSIZE=9"}}},
+      {"i16_lzw_p2_tiles", {GDT_Int16, {"TILED=YES", "COMPRESS=LZW", "PREDICTOR=2", "BLOCKXSIZE=512", "BLOCKYSIZE=512"}}},
+      {"u8_lzw_p1_strips", {GDT_Byte, {"COMPRESS=LZW"}}},
   };
   std::mt19937 rng(11);
   for (const auto& [name, layout] : layouts) {
@@ -191,7 +195,7 @@ TEST(TiffBlocks, LeavesOtherLayoutsToGdal) {
     std::string why;
   };
   const std::vector<Case> cases = {
-      {"lzw", {GDT_Float32, {"COMPRESS=LZW", "PREDICTOR=3"}}, "compression 5"},
+      {"lerc", {GDT_Float32, {"COMPRESS=LERC"}}, "compression 34887"},
       {"packbits", {GDT_Int16, {"COMPRESS=PACKBITS"}}, "compression 32773"},
       {"f64", {GDT_Float64, {"COMPRESS=ZSTD"}}, "64-bit"},
       {"none", {GDT_Float32, {"TILED=YES"}}, "no compression"},
