@@ -139,25 +139,19 @@ ThreadDecoders& thread_decoders() {
   return d;
 }
 
-int on_tiff_message(TIFF*, void* user, const char* module, const char* fmt_, va_list ap) {
-  if (user) {
-    char buf[512];
-    std::vsnprintf(buf, sizeof buf, fmt_, ap);
-    *static_cast<std::string*>(user) = fmt::format("{}{}{}", module ? module : "", module ? ": " : "", buf);
-  }
-  return 1;
-}
+// libtiff's messages are not ours to print: a file the reader refuses is read by GDAL, which
+// names what is wrong with it.
+int quiet(TIFF*, void*, const char*, const char*, va_list) { return 1; }
 
 // Reads the layout of `path`'s first image with libtiff; an empty string when it is one this
 // reader decodes, else what it is instead.
 std::string read_layout(const std::string& path, TiffBlockLayout& out) {
-  std::string error;
   TIFFOpenOptions* opts = TIFFOpenOptionsAlloc();
-  TIFFOpenOptionsSetErrorHandlerExtR(opts, on_tiff_message, &error);
-  TIFFOpenOptionsSetWarningHandlerExtR(opts, on_tiff_message, nullptr);
+  TIFFOpenOptionsSetErrorHandlerExtR(opts, quiet, nullptr);
+  TIFFOpenOptionsSetWarningHandlerExtR(opts, quiet, nullptr);
   TIFF* tif = TIFFOpenExt(path.c_str(), "r", opts);
   TIFFOpenOptionsFree(opts);
-  if (!tif) return error.empty() ? "libtiff cannot open it" : error;
+  if (!tif) return "libtiff cannot open it";
   struct Close {
     TIFF* t;
     ~Close() { TIFFClose(t); }
@@ -271,6 +265,71 @@ __m128i running_sum(uint8_t* p, size_t n, __m128i carry) {
 }
 #endif
 
+template <typename T>
+void running_sum_scalar(uint8_t* p, size_t from, size_t samples) {
+  for (size_t i = std::max<size_t>(from, 1); i < samples; ++i) {
+    T a, b;
+    std::memcpy(&a, p + (i - 1) * sizeof(T), sizeof(T));
+    std::memcpy(&b, p + i * sizeof(T), sizeof(T));
+    b = T(a + b);
+    std::memcpy(p + i * sizeof(T), &b, sizeof(T));
+  }
+}
+
+}  // namespace
+
+void undo_horizontal_predictor(uint8_t* row, int samples, int bytes_per_sample, bool scalar) {
+  if (samples <= 1) return;
+  size_t done = 0;  // samples already summed
+#if defined(__SSE2__)
+  if (!scalar) {
+    const size_t bytes = size_t(samples) * size_t(bytes_per_sample);
+    const size_t vec = bytes / 16 * 16;
+    const __m128i zero = _mm_setzero_si128();
+    if (bytes_per_sample == 1) running_sum<1>(row, vec, zero);
+    if (bytes_per_sample == 2) running_sum<2>(row, vec, zero);
+    if (bytes_per_sample == 4) running_sum<4>(row, vec, zero);
+    done = vec / size_t(bytes_per_sample);
+  }
+#endif
+  (void)scalar;
+  // The tail (and the whole row for the definition) continues from the last summed sample.
+  if (bytes_per_sample == 1) running_sum_scalar<uint8_t>(row, done, size_t(samples));
+  if (bytes_per_sample == 2) running_sum_scalar<uint16_t>(row, done, size_t(samples));
+  if (bytes_per_sample == 4) running_sum_scalar<uint32_t>(row, done, size_t(samples));
+}
+
+void undo_float_predictor(uint8_t* row, int samples, uint8_t* out, bool scalar) {
+  const size_t n = size_t(samples), bytes = 4 * n;
+  // 1. Undo the byte differences along the whole row (4 planes, one after the other).
+  undo_horizontal_predictor(row, int(bytes), 1, scalar);
+  // 2. Interleave the planes: sample i = (p3[i], p2[i], p1[i], p0[i]) in little-endian order.
+  const uint8_t *p0 = row, *p1 = row + n, *p2 = row + 2 * n, *p3 = row + 3 * n;
+  size_t i = 0;
+#if defined(__SSE2__)
+  if (!scalar)
+    for (; i + 16 <= n; i += 16) {
+      const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p3 + i));
+      const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p2 + i));
+      const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p1 + i));
+      const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p0 + i));
+      const __m128i ab_lo = _mm_unpacklo_epi8(a, b), ab_hi = _mm_unpackhi_epi8(a, b);
+      const __m128i cd_lo = _mm_unpacklo_epi8(c, d), cd_hi = _mm_unpackhi_epi8(c, d);
+      __m128i* o = reinterpret_cast<__m128i*>(out + 4 * i);
+      _mm_storeu_si128(o + 0, _mm_unpacklo_epi16(ab_lo, cd_lo));
+      _mm_storeu_si128(o + 1, _mm_unpackhi_epi16(ab_lo, cd_lo));
+      _mm_storeu_si128(o + 2, _mm_unpacklo_epi16(ab_hi, cd_hi));
+      _mm_storeu_si128(o + 3, _mm_unpackhi_epi16(ab_hi, cd_hi));
+    }
+#endif
+  for (; i < n; ++i) {
+    out[4 * i + 0] = p3[i];
+    out[4 * i + 1] = p2[i];
+    out[4 * i + 2] = p1[i];
+    out[4 * i + 3] = p0[i];
+  }
+}
+
 // TIFF's LZW (TIFF 6.0 section 13: codes of 9 to 12 bits, most significant bit first, Clear 256,
 // EndOfInformation 257, the width growing one code early) into out[0, need), which has kBlockSlack
 // writable bytes past it. Every table entry is the previous code's string plus one byte, and the
@@ -278,9 +337,10 @@ __m128i running_sum(uint8_t* p, size_t n, __m128i carry) {
 // the output and a length: decoding copies ranges of the output, with no prefix chains to walk.
 // False wherever libtiff's decoder fails (no Clear first, a code not yet in the table, a literal
 // expected after Clear, too little data) and on the pre-6.0 bit order (left to GDAL).
-bool lzw_decode_impl(const uint8_t* in, size_t n, uint8_t* out, size_t need) {
+bool lzw_decode(const uint8_t* in, size_t n, uint8_t* out, size_t need) {
   if (n >= 2 && in[0] == 0 && (in[1] & 1)) return false;  // old-style LZW (libtiff's "compat" decoder)
   constexpr int kClear = 256, kEnd = 257, kFirst = 258, kMaxCodes = 4096;
+  static_assert(kBlockSlack >= 16, "the copies below store 16 bytes at a time");
   uint32_t start[kMaxCodes], length[kMaxCodes];
   uint64_t bits = 0;  // the next input bits, most significant first: `have` of them
   int have = 0;
@@ -368,73 +428,6 @@ bool lzw_decode_impl(const uint8_t* in, size_t n, uint8_t* out, size_t need) {
   return pos == need;
 }
 
-template <typename T>
-void running_sum_scalar(uint8_t* p, size_t from, size_t samples) {
-  for (size_t i = std::max<size_t>(from, 1); i < samples; ++i) {
-    T a, b;
-    std::memcpy(&a, p + (i - 1) * sizeof(T), sizeof(T));
-    std::memcpy(&b, p + i * sizeof(T), sizeof(T));
-    b = T(a + b);
-    std::memcpy(p + i * sizeof(T), &b, sizeof(T));
-  }
-}
-
-}  // namespace
-
-void undo_horizontal_predictor(uint8_t* row, int samples, int bytes_per_sample, bool scalar) {
-  if (samples <= 1) return;
-  size_t done = 0;  // samples already summed
-#if defined(__SSE2__)
-  if (!scalar) {
-    const size_t bytes = size_t(samples) * size_t(bytes_per_sample);
-    const size_t vec = bytes / 16 * 16;
-    const __m128i zero = _mm_setzero_si128();
-    if (bytes_per_sample == 1) running_sum<1>(row, vec, zero);
-    if (bytes_per_sample == 2) running_sum<2>(row, vec, zero);
-    if (bytes_per_sample == 4) running_sum<4>(row, vec, zero);
-    done = vec / size_t(bytes_per_sample);
-  }
-#endif
-  (void)scalar;
-  // The tail (and the whole row for the definition) continues from the last summed sample.
-  if (bytes_per_sample == 1) running_sum_scalar<uint8_t>(row, done, size_t(samples));
-  if (bytes_per_sample == 2) running_sum_scalar<uint16_t>(row, done, size_t(samples));
-  if (bytes_per_sample == 4) running_sum_scalar<uint32_t>(row, done, size_t(samples));
-}
-
-void undo_float_predictor(uint8_t* row, int samples, uint8_t* out, bool scalar) {
-  const size_t n = size_t(samples), bytes = 4 * n;
-  // 1. Undo the byte differences along the whole row (4 planes, one after the other).
-  undo_horizontal_predictor(row, int(bytes), 1, scalar);
-  // 2. Interleave the planes: sample i = (p3[i], p2[i], p1[i], p0[i]) in little-endian order.
-  const uint8_t *p0 = row, *p1 = row + n, *p2 = row + 2 * n, *p3 = row + 3 * n;
-  size_t i = 0;
-#if defined(__SSE2__)
-  if (!scalar)
-    for (; i + 16 <= n; i += 16) {
-      const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p3 + i));
-      const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p2 + i));
-      const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p1 + i));
-      const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p0 + i));
-      const __m128i ab_lo = _mm_unpacklo_epi8(a, b), ab_hi = _mm_unpackhi_epi8(a, b);
-      const __m128i cd_lo = _mm_unpacklo_epi8(c, d), cd_hi = _mm_unpackhi_epi8(c, d);
-      __m128i* o = reinterpret_cast<__m128i*>(out + 4 * i);
-      _mm_storeu_si128(o + 0, _mm_unpacklo_epi16(ab_lo, cd_lo));
-      _mm_storeu_si128(o + 1, _mm_unpackhi_epi16(ab_lo, cd_lo));
-      _mm_storeu_si128(o + 2, _mm_unpacklo_epi16(ab_hi, cd_hi));
-      _mm_storeu_si128(o + 3, _mm_unpackhi_epi16(ab_hi, cd_hi));
-    }
-#endif
-  for (; i < n; ++i) {
-    out[4 * i + 0] = p3[i];
-    out[4 * i + 1] = p2[i];
-    out[4 * i + 2] = p1[i];
-    out[4 * i + 3] = p0[i];
-  }
-}
-
-bool lzw_decode(const uint8_t* in, size_t n, uint8_t* out, size_t need) { return lzw_decode_impl(in, n, out, need); }
-
 void set_tiff_block_cache_bytes(uint64_t bytes) { BlockCache::get().set_budget(bytes); }
 
 uint64_t tiff_block_cache_used_bytes() { return BlockCache::get().used(); }
@@ -498,7 +491,7 @@ bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) cons
   if (d.compressed.size() < count) d.compressed.resize(size_t(count));
   if (!read_at(d.compressed.data(), size_t(count))) return false;
   if (l.compression == kCompressionLzw) {
-    if (!lzw_decode_impl(d.compressed.data(), size_t(count), out, need)) return false;
+    if (!lzw_decode(d.compressed.data(), size_t(count), out, need)) return false;
   } else if (l.compression == kCompressionZstd) {
     if (!d.zstd) d.zstd = ZSTD_createDCtx();
     const size_t n = ZSTD_decompressDCtx(d.zstd, out, need, d.compressed.data(), size_t(count));
