@@ -158,8 +158,7 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   } close{tif};
   if (TIFFIsByteSwapped(tif)) return "byte order other than the host's";
   uint32_t w = 0, h = 0;
-  uint16_t spp = 1, bps = 0, format = SAMPLEFORMAT_UINT, compression = 1, predictor = 1, fill = FILLORDER_MSB2LSB,
-           planar = PLANARCONFIG_CONTIG;
+  uint16_t spp = 1, bps = 0, format = SAMPLEFORMAT_UINT, compression = 1, predictor = 1, fill = FILLORDER_MSB2LSB;
   TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &w);
   TIFFGetField(tif, TIFFTAG_IMAGELENGTH, &h);
   TIFFGetFieldDefaulted(tif, TIFFTAG_SAMPLESPERPIXEL, &spp);
@@ -167,7 +166,6 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   TIFFGetFieldDefaulted(tif, TIFFTAG_SAMPLEFORMAT, &format);
   TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
   TIFFGetFieldDefaulted(tif, TIFFTAG_FILLORDER, &fill);
-  TIFFGetFieldDefaulted(tif, TIFFTAG_PLANARCONFIG, &planar);
   TIFFGetFieldDefaulted(tif, TIFFTAG_PREDICTOR, &predictor);
   if (spp != 1) return fmt::format("{} samples per pixel", spp);
   if (bps != 8 && bps != 16 && bps != 32) return fmt::format("{}-bit samples", bps);
@@ -186,7 +184,6 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   out.width = int(w);
   out.height = int(h);
   out.bytes_per_sample = bps / 8;
-  out.is_float = format == SAMPLEFORMAT_IEEEFP;
   out.compression = compression;
   out.predictor = predictor;
   out.tiled = TIFFIsTiled(tif) != 0;

@@ -28,7 +28,6 @@ struct TiffBlockLayout {
   int block_w = 0, block_h = 0;     // a tile, or the width x rows per strip
   bool tiled = false;
   int bytes_per_sample = 0;         // 1, 2 or 4
-  bool is_float = false;            // SAMPLEFORMAT_IEEEFP
   int compression = 0;              // 5 LZW, 8 / 32946 deflate, 50000 zstd
   int predictor = 1;                // 1 none, 2 horizontal, 3 floating point
   std::vector<uint64_t> offsets, byte_counts;  // per block, row-major
