@@ -23,6 +23,7 @@
 #endif
 
 #include "parallel.h"
+#include "slab_pool.h"
 
 namespace terrain::cook {
 namespace {
@@ -32,9 +33,16 @@ constexpr int kCompressionNone = 1, kCompressionLzw = 5, kCompressionDeflate = 8
 // Bytes past a decoded block that its buffer keeps, so that the LZW decoder may store 16 at a time.
 constexpr size_t kBlockSlack = 16;
 
-// The process-wide cache of decoded blocks: key = reader id << 32 | block index. Blocks it drops
-// that nobody else holds are kept (a few) for the next decode to write into: a fresh block is
-// fresh pages, which cost the first pass more than its inflating did.
+// Where decoded blocks live: slots of huge-page slabs (slab_pool.h). A fresh block on a fresh page
+// cost the first pass more than its inflating did, and every work unit pays that fill again.
+// Never destroyed: a block may be dropped by a static's destructor (the cache's) after it.
+SlabPool& block_pool() {
+  static SlabPool* pool = new SlabPool();
+  return *pool;
+}
+
+// The process-wide cache of decoded blocks: key = reader id << 32 | block index. A block it drops
+// goes back to the pool once nobody holds it, for the next decode to write into.
 class BlockCache {
  public:
   using Block = std::shared_ptr<TiffBlockBytes>;
@@ -47,12 +55,7 @@ class BlockCache {
     budget_ = bytes;
     evict();
   }
-  uint64_t used() {  // the cached blocks and the dropped ones kept to decode into
-    std::lock_guard<std::mutex> lock(m_);
-    uint64_t n = bytes_;
-    for (const Block& b : spare_) n += b->size;
-    return n;
-  }
+  uint64_t used() { return block_pool().touched_bytes(); }  // cached, held and free blocks
   Block find(uint64_t key) {
     std::lock_guard<std::mutex> lock(m_);
     auto it = map_.find(key);
@@ -68,19 +71,11 @@ class BlockCache {
     bytes_ += b->size;
     evict();
   }
-  // A block of `size` bytes to decode into: a dropped one of that size, else a new one.
-  Block fresh(size_t size) {
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      for (size_t i = 0; i < spare_.size(); ++i)
-        if (spare_[i]->size == size) {
-          Block b = std::move(spare_[i]);
-          spare_.erase(spare_.begin() + std::ptrdiff_t(i));
-          return b;
-        }
-    }
+  // A block of `size` bytes to decode into (not zeroed: every byte is written by the decode);
+  // its bytes are null when the system has no memory left.
+  static Block fresh(size_t size) {
     auto b = std::make_shared<TiffBlockBytes>();
-    b->bytes.reset(new uint8_t[size + kBlockSlack]);  // not zeroed: every byte is written by the decode
+    b->bytes = block_pool().take(size + kBlockSlack);
     b->size = size;
     return b;
   }
@@ -107,13 +102,10 @@ class BlockCache {
     while (bytes_ > budget_ && !lru_.empty()) {
       auto e = map_.find(lru_.back());
       bytes_ -= e->second.block->size;
-      if (e->second.block.use_count() == 1 && spare_.size() < kSpares) spare_.push_back(std::move(e->second.block));
       map_.erase(e);
       lru_.pop_back();
     }
   }
-  static constexpr size_t kSpares = 8;
-  std::vector<Block> spare_;
   std::mutex m_;
   std::unordered_map<uint64_t, Entry> map_;
   std::list<uint64_t> lru_;
@@ -438,6 +430,8 @@ bool tiff_direct_enabled() {
   return !(v && std::strcmp(v, "0") == 0);
 }
 
+TiffBlockBytes::~TiffBlockBytes() { block_pool().give(bytes); }
+
 TiffBlockReader::~TiffBlockReader() { BlockCache::get().forget(id_); }
 
 std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, int width, int height,
@@ -475,7 +469,7 @@ bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) cons
   const int rows = l.tiled ? l.block_h : std::min(l.block_h, l.height - by * l.block_h);
   const size_t row_bytes = size_t(l.block_w) * size_t(l.bytes_per_sample), need = row_bytes * size_t(rows);
   if (block.size < need) return false;
-  uint8_t* out = block.bytes.get();
+  uint8_t* out = block.bytes;
   ThreadDecoders& d = thread_decoders();
   auto read_at = [&](uint8_t* dst, size_t bytes) {
     for (size_t got = 0; got < bytes;) {
@@ -553,7 +547,7 @@ bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, 
       const size_t k = missing[m];
       const uint32_t index = uint32_t(by) * uint32_t(across) + uint32_t(bx0) + uint32_t(k);
       std::shared_ptr<TiffBlockBytes> decoded = cache.fresh(block_bytes);
-      if (!decode(fd, index, *decoded)) {
+      if (!decoded->bytes || !decode(fd, index, *decoded)) {
         ok = false;
         return;
       }
@@ -565,7 +559,7 @@ bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, 
     for (size_t k = 0; k < nbx; ++k) {
       const int bx = bx0 + int(k);
       const int c0 = std::max(x0, bx * l.block_w), c1 = std::min(x0 + w, (bx + 1) * l.block_w);
-      const uint8_t* src = blocks[k]->bytes.get();
+      const uint8_t* src = blocks[k]->bytes;
       for (int r = r0; r < r1; ++r) {
         const uint8_t* from = src + size_t(r - by * l.block_h) * row_bytes + size_t(c0 - bx * l.block_w) * bps;
         uint8_t* o = slots + (size_t(r - y0) * size_t(w) + size_t(c0 - x0)) * 4;

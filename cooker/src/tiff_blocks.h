@@ -12,7 +12,8 @@
 //
 // Decoded blocks are kept in one process-wide cache (least recently used out first) so the first
 // pass's 64-row reads decode each block once; set_tiff_block_cache_bytes sizes it, and a window
-// holds at most one more row of blocks while it is read. TERRAIN_TIFF_DIRECT=0 in the environment
+// holds at most one more row of blocks while it is read. They live in slots of huge-page slabs
+// (slab_pool.h), which dropped blocks go back to. TERRAIN_TIFF_DIRECT=0 in the environment
 // turns the reader off (GDAL then reads everything, as before).
 #pragma once
 #include <cstdint>
@@ -35,8 +36,12 @@ struct TiffBlockLayout {
 
 // One decoded block's samples (not zeroed when made: the decode writes every byte it is read for).
 struct TiffBlockBytes {
-  std::unique_ptr<uint8_t[]> bytes;
+  uint8_t* bytes = nullptr;  // a slot of the cache's slab pool (tiff_blocks.cpp), returned by the destructor
   size_t size = 0;
+  TiffBlockBytes() = default;
+  ~TiffBlockBytes();
+  TiffBlockBytes(const TiffBlockBytes&) = delete;
+  TiffBlockBytes& operator=(const TiffBlockBytes&) = delete;
 };
 
 class TiffBlockReader {
@@ -73,7 +78,8 @@ class TiffBlockReader {
 
 // Bytes of decoded blocks the process keeps (default 64 MB).
 void set_tiff_block_cache_bytes(uint64_t bytes);
-// Bytes of decoded blocks the cache holds now (with the few it keeps to decode into).
+// Bytes the decoded blocks occupy now: the slots of their pool touched so far (cached blocks, blocks
+// a read holds, free slots).
 uint64_t tiff_block_cache_used_bytes();
 // Two rows of blocks across `width` samples, for the tallest blocks of any reader opened so far
 // (0 before any): what a pass over rows of tiles, or windows beside each other, reuses. More cache

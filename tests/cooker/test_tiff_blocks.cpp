@@ -6,6 +6,8 @@
 
 #include <gdal_priv.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -15,9 +17,12 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <set>
+#include <thread>
 
 #include "cooker_test_util.h"
 #include "inputs.h"
+#include "slab_pool.h"
 #include "source_raster.h"
 #include "test_data.h"
 #include "tiff_blocks.h"
@@ -339,6 +344,94 @@ TEST(TiffBlocks, ArchivesAreTheSameWithGdalDecoding) {
   }
   ASSERT_GT(bytes[0].size(), 1000u);
   EXPECT_TRUE(bytes[0] == bytes[1]) << "archives differ";
+}
+
+// The decoded blocks' slab pool (cooker/src/slab_pool.h): slots never overlap and keep what is
+// written into them, come back for reuse, and return their slabs to the system once free. Sizes:
+// 1 MB + 16 is a 512 x 512 Float32 tile with the LZW decoder's slack; a slab holds 16 MB of 64-byte
+// aligned slots, so 15 such slots per slab.
+TEST(SlabPool, SlotsAreDisjointReusedAndReturned) {
+  cook::SlabPool pool;
+  const size_t tile = (size_t(1) << 20) + 16, small = 4000;
+  std::vector<uint8_t*> tiles, smalls;
+  for (int i = 0; i < 20; ++i) tiles.push_back(pool.take(tile));
+  for (int i = 0; i < 9; ++i) smalls.push_back(pool.take(small));
+  struct Span {
+    uintptr_t begin, end;
+  };
+  std::vector<Span> spans;
+  for (uint8_t* p : tiles) spans.push_back({uintptr_t(p), uintptr_t(p) + tile});
+  for (uint8_t* p : smalls) spans.push_back({uintptr_t(p), uintptr_t(p) + small});
+  std::sort(spans.begin(), spans.end(), [](const Span& a, const Span& b) { return a.begin < b.begin; });
+  for (size_t i = 0; i < spans.size(); ++i) {
+    ASSERT_NE(spans[i].begin, 0u);
+    EXPECT_EQ(spans[i].begin % 64, 0u);
+    if (i > 0) {
+      EXPECT_LE(spans[i - 1].end, spans[i].begin) << "slots overlap";
+    }
+  }
+  // Every byte of every slot written with its slot's number, then read back.
+  auto fill = [](std::vector<uint8_t*>& v, size_t n, int salt) {
+    for (size_t i = 0; i < v.size(); ++i) std::memset(v[i], int(i * 7 + size_t(salt)) & 0xff, n);
+  };
+  auto intact = [](std::vector<uint8_t*>& v, size_t n, int salt) {
+    for (size_t i = 0; i < v.size(); ++i)
+      for (size_t k = 0; k < n; ++k)
+        if (v[i][k] != uint8_t((i * 7 + size_t(salt)) & 0xff)) return false;
+    return true;
+  };
+  fill(tiles, tile, 1);
+  fill(smalls, small, 2);
+  EXPECT_TRUE(intact(tiles, tile, 1));
+  EXPECT_TRUE(intact(smalls, small, 2));
+  // 20 tiles: two slabs of 16 MB; 9 small slots: one more. Touched: the slots handed out, in pages.
+  EXPECT_EQ(pool.reserved_bytes(), uint64_t(48) << 20);
+  const uint64_t tile_slot = tile + 48, small_slot = 4032;
+  auto pages = [](uint64_t b) { return (b + 4095) / 4096 * 4096; };
+  EXPECT_EQ(pool.touched_bytes(), pages(15 * tile_slot) + pages(5 * tile_slot) + pages(9 * small_slot));
+  // Given back and taken again: the same addresses, no new slab.
+  const std::set<uint8_t*> before(tiles.begin(), tiles.end());
+  for (uint8_t* p : tiles) pool.give(p);
+  tiles.clear();
+  for (int i = 0; i < 20; ++i) tiles.push_back(pool.take(tile));
+  EXPECT_EQ(std::set<uint8_t*>(tiles.begin(), tiles.end()), before);
+  EXPECT_EQ(pool.reserved_bytes(), uint64_t(48) << 20);
+  // A slab whose slots are all free goes back to the system.
+  for (uint8_t* p : smalls) pool.give(p);
+  EXPECT_EQ(pool.reserved_bytes(), uint64_t(32) << 20);
+  for (uint8_t* p : tiles) pool.give(p);
+  EXPECT_EQ(pool.reserved_bytes(), 0u);
+  EXPECT_EQ(pool.touched_bytes(), 0u);
+}
+
+// Threads taking, writing, checking and giving slots at once (run under TSan and ASan in CI): no
+// slot is handed to two threads.
+TEST(SlabPool, ThreadsNeverShareASlot) {
+  cook::SlabPool pool;
+  std::atomic<int> clobbered{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      std::mt19937 rng{uint32_t(t)};
+      std::vector<uint8_t*> held;
+      for (int i = 0; i < 400; ++i) {
+        if (held.size() < 12 && (held.empty() || rng() % 3)) {
+          uint8_t* p = pool.take(70000);
+          std::memset(p, t + 1, 70000);
+          held.push_back(p);
+        } else {
+          const size_t k = rng() % held.size();
+          for (size_t b = 0; b < 70000; b += 997)
+            if (held[k][b] != uint8_t(t + 1)) ++clobbered;
+          pool.give(held[k]);
+          held.erase(held.begin() + std::ptrdiff_t(k));
+        }
+      }
+      for (uint8_t* p : held) pool.give(p);
+    });
+  for (std::thread& th : threads) th.join();
+  EXPECT_EQ(clobbered.load(), 0);
+  EXPECT_EQ(pool.reserved_bytes(), 0u);
 }
 
 }  // namespace
