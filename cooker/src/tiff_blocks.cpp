@@ -24,6 +24,7 @@
 
 #include "parallel.h"
 #include "slab_pool.h"
+#include "terrain/zstd_context.h"
 
 namespace terrain::cook {
 namespace {
@@ -116,13 +117,12 @@ std::atomic<uint64_t> g_next_reader_id{1};
 // The largest block_h x bytes per sample of any reader opened (tiff_block_rows_bytes).
 std::atomic<uint64_t> g_tallest_block_column{0};
 
-// Per decoding thread: the inflaters and a scratch row for the floating-point predictor.
+// Per decoding thread: the deflate inflater, the compressed bytes and a scratch row for the
+// floating-point predictor (zstd's context is the thread's one, terrain/zstd_context.h).
 struct ThreadDecoders {
-  ZSTD_DCtx* zstd = nullptr;
   libdeflate_decompressor* deflate = nullptr;
   std::vector<uint8_t> compressed, row;
   ~ThreadDecoders() {
-    if (zstd) ZSTD_freeDCtx(zstd);
     if (deflate) libdeflate_free_decompressor(deflate);
   }
 };
@@ -484,8 +484,9 @@ bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) cons
   if (l.compression == kCompressionLzw) {
     if (!lzw_decode(d.compressed.data(), size_t(count), out, need)) return false;
   } else if (l.compression == kCompressionZstd) {
-    if (!d.zstd) d.zstd = ZSTD_createDCtx();
-    const size_t n = ZSTD_decompressDCtx(d.zstd, out, need, d.compressed.data(), size_t(count));
+    ZSTD_DCtx* zstd = detail::thread_dctx();
+    if (!zstd) return false;
+    const size_t n = ZSTD_decompressDCtx(zstd, out, need, d.compressed.data(), size_t(count));
     if (ZSTD_isError(n) || n != need) return false;
   } else {
     if (!d.deflate) d.deflate = libdeflate_alloc_decompressor();

@@ -2,6 +2,8 @@
 // the hierarchical predictor's residual planes in zstd, or one value for a constant grid.
 #include "payload.h"
 
+#include <zstd.h>
+
 #include <algorithm>
 #include <cstring>
 #include <string>
@@ -10,7 +12,7 @@
 #include "terrain/archive_writer.h"
 #include "terrain/cpu_clock.h"
 #include "terrain/height_codec.h"
-#include "zstd_context.h"
+#include "terrain/zstd_context.h"
 
 namespace terrain {
 namespace detail {

@@ -1,11 +1,12 @@
 #include "terrain/status.h"
 
 #include <zlib.h>
+#include <zstd.h>
 
 #include <climits>
 
 #include "bytes.h"
-#include "zstd_context.h"
+#include "terrain/zstd_context.h"
 
 namespace terrain {
 
