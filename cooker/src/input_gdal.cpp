@@ -23,6 +23,7 @@
 #include "inputs.h"
 #include "source_raster.h"
 #include "tiff_blocks.h"
+#include "vrt_tiles.h"
 
 namespace terrain::cook {
 namespace {
@@ -225,8 +226,13 @@ std::string compression_name(GDALDataset* ds) {
 class GdalSource final : public SourceRaster {
  public:
   GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte,
-             std::unique_ptr<TiffBlockReader> tiff)
-      : ds_(std::move(ds)), band_(band), is_float_(is_float), signed_byte_(signed_byte), tiff_(std::move(tiff)) {}
+             std::unique_ptr<TiffBlockReader> tiff, std::unique_ptr<VrtTileReader> vrt)
+      : ds_(std::move(ds)),
+        band_(band),
+        is_float_(is_float),
+        signed_byte_(signed_byte),
+        tiff_(std::move(tiff)),
+        vrt_(std::move(vrt)) {}
   SourceInfo& info_mut() { return info_; }
 
   // Types of 4 bytes or fewer are decoded in place in `out` (no scratch); wider ones (Float64,
@@ -238,7 +244,9 @@ class GdalSource final : public SourceRaster {
     const uint64_t rows = in_place() ? 0 : std::min<uint64_t>(rows_per_call(w, h), uint64_t(h));
     // Decoded here, a window holds one row of its blocks while it copies them (tiff_blocks.h).
     const uint64_t block_row = tiff_ ? (uint64_t(w) / uint64_t(std::max(bw, 1)) + 2) * block : 0;
-    return rows * uint64_t(w) * 8 + block + block_row;
+    // Through a VRT's tiles: a row of the tiles' blocks and the scratch of a source drawn over others.
+    const uint64_t vrt = vrt_ ? tiff_block_rows_bytes(w) / 2 + vrt_->scratch_bytes(w, h) : 0;
+    return rows * uint64_t(w) * 8 + block + block_row + vrt;
   }
 
   Status read_window(int x0, int y0, int w, int h, float* out) override {
@@ -252,7 +260,10 @@ class GdalSource final : public SourceRaster {
       // GeoTIFF's blocks are decoded here (tiff_blocks.h); GDAL reads the rest, and any block
       // that does not decode, so that it names the damage.
       QuietErrors quiet;
-      if (!(tiff_ && tiff_->read_window(x0, y0, w, h, reinterpret_cast<uint8_t*>(out), g_decode_threads.load())) &&
+      uint8_t* bytes = reinterpret_cast<uint8_t*>(out);
+      const int threads = g_decode_threads.load();
+      if (!(tiff_ && tiff_->read_window(x0, y0, w, h, bytes, threads)) &&
+          !(vrt_ && vrt_->read_window(x0, y0, w, h, bytes, threads)) &&
           band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
                                                            y0 + h - 1, reason(x0, y0, w, h)));
@@ -329,6 +340,7 @@ class GdalSource final : public SourceRaster {
   bool is_float_;
   bool signed_byte_;
   std::unique_ptr<TiffBlockReader> tiff_;  // null: GDAL decodes every block
+  std::unique_ptr<VrtTileReader> vrt_;     // a VRT of plain GeoTIFF tiles, read through theirs
   std::vector<double> buf_;
 };
 
@@ -500,9 +512,12 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   std::unique_ptr<TiffBlockReader> tiff;
   if (driver == "GTiff" && GDALDataTypeIsComplex(type) == 0 && GDALGetDataTypeSizeBytes(type) <= 4)
     tiff = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type));
+  // A VRT mosaic of such tiles (gdalbuildvrt's): composed here from the tiles' blocks (vrt_tiles.h).
+  std::unique_ptr<VrtTileReader> vrt;
+  if (driver == "VRT") vrt = VrtTileReader::open(path, width, height);
   // The source owns the dataset from here on (the band pointer stays valid with it).
   auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
-                                           info.sample_type == "Int8", std::move(tiff));
+                                           info.sample_type == "Int8", std::move(tiff), std::move(vrt));
   src->info_mut() = std::move(info);
   out = std::move(src);
   return Status::success();

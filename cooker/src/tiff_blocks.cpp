@@ -425,6 +425,11 @@ uint64_t tiff_block_rows_bytes(int width) {
   return 2 * uint64_t(std::max(width, 0)) * g_tallest_block_column.load();
 }
 
+void note_tiff_block_column(uint64_t column) {
+  for (uint64_t seen = g_tallest_block_column.load(); column > seen;)
+    if (g_tallest_block_column.compare_exchange_weak(seen, column)) break;
+}
+
 bool tiff_direct_enabled() {
   const char* v = std::getenv("TERRAIN_TIFF_DIRECT");
   return !(v && std::strcmp(v, "0") == 0);
@@ -454,9 +459,7 @@ std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, 
   r->file_ino_ = uint64_t(st.st_ino);
   r->file_mtime_ns_ = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
   r->id_ = g_next_reader_id.fetch_add(1);
-  const uint64_t column = uint64_t(l.block_h) * uint64_t(l.bytes_per_sample);
-  for (uint64_t seen = g_tallest_block_column.load(); column > seen;)
-    if (g_tallest_block_column.compare_exchange_weak(seen, column)) break;
+  note_tiff_block_column(uint64_t(l.block_h) * uint64_t(l.bytes_per_sample));
   return r;
 }
 
@@ -509,7 +512,7 @@ bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) cons
   return true;
 }
 
-bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads) const {
+bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads, size_t stride) const {
   const TiffBlockLayout& l = layout_;
   if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > l.width || y0 + h > l.height) return false;
   const int across = (l.width + l.block_w - 1) / l.block_w;
@@ -563,7 +566,7 @@ bool TiffBlockReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, 
       const uint8_t* src = blocks[k]->bytes;
       for (int r = r0; r < r1; ++r) {
         const uint8_t* from = src + size_t(r - by * l.block_h) * row_bytes + size_t(c0 - bx * l.block_w) * bps;
-        uint8_t* o = slots + (size_t(r - y0) * size_t(w) + size_t(c0 - x0)) * 4;
+        uint8_t* o = slots + (size_t(r - y0) * (stride ? stride : size_t(w)) + size_t(c0 - x0)) * 4;
         const size_t n = size_t(c1 - c0);
         if (bps == 4) {
           std::memcpy(o, from, n * 4);

@@ -59,7 +59,8 @@ class TiffBlockReader {
   // sample's native bytes at the start of its slot: what GDAL's RasterIO writes with a pixel
   // spacing of 4). Blocks missing from the cache are decoded on up to `threads` threads. False
   // (slots undefined) when a block of the window is sparse or does not decode: read it with GDAL.
-  bool read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads) const;
+  // `stride`: slots from one row to the next (0: w), to read into part of a larger window.
+  bool read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads, size_t stride = 0) const;
 
   const TiffBlockLayout& layout() const { return layout_; }
 
@@ -85,6 +86,9 @@ uint64_t tiff_block_cache_used_bytes();
 // (0 before any): what a pass over rows of tiles, or windows beside each other, reuses. More cache
 // than that costs a fresh page per decoded block and saves no decoding.
 uint64_t tiff_block_rows_bytes(int width);
+// Counts blocks of `column_bytes` (block height x bytes per sample) in tiff_block_rows_bytes before
+// any reader of them is open (a VRT's tiles open on first read).
+void note_tiff_block_column(uint64_t column_bytes);
 // Whether TERRAIN_TIFF_DIRECT allows the reader (anything but "0").
 bool tiff_direct_enabled();
 

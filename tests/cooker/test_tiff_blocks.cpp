@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <set>
 #include <thread>
@@ -26,6 +27,7 @@
 #include "source_raster.h"
 #include "test_data.h"
 #include "tiff_blocks.h"
+#include "vrt_tiles.h"
 
 using namespace terrain;
 using namespace terrain::test;
@@ -296,6 +298,183 @@ TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
   source_window(damaged, true, 0, 0, 600, 400, st);
   EXPECT_FALSE(st.ok());
   EXPECT_NE(st.message.find("damaged.tif"), std::string::npos) << st.message;
+}
+
+// --- VRT mosaics read through their tiles (cooker/src/vrt_tiles.h) ---
+
+// A w x h Float32 tile whose samples come from f(c, r) (NaN allowed), zstd with predictor 3.
+template <class F>
+fs::path write_float_tile(const fs::path& dir, const std::string& name, int w, int h, F f) {
+  GDALAllRegister();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> ds(mem->Create("", w, h, 1, GDT_Float32, nullptr));
+  std::vector<float> v(size_t(w) * size_t(h));
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) v[size_t(r) * size_t(w) + size_t(c)] = f(c, r);
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w, h, v.data(), w, h, GDT_Float32, 0, 0, nullptr), CE_None);
+  const char* opts[] = {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3", nullptr};
+  const fs::path path = dir / (name + ".tif");
+  std::unique_ptr<GDALDataset> out(GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
+      path.c_str(), ds.get(), FALSE, const_cast<char**>(opts), nullptr, nullptr));
+  EXPECT_TRUE(out) << path;
+  return path;
+}
+
+struct VrtPlace {
+  fs::path tile;
+  int tw, th;          // the tile's size
+  int sx, sy, dx, dy;  // SrcRect and DstRect corners
+  int w, h;            // both rectangles' size (DstRect's differs when dw > 0)
+  std::optional<std::string> nodata;  // a ComplexSource's NODATA; none: a SimpleSource
+  std::string extra = {};             // more XML inside the source
+  int dw = 0, dh = 0;                 // DstRect's size when resampled
+};
+
+fs::path write_vrt(const fs::path& dir, const std::string& name, int w, int h, const std::string& type,
+                   const std::optional<std::string>& band_nodata, const std::vector<VrtPlace>& places) {
+  std::string xml = fmt::format("<VRTDataset rasterXSize=\"{}\" rasterYSize=\"{}\">\n", w, h);
+  xml += fmt::format("  <VRTRasterBand dataType=\"{}\" band=\"1\">\n", type);
+  if (band_nodata) xml += fmt::format("    <NoDataValue>{}</NoDataValue>\n", *band_nodata);
+  for (const VrtPlace& p : places) {
+    const char* kind = p.nodata ? "ComplexSource" : "SimpleSource";
+    xml += fmt::format("    <{}>\n      <SourceFilename relativeToVRT=\"1\">{}</SourceFilename>\n", kind,
+                       p.tile.filename().string());
+    xml += "      <SourceBand>1</SourceBand>\n";
+    xml += fmt::format("      <SourceProperties RasterXSize=\"{}\" RasterYSize=\"{}\" DataType=\"{}\" />\n", p.tw, p.th,
+                       type);
+    xml += fmt::format("      <SrcRect xOff=\"{}\" yOff=\"{}\" xSize=\"{}\" ySize=\"{}\" />\n", p.sx, p.sy, p.w, p.h);
+    xml += fmt::format("      <DstRect xOff=\"{}\" yOff=\"{}\" xSize=\"{}\" ySize=\"{}\" />\n", p.dx, p.dy,
+                       p.dw ? p.dw : p.w, p.dh ? p.dh : p.h);
+    if (p.nodata) xml += fmt::format("      <NODATA>{}</NODATA>\n", *p.nodata);
+    xml += p.extra;
+    xml += fmt::format("    </{}>\n", kind);
+  }
+  xml += "  </VRTRasterBand>\n</VRTDataset>\n";
+  const fs::path path = dir / (name + ".vrt");
+  std::ofstream(path) << xml;
+  return path;
+}
+
+// Every window (the whole raster and 40 random ones) read by the reader equals GDAL's VRT read
+// bit for bit; `tiles_refused`: windows that touch a tile the block reader leaves to GDAL fail.
+void expect_windows_are_gdals(const fs::path& vrt, int bps, int* composed_reads = nullptr) {
+  SCOPED_TRACE(vrt.filename().string());
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrt.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  ASSERT_TRUE(ds);
+  const int W = ds->GetRasterXSize(), H = ds->GetRasterYSize();
+  std::string why;
+  auto reader = cook::VrtTileReader::open(vrt.string(), W, H, &why);
+  ASSERT_TRUE(reader) << why;
+  std::mt19937 rng(11);
+  int checked = 0;
+  for (int k = 0; k < 41; ++k) {
+    int x0 = 0, y0 = 0, w = W, h = H;
+    if (k > 0) {
+      x0 = int(rng() % uint32_t(W));
+      y0 = int(rng() % uint32_t(H));
+      w = 1 + int(rng() % uint32_t(W - x0));
+      h = 1 + int(rng() % uint32_t(H - y0));
+    }
+    std::vector<uint8_t> mine(size_t(w) * size_t(h) * 4, 0xAB);
+    ASSERT_TRUE(reader->read_window(x0, y0, w, h, mine.data(), 2)) << x0 << "," << y0 << " " << w << "x" << h;
+    EXPECT_TRUE(same_samples(mine, gdal_window(*ds, x0, y0, w, h), bps))
+        << "window " << w << "x" << h << " at (" << x0 << ", " << y0 << ")";
+    ++checked;
+  }
+  EXPECT_EQ(checked, 41);
+  if (composed_reads) *composed_reads = checked;
+}
+
+TEST(TiffBlocks, VrtWindowsAreGdalsBitForBit) {
+  const fs::path dir = scratch_dir("TiffBlocks.VrtWindowsAreGdalsBitForBit");
+  GDALAllRegister();
+  const Layout f32{GDT_Float32, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3"}};
+  const fs::path a = write_tiff(dir, "a", 300, 200, f32), b = write_tiff(dir, "b", 300, 200, f32),
+                 c = write_tiff(dir, "c", 300, 200, f32);
+  // gdalbuildvrt's layout: tiles side by side, ComplexSource NODATA = the band's nodata, a gap
+  // (the fourth quarter) left at the band's nodata.
+  expect_windows_are_gdals(write_vrt(dir, "side_by_side", 600, 400, "Float32", "-9999",
+                                     {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                      {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
+                                      {c, 300, 200, 0, 0, 0, 200, 300, 200, "-9999"}}),
+                           4);
+  // Overlaps: a tile of exact nodata, values a few ulps from it (GDAL's ARE_REAL_EQUAL counts them
+  // as nodata), values just beyond, NaN and data, drawn over others with NODATA -9999, with NaN
+  // as NODATA, and as a SimpleSource (drawn whole); part of a tile (SrcRect inside it).
+  const fs::path odd = write_float_tile(dir, "odd", 200, 150, [](int col, int row) {
+    switch ((col / 7 + row / 5) % 6) {
+      case 0: return -9999.0f;
+      case 1: return std::nextafter(std::nextafter(-9999.0f, 0.0f), 0.0f);  // 2 ulps off: nodata to GDAL
+      case 2: return -9998.99f;                                              // data
+      case 3: return NAN;
+      default: return float(col * 0.25 - row * 1.5);
+    }
+  });
+  expect_windows_are_gdals(write_vrt(dir, "overlaps", 600, 400, "Float32", "-9999",
+                                     {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                      {odd, 200, 150, 0, 0, 200, 100, 200, 150, "-9999"},
+                                      {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
+                                      {odd, 200, 150, 0, 0, 350, 150, 200, 150, "nan"},
+                                      {c, 300, 200, 50, 40, 20, 220, 250, 160, std::nullopt},
+                                      {odd, 200, 150, 10, 10, 380, 300, 150, 100, "-9999"}}),
+                           4);
+  // No band nodata (the window starts at 0), NaN nodata where nothing lies under the tile.
+  expect_windows_are_gdals(write_vrt(dir, "zero_fill", 500, 300, "Float32", std::nullopt,
+                                     {{odd, 200, 150, 0, 0, 0, 0, 200, 150, "nan"},
+                                      {odd, 200, 150, 0, 0, 210, 100, 200, 150, "-9999"}}),
+                           4);
+  // 16-bit tiles: Int16 (deflate, predictor 2) with NODATA, UInt16 (LZW) as SimpleSources.
+  const Layout i16{GDT_Int16, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=DEFLATE", "PREDICTOR=2"}};
+  const fs::path i1 = write_tiff(dir, "i1", 300, 200, i16), i2 = write_tiff(dir, "i2", 300, 200, i16);
+  expect_windows_are_gdals(write_vrt(dir, "int16", 500, 350, "Int16", "-9999",
+                                     {{i1, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                      {i2, 300, 200, 0, 0, 150, 120, 300, 200, "-9999"}}),
+                           2);
+  const Layout u16{GDT_UInt16, {"COMPRESS=LZW", "PREDICTOR=2"}};
+  const fs::path u1 = write_tiff(dir, "u1", 300, 200, u16), u2 = write_tiff(dir, "u2", 300, 200, u16);
+  expect_windows_are_gdals(write_vrt(dir, "uint16", 600, 200, "UInt16", std::nullopt,
+                                     {{u1, 300, 200, 0, 0, 0, 0, 300, 200, std::nullopt},
+                                      {u2, 300, 200, 0, 0, 250, 0, 300, 200, std::nullopt}}),
+                           2);
+}
+
+// What the VRT reader leaves to GDAL: sources with arithmetic or resampling are refused at open;
+// a tile the block reader does not decode makes the windows over it GDAL's. Either way the
+// cooker's source reads what GDAL reads.
+TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
+  const fs::path dir = scratch_dir("TiffBlocks.VrtsBeyondThePlainCaseAreReadByGdal");
+  GDALAllRegister();
+  const Layout f32{GDT_Float32, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3"}};
+  const fs::path a = write_tiff(dir, "a", 300, 200, f32);
+  const fs::path raw = write_tiff(dir, "raw", 300, 200, {GDT_Float32, {}});  // uncompressed: left to GDAL
+  struct Case {
+    const char* name;
+    std::vector<VrtPlace> places;
+    bool refused;
+  };
+  const std::vector<Case> cases = {
+      {"scaled", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999", "      <ScaleRatio>2</ScaleRatio>\n"}}, true},
+      {"resampled", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999", "", 150, 100}}, true},
+      {"uncompressed_tile", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"}, {raw, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"}},
+       false}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path vrt = write_vrt(dir, c.name, 600, 200, "Float32", "-9999", c.places);
+    std::string why;
+    auto reader = cook::VrtTileReader::open(vrt.string(), 600, 200, &why);
+    EXPECT_EQ(!reader, c.refused) << why;
+    if (reader) {
+      std::vector<uint8_t> slots(600 * 200 * 4);
+      EXPECT_TRUE(reader->read_window(0, 0, 300, 200, slots.data(), 1));    // a's tile alone
+      EXPECT_FALSE(reader->read_window(250, 0, 100, 50, slots.data(), 1));  // touches the uncompressed tile
+    }
+    Status on, off;
+    const std::vector<float> direct = source_window(vrt, true, 0, 0, 600, 200, on);
+    const std::vector<float> gdal = source_window(vrt, false, 0, 0, 600, 200, off);
+    ASSERT_TRUE(on.ok()) << on.message;
+    ASSERT_TRUE(off.ok()) << off.message;
+    EXPECT_TRUE(same_floats(direct, gdal));
+  }
 }
 
 // The same archive whichever reader decodes the blocks: a 1 m Float32 square (zstd, predictor 3,

@@ -1,0 +1,302 @@
+// A VRT of plain GeoTIFF tiles read through the tiles' block readers (vrt_tiles.h says when).
+#include "vrt_tiles.h"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_minixml.h>
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fmt/format.h>
+#include <map>
+
+#include "tiff_blocks.h"
+
+namespace terrain::cook {
+namespace {
+
+enum class Type { none, u16, i16, u32, i32, f32 };
+
+Type type_named(const char* name) {
+  if (!name) return Type::none;
+  const std::string n = name;
+  if (n == "UInt16") return Type::u16;
+  if (n == "Int16") return Type::i16;
+  if (n == "UInt32") return Type::u32;
+  if (n == "Int32") return Type::i32;
+  if (n == "Float32") return Type::f32;
+  return Type::none;
+}
+
+int bytes_of(Type t) { return t == Type::u16 || t == Type::i16 ? 2 : 4; }
+
+// A native value of type `t` as its bytes in a 4-byte word (the slot's first bytes). False when
+// `v` is not a value of the type (an integer type's nodata out of range or with a fraction).
+bool native_bits(Type t, double v, uint32_t& bits) {
+  bits = 0;
+  auto whole = [&](double lo, double hi) { return std::isfinite(v) && v == std::floor(v) && v >= lo && v <= hi; };
+  switch (t) {
+    case Type::u16: { if (!whole(0, 65535)) return false; const uint16_t x = uint16_t(v); std::memcpy(&bits, &x, 2); return true; }
+    case Type::i16: { if (!whole(-32768, 32767)) return false; const int16_t x = int16_t(v); std::memcpy(&bits, &x, 2); return true; }
+    case Type::u32: { if (!whole(0, 4294967295.0)) return false; const uint32_t x = uint32_t(v); std::memcpy(&bits, &x, 4); return true; }
+    case Type::i32: { if (!whole(-2147483648.0, 2147483647.0)) return false; const int32_t x = int32_t(v); std::memcpy(&bits, &x, 4); return true; }
+    case Type::f32: { const float x = float(v); std::memcpy(&bits, &x, 4); return true; }
+    case Type::none: return false;
+  }
+  return false;
+}
+
+// GDAL's rule for a ComplexSource's <NODATA> (vrtsources.cpp): the sample in its working type
+// (float for 16-bit and Float32 buffers, double for 32-bit integers); NaN matches NaN, any other
+// value ARE_REAL_EQUAL (a few ulps) to the NODATA in that type; nothing matches a NODATA out of
+// the working type's range.
+struct NodataRule {
+  bool nan = false, in_range = false, wide = false;  // wide: double working type
+  float f = 0;
+  double d = 0;
+  NodataRule(Type t, double nodata) {
+    wide = t == Type::u32 || t == Type::i32;
+    nan = std::isnan(nodata);
+    in_range = !nan && (wide || std::fabs(nodata) <= double(FLT_MAX) || std::isinf(nodata));
+    f = float(nodata);
+    d = nodata;
+  }
+  bool matches(double v) const {
+    if (wide) return nan ? std::isnan(v) : in_range && ARE_REAL_EQUAL(v, d);
+    const float x = float(v);
+    return nan ? std::isnan(x) : in_range && ARE_REAL_EQUAL(x, f);
+  }
+};
+
+// Samples of type T (in 4-byte slots, `stride` slots apart row to row) that match `rule` become
+// `fill`: what GDAL leaves where a ComplexSource does not draw and nothing lies under it.
+template <class T>
+void unmark(uint8_t* at, size_t stride, int w, int h, const NodataRule& rule, uint32_t fill) {
+  for (int r = 0; r < h; ++r) {
+    uint8_t* row = at + size_t(r) * stride * 4;
+    for (int c = 0; c < w; ++c) {
+      T v;
+      std::memcpy(&v, row + 4 * c, sizeof(T));
+      if (rule.matches(double(v))) std::memcpy(row + 4 * c, &fill, 4);
+    }
+  }
+}
+
+// Samples of `from` (w x h slots) drawn over `at` but those matching `rule`.
+template <class T>
+void draw(uint8_t* at, size_t stride, const uint8_t* from, int w, int h, const NodataRule& rule) {
+  for (int r = 0; r < h; ++r) {
+    uint8_t* row = at + size_t(r) * stride * 4;
+    const uint8_t* src = from + size_t(r) * size_t(w) * 4;
+    for (int c = 0; c < w; ++c) {
+      T v;
+      std::memcpy(&v, src + 4 * c, sizeof(T));
+      if (!rule.matches(double(v))) std::memcpy(row + 4 * c, src + 4 * c, 4);
+    }
+  }
+}
+
+template <class F>
+void by_type(Type t, F&& f) {
+  switch (t) {
+    case Type::u16: f(uint16_t{}); break;
+    case Type::i16: f(int16_t{}); break;
+    case Type::u32: f(uint32_t{}); break;
+    case Type::i32: f(int32_t{}); break;
+    case Type::f32: f(float{}); break;
+    case Type::none: break;
+  }
+}
+
+struct XmlTree {
+  CPLXMLNode* root = nullptr;
+  ~XmlTree() {
+    if (root) CPLDestroyXMLNode(root);
+  }
+};
+
+// A whole number of samples written as a decimal (gdalbuildvrt may write 1999.9999999997).
+bool whole_samples(const char* text, int& out) {
+  if (!text) return false;
+  const double v = CPLAtof(text);
+  const double r = std::round(v);
+  if (!std::isfinite(v) || std::fabs(v - r) > 1e-6 || std::fabs(r) > 1e9) return false;
+  out = int(r);
+  return true;
+}
+
+bool rect_of(const CPLXMLNode* node, int& x, int& y, int& w, int& h) {
+  return node && whole_samples(CPLGetXMLValue(node, "xOff", nullptr), x) &&
+         whole_samples(CPLGetXMLValue(node, "yOff", nullptr), y) &&
+         whole_samples(CPLGetXMLValue(node, "xSize", nullptr), w) &&
+         whole_samples(CPLGetXMLValue(node, "ySize", nullptr), h);
+}
+
+}  // namespace
+
+VrtTileReader::~VrtTileReader() = default;
+
+std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int width, int height,
+                                                   std::string* why_not) {
+  auto refuse = [&](std::string why) {
+    if (why_not) *why_not = std::move(why);
+    return std::unique_ptr<VrtTileReader>();
+  };
+  if (!tiff_direct_enabled()) return refuse("TERRAIN_TIFF_DIRECT=0");
+  XmlTree tree;
+  CPLPushErrorHandler(CPLQuietErrorHandler);  // GDAL parsed it already; a refusal is not an error
+  tree.root = CPLParseXMLFile(path.c_str());
+  CPLPopErrorHandler();
+  const CPLXMLNode* ds = tree.root ? CPLGetXMLNode(tree.root, "=VRTDataset") : nullptr;
+  if (!ds) return refuse("not a VRT file GDAL's XML reader parses");
+  if (CPLGetXMLValue(ds, "subClass", nullptr)) return refuse("a derived VRT (warped, pansharpened, ...)");
+  int w = 0, h = 0;
+  if (!whole_samples(CPLGetXMLValue(ds, "rasterXSize", nullptr), w) ||
+      !whole_samples(CPLGetXMLValue(ds, "rasterYSize", nullptr), h) || w != width || h != height)
+    return refuse("its size is not the one GDAL reads");
+  const CPLXMLNode* band = nullptr;
+  for (const CPLXMLNode* n = ds->psChild; n; n = n->psNext)
+    if (n->eType == CXT_Element && std::strcmp(n->pszValue, "VRTRasterBand") == 0) {
+      band = n;
+      break;
+    }
+  if (!band || std::strcmp(CPLGetXMLValue(band, "band", "1"), "1") != 0) return refuse("no first band");
+  if (CPLGetXMLValue(band, "subClass", nullptr)) return refuse("a derived band (pixel function, warped, ...)");
+  const Type type = type_named(CPLGetXMLValue(band, "dataType", nullptr));
+  if (type == Type::none) return refuse(fmt::format("data type {}", CPLGetXMLValue(band, "dataType", "?")));
+
+  std::unique_ptr<VrtTileReader> r(new VrtTileReader());
+  r->width_ = width;
+  r->height_ = height;
+  r->bytes_ = bytes_of(type);
+  // The window's first state (VRTSourcedRasterBand): the band's nodata, else 0.
+  if (const char* nd = CPLGetXMLValue(band, "NoDataValue", nullptr)) {
+    if (!native_bits(type, CPLAtofM(nd), r->fill_bits_)) return refuse(fmt::format("nodata {} for {}", nd, "its type"));
+  }
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  for (const CPLXMLNode* n = band->psChild; n; n = n->psNext) {
+    if (n->eType != CXT_Element) continue;
+    const std::string name = n->pszValue;
+    if (name == "NoDataValue" || name == "ColorInterp" || name == "Description" || name == "Metadata" ||
+        name == "Offset" || name == "Scale" || name == "UnitType" || name == "Histograms" || name == "Overview" ||
+        name == "CategoryNames")
+      continue;  // nothing a full-resolution read of raw values depends on (GDAL applies scale and offset after)
+    const bool complex = name == "ComplexSource";
+    if (!complex && name != "SimpleSource") return refuse(fmt::format("a <{}>", name));
+    Source s;
+    bool has_file = false, has_src = false, has_dst = false;
+    int sw = 0, sh = 0;
+    for (const CPLXMLNode* c = n->psChild; c; c = c->psNext) {
+      if (c->eType != CXT_Element) continue;
+      const std::string cn = c->pszValue;
+      if (cn == "SourceFilename") {
+        const char* f = CPLGetXMLValue(c, nullptr, "");
+        if (std::string(f).starts_with("/vsi") || std::strchr(f, ':')) return refuse(fmt::format("source {}", f));
+        const bool relative = std::strcmp(CPLGetXMLValue(c, "relativeToVRT", "0"), "1") == 0;
+        s.path = (relative ? (dir / f) : std::filesystem::path(f)).lexically_normal().string();
+        has_file = true;
+      } else if (cn == "SourceBand") {
+        if (std::strcmp(CPLGetXMLValue(c, nullptr, ""), "1") != 0) return refuse("a source band other than 1");
+      } else if (cn == "SourceProperties") {
+        if (!whole_samples(CPLGetXMLValue(c, "RasterXSize", nullptr), s.tile_w) ||
+            !whole_samples(CPLGetXMLValue(c, "RasterYSize", nullptr), s.tile_h) ||
+            type_named(CPLGetXMLValue(c, "DataType", nullptr)) != type)
+          return refuse("a source of another data type or without its size");
+        int block_h = 0;  // for the block cache's size before the tile opens
+        if (whole_samples(CPLGetXMLValue(c, "BlockYSize", nullptr), block_h) && block_h > 0)
+          note_tiff_block_column(uint64_t(std::min(block_h, s.tile_h)) * uint64_t(bytes_of(type)));
+      } else if (cn == "SrcRect") {
+        has_src = rect_of(c, s.src_x, s.src_y, sw, sh);
+        if (!has_src) return refuse("a SrcRect off whole samples");
+      } else if (cn == "DstRect") {
+        has_dst = rect_of(c, s.dst_x, s.dst_y, s.w, s.h);
+        if (!has_dst) return refuse("a DstRect off whole samples");
+      } else if (cn == "NODATA" && complex) {
+        s.nodata_value = CPLAtofM(CPLGetXMLValue(c, nullptr, ""));
+        const NodataRule rule(type, s.nodata_value);
+        s.has_nodata = rule.nan || rule.in_range;  // out of the working type's range it matches nothing
+      } else {
+        return refuse(fmt::format("a source with <{}>", cn));
+      }
+    }
+    if (!has_file || !has_src || !has_dst || s.tile_w <= 0 || s.tile_h <= 0) return refuse("a source without its rectangles");
+    if (sw != s.w || sh != s.h || s.w <= 0 || s.h <= 0) return refuse("a resampled source");
+    if (s.src_x < 0 || s.src_y < 0 || s.src_x + s.w > s.tile_w || s.src_y + s.h > s.tile_h)
+      return refuse("a SrcRect outside its tile");
+    r->sources_.push_back(std::move(s));
+  }
+  if (r->sources_.empty()) return refuse("no source");
+  // A source is drawn sample by sample only where an earlier source may lie under it; else its
+  // samples are read in place and those matching its NODATA set back to the band's fill.
+  std::map<std::pair<int, int>, std::vector<size_t>> cells;
+  const int cell = std::max(64, std::max(r->sources_[0].w, r->sources_[0].h));
+  auto cell_of = [&](int v) { return int(std::floor(double(v) / cell)); };
+  for (size_t i = 0; i < r->sources_.size(); ++i) {
+    Source& s = r->sources_[i];
+    for (int cy = cell_of(s.dst_y); cy <= cell_of(s.dst_y + s.h - 1); ++cy)
+      for (int cx = cell_of(s.dst_x); cx <= cell_of(s.dst_x + s.w - 1); ++cx) {
+        std::vector<size_t>& v = cells[{cx, cy}];
+        for (size_t j : v) {
+          const Source& e = r->sources_[j];
+          if (e.dst_x < s.dst_x + s.w && s.dst_x < e.dst_x + e.w && e.dst_y < s.dst_y + s.h && s.dst_y < e.dst_y + e.h)
+            s.composed = s.has_nodata;
+        }
+        v.push_back(i);
+      }
+  }
+  r->type_ = int(type);
+  r->tiles_.resize(r->sources_.size());
+  r->tried_.assign(r->sources_.size(), 0);
+  return r;
+}
+
+const TiffBlockReader* VrtTileReader::tile(size_t i) const {
+  std::lock_guard<std::mutex> lock(m_);
+  if (!tried_[i]) {
+    tried_[i] = 1;
+    const Source& s = sources_[i];
+    tiles_[i] = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_);
+  }
+  return tiles_[i].get();
+}
+
+uint64_t VrtTileReader::scratch_bytes(int w, int h) const {
+  for (const Source& s : sources_)
+    if (s.composed) return uint64_t(w) * uint64_t(h) * 4;
+  return 0;
+}
+
+bool VrtTileReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads) const {
+  if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > width_ || y0 + h > height_) return false;
+  const Type type = Type(type_);
+  std::fill_n(reinterpret_cast<uint32_t*>(slots), size_t(w) * size_t(h), fill_bits_);  // slots are 4-byte words
+  std::vector<uint8_t> scratch;
+  for (size_t i = 0; i < sources_.size(); ++i) {
+    const Source& s = sources_[i];
+    const int cx0 = std::max(x0, s.dst_x), cx1 = std::min(x0 + w, s.dst_x + s.w);
+    const int cy0 = std::max(y0, s.dst_y), cy1 = std::min(y0 + h, s.dst_y + s.h);
+    if (cx0 >= cx1 || cy0 >= cy1) continue;
+    const TiffBlockReader* t = tile(i);
+    if (!t) return false;
+    const int tx = s.src_x + (cx0 - s.dst_x), ty = s.src_y + (cy0 - s.dst_y), tw = cx1 - cx0, th = cy1 - cy0;
+    uint8_t* at = slots + (size_t(cy0 - y0) * size_t(w) + size_t(cx0 - x0)) * 4;
+    const NodataRule rule(type, s.nodata_value);
+    if (!s.composed) {
+      if (!t->read_window(tx, ty, tw, th, at, threads, size_t(w))) return false;
+      // Nothing lies under it: a sample GDAL would not draw keeps the fill.
+      if (s.has_nodata)
+        by_type(type, [&](auto zero) { unmark<decltype(zero)>(at, size_t(w), tw, th, rule, fill_bits_); });
+      continue;
+    }
+    scratch.resize(size_t(tw) * size_t(th) * 4);
+    if (!t->read_window(tx, ty, tw, th, scratch.data(), threads)) return false;
+    by_type(type, [&](auto zero) { draw<decltype(zero)>(at, size_t(w), scratch.data(), tw, th, rule); });
+  }
+  return true;
+}
+
+}  // namespace terrain::cook
