@@ -273,15 +273,24 @@ uint64_t VrtTileReader::scratch_bytes(int w, int h) const {
 bool VrtTileReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, int threads) const {
   if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > width_ || y0 + h > height_) return false;
   const Type type = Type(type_);
+  auto overlap = [&](const Source& s, int& cx0, int& cy0, int& cx1, int& cy1) {
+    cx0 = std::max(x0, s.dst_x), cx1 = std::min(x0 + w, s.dst_x + s.w);
+    cy0 = std::max(y0, s.dst_y), cy1 = std::min(y0 + h, s.dst_y + s.h);
+    return cx0 < cx1 && cy0 < cy1;
+  };
+  // Every tile of the window first: one left to GDAL makes the whole window GDAL's, before any
+  // other tile is decoded for nothing.
+  for (size_t i = 0; i < sources_.size(); ++i) {
+    int cx0, cy0, cx1, cy1;
+    if (overlap(sources_[i], cx0, cy0, cx1, cy1) && !tile(i)) return false;
+  }
   std::fill_n(reinterpret_cast<uint32_t*>(slots), size_t(w) * size_t(h), fill_bits_);  // slots are 4-byte words
   std::vector<uint8_t> scratch;
   for (size_t i = 0; i < sources_.size(); ++i) {
     const Source& s = sources_[i];
-    const int cx0 = std::max(x0, s.dst_x), cx1 = std::min(x0 + w, s.dst_x + s.w);
-    const int cy0 = std::max(y0, s.dst_y), cy1 = std::min(y0 + h, s.dst_y + s.h);
-    if (cx0 >= cx1 || cy0 >= cy1) continue;
+    int cx0, cy0, cx1, cy1;
+    if (!overlap(s, cx0, cy0, cx1, cy1)) continue;
     const TiffBlockReader* t = tile(i);
-    if (!t) return false;
     const int tx = s.src_x + (cx0 - s.dst_x), ty = s.src_y + (cy0 - s.dst_y), tw = cx1 - cx0, th = cy1 - cy0;
     uint8_t* at = slots + (size_t(cy0 - y0) * size_t(w) + size_t(cx0 - x0)) * 4;
     const NodataRule rule(type, s.nodata_value);
