@@ -171,7 +171,8 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   report.input_descriptions.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
     s.descriptions.emplace_back(in.path, in.description);
-    report.input_descriptions.push_back(fmt::format("{}: {}; {}", in.path, in.description, describe_crs(in.crs)));
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}{}{}", in.path, in.description, describe_crs(in.crs),
+                                                    in.decoder.empty() ? "" : "; ", in.decoder));
   }
   return Status::success();
 }

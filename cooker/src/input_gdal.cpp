@@ -510,11 +510,19 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   }
   // A plain GeoTIFF of 1-, 2- or 4-byte samples: its blocks decoded by tiff_blocks.cpp.
   std::unique_ptr<TiffBlockReader> tiff;
-  if (driver == "GTiff" && GDALDataTypeIsComplex(type) == 0 && GDALGetDataTypeSizeBytes(type) <= 4)
-    tiff = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type));
+  std::string why_not;
+  if (driver == "GTiff" && GDALDataTypeIsComplex(type) == 0 && GDALGetDataTypeSizeBytes(type) <= 4) {
+    tiff = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type), &why_not);
+    info.decoder = tiff ? "blocks decoded by the cooker" : fmt::format("blocks decoded by GDAL ({})", why_not);
+  }
   // A VRT mosaic of such tiles (gdalbuildvrt's): composed here from the tiles' blocks (vrt_tiles.h).
   std::unique_ptr<VrtTileReader> vrt;
-  if (driver == "VRT") vrt = VrtTileReader::open(path, width, height);
+  if (driver == "VRT") {
+    vrt = VrtTileReader::open(path, width, height, &why_not);
+    info.decoder = vrt ? fmt::format("{} tile sources composed by the cooker from their blocks (a tile it "
+                                     "does not decode is read by GDAL)", vrt->sources())
+                       : fmt::format("read by GDAL's VRT driver ({})", why_not);
+  }
   // The source owns the dataset from here on (the band pointer stays valid with it).
   auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
                                            info.sample_type == "Int8", std::move(tiff), std::move(vrt));

@@ -33,6 +33,7 @@ class MosaicSource {
 
   struct InputStat {
     std::string path, description;  // description as load_inputs' Raster::description (before resampling)
+    std::string decoder;            // SourceInfo::decoder of a windowed input
     SourceCrs crs;
     uint64_t bytes_read = 0;        // SourceInfo::bytes_read of a windowed input; 0 for inputs read whole
     bool windowed = false;          // read by windows (GDAL); false: held whole (own readers)

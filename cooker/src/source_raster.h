@@ -25,6 +25,9 @@ struct SourceInfo {
   double scale = 1.0, offset = 0.0;  // the file's own value -> height (GDAL GetScale / GetOffset)
   std::string sample_type;  // "Int16", "Float32", ...
   uint64_t bytes_read = 0;  // grows with every window read (decoded bytes asked of the driver)
+  // Who decodes the samples, for the report (not the archive): the cooker's block reader, or GDAL
+  // and why (a GeoTIFF or VRT the reader leaves to it); empty for other formats.
+  std::string decoder;
 };
 
 class SourceRaster {

@@ -463,6 +463,15 @@ TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
     std::string why;
     auto reader = cook::VrtTileReader::open(vrt.string(), 600, 200, &why);
     EXPECT_EQ(!reader, c.refused) << why;
+    {  // The report says who decodes, and why not the cooker.
+      std::unique_ptr<cook::SourceRaster> src;
+      ASSERT_TRUE(cook::open_gdal_source(vrt.string(), cook::ReadOptions{}, src).ok());
+      const std::string& d = src->info().decoder;
+      EXPECT_EQ(d.find("read by GDAL's VRT driver"), c.refused ? 0u : std::string::npos) << d;
+      if (c.refused) {
+        EXPECT_NE(d.find(why), std::string::npos) << d;
+      }
+    }
     if (reader) {
       std::vector<uint8_t> slots(600 * 200 * 4);
       EXPECT_TRUE(reader->read_window(0, 0, 300, 200, slots.data(), 1));    // a's tile alone
