@@ -227,13 +227,25 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
     if (sw != s.w || sh != s.h || s.w <= 0 || s.h <= 0) return refuse("a resampled source");
     if (s.src_x < 0 || s.src_y < 0 || s.src_x + s.w > s.tile_w || s.src_y + s.h > s.tile_h)
       return refuse("a SrcRect outside its tile");
+    // Clipped to the raster, as GDAL draws it; a source wholly outside draws nothing.
+    const int cx0 = std::max(0, s.dst_x), cy0 = std::max(0, s.dst_y);
+    const int cx1 = std::min(width, s.dst_x + s.w), cy1 = std::min(height, s.dst_y + s.h);
+    if (cx0 >= cx1 || cy0 >= cy1) continue;
+    s.src_x += cx0 - s.dst_x;
+    s.src_y += cy0 - s.dst_y;
+    s.dst_x = cx0;
+    s.dst_y = cy0;
+    s.w = cx1 - cx0;
+    s.h = cy1 - cy0;
     r->sources_.push_back(std::move(s));
   }
   if (r->sources_.empty()) return refuse("no source");
   // A source is drawn sample by sample only where an earlier source may lie under it; else its
   // samples are read in place and those matching its NODATA set back to the band's fill.
+  // Buckets as large as the largest source: each source lies in at most 2 x 2 of them.
   std::map<std::pair<int, int>, std::vector<size_t>> cells;
-  const int cell = std::max(64, std::max(r->sources_[0].w, r->sources_[0].h));
+  int cell = 64;
+  for (const Source& s : r->sources_) cell = std::max({cell, s.w, s.h});
   auto cell_of = [&](int v) { return int(std::floor(double(v) / cell)); };
   for (size_t i = 0; i < r->sources_.size(); ++i) {
     Source& s = r->sources_[i];

@@ -418,10 +418,14 @@ TEST(TiffBlocks, VrtWindowsAreGdalsBitForBit) {
                                       {c, 300, 200, 50, 40, 20, 220, 250, 160, std::nullopt},
                                       {odd, 200, 150, 10, 10, 380, 300, 150, 100, "-9999"}}),
                            4);
-  // No band nodata (the window starts at 0), NaN nodata where nothing lies under the tile.
+  // No band nodata (the window starts at 0), NaN nodata where nothing lies under the tile, sources
+  // reaching past the raster's edges (clipped) and one wholly outside it.
   expect_windows_are_gdals(write_vrt(dir, "zero_fill", 500, 300, "Float32", std::nullopt,
                                      {{odd, 200, 150, 0, 0, 0, 0, 200, 150, "nan"},
-                                      {odd, 200, 150, 0, 0, 210, 100, 200, 150, "-9999"}}),
+                                      {odd, 200, 150, 0, 0, 210, 100, 200, 150, "-9999"},
+                                      {odd, 200, 150, 0, 0, -60, 220, 200, 150, "-9999"},
+                                      {odd, 200, 150, 0, 0, 420, -40, 200, 150, std::nullopt},
+                                      {odd, 200, 150, 0, 0, 900, 900, 200, 150, std::nullopt}}),
                            4);
   // 16-bit tiles: Int16 (deflate, predictor 2) with NODATA, UInt16 (LZW) as SimpleSources.
   const Layout i16{GDT_Int16, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=DEFLATE", "PREDICTOR=2"}};
