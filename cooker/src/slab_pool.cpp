@@ -10,9 +10,17 @@ namespace terrain::cook {
 namespace {
 
 constexpr size_t kHugePage = size_t(2) << 20;
-// A slab holds 16 MB of slots (at least one): a few slabs cover a cache of 16-128 MB.
-constexpr size_t kSlabBytes = size_t(16) << 20;
+// A slab holds 16 slots within 2-16 MB (at least one slot): a few slabs cover a cache of
+// 16-128 MB of megabyte tiles, and small blocks do not take 16 MB each.
+constexpr size_t kMinSlabBytes = size_t(2) << 20, kMaxSlabBytes = size_t(16) << 20;
 constexpr size_t kSlotAlign = 64;
+#if defined(TERRAIN_SLAB_POOL_PLAIN)
+// One slot per slab, a plain allocation: the block reader's fuzzer opens and drops a reader per
+// input, and a fresh poisoned 2-16 MB slab per input cost it 90 % of its runs (it checks decoders).
+constexpr bool kOneSlotPerSlab = true;
+#else
+constexpr bool kOneSlotPerSlab = false;
+#endif
 
 }  // namespace
 
@@ -39,11 +47,18 @@ uint8_t* SlabPool::take(size_t bytes) {
     }
   auto s = std::make_unique<Slab>();
   s->slot = slot;
-  s->count = uint32_t(std::max<size_t>(kSlabBytes / slot, 1));
-  s->bytes = (size_t(s->count) * slot + kHugePage - 1) / kHugePage * kHugePage;
-  s->base = static_cast<uint8_t*>(std::aligned_alloc(kHugePage, s->bytes));
-  if (!s->base) return nullptr;
-  ::madvise(s->base, s->bytes, MADV_HUGEPAGE);  // a no-op where the kernel has them off
+  if (kOneSlotPerSlab) {
+    s->count = 1;
+    s->bytes = slot;
+    s->base = static_cast<uint8_t*>(std::malloc(slot));
+    if (!s->base) return nullptr;
+  } else {
+    s->count = uint32_t(std::max<size_t>(std::clamp(16 * slot, kMinSlabBytes, kMaxSlabBytes) / slot, 1));
+    s->bytes = (size_t(s->count) * slot + kHugePage - 1) / kHugePage * kHugePage;
+    s->base = static_cast<uint8_t*>(std::aligned_alloc(kHugePage, s->bytes));
+    if (!s->base) return nullptr;
+    ::madvise(s->base, s->bytes, MADV_HUGEPAGE);  // a no-op where the kernel has them off
+  }
   // Under AddressSanitizer only the bytes asked for are addressable, as with one allocation per
   // buffer: a decoder writing past its block is caught, not hidden in the next slot.
   ASAN_POISON_MEMORY_REGION(s->base, s->bytes);

@@ -1,4 +1,5 @@
-// Fixed-size slots of memory carved from 2 MB-aligned slabs that ask for transparent huge pages.
+// Fixed-size slots of memory carved from 2 MB-aligned slabs (16 slots, 2-16 MB) that ask for
+// transparent huge pages.
 // For buffers of about a megabyte that come and go by the dozen (the GeoTIFF reader's decoded
 // blocks, tiff_blocks.cpp): operator new gives each its own mapping, so every process that fills
 // such a cache faults 256 fresh 4 KB pages per MB, and a fault costs ~12 us under virtualisation
