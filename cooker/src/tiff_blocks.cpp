@@ -176,6 +176,7 @@ std::string read_layout(const std::string& path, TiffBlockLayout& out) {
   out.width = int(w);
   out.height = int(h);
   out.bytes_per_sample = bps / 8;
+  out.sample_format = format;
   out.compression = compression;
   out.predictor = predictor;
   out.tiled = TIFFIsTiled(tif) != 0;

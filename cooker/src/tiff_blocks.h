@@ -29,6 +29,7 @@ struct TiffBlockLayout {
   int block_w = 0, block_h = 0;     // a tile, or the width x rows per strip
   bool tiled = false;
   int bytes_per_sample = 0;         // 1, 2 or 4
+  int sample_format = 1;            // TIFF's SampleFormat: 1 unsigned, 2 signed integer, 3 IEEE float
   int compression = 0;              // 5 LZW, 8 / 32946 deflate, 50000 zstd
   int predictor = 1;                // 1 none, 2 horizontal, 3 floating point
   std::vector<uint64_t> offsets, byte_counts;  // per block, row-major

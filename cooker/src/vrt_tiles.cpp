@@ -261,6 +261,7 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
       }
   }
   r->type_ = int(type);
+  r->sample_format_ = type == Type::f32 ? 3 : (type == Type::i16 || type == Type::i32) ? 2 : 1;
   r->tiles_.resize(r->sources_.size());
   r->tried_.assign(r->sources_.size(), 0);
   return r;
@@ -272,6 +273,9 @@ const TiffBlockReader* VrtTileReader::tile(size_t i) const {
     tried_[i] = 1;
     const Source& s = sources_[i];
     tiles_[i] = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_);
+    // The tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale
+    // VRT over a replaced tile may claim another type of the same size).
+    if (tiles_[i] && tiles_[i]->layout().sample_format != sample_format_) tiles_[i].reset();
   }
   return tiles_[i].get();
 }

@@ -450,7 +450,8 @@ TEST(TiffBlocks, VrtWindowsAreGdalsBitForBit) {
 }
 
 // What the VRT reader leaves to GDAL: sources with arithmetic or resampling are refused at open;
-// a tile the block reader does not decode makes the windows over it GDAL's. Either way the
+// a tile the block reader does not decode, or one not of the type the VRT says, makes the windows
+// over it GDAL's. Either way the
 // cooker's source reads what GDAL reads.
 TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
   const fs::path dir = scratch_dir("TiffBlocks.VrtsBeyondThePlainCaseAreReadByGdal");
@@ -458,6 +459,8 @@ TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
   const Layout f32{GDT_Float32, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3"}};
   const fs::path a = write_tiff(dir, "a", 300, 200, f32);
   const fs::path raw = write_tiff(dir, "raw", 300, 200, {GDT_Float32, {}});  // uncompressed: left to GDAL
+  // Int32 samples (as 4 bytes as Float32's) behind a VRT that says Float32: GDAL converts them.
+  const fs::path ints = write_tiff(dir, "ints", 300, 200, {GDT_Int32, {"COMPRESS=ZSTD"}});
   struct Case {
     const char* name;
     std::vector<VrtPlace> places;
@@ -467,6 +470,9 @@ TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
       {"scaled", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999", "      <ScaleRatio>2</ScaleRatio>\n"}}, true},
       {"resampled", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999", "", 150, 100}}, true},
       {"uncompressed_tile", {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"}, {raw, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"}},
+       false},
+      {"tile_of_another_type",
+       {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"}, {ints, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"}},
        false}};
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
@@ -486,7 +492,7 @@ TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
     if (reader) {
       std::vector<uint8_t> slots(600 * 200 * 4);
       EXPECT_TRUE(reader->read_window(0, 0, 300, 200, slots.data(), 1));    // a's tile alone
-      EXPECT_FALSE(reader->read_window(250, 0, 100, 50, slots.data(), 1));  // touches the uncompressed tile
+      EXPECT_FALSE(reader->read_window(250, 0, 100, 50, slots.data(), 1));  // touches the tile left to GDAL
     }
     expect_same_both_ways(vrt, 0, 0, 600, 200);
   }
