@@ -33,6 +33,8 @@ Type type_named(const char* name) {
 }
 
 int bytes_of(Type t) { return t == Type::u16 || t == Type::i16 ? 2 : 4; }
+// TIFF's SampleFormat of the type: 1 unsigned, 2 signed integer, 3 IEEE float.
+int sample_format_of(Type t) { return t == Type::f32 ? 3 : t == Type::i16 || t == Type::i32 ? 2 : 1; }
 
 // A native value of type `t` as its bytes in a 4-byte word (the slot's first bytes). False when
 // `v` is not a value of the type (an integer type's nodata out of range or with a fraction).
@@ -172,7 +174,6 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
   std::unique_ptr<VrtTileReader> r(new VrtTileReader());
   r->width_ = width;
   r->height_ = height;
-  r->bytes_ = bytes_of(type);
   // The window's first state (VRTSourcedRasterBand): the band's nodata, else 0.
   if (const char* nd = CPLGetXMLValue(band, "NoDataValue", nullptr)) {
     if (!native_bits(type, CPLAtofM(nd), r->fill_bits_)) return refuse(fmt::format("nodata {} for {}", nd, "its type"));
@@ -261,7 +262,6 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
       }
   }
   r->type_ = int(type);
-  r->sample_format_ = type == Type::f32 ? 3 : (type == Type::i16 || type == Type::i32) ? 2 : 1;
   r->tiles_.resize(r->sources_.size());
   r->tried_.assign(r->sources_.size(), 0);
   return r;
@@ -272,10 +272,11 @@ const TiffBlockReader* VrtTileReader::tile(size_t i) const {
   if (!tried_[i]) {
     tried_[i] = 1;
     const Source& s = sources_[i];
-    tiles_[i] = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_);
+    const Type type = Type(type_);
+    tiles_[i] = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_of(type));
     // The tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale
     // VRT over a replaced tile may claim another type of the same size).
-    if (tiles_[i] && tiles_[i]->layout().sample_format != sample_format_) tiles_[i].reset();
+    if (tiles_[i] && tiles_[i]->layout().sample_format != sample_format_of(type)) tiles_[i].reset();
   }
   return tiles_[i].get();
 }

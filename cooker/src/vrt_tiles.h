@@ -56,8 +56,7 @@ class VrtTileReader {
   // The tile's block reader, opened on first use; null when the block reader refuses the tile.
   const TiffBlockReader* tile(size_t i) const;
 
-  int width_ = 0, height_ = 0, bytes_ = 4, type_ = 0;
-  int sample_format_ = 1;  // TIFF's SampleFormat of the band's type
+  int width_ = 0, height_ = 0, type_ = 0;  // type_: the band's sample type (vrt_tiles.cpp's Type)
   uint32_t fill_bits_ = 0;  // the band's NoDataValue (or 0) as native bytes
   std::vector<Source> sources_;
   mutable std::mutex m_;
