@@ -402,12 +402,86 @@ Status check_vrt_tiles(const std::string& path) {
   return Status::success();
 }
 
+namespace {
+
+// An OGR spatial reference for a source CRS: its EPSG code, else its WKT (projected) or the
+// Transverse Mercator / geographic parameters it was resolved to. False for local and no CRS.
+bool spatial_reference(const SourceCrs& crs, OGRSpatialReference& srs) {
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // x = easting/longitude, as SampleGeo
+  if (crs.epsg > 0 && srs.importFromEPSG(crs.epsg) == OGRERR_NONE) return true;
+  const FrameCrs& t = crs.tm;
+  switch (crs.kind) {
+    case CrsKind::projected:
+      return !t.definition.empty() && srs.SetFromUserInput(t.definition.c_str()) == OGRERR_NONE;
+    case CrsKind::transverse_mercator:
+      return srs.importFromProj4(fmt::format("+proj=tmerc +lat_0={:.17g} +lon_0={:.17g} +k_0={:.17g} +x_0={:.17g} "
+                                             "+y_0={:.17g} +a={:.17g} +rf={:.17g} +units=m +no_defs",
+                                             t.lat0_deg, t.lon0_deg, t.scale_k0, t.false_easting_m, t.false_northing_m,
+                                             t.semi_major_m, t.inverse_flattening)
+                                     .c_str()) == OGRERR_NONE;
+    case CrsKind::geographic:
+      if (t.semi_major_m <= 0) return false;
+      return srs.importFromProj4(fmt::format("+proj=longlat +a={:.17g} +rf={:.17g} +no_defs", t.semi_major_m,
+                                             t.inverse_flattening)
+                                     .c_str()) == OGRERR_NONE;
+    default: return false;
+  }
+}
+
+
+}  // namespace
+
+CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
+                                         PointTransform& b_to_a) {
+  init_gdal_once();
+  OGRSpatialReference a_srs, b_srs;
+  if (!spatial_reference(a, a_srs) || !spatial_reference(b, b_srs)) return CrsTransformStatus::no_geodetic_crs;
+  std::shared_ptr<OGRCoordinateTransformation> there(OGRCreateCoordinateTransformation(&a_srs, &b_srs));
+  std::shared_ptr<OGRCoordinateTransformation> back(OGRCreateCoordinateTransformation(&b_srs, &a_srs));
+  if (!there || !back) return CrsTransformStatus::no_transformation;
+  a_to_b = [there](double& x, double& y) { return there->Transform(1, &x, &y) != 0; };
+  b_to_a = [back](double& x, double& y) { return back->Transform(1, &x, &y) != 0; };
+  return CrsTransformStatus::ok;
+}
+
 SourceCrs gdal_crs_of_epsg(int code) {
   init_gdal_once();
   QuietErrors quiet;
   OGRSpatialReference srs;
   if (srs.importFromEPSG(code) != OGRERR_NONE) return SourceCrs{};
   return crs_from_srs(&srs, NAN, NAN);
+}
+
+namespace {
+
+FilePlacement placement_of(const std::string& path, GDALDataset* ds) {
+  FilePlacement p;
+  p.path = path;
+  p.opened = ds != nullptr;
+  if (ds) {
+    p.has_geotransform = ds->GetGeoTransform(p.gt) == CE_None;
+    p.width = ds->GetRasterXSize();
+    p.height = ds->GetRasterYSize();
+  }
+  return p;
+}
+
+}  // namespace
+
+std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
+  init_gdal_once();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  std::vector<FilePlacement> out{placement_of(path, ds.get())};
+  if (!ds) return out;
+  char** list = ds->GetFileList();
+  for (char** p = list; p && *p; ++p) {
+    const std::string f = *p;
+    if (f == path || ends_with(f, ".aux.xml") || ends_with(f, ".ovr")) continue;
+    std::unique_ptr<GDALDataset> t(GDALDataset::Open(f.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    out.push_back(placement_of(f, t.get()));
+  }
+  CSLDestroy(list);
+  return out;
 }
 
 Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out) {

@@ -2,11 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cpl_error.h>
 #include <fmt/format.h>
-#include <gdal.h>
 #include <memory>
-#include <ogr_spatialref.h>
 
 #include "anchor_grid.h"
 #include "crs.h"
@@ -14,33 +11,6 @@
 #include "source_raster.h"
 
 namespace terrain::cook {
-namespace {
-
-// An OGR spatial reference for a source CRS: its EPSG code, else its WKT (projected) or the
-// Transverse Mercator / geographic parameters it was resolved to. False for local and no CRS.
-bool spatial_reference(const SourceCrs& crs, OGRSpatialReference& srs) {
-  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // x = easting/longitude, as SampleGeo
-  if (crs.epsg > 0 && srs.importFromEPSG(crs.epsg) == OGRERR_NONE) return true;
-  const FrameCrs& t = crs.tm;
-  switch (crs.kind) {
-    case CrsKind::projected:
-      return !t.definition.empty() && srs.SetFromUserInput(t.definition.c_str()) == OGRERR_NONE;
-    case CrsKind::transverse_mercator:
-      return srs.importFromProj4(fmt::format("+proj=tmerc +lat_0={:.17g} +lon_0={:.17g} +k_0={:.17g} +x_0={:.17g} "
-                                             "+y_0={:.17g} +a={:.17g} +rf={:.17g} +units=m +no_defs",
-                                             t.lat0_deg, t.lon0_deg, t.scale_k0, t.false_easting_m, t.false_northing_m,
-                                             t.semi_major_m, t.inverse_flattening)
-                                     .c_str()) == OGRERR_NONE;
-    case CrsKind::geographic:
-      if (t.semi_major_m <= 0) return false;
-      return srs.importFromProj4(fmt::format("+proj=longlat +a={:.17g} +rf={:.17g} +no_defs", t.semi_major_m,
-                                             t.inverse_flattening)
-                                     .c_str()) == OGRERR_NONE;
-    default: return false;
-  }
-}
-
-}  // namespace
 
 bool needs_resampling(const Raster& ref, const Raster& r) {
   if (!same_crs(r.crs, ref.crs)) return true;
@@ -76,17 +46,18 @@ uint64_t ResampledInput::resident_bytes() const {
 
 Status ResampledInput::open(const Raster& ref, InputLayer layer, std::unique_ptr<ResampledInput>& out) {
   const Raster& in = layer.raster;
-  OGRSpatialReference ref_srs, in_srs;
-  if (!spatial_reference(ref.crs, ref_srs) || !spatial_reference(in.crs, in_srs))
-    return Status::failure(Error::unsupported_input,
-                           fmt::format("{} ({}) and {} ({}) differ in CRS or sample spacing and one of them has no "
-                                       "geodetic CRS to resample through; give inputs one pixel grid",
-                                       ref.path, describe_crs(ref.crs), in.path, describe_crs(in.crs)));
-  std::unique_ptr<OGRCoordinateTransformation> to_ref(OGRCreateCoordinateTransformation(&in_srs, &ref_srs));
-  std::unique_ptr<OGRCoordinateTransformation> to_in(OGRCreateCoordinateTransformation(&ref_srs, &in_srs));
-  if (!to_ref || !to_in)
-    return Status::failure(Error::unsupported_input,
-                           fmt::format("no transformation from {} to {}", describe_crs(in.crs), describe_crs(ref.crs)));
+  PointTransform to_ref, to_in;
+  switch (gdal_point_transforms(in.crs, ref.crs, to_ref, to_in)) {
+    case CrsTransformStatus::ok: break;
+    case CrsTransformStatus::no_geodetic_crs:
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{} ({}) and {} ({}) differ in CRS or sample spacing and one of them has no "
+                                         "geodetic CRS to resample through; give inputs one pixel grid",
+                                         ref.path, describe_crs(ref.crs), in.path, describe_crs(in.crs)));
+    case CrsTransformStatus::no_transformation:
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("no transformation from {} to {}", describe_crs(in.crs), describe_crs(ref.crs)));
+  }
   // Where `in` lands on ref's grid: its border (half a sample beyond the outer centres, where pixel
   // areas reach; densified) through the CRS change.
   const AffineMap in_map = AffineMap::from(in.geo), ref_map = AffineMap::from(ref.geo);
@@ -100,7 +71,7 @@ Status ResampledInput::open(const Raster& ref, InputLayer layer, std::unique_ptr
       const double row = e == 0 ? lo_r : e == 1 ? lo_r + t * (hi_r - lo_r) : e == 2 ? hi_r : hi_r - t * (hi_r - lo_r);
       double x = 0, y = 0;
       in_map.to_model(col, row, x, y);
-      if (!to_ref->Transform(1, &x, &y)) continue;
+      if (!to_ref(x, y)) continue;
       double c = 0, r = 0;
       ref_map.to_sample(x, y, c, r);
       cmin = std::min(cmin, c);
@@ -128,12 +99,12 @@ Status ResampledInput::open(const Raster& ref, InputLayer layer, std::unique_ptr
   // cell beyond each edge for the Catmull-Rom taps.
   const double step = std::max(16.0, std::ceil(std::sqrt(wd * hd / double(1 << 20))));
   const int nx = int(std::floor((wd - 1) / step)) + 4, ny = int(std::floor((hd - 1) / step)) + 4;
-  // One thread: an OGR transformation is not to be shared between threads.
+  // One thread: a transformation is not to be shared between threads.
   m.to_input.build(-step, -step, step, nx, ny,
                    [&](double x, double y, double& a, double& b) {
                      double gx = 0, gy = 0;
                      ref_map.to_model(c0 + x, r0 + y, gx, gy);
-                     if (!to_in->Transform(1, &gx, &gy)) {
+                     if (!to_in(gx, gy)) {
                        a = b = NAN;
                        return;
                      }

@@ -4,9 +4,11 @@
 // the GDAL-backed sources live in input_gdal.cpp and web_tiles.cpp.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "raster.h"
 #include "terrain/status.h"
@@ -74,6 +76,27 @@ Status check_vrt_tiles(const std::string& path);
 
 // EPSG `code` as the GDAL reader maps a file in that CRS (kind none when GDAL does not know it).
 SourceCrs gdal_crs_of_epsg(int code);
+
+// A point from one CRS's model coordinates to another's (x = easting / longitude); false where it
+// has no image. Not to be shared between threads.
+using PointTransform = std::function<bool(double& x, double& y)>;
+enum class CrsTransformStatus { ok, no_geodetic_crs, no_transformation };
+// Transformations between `a` and `b` through OGR (an EPSG code, else the WKT or the parameters
+// the CRS was resolved to). no_geodetic_crs: a local or missing CRS on either side.
+CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
+                                         PointTransform& b_to_a);
+
+// Where a raster file lies, as GDAL opens it: its geotransform (of sample corners) and size.
+struct FilePlacement {
+  std::string path;
+  bool opened = false;           // GDAL opened it
+  bool has_geotransform = false;
+  double gt[6] = {};
+  int width = 0, height = 0;
+};
+// `path` first, then, when GDAL opens it, the files it reads besides itself (a VRT's tiles) but
+// not its side-cars (.aux.xml, .ovr): the work units' input files (work_units.h).
+std::vector<FilePlacement> gdal_file_placements(const std::string& path);
 
 // Reads the whole source into `out` (values, geo, crs, description, nodata_declared), band of rows
 // by band of rows, after checking width x height (plus the scratch) against options' budget.

@@ -17,8 +17,6 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include <gdal_priv.h>
-
 #include "crs.h"
 #include "node_spool.h"
 #include "source_raster.h"
@@ -156,13 +154,13 @@ std::string file_fingerprint(const InputFile& f) {
 
 // The mosaic samples a raster file covers: its corners through the mosaic's georeferencing, one
 // sample of margin; the whole mosaic when GDAL cannot say (own formats, another CRS).
-SampleRect footprint_of(GDALDataset* ds, const Raster& header, const SampleRect& whole) {
-  double gt[6];
-  if (!ds || ds->GetGeoTransform(gt) != CE_None || header.crs.kind == CrsKind::geographic) return whole;
+SampleRect footprint_of(const FilePlacement& f, const Raster& header, const SampleRect& whole) {
+  if (!f.has_geotransform || header.crs.kind == CrsKind::geographic) return whole;
+  const double* gt = f.gt;
   const AffineMap m = AffineMap::from(header.geo);
   double cmin = INFINITY, cmax = -INFINITY, rmin = INFINITY, rmax = -INFINITY;
-  for (double px : {0.0, double(ds->GetRasterXSize())})
-    for (double py : {0.0, double(ds->GetRasterYSize())}) {
+  for (double px : {0.0, double(f.width)})
+    for (double py : {0.0, double(f.height)}) {
       double c = 0, r = 0;
       m.to_sample(gt[0] + px * gt[1] + py * gt[2], gt[3] + px * gt[4] + py * gt[5], c, r);
       cmin = std::min(cmin, c);
@@ -195,32 +193,13 @@ Status collect_input_files(const CookSession& s, std::vector<InputFile>& out) {
     out.push_back(std::move(f));
     return Status::success();
   };
-  init_gdal();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
-    GDALDataset* ds = GDALDataset::Open(in.path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
-    const bool placed = ds && same_crs(in.crs, header.crs);
-    if (Status st = add(in.path, placed ? footprint_of(ds, header, whole) : whole); !st.ok()) {
-      if (ds) GDALClose(ds);
-      return st;
-    }
-    if (ds) {
-      // A VRT's tiles: each its own fingerprint and footprint, so a replaced tile touches only its units.
-      char** list = ds->GetFileList();
-      for (char** p = list; p && *p; ++p) {
-        const std::string f = *p;
-        if (f == in.path || f.ends_with(".aux.xml") || f.ends_with(".ovr")) continue;
-        GDALDataset* t = GDALDataset::Open(f.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
-        const Status st = add(f, placed && t ? footprint_of(t, header, whole) : whole);
-        if (t) GDALClose(t);
-        if (!st.ok()) {
-          CSLDestroy(list);
-          GDALClose(ds);
-          return st;
-        }
-      }
-      CSLDestroy(list);
-      GDALClose(ds);
-    }
+    // A VRT's tiles follow it: each its own fingerprint and footprint, so a replaced tile touches
+    // only its units.
+    const std::vector<FilePlacement> files = gdal_file_placements(in.path);
+    const bool placed = files[0].opened && same_crs(in.crs, header.crs);
+    for (const FilePlacement& f : files)
+      if (Status st = add(f.path, placed && f.opened ? footprint_of(f, header, whole) : whole); !st.ok()) return st;
   }
   for (const std::string* p : {&s.options.materials_path, &s.options.albedo_path, &s.options.holes_path,
                                &s.options.landcover_path, &s.options.landcover_table_path})
