@@ -312,10 +312,11 @@ Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSum
   return plan_in_session(options, progress, s, plan, summary, report);
 }
 
-namespace {
-
-Status check_unit(const std::string& work_dir, uint32_t index, PlanData& data, bool& complete) {
-  complete = false;
+Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
+                 CookReport& report) {
+  skipped = false;
+  report = CookReport{};
+  PlanData data;
   if (Status st = read_plan(work_dir, data); !st.ok()) return st;
   if (index >= data.plan.units.size())
     return Status::failure(Error::invalid_argument,
@@ -329,22 +330,10 @@ Status check_unit(const std::string& work_dir, uint32_t index, PlanData& data, b
   // A unit file from inputs that changed since the plan is not "complete": refuse before anything.
   if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
   std::string why;
-  complete = unit_file_valid(work_dir, data.plan, index, why);
-  return Status::success();
-}
-
-}  // namespace
-
-Status unit_complete(const std::string& work_dir, uint32_t index, bool& complete) {
-  PlanData data;
-  return check_unit(work_dir, index, data, complete);
-}
-
-Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
-                 CookReport& report) {
-  report = CookReport{};
-  PlanData data;
-  if (Status st = check_unit(work_dir, index, data, skipped); !st.ok() || skipped) return st;
+  if (unit_file_valid(work_dir, data.plan, index, why)) {
+    skipped = true;
+    return Status::success();
+  }
   CookSession s;
   data.options.block_roots = block_roots;
   if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;

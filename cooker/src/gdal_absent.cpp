@@ -1,8 +1,7 @@
-// The GDAL-backed functions (input_gdal.cpp, web_tile_source.cpp) for terrain-cook's front, the
-// process that serves `merge` and `unit` runs with nothing left to cook: it reads no input, and
-// starting without libgdal's ~100 shared libraries saves ~0.07 s of CPU per process (terrain-cook's
-// main). Everything else goes to the full cooker, so nothing here is reached; if it were, the
-// error says so instead of reading nothing.
+// The GDAL-backed functions (input_gdal.cpp, web_tile_source.cpp) for terrain-cook-merge, which
+// reads no input: starting without libgdal's shared libraries saves ~0.07 s of CPU per merge
+// (terrain_cook_dispatch.cpp). Nothing here is reached; if it were, the error says so instead of
+// reading nothing.
 #include <fmt/format.h>
 
 #include "source_raster.h"
@@ -13,8 +12,7 @@ namespace {
 
 Status no_gdal(const std::string& path) {
   return Status::failure(Error::internal,
-                         fmt::format("{}: this process (terrain-cook's front, built without GDAL) cannot read inputs; "
-                                     "run the full cooker", path));
+                         fmt::format("{}: terrain-cook-merge, built without GDAL, reads no input; run terrain-cook", path));
 }
 
 }  // namespace

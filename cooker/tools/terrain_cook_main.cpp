@@ -1,7 +1,7 @@
 // terrain-cook: a thin shell over terrain::cook::cook(). Exit codes: 0 ok, 1 failure, 2 usage error.
 // Built twice (cooker/CMakeLists.txt): the full cooker (terrain-cook-full) and, with
-// TERRAIN_COOK_FRONT, the front users run (terrain-cook), linked without GDAL. The front serves
-// `merge` and a `unit` already complete itself and execs the full cooker for everything else.
+// TERRAIN_COOK_MERGE_ONLY, terrain-cook-merge (linked without GDAL); terrain-cook's dispatcher
+// (terrain_cook_dispatch.cpp) execs one or the other.
 // Safety of the files it names (output_paths.h): outputs that are inputs, devices, FIFOs or
 // directories are refused before any work; the archive and the report are staged beside their
 // targets and committed together at the end; SIGINT/SIGTERM remove the staged files.
@@ -88,32 +88,14 @@ bool write_file_durably(const std::string& path, const std::string& text) {
 int run_unit(int argc, char** argv);
 int run_merge(int argc, char** argv);
 
-#ifdef TERRAIN_COOK_FRONT
-char** g_argv = nullptr;  // main's, handed on whole to the full cooker
-
-// Replaces this process by the full cooker with the same arguments (its exit code is the
-// command's); returns 1 only when it cannot be started.
-int run_full_cooker() {
-  std::error_code ec;
-  const std::filesystem::path self = std::filesystem::canonical("/proc/self/exe", ec).parent_path();
-  std::string tried;
-  for (const std::filesystem::path& dir : {self, self / TERRAIN_COOK_FULL_DIR}) {
-    const std::string path = (dir / "terrain-cook-full").lexically_normal().string();
-    ::execv(path.c_str(), g_argv);
-    tried += fmt::format("; {}: {}", path, std::strerror(errno));
-  }
-  std::fprintf(stderr, "terrain-cook: cannot start the cooker terrain-cook-full%s\n", tried.c_str());
-  return 1;
-}
-#endif
-
 int run(int argc, char** argv) {
   // Work-unit commands (issue 14): `unit` and `merge` have their own flags; `plan` takes the cook's.
-  if (argc > 1 && std::strcmp(argv[1], "unit") == 0) return run_unit(argc - 1, argv + 1);
   if (argc > 1 && std::strcmp(argv[1], "merge") == 0) return run_merge(argc - 1, argv + 1);
-#ifdef TERRAIN_COOK_FRONT
-  return run_full_cooker();
+#ifdef TERRAIN_COOK_MERGE_ONLY
+  std::fprintf(stderr, "terrain-cook-merge: serves `terrain-cook merge` only; run terrain-cook\n");
+  return 2;
 #endif
+  if (argc > 1 && std::strcmp(argv[1], "unit") == 0) return run_unit(argc - 1, argv + 1);
   const bool planning = argc > 1 && std::strcmp(argv[1], "plan") == 0;
   if (planning) {
     --argc;
@@ -447,13 +429,7 @@ int run_unit(int argc, char** argv) {
   }
   bool skipped = false;
   terrain::cook::CookReport report;
-#ifdef TERRAIN_COOK_FRONT
-  // A unit already complete (a re-run array, a resume) is answered here; any other is cooked.
-  const terrain::Status st = terrain::cook::unit_complete(work_dir, *index, skipped);
-  if (st.ok() && !skipped) return run_full_cooker();
-#else
   const terrain::Status st = terrain::cook::cook_unit(work_dir, *index, threads, block_roots, skipped, report);
-#endif
   if (!st.ok()) {
     std::fprintf(stderr, "terrain-cook unit %u: %s\n", *index, st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;
@@ -507,9 +483,4 @@ int run_merge(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-#ifdef TERRAIN_COOK_FRONT
-  g_argv = argv;
-#endif
-  return terrain::cli::guarded_main("terrain-cook", [&] { return run(argc, argv); });
-}
+int main(int argc, char** argv) { return terrain::cli::guarded_main("terrain-cook", [&] { return run(argc, argv); }); }

@@ -60,19 +60,14 @@ PY
     # A second run of a unit redoes nothing.
     out=$("$cook" unit w1 0) || fail "unit 0 again"
     [ "$out" = "unit 0: already complete" ] || fail "unit 0 again: '$out'"
-    # terrain-cook's front serves a complete unit and the merge without GDAL and without the full
-    # cooker beside it (a copy alone in a folder); a unit still to cook needs the full cooker.
-    mkdir -p front && cp "$cook" front/ || fail "copy the front"
-    if ldd front/terrain-cook | grep -q libgdal; then fail "the front maps libgdal"; fi
-    out=$(front/terrain-cook unit w1 0) || fail "the front alone: unit 0 again"
-    [ "$out" = "unit 0: already complete" ] || fail "the front alone: unit 0 again: '$out'"
-    front/terrain-cook merge w1 -o m1f.terrain -q || fail "the front alone: merge"
-    cmp ref.terrain m1f.terrain || fail "the front alone: not the one-process bytes"
-    rm w1/units/unit-0.tcu || fail "no unit-0.tcu"
-    err=$(front/terrain-cook unit w1 0 2>&1) && fail "the front alone cooked a unit"
-    case $err in *"cannot start the cooker terrain-cook-full"*) ;; *) fail "the front alone, unit to cook: '$err'" ;; esac
-    out=$("$cook" unit w1 0) || fail "unit 0 once more"
-    [ "$out" = "unit 0: cooked" ] || fail "unit 0 once more: '$out'"
+    # terrain-cook's merge runs without GDAL and without the full cooker beside it (terrain-cook and
+    # terrain-cook-merge copied alone into a folder); every other command needs the full cooker.
+    mkdir -p front && cp "$cook" "$bin/terrain-cook-merge" front/ || fail "copy terrain-cook and terrain-cook-merge"
+    if ldd front/terrain-cook-merge | grep -q libgdal; then fail "terrain-cook-merge maps libgdal"; fi
+    front/terrain-cook merge w1 -o m1f.terrain -q || fail "merge without the full cooker"
+    cmp ref.terrain m1f.terrain || fail "merge without the full cooker: not the one-process bytes"
+    err=$(front/terrain-cook unit w1 0 2>&1) && fail "a unit ran without the full cooker"
+    case $err in *"cannot start terrain-cook-full"*) ;; *) fail "unit without the full cooker: '$err'" ;; esac
     no_leftovers ;;
 
   kill_resume)

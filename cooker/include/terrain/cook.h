@@ -265,9 +265,6 @@ Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSum
 // they change no byte of the unit.
 Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
                  CookReport& report);
-// What cook_unit checks before it cooks: the plan, the index, the inputs unchanged since the plan;
-// `complete` when the unit file is already complete and valid. Reads no input.
-Status unit_complete(const std::string& work_dir, uint32_t index, bool& complete);
 // `terrain-cook merge`: checks every unit (present, complete, checksum, plan and input fingerprints)
 // and writes the archive atomically, payloads in canonical order.
 Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
