@@ -10,6 +10,9 @@ struct gtiff;  // libgeotiff's GTIF
 
 namespace terrain::cook {
 
+inline constexpr double kWgs84A = 6378137.0, kWgs84Rf = 298.257223563;
+inline constexpr double kGrs80A = 6378137.0, kGrs80Rf = 298.257222101;
+
 // Accepted spellings (case-insensitive prefixes):
 //   EPSG:4326 (or any geographic EPSG code), EPSG:32633 / 32733 (UTM), any EPSG code that PROJ
 //   resolves to Transverse Mercator (EPSG:3794, EPSG:27700, ...),
