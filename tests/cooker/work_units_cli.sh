@@ -60,10 +60,11 @@ PY
     # A second run of a unit redoes nothing.
     out=$("$cook" unit w1 0) || fail "unit 0 again"
     [ "$out" = "unit 0: already complete" ] || fail "unit 0 again: '$out'"
-    # terrain-cook's merge runs without GDAL and without the full cooker beside it (terrain-cook and
-    # terrain-cook-merge copied alone into a folder); every other command needs the full cooker.
+    # terrain-cook's merge maps neither GDAL nor PROJ and runs without the full cooker beside it
+    # (terrain-cook and terrain-cook-merge copied alone into a folder); every other command needs it.
     mkdir -p front && cp "$cook" "$bin/terrain-cook-merge" front/ || fail "copy terrain-cook and terrain-cook-merge"
-    if ldd front/terrain-cook-merge | grep -q libgdal; then fail "terrain-cook-merge maps libgdal"; fi
+    libs=$(ldd front/terrain-cook-merge) || fail "ldd terrain-cook-merge"
+    case $libs in *libgdal*|*libproj*) fail "terrain-cook-merge maps GDAL or PROJ: $libs" ;; esac
     front/terrain-cook merge w1 -o m1f.terrain -q || fail "merge without the full cooker"
     cmp ref.terrain m1f.terrain || fail "merge without the full cooker: not the one-process bytes"
     err=$(front/terrain-cook unit w1 0 2>&1) && fail "a unit ran without the full cooker"
