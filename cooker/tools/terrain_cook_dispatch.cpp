@@ -1,7 +1,7 @@
 // terrain-cook: picks the program that serves the command and execs it with the same arguments
 // (same process, its exit code is the command's). `merge` goes to terrain-cook-merge, linked
-// without GDAL: mapping libgdal's shared libraries costs ~0.07 s of CPU before main, as much as
-// the merge of an 8 km lidar square. Everything else goes to the full cooker, terrain-cook-full.
+// without GDAL and PROJ: mapping their shared libraries costs ~0.08 s of CPU before main, more
+// than the merge of an 8 km lidar square. Everything else goes to the full cooker, terrain-cook-full.
 // Both sit beside this program (build tree) or in TERRAIN_COOK_LIBEXEC relative to it (installed).
 // Plain libc only, so that this step itself costs about a millisecond.
 #include <unistd.h>
@@ -16,8 +16,7 @@
 #endif
 
 int main(int argc, char** argv) {
-  (void)argc;
-  const char* program = argv[1] && std::strcmp(argv[1], "merge") == 0 ? "terrain-cook-merge" : "terrain-cook-full";
+  const char* program = argc > 1 && std::strcmp(argv[1], "merge") == 0 ? "terrain-cook-merge" : "terrain-cook-full";
   char self[PATH_MAX];
   const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
   if (n <= 0) {

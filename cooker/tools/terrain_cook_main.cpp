@@ -1,6 +1,6 @@
 // terrain-cook: a thin shell over terrain::cook::cook(). Exit codes: 0 ok, 1 failure, 2 usage error.
 // Built twice (cooker/CMakeLists.txt): the full cooker (terrain-cook-full) and, with
-// TERRAIN_COOK_MERGE_ONLY, terrain-cook-merge (linked without GDAL); terrain-cook's dispatcher
+// TERRAIN_COOK_MERGE_ONLY, terrain-cook-merge (linked without GDAL and PROJ); terrain-cook's dispatcher
 // (terrain_cook_dispatch.cpp) execs one or the other.
 // Safety of the files it names (output_paths.h): outputs that are inputs, devices, FIFOs or
 // directories are refused before any work; the archive and the report are staged beside their
