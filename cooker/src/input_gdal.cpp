@@ -428,7 +428,6 @@ bool spatial_reference(const SourceCrs& crs, OGRSpatialReference& srs) {
   }
 }
 
-
 }  // namespace
 
 CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,

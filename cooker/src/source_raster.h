@@ -1,7 +1,7 @@
 // A source elevation raster opened for reading by windows: what it is (size, georeferencing, CRS,
 // nodata, the file's own scale/offset) and a window reader. A whole-raster read is one window (or
 // many, row band by row band); a block-wise cook reads only the windows it needs. No GDAL here:
-// the GDAL-backed sources live in input_gdal.cpp and web_tiles.cpp.
+// the GDAL-backed sources live in input_gdal.cpp and web_tile_source.cpp.
 #pragma once
 #include <cstdint>
 #include <functional>
