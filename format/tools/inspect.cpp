@@ -1,8 +1,8 @@
 #include "inspect.h"
+#include "image_write.h"
 #include "inspect_lonlat.h"
 
 #include <GeographicLib/TransverseMercator.hpp>
-#include <OpenImageIO/imageio.h>
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -242,20 +242,17 @@ Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& point
 
 namespace {
 
-// Writes an image north up (grid row 0 is south, image row 0 is north).
-Status write_image(const std::string& path, int w, int h, int channels, OIIO::TypeDesc type, const void* south_up_rows,
+// Writes an image north up (grid row 0 is south, image row 0 is north): from the last row backwards.
+Status write_image(const std::string& path, int w, int h, int channels, TerrainPixelType type, const void* south_up_rows,
                    size_t pixel_bytes) {
-  auto o = OIIO::ImageOutput::create(path);
-  if (!o) return Status::failure(Error::io_write, path + ": no image writer for this extension");
-  OIIO::ImageSpec spec(w, h, channels, type);
-  // The bytes are straight (unassociated) colour: without this, OIIO divides RGB by alpha.
-  spec.attribute("oiio:UnassociatedAlpha", 1);
-  if (!o->open(path, spec)) return Status::failure(Error::io_write, path + ": " + o->geterror());
+  ImageWriteFn write = nullptr;
+  if (Status s = image_writer(write); !s.ok()) return s;
   const auto* base = static_cast<const uint8_t*>(south_up_rows);
-  const OIIO::stride_t row_stride = OIIO::stride_t(size_t(w) * pixel_bytes);
-  // Start at the last (northern) row and walk backwards.
-  if (!o->write_image(type, base + size_t(h - 1) * size_t(row_stride), OIIO::AutoStride, -row_stride) || !o->close())
-    return Status::failure(Error::io_write, path + ": " + o->geterror());
+  const size_t row_bytes = size_t(w) * pixel_bytes;
+  char error[512] = {};
+  if (!write(path.c_str(), w, h, channels, type, base + size_t(h - 1) * row_bytes, -ptrdiff_t(row_bytes), error,
+             sizeof error))
+    return Status::failure(Error::io_write, path + ": " + error);
   return Status::success();
 }
 
@@ -281,19 +278,19 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
   std::vector<float> metres(static_cast<size_t>(kHeightCount));
   for (size_t k = 0; k < metres.size(); ++k)
     metres[k] = holes[k] ? NAN : units_to_metres_f32(vertex_units(r.height_offset, d->heights[k], step));
-  if (Status s = write_image(file("heights.exr"), kHeightSamples, kHeightSamples, 1, OIIO::TypeDesc::FLOAT, metres.data(), 4); !s.ok())
+  if (Status s = write_image(file("heights.exr"), kHeightSamples, kHeightSamples, 1, terrain_pixel_f32, metres.data(), 4); !s.ok())
     return s;
-  if (Status s = write_image(file("heights.png"), kHeightSamples, kHeightSamples, 1, OIIO::TypeDesc::UINT16, d->heights.data(), 2);
+  if (Status s = write_image(file("heights.png"), kHeightSamples, kHeightSamples, 1, terrain_pixel_u16, d->heights.data(), 2);
       !s.ok())
     return s;
   std::vector<uint8_t> rgba(size_t(kTexels) * kTexels * 4);
   decode_bc3_image(d->normals_bc3.data(), kTexelBlocks, kTexelBlocks, rgba.data());
-  if (Status s = write_image(file("normals.png"), kTexels, kTexels, 4, OIIO::TypeDesc::UINT8, rgba.data(), 4); !s.ok()) return s;
+  if (Status s = write_image(file("normals.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4); !s.ok()) return s;
   decode_bc1_image(d->albedo_bc1.data(), kTexelBlocks, kTexelBlocks, rgba.data());
-  if (Status s = write_image(file("albedo.png"), kTexels, kTexels, 4, OIIO::TypeDesc::UINT8, rgba.data(), 4); !s.ok()) return s;
+  if (Status s = write_image(file("albedo.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4); !s.ok()) return s;
   std::vector<uint8_t> cones(8 * 8 * 4);
   decode_bc3_image(d->cones_bc3.data(), 2, 2, cones.data());
-  if (Status s = write_image(file("cones.png"), 8, 8, 4, OIIO::TypeDesc::UINT8, cones.data(), 4); !s.ok()) return s;
+  if (Status s = write_image(file("cones.png"), 8, 8, 4, terrain_pixel_u8, cones.data(), 4); !s.ok()) return s;
   {  // raw ids as binary PGM, north up
     std::ofstream pgm(file("splat.pgm"), std::ios::binary);
     pgm << "P5\n" << kSplatSamples << " " << kSplatSamples << "\n255\n";
@@ -312,7 +309,7 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
     }
     std::copy(c.begin(), c.end(), colours.begin() + std::ptrdiff_t(k * 3));
   }
-  if (Status s = write_image(file("splat.png"), kSplatSamples, kSplatSamples, 3, OIIO::TypeDesc::UINT8, colours.data(), 3); !s.ok())
+  if (Status s = write_image(file("splat.png"), kSplatSamples, kSplatSamples, 3, terrain_pixel_u8, colours.data(), 3); !s.ok())
     return s;
   nlohmann::json j;
   const double size = node_size_m(int(key.level)), s = vertex_spacing_m(int(key.level));

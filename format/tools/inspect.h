@@ -1,6 +1,6 @@
 // terrain-inspect as a library: summary, verification, point sampling and node export of an
 // archive. The tool's main() only parses arguments and maps the outcome to an exit code.
-// OpenImageIO and GeographicLib stay inside inspect.cpp.
+// GeographicLib stays inside inspect.cpp; the image writer (OpenImageIO) behind image_write.h.
 #pragma once
 #include <optional>
 #include <string>

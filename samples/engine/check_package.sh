@@ -53,6 +53,10 @@ if [ -z "$archive" ]; then
   archive="$work/jacksboro.terrain"
   "$prefix/bin/terrain-cook" "$dem" -o "$archive" --crs EPSG:4326 --quiet
 fi
+# The installed terrain-inspect finds its image writer module in lib/terrain (format/tools/tool_module.h).
+"$prefix/bin/terrain-inspect" "$archive" --export 5/0/0 "$work/export" -q >/dev/null ||
+  fail "the installed terrain-inspect could not export a node"
+[ -s "$work/export/heights.exr" ] && [ -s "$work/export/albedo.png" ] || fail "the installed terrain-inspect wrote no images"
 echo "check_package: run the sample on $archive"
 # Jacksboro has two levels (16 x 16 roots and their children): a low error target and a budget of 296
 # nodes in 296 slots make the there-and-back flight split, evict and reuse slots right at their fence.
