@@ -328,7 +328,7 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
       return Status::failure(Error::internal, fmt::format("unit {}: failing on purpose (TERRAIN_COOK_FAIL_UNITS)", index));
   }
   // A unit file from inputs that changed since the plan is not "complete": refuse before anything.
-  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
+  if (Status st = check_plan_inputs(data.plan, index); !st.ok()) return st;
   std::string why;
   if (unit_file_valid(work_dir, data.plan, index, why)) {
     skipped = true;

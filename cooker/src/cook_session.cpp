@@ -138,7 +138,7 @@ void set_tiff_block_cache(const CookSession& s, uint64_t most) {
   set_tiff_block_cache_bytes(std::min(most, std::max<uint64_t>(rows, uint64_t(16) << 20)));
 }
 
-Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report) {
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report, bool files_checked) {
   if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
     return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
   if (options.finest_level < -1 || options.finest_level > kRootLevel)
@@ -151,7 +151,7 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   s.shares = memory_shares(report.memory_limit_bytes);
   set_gdal_cache_bytes(s.shares.gdal_cache);
   set_gdal_decode_threads(s.threads);
-  if (Status st = open_mosaic_source(options, s.shares.inputs, s.source); !st.ok()) return st;
+  if (Status st = open_mosaic_source(options, s.shares.inputs, s.source, files_checked); !st.ok()) return st;
   const Raster& header = s.source.header();
   report.source_samples = uint64_t(header.width) * uint64_t(header.height);
   // GDAL's cache: the whole decoded source when it fits the share and the process reads it again

@@ -59,7 +59,8 @@ struct CookSession {
 // source, at most `most` bytes (open_inputs calls it; a unit again with its own GDAL share).
 void set_tiff_block_cache(const CookSession& s, uint64_t most);
 // Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.
-Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report);
+// files_checked: the inputs' files were stat'ed against a plan (ReadOptions::files_checked).
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report, bool files_checked = false);
 // Reads every sample once: the void plan, the valid samples, the implausible heights, the range
 // summary (range_summary.h) and the inputs' descriptions into the report.
 Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);

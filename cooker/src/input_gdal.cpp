@@ -502,7 +502,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   const std::string driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
   // A multi-file dataset (e.g. a raster and its .hdr) missing a listed part is named before reading.
   // (GDAL lists only the VRT sources that exist: a missing tile fails the read, "No such file".)
-  if (char** files = ds->GetFileList()) {
+  if (char** files = options.files_checked ? nullptr : ds->GetFileList()) {
     for (char** f = files; *f; ++f) {
       VSIStatBufL st;
       if (VSIStatL(*f, &st) != 0) {

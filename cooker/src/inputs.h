@@ -27,6 +27,11 @@ struct ReadOptions {
   // read_geotiff only: size, georeferencing, CRS, description and nodata_declared, no samples
   // (values stays empty; the overlays read their samples by windows, overlays.cpp).
   bool header_only = false;
+  // The caller has stat'ed every file this open may read (a work unit: the plan's files that meet
+  // its window, work_units.h): the existence checks of each file a multi-file input names (a VRT's
+  // tiles) are skipped. With thousands of tiles they were thousands of stats per unit on a shared
+  // filesystem, nearly all of tiles the unit never reads.
+  bool files_checked = false;
 };
 
 // Success when a width x height raster (plus `extra_bytes` of reader buffers) fits the budget of

@@ -214,10 +214,12 @@ uint64_t MosaicSource::resident_bytes() const {
   return n + (windowed ? gdal_cache_used_bytes() + tiff_block_cache_used_bytes() : 0);
 }
 
-Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out) {
+Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
+                          bool files_checked) {
   out = MosaicSource{};
   ReadOptions ro;
   if (Status st = input_read_options(options, ro); !st.ok()) return st;
+  ro.files_checked = files_checked;
   ro.bytes_per_sample = sizeof(float);  // what this source holds of an input read whole
   std::vector<std::string> paths;
   if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
@@ -229,7 +231,7 @@ Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_byte
     MosaicSource::Layer l;
     if (Status st = open_input_layer(path, options, ro, l.input); !st.ok()) return st;
     // A VRT's missing tile would only show when a window first reaches it: name it now.
-    if (l.input.source)
+    if (l.input.source && !files_checked)
       if (Status st = check_vrt_tiles(path); !st.ok()) return st;
     const Raster& r = l.input.raster;
     MosaicSource::InputStat s;

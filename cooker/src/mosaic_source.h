@@ -79,6 +79,8 @@ class MosaicSource {
 // resampling (another CRS or spacing than the first) is seen on the first input's grid through a
 // ResampledInput, read by windows like the others. memory_limit_bytes: budget for what this source
 // itself holds (inputs held whole at 4 B per sample, the resampled inputs' anchors).
-Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out);
+// files_checked: ReadOptions::files_checked (a work unit, whose plan's files were stat'ed).
+Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
+                          bool files_checked = false);
 
 }  // namespace terrain::cook

@@ -677,8 +677,9 @@ bool same_plan_options(const CookOptions& planned, const CookOptions& given) {
   return a == b;
 }
 
-Status check_plan_inputs(const PlanFile& plan) {
+Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit) {
   for (const InputFile& f : plan.files) {
+    if (unit && !meets(f.footprint, plan.units[*unit].window)) continue;  // not in the unit's fingerprint
     InputFile now = f;
     if (!stat_file(f.path, now.size, now.mtime_ns))
       return Status::failure(Error::io_open, fmt::format("{}: input of the plan is gone ({}); run `terrain-cook plan` again",
@@ -696,9 +697,8 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s,
   CookOptions o = data.options;
   o.threads = threads;
   o.unit_roots = data.unit_roots;
-  // Inputs first: a file changed since the plan is refused before anything is read from it.
-  if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
-  if (Status st = open_inputs(o, s, report); !st.ok()) return st;
+  // The callers checked the plan's files (check_plan_inputs) before anything is read from them.
+  if (Status st = open_inputs(o, s, report, /*files_checked=*/true); !st.ok()) return st;
   // GDAL's cache as the one-process cook's for a source it cannot hold: 128 MB keeps the tiles
   // that neighbouring blocks of the unit share (a unit is several blocks) instead of decoding them
   // again. 32 MB, once right for units of one block, decoded 15 % more tiles in units of 4 blocks

@@ -14,6 +14,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -67,10 +68,13 @@ Status read_plan(const std::string& work_dir, PlanData& out);
 // True when a plan made with `planned` is the plan `given` would make from the same inputs (every
 // option that changes a byte; threads, the memory limit and the output path do not).
 bool same_plan_options(const CookOptions& planned, const CookOptions& given);
-// Every input file of the plan is as the plan saw it (size and mtime): else a named error.
-Status check_plan_inputs(const PlanFile& plan);
-// For `unit`: opens the inputs of the plan into a session, checks that no input file changed since
-// the plan (a named error), and restores the plan's decisions (frame, grid, steps, voids).
+// Every input file of the plan is as the plan saw it (size and mtime): else a named error. With
+// `unit`, only the files that meet its window: those its fingerprint holds, the only ones it reads
+// (one stat per tile it may read, not one per tile of a national mosaic).
+Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit = std::nullopt);
+// For `unit`: opens the inputs of the plan into a session and restores the plan's decisions (frame,
+// grid, steps, voids). The caller has checked the files it reads with check_plan_inputs; the
+// inputs' own per-file existence checks (a VRT's tiles) are not repeated.
 Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
 
 // The roots of every unit file (checked as the merge checks them), for the overview levels: their

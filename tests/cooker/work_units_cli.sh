@@ -141,6 +141,25 @@ a[80:120, 90:130] += 5
 b.WriteArray(a)
 ds = None
 PY
+    # Behind the old plan, a unit checks only the tiles its window meets (one stat per tile it may
+    # read, not per tile of the mosaic): one that does not meet t12 cooks, one that does refuses by
+    # name, and so does the merge, which checks every file.
+    read -r away near < <(python3 - w/plan.json <<'PY'
+import json, sys
+p = json.load(open(sys.argv[1]))
+tile = [f for f in p["files"] if f["path"].endswith("t12.tif")][0]["footprint"]
+meets = lambda a, b: a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3] and a[0] <= a[2] and b[0] <= b[2]
+print([u["index"] for u in p["units"] if not meets(u["window"], tile)][0],
+      [u["index"] for u in p["units"] if meets(u["window"], tile)][0])
+PY
+)
+    rm -f "w/units/unit-$away.tcu" "w/units/unit-$near.tcu"
+    [ "$("$cook" unit w "$away")" = "unit $away: cooked" ] || fail "unit $away (window away from t12) refused a change it does not read"
+    "$cook" unit w "$near" 2> near.err && fail "unit $near (window meets t12) cooked behind a changed tile"
+    grep -q "t12.tif: changed since the plan" near.err || fail "unit $near does not name the changed tile: $(cat near.err)"
+    "$cook" merge w -o stale.terrain -q 2> merge.err && fail "merged units behind a changed tile"
+    grep -q "t12.tif: changed since the plan" merge.err || fail "the merge does not name the changed tile: $(cat merge.err)"
+    echo "behind the old plan: unit $away cooked, unit $near and the merge refused: $(cat near.err)"
     out=$("$cook" plan mosaic.vrt --heights-only --work-dir w --unit-roots 2) || fail "re-plan"
     echo "$out"
     echo "$out" | grep -q "tiles/t12.tif: changed" || fail "the re-plan does not name the changed tile"
