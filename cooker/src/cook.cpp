@@ -300,6 +300,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   for (uint32_t i = summary.unit_count; std::filesystem::exists(unit_file(options.work_dir, i), ec); ++i)
     std::filesystem::remove(unit_file(options.work_dir, i), ec);
   remove_stale_staging_in(units_dir(options.work_dir));  // staged files of unit runs killed on this host
+  if (Status st = write_unit_vrts(s, plan, options.work_dir); !st.ok()) return st;
   return write_plan(s, report, plan, summary.plan_path);
 }
 
@@ -336,7 +337,18 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
   }
   CookSession s;
   data.options.block_roots = block_roots;
+  // A VRT mosaic cut to the unit's window by the plan: GDAL parses the tiles the unit reads, not
+  // every tile of the mosaic; every read must then stay inside that window.
+  const UnitPlan& unit = data.plan.units[index];
+  const std::string cut = unit_vrt_file(work_dir, unit);
+  const std::string input = data.options.inputs.size() == 1 ? data.options.inputs[0] : std::string();
+  const bool use_cut = !input.empty() && std::filesystem::exists(cut);
+  if (use_cut) {
+    data.options.inputs = {cut};
+    s.read_bounds = unit.window;
+  }
   if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;
+  if (use_cut) s.voids.source_name = input;  // messages name the user's input, not the cut
   return write_unit(s, data.plan, index, work_dir);
 }
 

@@ -342,6 +342,12 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
   // The window read last already holds these samples exactly.
   if (!s.window.values.empty() && s.window_need.contains(need)) return Status::success();
   const SampleRect rect = fill_read_rect(s.voids, need);
+  if (!s.read_bounds.empty() && !s.read_bounds.contains(rect))
+    return Status::failure(Error::internal,
+                           fmt::format("a window read (samples {}..{} x {}..{}) outside the unit's planned window "
+                                       "({}..{} x {}..{})",
+                                       rect.c0, rect.c1, rect.r0, rect.r1, s.read_bounds.c0, s.read_bounds.c1,
+                                       s.read_bounds.r0, s.read_bounds.r1));
   s.window_need = SampleRect{};
   SampleWindow& w = s.window;
   // Room for the largest window of the grid, reserved once: growing block by block reallocated

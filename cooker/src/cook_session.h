@@ -50,6 +50,9 @@ struct CookSession {
   SampleWindow window;  // the block being read or cooked
   RangeSummary ranges;   // the first pass's, for the steps (freed once they are chosen)
   SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
+  // When not empty, every window read must lie inside it: a unit reading a VRT cut to its planned
+  // window (work_units.h), where samples outside would silently differ from the whole VRT's.
+  SampleRect read_bounds{0, 0, -1, -1};
   // Whether this process reads the source again after the first pass (the blocks of a one-process
   // cook): GDAL's cache then holds the whole decoded source where it fits. `plan` reads it once.
   bool reads_source_again = true;

@@ -29,6 +29,10 @@ Status open_web_tile(const std::string& path, const TileAddress&, TileEncoding, 
   return absent(path);
 }
 Status check_vrt_tiles(const std::string& path) { return absent(path); }
+Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>&, const std::vector<std::string>&,
+                         bool&) {
+  return absent(path);
+}
 void init_gdal() {}
 void set_gdal_cache_bytes(uint64_t) {}
 void set_gdal_decode_threads(int) {}

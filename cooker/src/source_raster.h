@@ -3,6 +3,7 @@
 // many, row band by row band); a block-wise cook reads only the windows it needs. No GDAL here:
 // the GDAL-backed sources live in input_gdal.cpp and web_tile_source.cpp.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -85,6 +86,17 @@ enum class CrsTransformStatus { ok, no_geodetic_crs, no_transformation };
 // the CRS was resolved to). no_geodetic_crs: a local or missing CRS on either side.
 CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
                                          PointTransform& b_to_a);
+
+// For the work units of a cook whose one input is a VRT mosaic (work_units.h): the VRT `path` cut
+// to each of `windows` (mosaic samples): every source whose DstRect meets the window grown by one
+// sample, in order, with absolute file names; the raster, its georeferencing and the bands'
+// properties as they are. A read inside the window gives the whole VRT's samples, and a unit parses
+// the few hundred tiles it reads instead of every tile of a national mosaic (GDAL's parse of a
+// 4096-tile VRT was a sixth of a one-root unit's CPU). Each written to a staged name and renamed
+// into `outputs[i]`. `written` false (and success) when the VRT is not one to cut (not a VRT, or a
+// relative file name GDAL resolves in its own way): the units then open the VRT itself.
+Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>& windows,
+                         const std::vector<std::string>& outputs, bool& written);
 
 // Where a raster file lies, as GDAL opens it: its geotransform (of sample corners) and size.
 struct FilePlacement {

@@ -9,11 +9,15 @@
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
 #include <map>
 
+#include "source_raster.h"
+#include "terrain/output_paths.h"
 #include "tiff_blocks.h"
 
 namespace terrain::cook {
@@ -323,6 +327,115 @@ bool VrtTileReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, in
     by_type(type, [&](auto zero) { draw<decltype(zero)>(at, size_t(w), scratch.data(), tw, th, rule); });
   }
   return true;
+}
+
+}  // namespace terrain::cook
+
+namespace terrain::cook {
+namespace {
+
+// A DstRect's extent in VRT samples, or false when the source has none (it is then kept).
+bool dst_rect(const CPLXMLNode* source, double& x0, double& y0, double& x1, double& y1) {
+  const CPLXMLNode* d = CPLGetXMLNode(source, "DstRect");
+  if (!d) return false;
+  x0 = CPLAtofM(CPLGetXMLValue(d, "xOff", "0"));
+  y0 = CPLAtofM(CPLGetXMLValue(d, "yOff", "0"));
+  x1 = x0 + CPLAtofM(CPLGetXMLValue(d, "xSize", "0"));
+  y1 = y0 + CPLAtofM(CPLGetXMLValue(d, "ySize", "0"));
+  return std::isfinite(x0 + y0 + x1 + y1);
+}
+
+struct BandChildren {
+  CPLXMLNode* band = nullptr;
+  std::vector<CPLXMLNode*> children;  // in order
+  std::vector<bool> source;           // children[i] is a source
+  std::vector<std::array<double, 4>> rect;  // its DstRect (x0, y0, x1, y1); infinite when it has none
+};
+
+}  // namespace
+
+Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>& windows,
+                         const std::vector<std::string>& outputs, bool& written) {
+  written = false;
+  if (!path.ends_with(".vrt") || windows.size() != outputs.size()) return Status::success();
+  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
+  if (!tree) return Status::success();  // the units' open names what is wrong with it
+  const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
+  CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
+  if (!ds) return Status::success();
+  const std::filesystem::path dir = std::filesystem::absolute(path).parent_path();
+  std::vector<BandChildren> bands;
+  for (CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
+    if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
+    BandChildren bc;
+    bc.band = b;
+    for (CPLXMLNode* c = b->psChild; c; c = c->psNext) {
+      const bool is_source = c->eType == CXT_Element && std::string_view(c->pszValue).ends_with("Source");
+      std::array<double, 4> r{-INFINITY, -INFINITY, INFINITY, INFINITY};
+      if (is_source) {
+        if (CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename")) {
+          const char* name = CPLGetXMLValue(f, nullptr, "");
+          if (CPLTestBool(CPLGetXMLValue(f, "relativeToVRT", "0"))) {
+            // /vsi... and driver:prefixed names resolve relative to the VRT in GDAL's own ways.
+            if (std::string_view(name).starts_with("/vsi") || std::strchr(name, ':')) return Status::success();
+            const std::string full = (dir / name).lexically_normal().string();
+            CPLSetXMLValue(f, "#relativeToVRT", "0");
+            for (CPLXMLNode* t = f->psChild; t; t = t->psNext)
+              if (t->eType == CXT_Text) {
+                CPLFree(t->pszValue);
+                t->pszValue = CPLStrdup(full.c_str());
+              }
+          }
+        }
+        double x0, y0, x1, y1;
+        if (dst_rect(c, x0, y0, x1, y1)) r = {x0, y0, x1, y1};
+      }
+      bc.children.push_back(c);
+      bc.source.push_back(is_source);
+      bc.rect.push_back(r);
+    }
+    bands.push_back(std::move(bc));
+  }
+  // Every child back in its band, so that CPLDestroyXMLNode frees each once.
+  auto relink_all = [&] {
+    for (BandChildren& bc : bands) {
+      CPLXMLNode** link = &bc.band->psChild;
+      for (CPLXMLNode* c : bc.children) {
+        *link = c;
+        link = &c->psNext;
+      }
+      *link = nullptr;
+    }
+  };
+  for (size_t w = 0; w < windows.size(); ++w) {
+    // Samples c0..c1 cover [c0, c1 + 1); one more on every side for a source's edge.
+    const auto& [c0, r0, c1, r1] = windows[w];
+    for (BandChildren& bc : bands) {
+      CPLXMLNode** link = &bc.band->psChild;
+      for (size_t i = 0; i < bc.children.size(); ++i) {
+        const auto& r = bc.rect[i];
+        if (bc.source[i] && !(r[0] < c1 + 2 && r[2] > c0 - 1 && r[1] < r1 + 2 && r[3] > r0 - 1)) continue;
+        *link = bc.children[i];
+        link = &bc.children[i]->psNext;
+      }
+      *link = nullptr;
+    }
+    char* text = CPLSerializeXMLTree(tree);
+    const std::string body = text ? text : "";
+    CPLFree(text);
+    const std::string temp = staging_path(outputs[w]);
+    std::FILE* f = std::fopen(temp.c_str(), "wb");
+    const bool ok = f && std::fwrite(body.data(), 1, body.size(), f) == body.size();
+    if ((f && std::fclose(f) != 0) || !ok || std::rename(temp.c_str(), outputs[w].c_str()) != 0) {
+      const int err = errno;
+      std::remove(temp.c_str());
+      relink_all();
+      return Status::failure(Error::io_write, fmt::format("{}: cannot write: {}", outputs[w], std::strerror(err)));
+    }
+  }
+  relink_all();
+  written = true;
+  return Status::success();
 }
 
 }  // namespace terrain::cook

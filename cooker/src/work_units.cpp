@@ -14,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -489,6 +490,44 @@ std::string plan_file(const std::string& work_dir) { return work_dir + "/plan.js
 std::string units_dir(const std::string& work_dir) { return work_dir + "/units"; }
 std::string unit_file(const std::string& work_dir, uint32_t index) {
   return fmt::format("{}/unit-{}.tcu", units_dir(work_dir), index);
+}
+std::string unit_vrt_file(const std::string& work_dir, const UnitPlan& unit) {
+  return fmt::format("{}/unit-{}-{}.vrt", units_dir(work_dir), unit.index, unit.fingerprint);
+}
+
+Status write_unit_vrts(const CookSession& s, const PlanFile& plan, const std::string& work_dir) {
+  const std::vector<MosaicSource::InputStat>& inputs = s.source.inputs();
+  std::set<std::string> current;
+  std::vector<std::array<int, 4>> windows;
+  std::vector<std::string> outputs;
+  if (inputs.size() == 1 && inputs[0].windowed && inputs[0].path.ends_with(".vrt"))
+    for (const UnitPlan& u : plan.units) {
+      if (u.window.empty()) continue;
+      // Written again even where one of this name exists: a cut a crash left damaged is replaced.
+      const std::string out = unit_vrt_file(work_dir, u);
+      current.insert(out);
+      windows.push_back({u.window.c0, u.window.r0, u.window.c1, u.window.r1});
+      outputs.push_back(out);
+    }
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(units_dir(work_dir), ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.starts_with("unit-") && name.ends_with(".vrt") && !current.count(e.path().string()))
+      std::filesystem::remove(e.path(), ec);  // a cut of an earlier plan
+  }
+  if (outputs.empty()) return Status::success();
+  bool written = false;
+  if (Status st = write_vrt_windows(inputs[0].path, windows, outputs, written); !st.ok()) return st;
+  // On disk before the plan that names them (write_plan fsyncs plan.json).
+  if (written) {
+    const int fd = ::open(units_dir(work_dir).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    const bool synced = fd >= 0 && ::syncfs(fd) == 0;
+    if (fd >= 0) ::close(fd);
+    if (!synced)
+      return Status::failure(Error::io_write, fmt::format("{}: cannot sync the units' VRTs: {}", units_dir(work_dir),
+                                                          std::strerror(errno)));
+  }
+  return Status::success();
 }
 
 Status plan_units(CookSession& s, PlanFile& plan) {

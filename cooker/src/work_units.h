@@ -72,6 +72,13 @@ bool same_plan_options(const CookOptions& planned, const CookOptions& given);
 // `unit`, only the files that meet its window: those its fingerprint holds, the only ones it reads
 // (one stat per tile it may read, not one per tile of a national mosaic).
 Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit = std::nullopt);
+// The VRT a unit reads when the cook's one input is a VRT mosaic: the plan cuts it to the unit's
+// window (write_vrt_windows, source_raster.h), named by the unit's fingerprint so that a cut is
+// never one of another plan or window. A unit without one (an earlier version's plan, or not
+// written) reads the input itself; the bytes are the same.
+std::string unit_vrt_file(const std::string& work_dir, const UnitPlan& unit);
+// For `plan`: writes the units' cuts and removes those of earlier plans.
+Status write_unit_vrts(const CookSession& s, const PlanFile& plan, const std::string& work_dir);
 // For `unit`: opens the inputs of the plan into a session and restores the plan's decisions (frame,
 // grid, steps, voids). The caller has checked the files it reads with check_plan_inputs; the
 // inputs' own per-file existence checks (a VRT's tiles) are not repeated.

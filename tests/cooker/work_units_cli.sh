@@ -127,6 +127,21 @@ PY
     gdalbuildvrt -q mosaic.vrt tiles/*.tif || fail "gdalbuildvrt"
     kf=(-q --heights-only)
     "$cook" plan mosaic.vrt "${kf[@]}" --work-dir w --unit-roots 2 > /dev/null || fail "plan"
+    # The plan cuts the mosaic's VRT to each unit's window (the units parse only their tiles).
+    cuts() {
+      /usr/bin/python3 - w/plan.json <<'PY'
+import glob, json, sys, xml.etree.ElementTree as ET
+p = json.load(open(sys.argv[1]))
+want = {f"w/units/unit-{u['index']}-{u['fingerprint']}.vrt" for u in p["units"] if u["window"][0] <= u["window"][2]}
+have = set(glob.glob("w/units/unit-*.vrt"))
+assert have == want, f"cuts {sorted(have ^ want)} missing or stale"
+sizes = [sum(len(ET.parse(f).getroot().findall(f"./VRTRasterBand/{k}")) for k in ("ComplexSource", "SimpleSource"))
+         for f in sorted(have)]
+assert max(sizes) < 16 and min(sizes) > 0, f"sources per cut {sizes}, of 16 tiles"
+print(f"{len(have)} cuts of the 16-tile VRT, {min(sizes)}-{max(sizes)} sources each")
+PY
+    }
+    cuts || fail "the units' VRT cuts"
     units_shuffled w 1
     "$cook" merge w -o before.terrain -q || fail "merge before"
     n=$(python3 -c "import json; print(json.load(open('w/plan.json'))['unit_count'])")
@@ -162,6 +177,7 @@ PY
     echo "behind the old plan: unit $away cooked, unit $near and the merge refused: $(cat near.err)"
     out=$("$cook" plan mosaic.vrt --heights-only --work-dir w --unit-roots 2) || fail "re-plan"
     echo "$out"
+    cuts || fail "the units' VRT cuts after the re-plan"
     echo "$out" | grep -q "tiles/t12.tif: changed" || fail "the re-plan does not name the changed tile"
     expected=$(python3 - w/plan.json <<'PY'
 import json, sys
