@@ -465,6 +465,52 @@ FilePlacement placement_of(const std::string& path, GDALDataset* ds) {
   return p;
 }
 
+// A VRT's tiles placed by its own XML: each source's file (named as GDAL's VRT driver names it) at
+// its DstRect through the VRT's geotransform, without opening the tile. False (nothing added) when
+// a source is not that plain: no DstRect, a /vsi or driver-prefixed name, or a VRT without a
+// geotransform; the tiles are then opened one by one.
+bool vrt_source_placements(const std::string& path, const FilePlacement& vrt, std::vector<FilePlacement>& out) {
+  if (!ends_with(path, ".vrt") || !vrt.has_geotransform) return false;
+  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
+  if (!tree) return false;
+  const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
+  const CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
+  if (!ds) return false;
+  const std::string dir = CPLGetPath(path.c_str());
+  std::vector<FilePlacement> tiles;
+  for (const CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
+    if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
+    for (const CPLXMLNode* c = b->psChild; c; c = c->psNext) {
+      if (c->eType != CXT_Element || !std::string_view(c->pszValue).ends_with("Source")) continue;
+      const CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename");
+      const CPLXMLNode* d = CPLGetXMLNode(c, "DstRect");
+      if (!f || !d) return false;
+      const char* name = CPLGetXMLValue(f, nullptr, "");
+      if (std::string_view(name).starts_with("/vsi") || std::strchr(name, ':')) return false;
+      FilePlacement t;
+      t.path = CPLTestBool(CPLGetXMLValue(f, "relativeToVRT", "0")) ? CPLProjectRelativeFilename(dir.c_str(), name) : name;
+      const double x = CPLAtofM(CPLGetXMLValue(d, "xOff", "0")), y = CPLAtofM(CPLGetXMLValue(d, "yOff", "0"));
+      const double w = CPLAtofM(CPLGetXMLValue(d, "xSize", "0")), h = CPLAtofM(CPLGetXMLValue(d, "ySize", "0"));
+      if (!std::isfinite(x + y + w + h) || !(w > 0) || !(h > 0) || w > 1e9 || h > 1e9) return false;
+      // One "sample" per DstRect here: footprint_of maps its corners, which is all it reads.
+      const double* g = vrt.gt;
+      t.opened = t.has_geotransform = true;
+      t.width = 1;
+      t.height = 1;
+      t.gt[0] = g[0] + x * g[1] + y * g[2];
+      t.gt[1] = w * g[1];
+      t.gt[2] = h * g[2];
+      t.gt[3] = g[3] + x * g[4] + y * g[5];
+      t.gt[4] = w * g[4];
+      t.gt[5] = h * g[5];
+      tiles.push_back(std::move(t));
+    }
+  }
+  for (FilePlacement& t : tiles)
+    if (t.path != path) out.push_back(std::move(t));
+  return true;
+}
+
 }  // namespace
 
 std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
@@ -472,6 +518,8 @@ std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   std::vector<FilePlacement> out{placement_of(path, ds.get())};
   if (!ds) return out;
+  // A VRT mosaic of thousands of tiles: placed from its XML, not by opening every tile again.
+  if (vrt_source_placements(path, out[0], out)) return out;
   char** list = ds->GetFileList();
   // Each open of a tile lists its folder for side-cars by default: with the thousands of tiles of a
   // national mosaic in one folder that is a listing of thousands per tile (a fifth of the plan's CPU
