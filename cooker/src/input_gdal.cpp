@@ -58,6 +58,12 @@ void init_gdal_once() {
     // of GDAL's half-pixel shift, so positions stay bit-identical to the libgeotiff reader's.
     CPLSetConfigOption("GTIFF_POINT_GEO_IGNORE", "TRUE");
     if (!CPLGetConfigOption("GDAL_CACHEMAX", nullptr)) GDALSetCacheMax64(kGdalCacheBytes);
+    // By default every open lists the file's folder to find its side-cars (.aux.xml, .ovr, .tfw):
+    // a VRT over thousands of tiles in one folder re-opens tiles as its dataset pool turns over,
+    // each open a listing of thousands. GDAL then looks for each side-car by name (same files
+    // found). 4096-tile mosaic read by GDAL: 23-24 -> 18-19 CPU s, 18.6-20.1 -> 14.7-15.3 s.
+    if (!CPLGetConfigOption("GDAL_DISABLE_READDIR_ON_OPEN", nullptr))
+      CPLSetConfigOption("GDAL_DISABLE_READDIR_ON_OPEN", "TRUE");
   });
 }
 
@@ -521,10 +527,6 @@ std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
   // A VRT mosaic of thousands of tiles: placed from its XML, not by opening every tile again.
   if (vrt_source_placements(path, out[0], out)) return out;
   char** list = ds->GetFileList();
-  // Each open of a tile lists its folder for side-cars by default: with the thousands of tiles of a
-  // national mosaic in one folder that is a listing of thousands per tile (a fifth of the plan's CPU
-  // at 4096 tiles, quadratic beyond). GDAL then looks for each side-car by name instead.
-  const CPLConfigOptionSetter no_listing("GDAL_DISABLE_READDIR_ON_OPEN", "TRUE", /*bSetOnlyIfUndefined=*/true);
   for (char** p = list; p && *p; ++p) {
     const std::string f = *p;
     if (f == path || ends_with(f, ".aux.xml") || ends_with(f, ".ovr")) continue;
