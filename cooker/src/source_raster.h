@@ -94,7 +94,8 @@ CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b,
 // the few hundred tiles it reads instead of every tile of a national mosaic (GDAL's parse of a
 // 4096-tile VRT was a sixth of a one-root unit's CPU). Each written to a staged name and renamed
 // into `outputs[i]`. `written` false (and success) when the VRT is not one to cut (not a VRT, or a
-// relative file name GDAL resolves in its own way): the units then open the VRT itself.
+// relative file name GDAL resolves in its own way or one outside the bands' sources, such as an
+// overview's or a mask band's): the units then open the VRT itself.
 Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>& windows,
                          const std::vector<std::string>& outputs, bool& written);
 

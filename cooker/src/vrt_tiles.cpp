@@ -345,6 +345,17 @@ bool dst_rect(const CPLXMLNode* source, double& x0, double& y0, double& x1, doub
   return std::isfinite(x0 + y0 + x1 + y1);
 }
 
+// A <SourceFilename relativeToVRT="1"> anywhere under `node` (an overview or mask band's, which a
+// cut in another folder would no longer find).
+bool has_relative_name(const CPLXMLNode* node) {
+  for (const CPLXMLNode* c = node; c; c = c->psNext) {
+    if (c->eType != CXT_Element) continue;
+    if (EQUAL(c->pszValue, "SourceFilename") && CPLTestBool(CPLGetXMLValue(c, "relativeToVRT", "0"))) return true;
+    if (has_relative_name(c->psChild)) return true;
+  }
+  return false;
+}
+
 struct BandChildren {
   CPLXMLNode* band = nullptr;
   std::vector<CPLXMLNode*> children;  // in order
@@ -396,6 +407,7 @@ Status write_vrt_windows(const std::string& path, const std::vector<std::array<i
     }
     bands.push_back(std::move(bc));
   }
+  if (has_relative_name(ds->psChild)) return Status::success();  // left after the sources' own
   // Every child back in its band, so that CPLDestroyXMLNode frees each once.
   auto relink_all = [&] {
     for (BandChildren& bc : bands) {
