@@ -24,6 +24,7 @@
 #include "source_raster.h"
 #include "tiff_blocks.h"
 #include "vrt_tiles.h"
+#include "vrt_xml.h"
 
 namespace terrain::cook {
 namespace {
@@ -376,9 +377,7 @@ void collect_source_files(const CPLXMLNode* node, const std::string& vrt_dir, st
   for (; node; node = node->psNext) {
     if (node->eType != CXT_Element) continue;
     if (EQUAL(node->pszValue, "SourceFilename")) {
-      const char* name = CPLGetXMLValue(node, nullptr, "");
-      const bool relative = CPLTestBool(CPLGetXMLValue(node, "relativeToVRT", "0"));
-      if (name && *name) out.push_back(relative ? std::string(CPLFormFilename(vrt_dir.c_str(), name, nullptr)) : name);
+      if (*CPLGetXMLValue(node, nullptr, "")) out.push_back(vrt_source_file(node, vrt_dir));
       continue;
     }
     collect_source_files(node->psChild, vrt_dir, out);
@@ -395,11 +394,11 @@ Status check_vrt_tiles(const std::string& path) {
   CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
   if (!tree) return Status::success();  // GDAL opened it; its reads name any problem
   std::vector<std::string> files;
-  collect_source_files(tree, CPLGetPath(path.c_str()), files);
+  collect_source_files(tree, vrt_folder(path), files);
   CPLDestroyXMLNode(tree);
   for (const std::string& f : files) {
     // Names such as "MEM:::..." or "NETCDF:file:var" are not plain files: left to GDAL's read.
-    if (f.find(':') != std::string::npos && f.rfind("/vsi", 0) != 0) continue;
+    if (f.find(':') != std::string::npos && !f.starts_with("/vsi")) continue;
     VSIStatBufL st;
     if (VSIStatL(f.c_str(), &st) != 0)
       return Status::failure(Error::io_read,
@@ -482,22 +481,19 @@ bool vrt_source_placements(const std::string& path, const FilePlacement& vrt, st
   const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
   const CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
   if (!ds) return false;
-  const std::string dir = CPLGetPath(path.c_str());
+  const std::string dir = vrt_folder(path);
   std::vector<FilePlacement> tiles;
   for (const CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
     if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
     for (const CPLXMLNode* c = b->psChild; c; c = c->psNext) {
-      if (c->eType != CXT_Element || !std::string_view(c->pszValue).ends_with("Source")) continue;
+      if (!is_vrt_source(c)) continue;
       const CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename");
-      const CPLXMLNode* d = CPLGetXMLNode(c, "DstRect");
-      if (!f || !d) return false;
-      const char* name = CPLGetXMLValue(f, nullptr, "");
-      if (std::string_view(name).starts_with("/vsi") || std::strchr(name, ':')) return false;
+      VrtRect d;
+      if (!f || !vrt_dst_rect(c, d) || !plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return false;
       FilePlacement t;
-      t.path = CPLTestBool(CPLGetXMLValue(f, "relativeToVRT", "0")) ? CPLProjectRelativeFilename(dir.c_str(), name) : name;
-      const double x = CPLAtofM(CPLGetXMLValue(d, "xOff", "0")), y = CPLAtofM(CPLGetXMLValue(d, "yOff", "0"));
-      const double w = CPLAtofM(CPLGetXMLValue(d, "xSize", "0")), h = CPLAtofM(CPLGetXMLValue(d, "ySize", "0"));
-      if (!std::isfinite(x + y + w + h) || !(w > 0) || !(h > 0) || w > 1e9 || h > 1e9) return false;
+      t.path = vrt_source_file(f, dir);
+      const double x = d.x, y = d.y, w = d.w, h = d.h;
+      if (!(w > 0) || !(h > 0) || w > 1e9 || h > 1e9) return false;
       // One "sample" per DstRect here: footprint_of maps its corners, which is all it reads.
       const double* g = vrt.gt;
       t.opened = t.has_geotransform = true;

@@ -8,8 +8,8 @@
 
 #include <algorithm>
 #include <cfloat>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -19,6 +19,7 @@
 #include "source_raster.h"
 #include "terrain/output_paths.h"
 #include "tiff_blocks.h"
+#include "vrt_xml.h"
 
 namespace terrain::cook {
 namespace {
@@ -142,6 +143,24 @@ bool rect_of(const CPLXMLNode* node, int& x, int& y, int& w, int& h) {
          whole_samples(CPLGetXMLValue(node, "ySize", nullptr), h);
 }
 
+// A <SourceFilename relativeToVRT="1"> anywhere under `node` (an overview or mask band's, which a
+// cut in another folder would no longer find).
+bool has_relative_name(const CPLXMLNode* node) {
+  for (const CPLXMLNode* c = node; c; c = c->psNext) {
+    if (c->eType != CXT_Element) continue;
+    if (EQUAL(c->pszValue, "SourceFilename") && vrt_name_is_relative(c)) return true;
+    if (has_relative_name(c->psChild)) return true;
+  }
+  return false;
+}
+
+struct BandChildren {
+  CPLXMLNode* band = nullptr;
+  std::vector<CPLXMLNode*> children;  // in order
+  std::vector<bool> source;           // children[i] is a source
+  std::vector<std::array<double, 4>> rect;  // its DstRect (x0, y0, x1, y1); infinite when it has none
+};
+
 }  // namespace
 
 VrtTileReader::~VrtTileReader() = default;
@@ -182,7 +201,7 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
   if (const char* nd = CPLGetXMLValue(band, "NoDataValue", nullptr)) {
     if (!native_bits(type, CPLAtofM(nd), r->fill_bits_)) return refuse(fmt::format("nodata {} for {}", nd, "its type"));
   }
-  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  const std::string dir = vrt_folder(path);
   for (const CPLXMLNode* n = band->psChild; n; n = n->psNext) {
     if (n->eType != CXT_Element) continue;
     const std::string name = n->pszValue;
@@ -200,9 +219,8 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
       const std::string cn = c->pszValue;
       if (cn == "SourceFilename") {
         const char* f = CPLGetXMLValue(c, nullptr, "");
-        if (std::string(f).starts_with("/vsi") || std::strchr(f, ':')) return refuse(fmt::format("source {}", f));
-        const bool relative = std::strcmp(CPLGetXMLValue(c, "relativeToVRT", "0"), "1") == 0;
-        s.path = (relative ? (dir / f) : std::filesystem::path(f)).lexically_normal().string();
+        if (!plain_file_name(f)) return refuse(fmt::format("source {}", f));
+        s.path = vrt_source_file(c, dir);
         has_file = true;
       } else if (cn == "SourceBand") {
         if (std::strcmp(CPLGetXMLValue(c, nullptr, ""), "1") != 0) return refuse("a source band other than 1");
@@ -329,42 +347,6 @@ bool VrtTileReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, in
   return true;
 }
 
-}  // namespace terrain::cook
-
-namespace terrain::cook {
-namespace {
-
-// A DstRect's extent in VRT samples, or false when the source has none (it is then kept).
-bool dst_rect(const CPLXMLNode* source, double& x0, double& y0, double& x1, double& y1) {
-  const CPLXMLNode* d = CPLGetXMLNode(source, "DstRect");
-  if (!d) return false;
-  x0 = CPLAtofM(CPLGetXMLValue(d, "xOff", "0"));
-  y0 = CPLAtofM(CPLGetXMLValue(d, "yOff", "0"));
-  x1 = x0 + CPLAtofM(CPLGetXMLValue(d, "xSize", "0"));
-  y1 = y0 + CPLAtofM(CPLGetXMLValue(d, "ySize", "0"));
-  return std::isfinite(x0 + y0 + x1 + y1);
-}
-
-// A <SourceFilename relativeToVRT="1"> anywhere under `node` (an overview or mask band's, which a
-// cut in another folder would no longer find).
-bool has_relative_name(const CPLXMLNode* node) {
-  for (const CPLXMLNode* c = node; c; c = c->psNext) {
-    if (c->eType != CXT_Element) continue;
-    if (EQUAL(c->pszValue, "SourceFilename") && CPLTestBool(CPLGetXMLValue(c, "relativeToVRT", "0"))) return true;
-    if (has_relative_name(c->psChild)) return true;
-  }
-  return false;
-}
-
-struct BandChildren {
-  CPLXMLNode* band = nullptr;
-  std::vector<CPLXMLNode*> children;  // in order
-  std::vector<bool> source;           // children[i] is a source
-  std::vector<std::array<double, 4>> rect;  // its DstRect (x0, y0, x1, y1); infinite when it has none
-};
-
-}  // namespace
-
 Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>& windows,
                          const std::vector<std::string>& outputs, bool& written) {
   written = false;
@@ -374,22 +356,21 @@ Status write_vrt_windows(const std::string& path, const std::vector<std::array<i
   const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
   CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
   if (!ds) return Status::success();
-  const std::filesystem::path dir = std::filesystem::absolute(path).parent_path();
+  const std::string dir = vrt_folder(std::filesystem::absolute(path).lexically_normal().string());
   std::vector<BandChildren> bands;
   for (CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
     if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
     BandChildren bc;
     bc.band = b;
     for (CPLXMLNode* c = b->psChild; c; c = c->psNext) {
-      const bool is_source = c->eType == CXT_Element && std::string_view(c->pszValue).ends_with("Source");
+      const bool is_source = is_vrt_source(c);
       std::array<double, 4> r{-INFINITY, -INFINITY, INFINITY, INFINITY};
       if (is_source) {
         if (CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename")) {
-          const char* name = CPLGetXMLValue(f, nullptr, "");
-          if (CPLTestBool(CPLGetXMLValue(f, "relativeToVRT", "0"))) {
+          if (vrt_name_is_relative(f)) {
             // /vsi... and driver:prefixed names resolve relative to the VRT in GDAL's own ways.
-            if (std::string_view(name).starts_with("/vsi") || std::strchr(name, ':')) return Status::success();
-            const std::string full = (dir / name).lexically_normal().string();
+            if (!plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return Status::success();
+            const std::string full = vrt_source_file(f, dir);
             CPLSetXMLValue(f, "#relativeToVRT", "0");
             for (CPLXMLNode* t = f->psChild; t; t = t->psNext)
               if (t->eType == CXT_Text) {
@@ -398,8 +379,8 @@ Status write_vrt_windows(const std::string& path, const std::vector<std::array<i
               }
           }
         }
-        double x0, y0, x1, y1;
-        if (dst_rect(c, x0, y0, x1, y1)) r = {x0, y0, x1, y1};
+        // A source without a DstRect is kept in every cut.
+        if (VrtRect d; vrt_dst_rect(c, d)) r = {d.x, d.y, d.x + d.w, d.y + d.h};
       }
       bc.children.push_back(c);
       bc.source.push_back(is_source);
