@@ -300,7 +300,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   for (uint32_t i = summary.unit_count; std::filesystem::exists(unit_file(options.work_dir, i), ec); ++i)
     std::filesystem::remove(unit_file(options.work_dir, i), ec);
   remove_stale_staging_in(units_dir(options.work_dir));  // staged files of unit runs killed on this host
-  if (Status st = write_unit_vrts(s, plan, options.work_dir); !st.ok()) return st;
+  if (Status st = write_unit_inputs(s, plan, options.work_dir); !st.ok()) return st;
   return write_plan(s, report, plan, summary.plan_path);
 }
 
@@ -318,11 +318,7 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
   skipped = false;
   report = CookReport{};
   PlanData data;
-  if (Status st = read_plan(work_dir, data); !st.ok()) return st;
-  if (index >= data.plan.units.size())
-    return Status::failure(Error::invalid_argument,
-                           fmt::format("unit {}: the plan in {} has {} units (0..{})", index, work_dir,
-                                       data.plan.units.size(), data.plan.units.size() - 1));
+  if (Status st = read_plan(work_dir, data, index); !st.ok()) return st;
   if (const char* fail = std::getenv("TERRAIN_COOK_FAIL_UNITS")) {  // test hook: a unit that fails
     const std::string list = std::string(",") + fail + ",";
     if (list.find(fmt::format(",{},", index)) != std::string::npos)

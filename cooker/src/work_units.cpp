@@ -43,6 +43,40 @@ json rect_json(const SampleRect& r) { return json::array({r.c0, r.r0, r.c1, r.r1
 SampleRect rect_of(const json& j) { return {j.at(0).get<int>(), j.at(1).get<int>(), j.at(2).get<int>(), j.at(3).get<int>()}; }
 bool meets(const SampleRect& a, const SampleRect& b) { return !a.empty() && !b.empty() && !intersect(a, b).empty(); }
 
+// A unit's fingerprint: the plan's, its roots, its window and the fingerprints of the files whose
+// footprint meets the window, in the plan's order (format/SPEC.md section 18).
+std::string unit_fingerprint(const std::string& plan_fingerprint, const UnitPlan& u, const std::vector<InputFile>& files) {
+  std::string text = fmt::format("{}|{},{},{},{}|{},{},{},{}", plan_fingerprint, u.roots.x0, u.roots.y0, u.roots.x1,
+                                 u.roots.y1, u.window.c0, u.window.r0, u.window.c1, u.window.r1);
+  for (const InputFile& f : files)
+    if (meets(f.footprint, u.window)) text += "|" + f.fingerprint;
+  return hex64(fnv1a(text));
+}
+
+// The input files (those meeting `window` when given) as the plan's JSON lists them.
+json files_json(const std::vector<InputFile>& files, const SampleRect* window) {
+  json a = json::array();
+  for (const InputFile& f : files)
+    if (!window || meets(f.footprint, *window))
+      a.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
+                   {"footprint", rect_json(f.footprint)}});
+  return a;
+}
+// Throws on a malformed list (read_plan names the file).
+std::vector<InputFile> files_of(const json& a) {
+  std::vector<InputFile> out;
+  for (const json& fj : a) {
+    InputFile fi;
+    fi.path = fj.at("path");
+    fi.size = fj.at("size");
+    fi.mtime_ns = fj.at("mtime_ns");
+    fi.fingerprint = fj.at("fingerprint");
+    fi.footprint = rect_of(fj.at("footprint"));
+    out.push_back(std::move(fi));
+  }
+  return out;
+}
+
 // ---- options: every field, so a unit on another machine cooks with the plan's ----
 json options_json(const CookOptions& o) {
   json j;
@@ -349,6 +383,22 @@ Status write_all(int fd, const uint8_t* p, size_t n, const std::string& path) {
   }
   return Status::success();
 }
+// `text` under `path` through a staged name renamed into place; with `durable`, fsynced first
+// (else the caller syncs the folder's filesystem before anything names the file).
+Status write_text_file(const std::string& path, const std::string& text, bool durable) {
+  const std::string temp = staging_path(path);
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
+  Status st = write_all(fd, reinterpret_cast<const uint8_t*>(text.data()), text.size(), temp);
+  if (st.ok() && durable && ::fsync(fd) != 0)
+    st = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp, std::strerror(errno)));
+  ::close(fd);
+  if (st.ok() && ::rename(temp.c_str(), path.c_str()) != 0)
+    st = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
+  if (!st.ok()) ::unlink(temp.c_str());
+  return st;
+}
+
 Status read_at(int fd, uint8_t* p, size_t n, uint64_t off, const std::string& path) {
   while (n > 0) {
     const ssize_t k = ::pread(fd, p, n, off_t(off));
@@ -488,6 +538,9 @@ bool read_unit(const std::string& path, uint32_t index, const std::string& expec
 
 std::string plan_file(const std::string& work_dir) { return work_dir + "/plan.json"; }
 std::string units_dir(const std::string& work_dir) { return work_dir + "/units"; }
+std::string inputs_file(const std::string& work_dir, const std::string& fingerprint) {
+  return fmt::format("{}/inputs-{}.json", work_dir, fingerprint);
+}
 std::string unit_file(const std::string& work_dir, uint32_t index) {
   return fmt::format("{}/unit-{}.tcu", units_dir(work_dir), index);
 }
@@ -495,7 +548,18 @@ std::string unit_vrt_file(const std::string& work_dir, const UnitPlan& unit) {
   return fmt::format("{}/unit-{}-{}.vrt", units_dir(work_dir), unit.index, unit.fingerprint);
 }
 
-Status write_unit_vrts(const CookSession& s, const PlanFile& plan, const std::string& work_dir) {
+std::string unit_inputs_file(const std::string& work_dir, const UnitPlan& unit) {
+  return fmt::format("{}/unit-{}-{}.inputs.json", units_dir(work_dir), unit.index, unit.fingerprint);
+}
+
+Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::string& work_dir) {
+  // Each unit's own list of the files it reads (all of them are in the plan's inputs file).
+  for (const UnitPlan& u : plan.units) {
+    const json list = {{"format", "terrain-cook-unit-inputs"}, {"unit", u.index}, {"fingerprint", u.fingerprint},
+                       {"files", files_json(plan.files, &u.window)}};
+    if (Status st = write_text_file(unit_inputs_file(work_dir, u), list.dump(1) + "\n", /*durable=*/false); !st.ok())
+      return st;
+  }
   const std::vector<MosaicSource::InputStat>& inputs = s.source.inputs();
   std::set<std::string> current;
   std::vector<std::array<int, 4>> windows;
@@ -515,18 +579,16 @@ Status write_unit_vrts(const CookSession& s, const PlanFile& plan, const std::st
     if (name.starts_with("unit-") && name.ends_with(".vrt") && !current.count(e.path().string()))
       std::filesystem::remove(e.path(), ec);  // a cut of an earlier plan
   }
-  if (outputs.empty()) return Status::success();
   bool written = false;
-  if (Status st = write_vrt_windows(inputs[0].path, windows, outputs, written); !st.ok()) return st;
+  if (!outputs.empty())
+    if (Status st = write_vrt_windows(inputs[0].path, windows, outputs, written); !st.ok()) return st;
   // On disk before the plan that names them (write_plan fsyncs plan.json).
-  if (written) {
-    const int fd = ::open(units_dir(work_dir).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    const bool synced = fd >= 0 && ::syncfs(fd) == 0;
-    if (fd >= 0) ::close(fd);
-    if (!synced)
-      return Status::failure(Error::io_write, fmt::format("{}: cannot sync the units' VRTs: {}", units_dir(work_dir),
-                                                          std::strerror(errno)));
-  }
+  const int fd = ::open(units_dir(work_dir).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const bool synced = fd >= 0 && ::syncfs(fd) == 0;
+  if (fd >= 0) ::close(fd);
+  if (!synced)
+    return Status::failure(Error::io_write, fmt::format("{}: cannot sync the units' inputs: {}", units_dir(work_dir),
+                                                        std::strerror(errno)));
   return Status::success();
 }
 
@@ -542,11 +604,7 @@ Status plan_units(CookSession& s, PlanFile& plan) {
     u.roots = s.units.block(i);
     const SampleRect need = block_cook_rect(s.ctx, u.roots);
     u.window = need.empty() ? SampleRect{} : fill_read_rect(s.voids, need);
-    std::string text = fmt::format("{}|{},{},{},{}|{},{},{},{}", plan.fingerprint, u.roots.x0, u.roots.y0, u.roots.x1,
-                                   u.roots.y1, u.window.c0, u.window.r0, u.window.c1, u.window.r1);
-    for (const InputFile& f : plan.files)
-      if (meets(f.footprint, u.window)) text += "|" + f.fingerprint;
-    u.fingerprint = hex64(fnv1a(text));
+    u.fingerprint = unit_fingerprint(plan.fingerprint, u, plan.files);
     plan.units.push_back(u);
   }
   return Status::success();
@@ -555,14 +613,19 @@ Status plan_units(CookSession& s, PlanFile& plan) {
 Status write_plan(const CookSession& s, const CookReport& report, const PlanFile& plan, const std::string& path) {
   json j;
   j["format"] = "terrain-cook-plan";
-  j["version"] = 1;
+  j["version"] = 2;
   j["fingerprint"] = plan.fingerprint;
   j["options"] = options_json(s.options);
-  json files = json::array();
-  for (const InputFile& f : plan.files)
-    files.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
-                     {"footprint", rect_json(f.footprint)}});
-  j["files"] = files;
+  // Every input file in a file of its own, named by its contents' fingerprint: only `plan` and the
+  // merge read it (a unit reads its own list), so plan.json stays small however many tiles there are.
+  const std::string work_dir = std::filesystem::path(path).parent_path().string();
+  const json all = {{"format", "terrain-cook-inputs"}, {"files", files_json(plan.files, nullptr)}};
+  const std::string inputs_text = all.dump(1) + "\n";
+  const std::string inputs_fingerprint = hex64(fnv1a(inputs_text));
+  const std::string inputs_path = inputs_file(work_dir, inputs_fingerprint);
+  remove_stale_staging(inputs_path);
+  if (Status st = write_text_file(inputs_path, inputs_text, /*durable=*/true); !st.ok()) return st;
+  j["inputs"] = {{"count", plan.files.size()}, {"fingerprint", inputs_fingerprint}};
   const Raster& header = s.source.header();
   j["source"] = {{"width", header.width}, {"height", header.height}};
   j["frame"] = frame_json(s.frame);
@@ -600,41 +663,100 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   j["units"] = units;
   // Atomically: a plan is either the old one or the new one.
   remove_stale_staging(path);  // a plan write killed before its rename
-  const std::string temp = staging_path(path);
-  const std::string text = j.dump(1) + "\n";
-  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
-  Status st = write_all(fd, reinterpret_cast<const uint8_t*>(text.data()), text.size(), temp);
-  if (st.ok() && ::fsync(fd) != 0) st = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp, std::strerror(errno)));
-  ::close(fd);
-  if (st.ok() && ::rename(temp.c_str(), path.c_str()) != 0)
-    st = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
-  if (!st.ok()) ::unlink(temp.c_str());
-  return st;
+  if (Status st = write_text_file(path, j.dump(1) + "\n", /*durable=*/true); !st.ok()) return st;
+  // Only now the inputs of earlier plans go: until the rename they were the plan's.
+  std::set<std::string> current{std::filesystem::path(inputs_path).filename().string()};
+  for (const UnitPlan& u : plan.units) current.insert(std::filesystem::path(unit_inputs_file(work_dir, u)).filename().string());
+  std::error_code ec;
+  for (const std::string& dir : {work_dir, units_dir(work_dir)})
+    for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+      const std::string name = e.path().filename().string();
+      const bool inputs = (name.starts_with("inputs-") || name.starts_with("unit-")) && name.ends_with(".json");
+      if (inputs && !current.count(name)) std::filesystem::remove(e.path(), ec);
+    }
+  return Status::success();
 }
 
-Status read_plan(const std::string& work_dir, PlanData& out) {
+namespace {
+
+bool read_text(const std::string& path, std::string& text) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return false;
+  text.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  return !f.bad();
+}
+
+// The plan's inputs file: every input file, checked against the fingerprint plan.json gives it.
+Status read_all_inputs(const std::string& work_dir, const json& ref, std::vector<InputFile>& files) {
+  const std::string fingerprint = ref.at("fingerprint");
+  if (fingerprint.size() != 16 || fingerprint.find_first_not_of("0123456789abcdef") != std::string::npos)
+    return Status::failure(Error::invalid_argument, fmt::format("{}: malformed plan (inputs fingerprint '{}')",
+                                                                plan_file(work_dir), fingerprint));
+  const std::string path = inputs_file(work_dir, fingerprint);
+  std::string text;
+  if (!read_text(path, text))
+    return Status::failure(Error::io_open, fmt::format("{}: the plan's list of input files is missing ({}); run "
+                                                       "`terrain-cook plan` again", path, std::strerror(errno)));
+  if (hex64(fnv1a(text)) != fingerprint)
+    return Status::failure(Error::no_data, fmt::format("{}: damaged (its fingerprint is not the plan's); run "
+                                                       "`terrain-cook plan` again", path));
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-inputs")
+    return Status::failure(Error::no_data, fmt::format("{}: not a terrain-cook list of inputs", path));
+  try {
+    files = files_of(j.at("files"));
+  } catch (const std::exception& e) {
+    return Status::failure(Error::no_data, fmt::format("{}: malformed ({})", path, e.what()));
+  }
+  if (files.size() != ref.at("count").get<size_t>())
+    return Status::failure(Error::no_data, fmt::format("{}: {} files, the plan says {}", path, files.size(),
+                                                       ref.at("count").get<size_t>()));
+  return Status::success();
+}
+
+// A unit's own list of the files its window meets, checked against its fingerprint: the plan's
+// fingerprint, its roots and window and those files' fingerprints give the unit's (a list of
+// another plan, damaged or short, gives another).
+Status read_unit_inputs(const std::string& work_dir, const std::string& plan_fingerprint, const UnitPlan& unit,
+                        std::vector<InputFile>& files) {
+  const std::string path = unit_inputs_file(work_dir, unit);
+  std::string text;
+  if (!read_text(path, text))
+    return Status::failure(Error::io_open, fmt::format("{}: unit {}'s list of input files is missing ({}); run "
+                                                       "`terrain-cook plan` again", path, unit.index, std::strerror(errno)));
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-unit-inputs")
+    return Status::failure(Error::no_data, fmt::format("{}: not a terrain-cook list of a unit's inputs", path));
+  try {
+    files = files_of(j.at("files"));
+  } catch (const std::exception& e) {
+    return Status::failure(Error::no_data, fmt::format("{}: malformed ({})", path, e.what()));
+  }
+  bool all_meet = true;
+  for (const InputFile& f : files) all_meet = all_meet && meets(f.footprint, unit.window);
+  if (!all_meet || unit_fingerprint(plan_fingerprint, unit, files) != unit.fingerprint)
+    return Status::failure(Error::no_data, fmt::format("{}: its files do not give unit {}'s fingerprint (damaged or "
+                                                       "of another plan); run `terrain-cook plan` again",
+                                                       path, unit.index));
+  return Status::success();
+}
+
+}  // namespace
+
+Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint32_t> unit) {
   const std::string path = plan_file(work_dir);
   std::ifstream f(path);
   if (!f) return Status::failure(Error::io_open, fmt::format("{}: no plan (run `terrain-cook plan ... --work-dir {}` first)", path, work_dir));
   const json j = json::parse(f, nullptr, false);
   if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-plan")
     return Status::failure(Error::invalid_argument, fmt::format("{}: not a terrain-cook plan", path));
-  if (j.value("version", 0) != 1)
-    return Status::failure(Error::unsupported_version, fmt::format("{}: plan version {} (this tool reads 1)", path, j.value("version", 0)));
+  if (j.value("version", 0) != 2)
+    return Status::failure(Error::unsupported_version, fmt::format("{}: plan version {} (this tool reads 2); run "
+                                                                   "`terrain-cook plan` again", path, j.value("version", 0)));
   try {
     out = PlanData{};
     out.options = options_of(j.at("options"));
     out.plan.fingerprint = j.at("fingerprint");
-    for (const json& fj : j.at("files")) {
-      InputFile fi;
-      fi.path = fj.at("path");
-      fi.size = fj.at("size");
-      fi.mtime_ns = fj.at("mtime_ns");
-      fi.fingerprint = fj.at("fingerprint");
-      fi.footprint = rect_of(fj.at("footprint"));
-      out.plan.files.push_back(fi);
-    }
     out.source_width = j.at("source").at("width");
     out.source_height = j.at("source").at("height");
     out.frame = frame_of(j.at("frame"));
@@ -703,6 +825,14 @@ Status read_plan(const std::string& work_dir, PlanData& out) {
         return Status::failure(Error::invalid_argument, fmt::format("{}: units out of order at {}", path, up.index));
       out.plan.units.push_back(up);
     }
+    if (unit && *unit >= out.plan.units.size())
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("unit {}: the plan in {} has {} units (0..{})", *unit, work_dir,
+                                         out.plan.units.size(), out.plan.units.size() - 1));
+    // The input files: a unit's own (what it checks and reads), else all of them.
+    const Status st = unit ? read_unit_inputs(work_dir, out.plan.fingerprint, out.plan.units[*unit], out.plan.files)
+                           : read_all_inputs(work_dir, j.at("inputs"), out.plan.files);
+    if (!st.ok()) return st;
   } catch (const std::exception& e) {
     return Status::failure(Error::invalid_argument, fmt::format("{}: malformed plan ({})", path, e.what()));
   }

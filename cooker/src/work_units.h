@@ -1,8 +1,9 @@
 // Work units (issue 14): the plan file, the unit files and their merge.
 //
-// A work dir W holds W/plan.json (every global decision of the cook, the input fingerprints and the
-// list of units: root-aligned blocks of roots, pyramid.h) and W/units/unit-<i>.tcu, one file per
-// unit written atomically (temp file + rename). format/SPEC.md section "Work units" specifies the
+// A work dir W holds W/plan.json (every global decision of the cook and the list of units:
+// root-aligned blocks of roots, pyramid.h), W/inputs-<fingerprint>.json (every input file with its
+// fingerprint), per unit its list of the input files it reads and W/units/unit-<i>.tcu, one file
+// per unit written atomically (temp file + rename). format/SPEC.md section "Work units" specifies the
 // unit file so another tool could merge them.
 //
 // Fingerprints are 64-bit FNV-1a hashes, written as 16 hex digits: of a file, its path, size and
@@ -25,6 +26,8 @@ namespace terrain::cook {
 
 std::string plan_file(const std::string& work_dir);
 std::string units_dir(const std::string& work_dir);  // <work_dir>/units: the unit files
+// <work_dir>/inputs-<fingerprint>.json: every input file of the plan (plan.json names it).
+std::string inputs_file(const std::string& work_dir, const std::string& fingerprint);
 std::string unit_file(const std::string& work_dir, uint32_t index);
 
 struct UnitPlan {
@@ -64,7 +67,9 @@ struct PlanData {
   CookReport report;  // the plan's part: inputs, voids, frame, grid, finest level, warnings
   std::vector<std::pair<std::string, std::string>> descriptions;
 };
-Status read_plan(const std::string& work_dir, PlanData& out);
+// With `unit`, the input files are that unit's only (its own list, unit_inputs_file): what it
+// reads does not grow with the number of tiles of the whole input.
+Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint32_t> unit = std::nullopt);
 // True when a plan made with `planned` is the plan `given` would make from the same inputs (every
 // option that changes a byte; threads, the memory limit and the output path do not).
 bool same_plan_options(const CookOptions& planned, const CookOptions& given);
@@ -77,8 +82,12 @@ Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit = st
 // never one of another plan or window. A unit without one (an earlier version's plan, or not
 // written) reads the input itself; the bytes are the same.
 std::string unit_vrt_file(const std::string& work_dir, const UnitPlan& unit);
-// For `plan`: writes the units' cuts and removes those of earlier plans.
-Status write_unit_vrts(const CookSession& s, const PlanFile& plan, const std::string& work_dir);
+// A unit's list of the input files its window meets (those its fingerprint holds), named by its
+// fingerprint: what `unit` reads of the inputs instead of the plan's whole list.
+std::string unit_inputs_file(const std::string& work_dir, const UnitPlan& unit);
+// For `plan`: writes every unit's list and cut and removes the cuts of earlier plans (write_plan
+// removes their lists once the new plan is in place).
+Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::string& work_dir);
 // For `unit`: opens the inputs of the plan into a session and restores the plan's decisions (frame,
 // grid, steps, voids). The caller has checked the files it reads with check_plan_inputs; the
 // inputs' own per-file existence checks (a VRT's tiles) are not repeated.

@@ -162,7 +162,8 @@ PY
     read -r away near < <(python3 - w/plan.json <<'PY'
 import json, sys
 p = json.load(open(sys.argv[1]))
-tile = [f for f in p["files"] if f["path"].endswith("t12.tif")][0]["footprint"]
+files = json.load(open(f"w/inputs-{p['inputs']['fingerprint']}.json"))["files"]
+tile = [f for f in files if f["path"].endswith("t12.tif")][0]["footprint"]
 meets = lambda a, b: a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3] and a[0] <= a[2] and b[0] <= b[2]
 print([u["index"] for u in p["units"] if not meets(u["window"], tile)][0],
       [u["index"] for u in p["units"] if meets(u["window"], tile)][0])
@@ -182,7 +183,8 @@ PY
     expected=$(python3 - w/plan.json <<'PY'
 import json, sys
 p = json.load(open(sys.argv[1]))
-tile = [f for f in p["files"] if f["path"].endswith("t12.tif")][0]["footprint"]
+files = json.load(open(f"w/inputs-{p['inputs']['fingerprint']}.json"))["files"]
+tile = [f for f in files if f["path"].endswith("t12.tif")][0]["footprint"]
 meets = lambda a, b: a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3] and a[0] <= a[2] and b[0] <= b[2]
 print(sum(1 for u in p["units"] if meets(u["window"], tile)))
 PY
@@ -257,6 +259,33 @@ PY
     rm w/units/unit-2.tcu
     expect_merge "unit 2 .*missing"
     "$cook" unit w 2 -q || fail "redo unit 2"
+    # A unit reads its own list of input files, not the plan's list of all of them: it cooks without
+    # that; the merge, which checks every input, refuses without it or with it damaged.
+    all=$(ls w/inputs-*.json) && [ "$(echo "$all" | wc -l)" = 1 ] || fail "expected one inputs file: $all"
+    mv "$all" all.json
+    rm w/units/unit-2.tcu
+    "$cook" unit w 2 -q || fail "unit 2 without the plan's list of all inputs"
+    expect_merge "inputs-.*json: the plan's list of input files is missing"
+    head -c 100 all.json > "$all"
+    expect_merge "inputs-.*json: damaged"
+    mv all.json "$all"
+    # A unit's list missing, or of another unit (its files then do not give the unit's fingerprint):
+    # named, exit 1.
+    list0=$(ls w/units/unit-0-*.inputs.json) && list1=$(ls w/units/unit-1-*.inputs.json) || fail "no unit lists"
+    mv "$list0" keep_list0
+    "$cook" unit w 0 2> err.txt && fail "unit 0 ran without its list of inputs"
+    grep -q "unit 0's list of input files is missing" err.txt || fail "unit 0 without its list: $(cat err.txt)"
+    echo "unit without its list: $(cat err.txt)"
+    python3 - "$list1" "$list0" <<'PY' || fail "a list of another unit"
+import json, sys
+j = json.load(open(sys.argv[1]))
+j["files"][0]["footprint"] = [0, 0, 0, 0]  # meets unit 1's window, not unit 0's
+open(sys.argv[2], "w").write(json.dumps(j))
+PY
+    "$cook" unit w 0 2> err.txt && fail "unit 0 ran with a list of another unit"
+    grep -q "do not give unit 0's fingerprint" err.txt || fail "unit 0 with another unit's list: $(cat err.txt)"
+    echo "unit with another unit's list: $(cat err.txt)"
+    mv keep_list0 "$list0"
     touch in.npz
     expect_merge "in.npz: changed since the plan"
     "$cook" unit w 2 -q 2> err.txt && fail "unit of a changed input ran"
