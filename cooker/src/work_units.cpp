@@ -686,6 +686,20 @@ bool read_text(const std::string& path, std::string& text) {
   return !f.bad();
 }
 
+// The `files` of a list of input files whose "format" is `format`.
+Status parse_file_list(const std::string& path, const std::string& text, const char* format,
+                       std::vector<InputFile>& files) {
+  const json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", "") != format)
+    return Status::failure(Error::no_data, fmt::format("{}: not a {} file", path, format));
+  try {
+    files = files_of(j.at("files"));
+  } catch (const std::exception& e) {
+    return Status::failure(Error::no_data, fmt::format("{}: malformed ({})", path, e.what()));
+  }
+  return Status::success();
+}
+
 // The plan's inputs file: every input file, checked against the fingerprint plan.json gives it.
 Status read_all_inputs(const std::string& work_dir, const json& ref, std::vector<InputFile>& files) {
   const std::string fingerprint = ref.at("fingerprint");
@@ -700,14 +714,7 @@ Status read_all_inputs(const std::string& work_dir, const json& ref, std::vector
   if (hex64(fnv1a(text)) != fingerprint)
     return Status::failure(Error::no_data, fmt::format("{}: damaged (its fingerprint is not the plan's); run "
                                                        "`terrain-cook plan` again", path));
-  const json j = json::parse(text, nullptr, false);
-  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-inputs")
-    return Status::failure(Error::no_data, fmt::format("{}: not a terrain-cook list of inputs", path));
-  try {
-    files = files_of(j.at("files"));
-  } catch (const std::exception& e) {
-    return Status::failure(Error::no_data, fmt::format("{}: malformed ({})", path, e.what()));
-  }
+  if (Status st = parse_file_list(path, text, "terrain-cook-inputs", files); !st.ok()) return st;
   if (files.size() != ref.at("count").get<size_t>())
     return Status::failure(Error::no_data, fmt::format("{}: {} files, the plan says {}", path, files.size(),
                                                        ref.at("count").get<size_t>()));
@@ -724,14 +731,7 @@ Status read_unit_inputs(const std::string& work_dir, const std::string& plan_fin
   if (!read_text(path, text))
     return Status::failure(Error::io_open, fmt::format("{}: unit {}'s list of input files is missing ({}); run "
                                                        "`terrain-cook plan` again", path, unit.index, std::strerror(errno)));
-  const json j = json::parse(text, nullptr, false);
-  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-unit-inputs")
-    return Status::failure(Error::no_data, fmt::format("{}: not a terrain-cook list of a unit's inputs", path));
-  try {
-    files = files_of(j.at("files"));
-  } catch (const std::exception& e) {
-    return Status::failure(Error::no_data, fmt::format("{}: malformed ({})", path, e.what()));
-  }
+  if (Status st = parse_file_list(path, text, "terrain-cook-unit-inputs", files); !st.ok()) return st;
   bool all_meet = true;
   for (const InputFile& f : files) all_meet = all_meet && meets(f.footprint, unit.window);
   if (!all_meet || unit_fingerprint(plan_fingerprint, unit, files) != unit.fingerprint)
