@@ -285,6 +285,15 @@ PY
     "$cook" unit w 0 2> err.txt && fail "unit 0 ran with a list of another unit"
     grep -q "do not give unit 0's fingerprint" err.txt || fail "unit 0 with another unit's list: $(cat err.txt)"
     echo "unit with another unit's list: $(cat err.txt)"
+    python3 - keep_list0 "$list0" <<'PY' || fail "a malformed list"
+import json, sys
+j = json.load(open(sys.argv[1]))
+j["files"][0]["size"] = "large"
+open(sys.argv[2], "w").write(json.dumps(j))
+PY
+    "$cook" unit w 0 2> err.txt && fail "unit 0 ran with a malformed list"
+    grep -q "inputs.json: malformed" err.txt || fail "unit 0 with a malformed list: $(cat err.txt)"
+    echo "unit with a malformed list: $(cat err.txt)"
     mv keep_list0 "$list0"
     touch in.npz
     expect_merge "in.npz: changed since the plan"
