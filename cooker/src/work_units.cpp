@@ -14,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <ranges>
 #include <set>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -44,23 +45,27 @@ SampleRect rect_of(const json& j) { return {j.at(0).get<int>(), j.at(1).get<int>
 bool meets(const SampleRect& a, const SampleRect& b) { return !a.empty() && !b.empty() && !intersect(a, b).empty(); }
 
 // A unit's fingerprint: the plan's, its roots, its window and the fingerprints of the files whose
-// footprint meets the window, in the plan's order (format/SPEC.md section 18).
-std::string unit_fingerprint(const std::string& plan_fingerprint, const UnitPlan& u, const std::vector<InputFile>& files) {
+// footprint meets the window (`files`: those, in the plan's order; format/SPEC.md section 18).
+template <typename Files>
+std::string unit_fingerprint(const std::string& plan_fingerprint, const UnitPlan& u, const Files& files) {
   std::string text = fmt::format("{}|{},{},{},{}|{},{},{},{}", plan_fingerprint, u.roots.x0, u.roots.y0, u.roots.x1,
                                  u.roots.y1, u.window.c0, u.window.r0, u.window.c1, u.window.r1);
-  for (const InputFile& f : files)
-    if (meets(f.footprint, u.window)) text += "|" + f.fingerprint;
+  for (const InputFile& f : files) text += "|" + f.fingerprint;
   return hex64(fnv1a(text));
 }
 
-// The input files (those meeting `window` when given) as the plan's JSON lists them.
-json files_json(const std::vector<InputFile>& files, const SampleRect* window) {
+// Input files as the lists give them.
+template <typename Files>
+json files_json(const Files& files) {
   json a = json::array();
   for (const InputFile& f : files)
-    if (!window || meets(f.footprint, *window))
-      a.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
-                   {"footprint", rect_json(f.footprint)}});
+    a.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
+                 {"footprint", rect_json(f.footprint)}});
   return a;
+}
+// The plan's files a unit reads (plan.unit_files[u]), as a range of InputFile.
+auto unit_files(const PlanFile& plan, uint32_t u) {
+  return plan.unit_files[u] | std::views::transform([&plan](uint32_t i) -> const InputFile& { return plan.files[i]; });
 }
 // One entry of a list of input files; throws on a malformed one (the caller names the file).
 InputFile file_of(const json& fj) {
@@ -552,7 +557,7 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
   // Each unit's own list of the files it reads (all of them are in the plan's inputs file).
   for (const UnitPlan& u : plan.units) {
     const json list = {{"format", "terrain-cook-unit-inputs"}, {"unit", u.index}, {"fingerprint", u.fingerprint},
-                       {"files", files_json(plan.files, &u.window)}};
+                       {"files", files_json(unit_files(plan, u.index))}};
     if (Status st = write_text_file(unit_inputs_file(work_dir, u), list.dump(1) + "\n", /*durable=*/false); !st.ok())
       return st;
   }
@@ -600,7 +605,11 @@ Status plan_units(CookSession& s, PlanFile& plan) {
     u.roots = s.units.block(i);
     const SampleRect need = block_cook_rect(s.ctx, u.roots);
     u.window = need.empty() ? SampleRect{} : fill_read_rect(s.voids, need);
-    u.fingerprint = unit_fingerprint(plan.fingerprint, u, plan.files);
+    // The files the unit reads, found once: its fingerprint and its list both follow them.
+    std::vector<uint32_t>& meeting = plan.unit_files.emplace_back();
+    for (uint32_t k = 0; k < plan.files.size(); ++k)
+      if (meets(plan.files[k].footprint, u.window)) meeting.push_back(k);
+    u.fingerprint = unit_fingerprint(plan.fingerprint, u, unit_files(plan, i));
     plan.units.push_back(u);
   }
   return Status::success();
@@ -615,7 +624,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   // Every input file in a file of its own, named by its contents' fingerprint: only `plan` and the
   // merge read it (a unit reads its own list), so plan.json stays small however many tiles there are.
   const std::string work_dir = std::filesystem::path(path).parent_path().string();
-  const json all = {{"format", "terrain-cook-inputs"}, {"files", files_json(plan.files, nullptr)}};
+  const json all = {{"format", "terrain-cook-inputs"}, {"files", files_json(plan.files)}};
   const std::string inputs_text = all.dump(1) + "\n";
   const std::string inputs_fingerprint = hex64(fnv1a(inputs_text));
   const std::string inputs_path = inputs_file(work_dir, inputs_fingerprint);

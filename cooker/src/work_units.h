@@ -2,9 +2,10 @@
 //
 // A work dir W holds W/plan.json (every global decision of the cook and the list of units:
 // root-aligned blocks of roots, pyramid.h), W/inputs-<fingerprint>.json (every input file with its
-// fingerprint), per unit its list of the input files it reads and W/units/unit-<i>.tcu, one file
-// per unit written atomically (temp file + rename). format/SPEC.md section "Work units" specifies the
-// unit file so another tool could merge them.
+// fingerprint), per unit W/units/unit-<i>-<unit fingerprint>.inputs.json (the input files it reads)
+// and W/units/unit-<i>.tcu, one file per unit written atomically (temp file + rename).
+// format/SPEC.md section 18 (Work units, with its "Input lists") specifies them so another tool
+// could merge them.
 //
 // Fingerprints are 64-bit FNV-1a hashes, written as 16 hex digits: of a file, its path, size and
 // modification time (a changed tile has a new mtime; contents are never hashed: national inputs are
@@ -48,6 +49,8 @@ struct PlanFile {
   std::string fingerprint;  // of the global decisions (not of the unit list)
   std::vector<InputFile> files;
   std::vector<UnitPlan> units;
+  // Per unit, the indices in `files` of those its window meets (made by plan_units; not read back).
+  std::vector<std::vector<uint32_t>> unit_files;
 };
 
 // The plan of a session whose steps are decided: input files and units with their fingerprints.
