@@ -3,6 +3,7 @@
 // terrain-RGB) written at test time with known heights.
 #include <gtest/gtest.h>
 
+#include <cpl_minixml.h>
 #include <gdal_priv.h>
 
 #include <cmath>
@@ -15,6 +16,7 @@
 #include "inputs.h"
 #include "source_raster.h"
 #include "test_data.h"
+#include "vrt_xml.h"
 #include "web_tiles.h"
 
 using namespace terrain;
@@ -340,4 +342,57 @@ TEST(GdalInputs, BrokenVrtsAreNamedErrors) {
   const std::string text = (dir / "notes.dat").string();
   std::ofstream(text) << "hello\n";
   expect_refusal(cook::load_inputs(options_for({text}), rasters), Error::unsupported_input, {"unknown input format"});
+}
+
+// vrt_xml.h's reading of relativeToVRT against GDAL's VRT driver, spelling by spelling: a tile of
+// the same name lies beside the VRT and in the working directory, so the file GDAL lists (its
+// GetFileList names a source only where it exists) shows which way GDAL resolved the name.
+TEST(VrtXml, SourceFilesResolveAsGdalResolvesThem) {
+  const fs::path dir = fs::absolute(scratch_dir("vrt_relative"));
+  fs::create_directories(dir / "sub");
+  const SyntheticDem dem = small_dem(false, false);
+  std::string err;
+  ASSERT_TRUE(write_geotiff((dir / "t.tif").string(), dem, false, err)) << err;
+  ASSERT_TRUE(write_geotiff((dir / "sub" / "t.tif").string(), dem, false, err)) << err;
+  struct InDir {  // back to the test's working directory however the test ends
+    fs::path before = fs::current_path();
+    explicit InDir(const fs::path& d) { fs::current_path(d); }
+    ~InDir() { fs::current_path(before); }
+  } in_dir(dir);
+  GDALAllRegister();
+  int relative = 0, not_relative = 0;
+  for (const char* attr : {"1", "0", "TRUE", "true", "yes", "2", "-1", "01", " 1", "1x", ""}) {
+    SCOPED_TRACE(fmt::format("relativeToVRT=\"{}\"", attr));
+    const std::string vrt = "sub/m.vrt";
+    std::ofstream(vrt, std::ios::trunc) << fmt::format(
+        "<VRTDataset rasterXSize=\"{0}\" rasterYSize=\"{1}\">\n <VRTRasterBand dataType=\"Float32\" band=\"1\">\n"
+        "  <SimpleSource>\n   <SourceFilename relativeToVRT=\"{2}\">t.tif</SourceFilename>\n"
+        "   <SourceBand>1</SourceBand>\n   <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{0}\" ySize=\"{1}\"/>\n"
+        "   <DstRect xOff=\"0\" yOff=\"0\" xSize=\"{0}\" ySize=\"{1}\"/>\n  </SimpleSource>\n"
+        " </VRTRasterBand>\n</VRTDataset>\n",
+        dem.width, dem.height, attr);
+    std::string gdal_file;
+    {
+      std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrt.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+      ASSERT_TRUE(ds);
+      char** files = ds->GetFileList();
+      for (int i = 0; files && files[i]; ++i)
+        if (fs::path(files[i]).filename() == "t.tif") gdal_file = files[i];
+      CSLDestroy(files);
+    }
+    ASSERT_FALSE(gdal_file.empty()) << "GDAL lists no source";
+    CPLXMLNode* root = CPLParseXMLFile(vrt.c_str());
+    ASSERT_TRUE(root);
+    const CPLXMLNode* name = CPLGetXMLNode(root, "VRTRasterBand.SimpleSource.SourceFilename");
+    ASSERT_TRUE(name);
+    const std::string ours = cook::vrt_source_file(name, cook::vrt_folder(vrt));
+    const bool ours_relative = cook::vrt_name_is_relative(name);
+    CPLDestroyXMLNode(root);
+    EXPECT_EQ(fs::weakly_canonical(ours), fs::weakly_canonical(gdal_file)) << "ours " << ours << ", GDAL's " << gdal_file;
+    EXPECT_EQ(ours_relative, fs::weakly_canonical(gdal_file) == fs::weakly_canonical(dir / "sub" / "t.tif"));
+    (ours_relative ? relative : not_relative) += 1;
+  }
+  // Both readings occur among the spellings (else the test could not tell them apart).
+  EXPECT_GE(relative, 3);
+  EXPECT_GE(not_relative, 3);
 }
