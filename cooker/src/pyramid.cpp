@@ -165,6 +165,11 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
         report.cpu_error += r.cpu_error;
         report.cpu_surface += r.cpu_surface;
         report.cpu_encode += r.cpu_encode;
+        ls.cpu_heights += r.cpu_heights;
+        ls.cpu_error += r.cpu_error;
+        ls.cpu_surface += r.cpu_surface;
+        ls.cpu_encode += r.cpu_encode;
+        for (size_t k = 0; k < kCpuParts; ++k) ls.cpu_parts[k] += r.surface.seconds_parts[k];
         add_surface_stats(report.surface, r.surface);
         if (Status st = sink(r); !st.ok()) return st;
         r.payload = {};

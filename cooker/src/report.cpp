@@ -14,7 +14,21 @@ constexpr const char* kSectionNames[5] = {"heights", "normals", "albedo", "splat
 static_assert(std::tuple_size_v<decltype(SurfaceTotals::cpu_parts)> == kCpuParts, "cook.h lists every CpuPart");
 
 // CPU milliseconds per cooked node of one stage or part.
-double ms_per_node(const CookReport& r, double seconds) { return r.nodes ? 1e3 * seconds / double(r.nodes) : 0.0; }
+double ms_per_node(uint64_t nodes, double seconds) { return nodes ? 1e3 * seconds / double(nodes) : 0.0; }
+double ms_per_node(const CookReport& r, double seconds) { return ms_per_node(r.nodes, seconds); }
+
+// Every stage and part in CPU ms per node, over `nodes` nodes (the cook's, or one level's).
+nlohmann::ordered_json cpu_per_node_json(uint64_t nodes, double heights, double error, double surface, double encode,
+                                         const std::array<double, kCpuParts>& parts) {
+  nlohmann::ordered_json j;
+  j["heights"] = ms_per_node(nodes, heights);
+  j["error"] = ms_per_node(nodes, error);
+  j["surface"] = ms_per_node(nodes, surface);
+  j["encode"] = ms_per_node(nodes, encode);
+  j["total"] = ms_per_node(nodes, heights + error + surface + encode);
+  for (size_t k = 0; k < kCpuParts; ++k) j[cpu_part_name(CpuPart(k))] = ms_per_node(nodes, parts[k]);
+  return j;
+}
 
 }  // namespace
 
@@ -84,6 +98,8 @@ std::string report_json(const CookReport& r) {
                       {"error_rms_m", s.error_rms_m},
                       {"uncovered_samples", s.uncovered_samples}});
     levels.back().update(level_bytes_json(r, l));
+    levels.back()["cpu_ms_per_node"] =
+        cpu_per_node_json(s.nodes, s.cpu_heights, s.cpu_error, s.cpu_surface, s.cpu_encode, s.cpu_parts);
   }
   j["levels"] = levels;
   j["full_detail_error"] = {{"samples", r.leaf_error_samples},
@@ -116,16 +132,11 @@ std::string report_json(const CookReport& r) {
   j["overview_levels"]["bytes_by_level"] = overview_bytes;
   // The per-layer / per-encoder / per-section split of cpu_surface and cpu_encode, and every stage
   // and part in CPU ms per node (the unit of the cook-throughput budget).
-  nlohmann::ordered_json parts, per_node;
+  nlohmann::ordered_json parts;
   for (size_t k = 0; k < kCpuParts; ++k) parts[cpu_part_name(CpuPart(k))] = r.surface.cpu_parts[k];
   j["time_s"]["cpu_parts"] = parts;
-  per_node["heights"] = ms_per_node(r, r.cpu_heights);
-  per_node["error"] = ms_per_node(r, r.cpu_error);
-  per_node["surface"] = ms_per_node(r, r.cpu_surface);
-  per_node["encode"] = ms_per_node(r, r.cpu_encode);
-  per_node["total"] = ms_per_node(r, r.cpu_heights + r.cpu_error + r.cpu_surface + r.cpu_encode);
-  for (size_t k = 0; k < kCpuParts; ++k) per_node[cpu_part_name(CpuPart(k))] = ms_per_node(r, r.surface.cpu_parts[k]);
-  j["time_s"]["cpu_ms_per_node"] = per_node;
+  j["time_s"]["cpu_ms_per_node"] =
+      cpu_per_node_json(r.nodes, r.cpu_heights, r.cpu_error, r.cpu_surface, r.cpu_encode, r.surface.cpu_parts);
   j["speed"] = {{"threads", r.threads},
                 {"source_samples_per_s", r.source_samples_per_second},
                 {"output_vertices", r.output_vertices},
@@ -223,6 +234,20 @@ std::string report_summary(const CookReport& r) {
     for (size_t k = 0; k < kCpuParts; ++k)
       s += fmt::format(" {} {:.3f}", cpu_part_name(CpuPart(k)), ms_per_node(r, r.surface.cpu_parts[k]));
     s += "\n";
+    // Level by level: the four stages, then the parts that take a tenth of the level's time or more.
+    for (int l = kLevelCount - 1; l >= 0; --l) {
+      const LevelStats& v = r.levels[size_t(l)];
+      if (!v.nodes) continue;
+      const double total = v.cpu_heights + v.cpu_error + v.cpu_surface + v.cpu_encode;
+      s += fmt::format("  L{} {} nodes: {:.3f} ms/node (heights {:.3f}, error {:.3f}, surface {:.3f}, encode {:.3f})", l,
+                       v.nodes, ms_per_node(v.nodes, total), ms_per_node(v.nodes, v.cpu_heights),
+                       ms_per_node(v.nodes, v.cpu_error), ms_per_node(v.nodes, v.cpu_surface),
+                       ms_per_node(v.nodes, v.cpu_encode));
+      for (size_t k = 0; k < kCpuParts; ++k)
+        if (v.cpu_parts[k] >= 0.1 * total && total > 0)
+          s += fmt::format(" {} {:.3f}", cpu_part_name(CpuPart(k)), ms_per_node(v.nodes, v.cpu_parts[k]));
+      s += "\n";
+    }
   }
   s += fmt::format("{} nodes, {} source samples -> {} bytes ({:.2f} bytes/sample), {:.2f} s, {:.2f} M source samples/s, "
                    "{:.1f} M height samples per cpu-second, peak memory {} MB\n",

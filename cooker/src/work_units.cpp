@@ -307,10 +307,13 @@ ErrorStats error_of(const json& j) {
 
 json stats_json(const UnitStats& u) {
   const CookReport& r = u.part;
-  json levels = json::array(), errors = json::array();
+  json levels = json::array(), errors = json::array(), level_cpu = json::array();
   for (int l = 0; l < kLevelCount; ++l) {
-    levels.push_back({r.levels[size_t(l)].nodes, r.levels[size_t(l)].vertices});
+    const LevelStats& ls = r.levels[size_t(l)];
+    levels.push_back({ls.nodes, ls.vertices});
     errors.push_back(error_json(u.totals.level_error[size_t(l)]));
+    level_cpu.push_back({{"stages", {ls.cpu_heights, ls.cpu_error, ls.cpu_surface, ls.cpu_encode}},
+                         {"parts", ls.cpu_parts}});
   }
   const SurfaceTotals& t = r.surface;
   return {{"levels", levels},
@@ -322,6 +325,7 @@ json stats_json(const UnitStats& u) {
             t.normal_samples, t.albedo_sq_err_sum, t.albedo_samples, t.albedo_hole_texels, t.albedo_alpha_mismatches,
             t.cone_exact_deg_sum, t.cone_encoded_deg_sum, t.cone_patches, t.cone_patches_never_cull}},
           {"cpu_parts", t.cpu_parts},  // absent in units of older tools: read as zeros
+          {"level_cpu", level_cpu},    // ditto
           {"surface_nodes", {t.nodes, t.checked_nodes}},  // ditto
           {"void_fill_residual_m", r.void_fill_residual_m},
           {"window_samples", r.block_window_samples_max},
@@ -334,6 +338,17 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
     r.levels[size_t(l)].nodes += j.at("levels").at(l).at(0).get<uint32_t>();
     r.levels[size_t(l)].vertices += j.at("levels").at(l).at(1).get<uint64_t>();
     totals.level_error[size_t(l)].add(error_of(j.at("level_error").at(l)));
+    if (j.contains("level_cpu")) {
+      LevelStats& ls = r.levels[size_t(l)];
+      const json& c = j.at("level_cpu").at(l);
+      const auto stages = c.at("stages").get<std::vector<double>>();
+      ls.cpu_heights += stages.at(0);
+      ls.cpu_error += stages.at(1);
+      ls.cpu_surface += stages.at(2);
+      ls.cpu_encode += stages.at(3);
+      const auto parts = c.at("parts").get<std::vector<double>>();
+      for (size_t k = 0; k < std::min(parts.size(), ls.cpu_parts.size()); ++k) ls.cpu_parts[k] += parts[k];
+    }
   }
   totals.leaf.add(error_of(j.at("leaf")));
   const json& c = j.at("cpu");

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <fstream>
 #include <sstream>
+#include <string_view>
 
 #include "cooker_test_util.h"
 #include "inputs.h"
@@ -452,6 +453,24 @@ TEST_P(RealData, ReportStatesTheSurfaceStatistics) {
   }
   EXPECT_NEAR(zstd, report["time_s"]["cpu_encode"].get<double>(), 1e-6);
   EXPECT_NEAR(report["time_s"]["cpu_ms_per_node"]["zstd_heights"].get<double>(), 1e3 * part("zstd_heights") / nodes, 1e-9);
+  // Level by level: every level with nodes has its own figures, and the levels' CPU (ms per node
+  // times the level's nodes) adds up to the cook's for every stage and part.
+  for (const char* name : {"heights", "error", "surface", "encode", "total", "normals_bc3", "albedo_bc1", "splat_rules",
+                           "zstd_heights", "zstd_normals"}) {
+    double sum_ms = 0;
+    for (const auto& level : report["levels"]) {
+      const double n = level["nodes"].get<double>();
+      const double ms = level["cpu_ms_per_node"][name].get<double>();
+      if (n == 0) {
+        EXPECT_EQ(ms, 0.0) << name;
+      } else if (std::string_view(name) == "total") {
+        EXPECT_GT(ms, 0.0) << "level " << level["level"];
+      }
+      sum_ms += ms * n;
+    }
+    const double whole_ms = report["time_s"]["cpu_ms_per_node"][name].get<double>() * nodes;
+    EXPECT_NEAR(sum_ms, whole_ms, 1e-6 * whole_ms + 1e-6) << name;
+  }
 }
 
 // Every shared edge and parent/child vertex of the archive: bit-identical float heights and

@@ -45,7 +45,11 @@ ref, merged = (json.load(open(p))["time_s"]["cpu_parts"] for p in sys.argv[1:3])
 timed = [k for k, v in ref.items() if v > 0]
 missing = [k for k in timed if merged.get(k, 0) <= 0]
 print(f"cpu_parts timed by the one-process cook: {len(timed)}; zero after the merge: {missing}")
-sys.exit(1 if not timed or missing else 0)
+# Level by level too: every level with nodes carries its CPU per node through the unit files.
+levels = [l for l in json.load(open(sys.argv[2]))["levels"] if l["nodes"] > 0]
+untimed = [l["level"] for l in levels if l["cpu_ms_per_node"]["total"] <= 0]
+print(f"levels with nodes after the merge: {len(levels)}; without CPU per node: {untimed}")
+sys.exit(1 if not timed or missing or not levels or untimed else 0)
 PY
     # A unit larger than the memory blocks its machine can hold is cooked block by block: units of 7
     # roots as blocks of 2 (16 per unit) give the same bytes.

@@ -134,6 +134,10 @@ struct LevelStats {
   double error_max_m = 0;            // max |node surface - source| over those samples
   double error_rms_m = 0;
   uint64_t uncovered_samples = 0;    // valid source samples under a dropped (hole) triangle
+  // CPU seconds of the level's nodes, summed over threads: the four stages and the parts of
+  // SurfaceTotals::cpu_parts (where a node's time goes, level by level; report "cpu_ms_per_node").
+  double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
+  std::array<double, 15> cpu_parts{};
 };
 
 // The surface layers' statistics over every node (cooker/src/surface measures them per node; the
