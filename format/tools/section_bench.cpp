@@ -102,6 +102,8 @@ int sections_main(const std::vector<std::string>& archives, size_t max_nodes, in
   const char* names[4] = {"normals", "albedo", "splat", "cones"};
   const std::vector<Config> configs = {{"zstd 1", 1, 0},
                                        {"zstd 3", 3, 0},
+                                       {"zstd 4", 4, 0},
+                                       {"zstd 5", 5, 0},
                                        {"zstd 6 (cooker)", 6, 0},
                                        {"zstd 9", 9, 0},
                                        {"zstd 19", 19, 0},
