@@ -14,7 +14,6 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <ranges>
 #include <set>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -63,10 +62,25 @@ json files_json(const Files& files) {
                  {"footprint", rect_json(f.footprint)}});
   return a;
 }
-// The plan's files a unit reads (plan.unit_files[u]), as a range of InputFile.
-auto unit_files(const PlanFile& plan, uint32_t u) {
-  return plan.unit_files[u] | std::views::transform([&plan](uint32_t i) -> const InputFile& { return plan.files[i]; });
-}
+// The plan's files a unit reads (plan.unit_files[u]), iterated as InputFile. (A plain iterator:
+// clang with libstdc++ 12, the sanitizer and fuzzer builds, rejects std::views here.)
+struct UnitFiles {
+  struct It {
+    const PlanFile* plan;
+    const uint32_t* at;
+    const InputFile& operator*() const { return plan->files[*at]; }
+    It& operator++() {
+      ++at;
+      return *this;
+    }
+    bool operator!=(const It& o) const { return at != o.at; }
+  };
+  const PlanFile& plan;
+  uint32_t unit;
+  It begin() const { return {&plan, plan.unit_files[unit].data()}; }
+  It end() const { return {&plan, plan.unit_files[unit].data() + plan.unit_files[unit].size()}; }
+};
+UnitFiles unit_files(const PlanFile& plan, uint32_t u) { return {plan, u}; }
 // One entry of a list of input files; throws on a malformed one (the caller names the file).
 InputFile file_of(const json& fj) {
   InputFile fi;
