@@ -232,14 +232,17 @@ std::string compression_name(GDALDataset* ds) {
 
 class GdalSource final : public SourceRaster {
  public:
+  // `reads_from`: where GDAL reads samples when `ds` is a VRT opened without its sources (empty:
+  // from `ds`).
   GdalSource(std::unique_ptr<GDALDataset> ds, GDALRasterBand* band, bool is_float, bool signed_byte,
-             std::unique_ptr<TiffBlockReader> tiff, std::unique_ptr<VrtTileReader> vrt)
+             std::unique_ptr<TiffBlockReader> tiff, std::unique_ptr<VrtTileReader> vrt, std::string reads_from)
       : ds_(std::move(ds)),
         band_(band),
         is_float_(is_float),
         signed_byte_(signed_byte),
         tiff_(std::move(tiff)),
-        vrt_(std::move(vrt)) {}
+        vrt_(std::move(vrt)),
+        reads_from_(std::move(reads_from)) {}
   SourceInfo& info_mut() { return info_; }
 
   // Types of 4 bytes or fewer are decoded in place in `out` (no scratch); wider ones (Float64,
@@ -270,10 +273,12 @@ class GdalSource final : public SourceRaster {
       uint8_t* bytes = reinterpret_cast<uint8_t*>(out);
       const int threads = g_decode_threads.load();
       if (!(tiff_ && tiff_->read_window(x0, y0, w, h, bytes, threads)) &&
-          !(vrt_ && vrt_->read_window(x0, y0, w, h, bytes, threads)) &&
-          band_->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
-        return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
-                                                           y0 + h - 1, reason(x0, y0, w, h)));
+          !(vrt_ && vrt_->read_window(x0, y0, w, h, bytes, threads))) {
+        GDALRasterBand* band = gdal_band();
+        if (!band || band->RasterIO(GF_Read, x0, y0, w, h, out, w, h, type, 4, GSpacing(w) * 4, nullptr) != CE_None)
+          return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0,
+                                                             y0 + h - 1, reason(x0, y0, w, h)));
+      }
       info_.bytes_read += uint64_t(w) * uint64_t(h) * uint64_t(type_bytes());
       const size_t n = size_t(w) * size_t(h);
       if (type == GDT_Float32 && info_.scale == 1.0 && info_.offset == 0.0) {
@@ -294,7 +299,8 @@ class GdalSource final : public SourceRaster {
     for (int r = 0; r < h; r += rows_per) {
       const int rows = std::min(rows_per, h - r);
       QuietErrors quiet;
-      if (band_->RasterIO(GF_Read, x0, y0 + r, w, rows, buf_.data(), w, rows, GDT_Float64, 0, 0, nullptr) != CE_None)
+      GDALRasterBand* band = gdal_band();
+      if (!band || band->RasterIO(GF_Read, x0, y0 + r, w, rows, buf_.data(), w, rows, GDT_Float64, 0, 0, nullptr) != CE_None)
         return Status::failure(Error::io_read, fmt::format("{}: cannot read rows {}..{}: {}", info_.path, y0 + r,
                                                            y0 + r + rows - 1, reason(x0, y0 + r, w, rows)));
       info_.bytes_read += uint64_t(w) * uint64_t(rows) * uint64_t(type_bytes());
@@ -306,11 +312,25 @@ class GdalSource final : public SourceRaster {
   }
 
  private:
+  // The band GDAL reads samples from: the VRT's own, opened with its sources on the first read the
+  // cooker's readers leave to GDAL (a tile they do not decode, or a damaged one).
+  GDALRasterBand* gdal_band() {
+    if (reads_from_.empty()) return band_;
+    std::lock_guard<std::mutex> lock(whole_m_);
+    if (!whole_) {
+      whole_.reset(GDALDataset::Open(reads_from_.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+      if (!whole_ || whole_->GetRasterCount() < 1 || whole_->GetRasterXSize() != info_.width ||
+          whole_->GetRasterYSize() != info_.height)
+        return nullptr;
+    }
+    return whole_->GetRasterBand(1);
+  }
   // The message of the failed read on this thread, else the single-threaded read's.
   std::string reason(int x0, int y0, int w, int h) const {
     const char* m = CPLGetLastErrorMsg();
     if (m && *m) return m;
-    return why_read_failed(ds_->GetDescription(), band_->GetBand(), x0, y0, w, h);
+    if (!reads_from_.empty() && !whole_) return fmt::format("GDAL cannot open {}", reads_from_);
+    return why_read_failed(reads_from_.empty() ? ds_->GetDescription() : reads_from_, 1, x0, y0, w, h);
   }
   int type_bytes() const { return GDALGetDataTypeSizeBytes(band_->GetRasterDataType()); }
   bool in_place() const {
@@ -348,6 +368,9 @@ class GdalSource final : public SourceRaster {
   bool signed_byte_;
   std::unique_ptr<TiffBlockReader> tiff_;  // null: GDAL decodes every block
   std::unique_ptr<VrtTileReader> vrt_;     // a VRT of plain GeoTIFF tiles, read through theirs
+  std::string reads_from_;                 // non-empty: ds_ is that VRT without its sources
+  std::mutex whole_m_;
+  std::unique_ptr<GDALDataset> whole_;     // reads_from_ with its sources, once GDAL must read
   std::vector<double> buf_;
 };
 
@@ -517,10 +540,17 @@ bool vrt_source_placements(const std::string& path, const FilePlacement& vrt, st
 
 std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
   init_gdal_once();
+  // A VRT mosaic of thousands of tiles: placed from its XML, not by opening every tile again, and
+  // its own placement read by GDAL from the VRT without its sources (vrt_xml.h).
+  if (const std::string header = ends_with(path, ".vrt") ? vrt_without_sources(path) : std::string(); !header.empty()) {
+    QuietErrors quiet;
+    std::unique_ptr<GDALDataset> h(GDALDataset::Open(header.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    std::vector<FilePlacement> out{placement_of(path, h.get())};
+    if (h && vrt_source_placements(path, out[0], out)) return out;
+  }
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   std::vector<FilePlacement> out{placement_of(path, ds.get())};
   if (!ds) return out;
-  // A VRT mosaic of thousands of tiles: placed from its XML, not by opening every tile again.
   if (vrt_source_placements(path, out[0], out)) return out;
   char** list = ds->GetFileList();
   for (char** p = list; p && *p; ++p) {
@@ -536,8 +566,23 @@ std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
 Status open_gdal_source(const std::string& path, const ReadOptions& options, std::unique_ptr<SourceRaster>& out) {
   init_gdal_once();
   QuietErrors quiet;
-  std::unique_ptr<GDALDataset> ds(
-      GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+  // A VRT mosaic the cooker composes from its tiles' blocks (vrt_tiles.h) is opened by GDAL without
+  // its sources (vrt_xml.h), for its size, georeferencing and band: GDAL's VRT driver holds an
+  // object per source (285 MB for 62 500 tiles), and reads through them only where the cooker's
+  // reader gives a window up, so the whole VRT is opened then (GdalSource::gdal_band).
+  std::unique_ptr<GDALDataset> ds;
+  std::unique_ptr<VrtTileReader> vrt;
+  std::string vrt_why_not, reads_from;
+  if (const std::string header = ends_with(path, ".vrt") ? vrt_without_sources(path) : std::string(); !header.empty()) {
+    std::unique_ptr<GDALDataset> h(GDALDataset::Open(header.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    if (h && h->GetRasterCount() >= 1 && h->GetDriver() && std::strcmp(h->GetDriver()->GetDescription(), "VRT") == 0)
+      vrt = VrtTileReader::open(path, h->GetRasterXSize(), h->GetRasterYSize(), &vrt_why_not);
+    if (vrt) {
+      ds = std::move(h);
+      reads_from = path;
+    }
+  }
+  if (!ds) ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
   if (!ds) {
     const std::string reason = QuietErrors::last();
     if (!GDALIdentifyDriverEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr))
@@ -551,8 +596,9 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
     return Status::failure(Error::unsupported_input, fmt::format("{}: has no raster band", path));
   const std::string driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
   // A multi-file dataset (e.g. a raster and its .hdr) missing a listed part is named before reading.
-  // (GDAL lists only the VRT sources that exist: a missing tile fails the read, "No such file".)
-  if (char** files = options.files_checked ? nullptr : ds->GetFileList()) {
+  // (GDAL lists only the VRT sources that exist: a missing tile fails the read, "No such file";
+  // a VRT opened without its sources has nothing to list.)
+  if (char** files = options.files_checked || !reads_from.empty() ? nullptr : ds->GetFileList()) {
     for (char** f = files; *f; ++f) {
       VSIStatBufL st;
       if (VSIStatL(*f, &st) != 0) {
@@ -639,16 +685,16 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
     info.decoder = tiff ? "blocks decoded by the cooker" : fmt::format("blocks decoded by GDAL ({})", why_not);
   }
   // A VRT mosaic of such tiles (gdalbuildvrt's): composed here from the tiles' blocks (vrt_tiles.h).
-  std::unique_ptr<VrtTileReader> vrt;
   if (driver == "VRT") {
-    vrt = VrtTileReader::open(path, width, height, &why_not);
+    if (!vrt) vrt = VrtTileReader::open(path, width, height, &vrt_why_not);
     info.decoder = vrt ? fmt::format("{} tile sources composed by the cooker from their blocks (a tile it "
                                      "does not decode is read by GDAL)", vrt->sources())
-                       : fmt::format("read by GDAL's VRT driver ({})", why_not);
+                       : fmt::format("read by GDAL's VRT driver ({})", vrt_why_not);
   }
   // The source owns the dataset from here on (the band pointer stays valid with it).
   auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,
-                                           info.sample_type == "Int8", std::move(tiff), std::move(vrt));
+                                           info.sample_type == "Int8", std::move(tiff), std::move(vrt),
+                                           std::move(reads_from));
   src->info_mut() = std::move(info);
   out = std::move(src);
   return Status::success();

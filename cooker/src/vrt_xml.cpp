@@ -29,6 +29,36 @@ bool is_vrt_source(const CPLXMLNode* child) {
   return child->eType == CXT_Element && std::string_view(child->pszValue).ends_with("Source");
 }
 
+std::string vrt_without_sources(const std::string& path) {
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  CPLXMLNode* root = CPLParseXMLFile(path.c_str());
+  CPLPopErrorHandler();
+  if (!root) return {};
+  std::string text;
+  if (CPLXMLNode* ds = CPLGetXMLNode(root, "=VRTDataset")) {
+    for (CPLXMLNode* band = ds->psChild; band; band = band->psNext) {
+      if (band->eType != CXT_Element || std::string_view(band->pszValue) != "VRTRasterBand") continue;
+      CPLXMLNode* prev = nullptr;
+      for (CPLXMLNode* c = band->psChild; c;) {
+        CPLXMLNode* next = c->psNext;
+        if (is_vrt_source(c)) {
+          (prev ? prev->psNext : band->psChild) = next;
+          c->psNext = nullptr;
+          CPLDestroyXMLNode(c);
+        } else {
+          prev = c;
+        }
+        c = next;
+      }
+    }
+    char* xml = CPLSerializeXMLTree(ds);
+    if (xml) text = xml;
+    CPLFree(xml);
+  }
+  CPLDestroyXMLNode(root);
+  return text;
+}
+
 bool vrt_dst_rect(const CPLXMLNode* source, VrtRect& rect) {
   const CPLXMLNode* d = CPLGetXMLNode(source, "DstRect");
   if (!d) return false;
