@@ -577,10 +577,13 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   std::unique_ptr<GDALDataset> ds;
   std::unique_ptr<VrtTileReader> vrt;
   std::string vrt_why_not, reads_from;
+  bool vrt_tried = false;  // the reader has already read this VRT's XML (and refused it, if null)
   if (const std::string header = ends_with(path, ".vrt") ? vrt_without_sources(path) : std::string(); !header.empty()) {
     std::unique_ptr<GDALDataset> h(GDALDataset::Open(header.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-    if (h && h->GetRasterCount() >= 1 && h->GetDriver() && std::strcmp(h->GetDriver()->GetDescription(), "VRT") == 0)
+    if (h && h->GetRasterCount() >= 1 && h->GetDriver() && std::strcmp(h->GetDriver()->GetDescription(), "VRT") == 0) {
       vrt = VrtTileReader::open(path, h->GetRasterXSize(), h->GetRasterYSize(), &vrt_why_not);
+      vrt_tried = true;
+    }
     if (vrt) {
       ds = std::move(h);
       reads_from = path;
@@ -690,7 +693,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   }
   // A VRT mosaic of such tiles (gdalbuildvrt's): composed here from the tiles' blocks (vrt_tiles.h).
   if (driver == "VRT") {
-    if (!vrt) vrt = VrtTileReader::open(path, width, height, &vrt_why_not);
+    if (!vrt_tried) vrt = VrtTileReader::open(path, width, height, &vrt_why_not);
     info.decoder = vrt ? fmt::format("{} tile sources composed by the cooker from their blocks (a tile it "
                                      "does not decode is read by GDAL)", vrt->sources())
                        : fmt::format("read by GDAL's VRT driver ({})", vrt_why_not);
