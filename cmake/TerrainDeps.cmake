@@ -35,6 +35,9 @@ target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
 # GDAL (libgdal-dev): every raster input it reads (cooker/src/input_gdal.cpp, web_tiles.cpp).
 find_package(GDAL CONFIG REQUIRED)
 
+# expat (libexpat1-dev): a VRT's XML read one source at a time (cooker/src/vrt_stream.cpp).
+find_package(EXPAT REQUIRED)
+
 # PROJ (libproj-dev): terrain-inspect's lon/lat datum conversion (format/tools/inspect_lonlat.cpp).
 pkg_check_modules(proj REQUIRED IMPORTED_TARGET proj)
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)

@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   cmake ninja-build ccache g++ clang libclang-rt-14-dev pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libopencv-core-dev
-  libgeographiclib-dev libproj-dev libgeotiff-dev libgdal-dev gdal-bin libtiff-dev libzstd-dev libdeflate-dev zlib1g-dev libzip-dev
+  libgeographiclib-dev libproj-dev libgeotiff-dev libgdal-dev gdal-bin libtiff-dev libzstd-dev libdeflate-dev zlib1g-dev libzip-dev libexpat1-dev
   libsquish-dev libstb-dev libcli11-dev nlohmann-json3-dev libfmt-dev libcharls-dev libjxl-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   libvulkan-dev mesa-vulkan-drivers vulkan-tools glslang-tools glslc spirv-tools vulkan-validationlayers

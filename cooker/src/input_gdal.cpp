@@ -24,6 +24,7 @@
 #include "source_raster.h"
 #include "tiff_blocks.h"
 #include "vrt_tiles.h"
+#include "vrt_stream.h"
 #include "vrt_xml.h"
 
 namespace terrain::cook {
@@ -417,19 +418,34 @@ Status check_vrt_tiles(const std::string& path) {
   if (!ends_with(base, ".vrt")) return Status::success();
   init_gdal_once();
   QuietErrors quiet;
-  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
-  if (!tree) return Status::success();  // GDAL opened it; its reads name any problem
-  std::vector<std::string> files;
-  collect_source_files(tree, vrt_folder(path), files);
-  CPLDestroyXMLNode(tree);
-  for (const std::string& f : files) {
-    // Names such as "MEM:::..." or "NETCDF:file:var" are not plain files: left to GDAL's read.
-    if (f.find(':') != std::string::npos && !f.starts_with("/vsi")) continue;
-    VSIStatBufL st;
-    if (VSIStatL(f.c_str(), &st) != 0)
-      return Status::failure(Error::io_read,
-                             fmt::format("{}: cannot read its tile {}: No such file or directory", path, f));
+  const std::string dir = vrt_folder(path);
+  std::string missing;
+  // The first named file that is not there, checked as its element is read.
+  const auto check = [&](const CPLXMLNode* node) {
+    std::vector<std::string> files;
+    collect_source_files(node, dir, files);
+    for (const std::string& f : files) {
+      // Names such as "MEM:::..." or "NETCDF:file:var" are not plain files: left to GDAL's read.
+      if (f.find(':') != std::string::npos && !f.starts_with("/vsi")) continue;
+      VSIStatBufL st;
+      if (VSIStatL(f.c_str(), &st) != 0) {
+        missing = f;
+        return false;
+      }
+    }
+    return true;
+  };
+  VrtStream vrt;
+  const VrtRead read = read_vrt_stream(path, vrt, [&](const VrtSourceVisit& s) { return check(s.node); });
+  if (read == VrtRead::ok) {  // then the files named outside the sources (a band's <Overview>, ...)
+    CPLXMLNode* header = CPLParseXMLString(vrt.header.c_str());
+    if (header) check(header);
+    CPLDestroyXMLNode(header);
   }
+  // A file GDAL opened but expat does not read: GDAL's reads name any problem.
+  if (!missing.empty())
+    return Status::failure(Error::io_read,
+                           fmt::format("{}: cannot read its tile {}: No such file or directory", path, missing));
   return Status::success();
 }
 
@@ -502,38 +518,34 @@ FilePlacement placement_of(const std::string& path, GDALDataset* ds) {
 // geotransform; the tiles are then opened one by one.
 bool vrt_source_placements(const std::string& path, const FilePlacement& vrt, std::vector<FilePlacement>& out) {
   if (!ends_with(path, ".vrt") || !vrt.has_geotransform) return false;
-  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
-  if (!tree) return false;
-  const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
-  const CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
-  if (!ds) return false;
   const std::string dir = vrt_folder(path);
   std::vector<FilePlacement> tiles;
-  for (const CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
-    if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
-    for (const CPLXMLNode* c = b->psChild; c; c = c->psNext) {
-      if (!is_vrt_source(c)) continue;
-      const CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename");
-      VrtRect d;
-      if (!f || !vrt_dst_rect(c, d) || !plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return false;
-      FilePlacement t;
-      t.path = vrt_source_file(f, dir);
-      const double x = d.x, y = d.y, w = d.w, h = d.h;
-      if (!(w > 0) || !(h > 0) || w > 1e9 || h > 1e9) return false;
-      // One "sample" per DstRect here: footprint_of maps its corners, which is all it reads.
-      const double* g = vrt.gt;
-      t.opened = t.has_geotransform = true;
-      t.width = 1;
-      t.height = 1;
-      t.gt[0] = g[0] + x * g[1] + y * g[2];
-      t.gt[1] = w * g[1];
-      t.gt[2] = h * g[2];
-      t.gt[3] = g[3] + x * g[4] + y * g[5];
-      t.gt[4] = w * g[4];
-      t.gt[5] = h * g[5];
-      tiles.push_back(std::move(t));
-    }
-  }
+  // One source at a time (vrt_stream.h): the tiles' list is all that grows with the VRT.
+  const auto place = [&](const VrtSourceVisit& s) {
+    const CPLXMLNode* c = s.node;
+    const CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename");
+    VrtRect d;
+    if (!f || !vrt_dst_rect(c, d) || !plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return false;
+    FilePlacement t;
+    t.path = vrt_source_file(f, dir);
+    const double x = d.x, y = d.y, w = d.w, h = d.h;
+    if (!(w > 0) || !(h > 0) || w > 1e9 || h > 1e9) return false;
+    // One "sample" per DstRect here: footprint_of maps its corners, which is all it reads.
+    const double* g = vrt.gt;
+    t.opened = t.has_geotransform = true;
+    t.width = 1;
+    t.height = 1;
+    t.gt[0] = g[0] + x * g[1] + y * g[2];
+    t.gt[1] = w * g[1];
+    t.gt[2] = h * g[2];
+    t.gt[3] = g[3] + x * g[4] + y * g[5];
+    t.gt[4] = w * g[4];
+    t.gt[5] = h * g[5];
+    tiles.push_back(std::move(t));
+    return true;
+  };
+  VrtStream vrt_xml;
+  if (read_vrt_stream(path, vrt_xml, place) != VrtRead::ok) return false;
   for (FilePlacement& t : tiles)
     if (t.path != path) out.push_back(std::move(t));
   return true;

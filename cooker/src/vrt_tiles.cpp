@@ -19,6 +19,7 @@
 #include "source_raster.h"
 #include "terrain/output_paths.h"
 #include "tiff_blocks.h"
+#include "vrt_stream.h"
 #include "vrt_xml.h"
 
 namespace terrain::cook {
@@ -154,13 +155,6 @@ bool has_relative_name(const CPLXMLNode* node) {
   return false;
 }
 
-struct BandChildren {
-  CPLXMLNode* band = nullptr;
-  std::vector<CPLXMLNode*> children;  // in order
-  std::vector<bool> source;           // children[i] is a source
-  std::vector<std::array<double, 4>> rect;  // its DstRect (x0, y0, x1, y1); infinite when it has none
-};
-
 }  // namespace
 
 VrtTileReader::~VrtTileReader() = default;
@@ -172,9 +166,13 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
     return std::unique_ptr<VrtTileReader>();
   };
   if (!tiff_direct_enabled()) return refuse("TERRAIN_TIFF_DIRECT=0");
+  // The dataset and its bands from the VRT without its sources, the sources one at a time after
+  // (vrt_stream.h): a mosaic of a million tiles never stands in memory as one tree.
+  VrtStream vrt;
+  if (read_vrt_stream(path, vrt, {}) != VrtRead::ok) return refuse("not a VRT file the cooker's XML reader streams");
   XmlTree tree;
   CPLPushErrorHandler(CPLQuietErrorHandler);  // GDAL parsed it already; a refusal is not an error
-  tree.root = CPLParseXMLFile(path.c_str());
+  tree.root = CPLParseXMLString(vrt.header.c_str());
   CPLPopErrorHandler();
   const CPLXMLNode* ds = tree.root ? CPLGetXMLNode(tree.root, "=VRTDataset") : nullptr;
   if (!ds) return refuse("not a VRT file GDAL's XML reader parses");
@@ -185,7 +183,7 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
     return refuse("its size is not the one GDAL reads");
   const CPLXMLNode* band = nullptr;
   for (const CPLXMLNode* n = ds->psChild; n; n = n->psNext)
-    if (n->eType == CXT_Element && std::strcmp(n->pszValue, "VRTRasterBand") == 0) {
+    if (n->eType == CXT_Element && EQUAL(n->pszValue, "VRTRasterBand")) {  // band 0 of the stream
       band = n;
       break;
     }
@@ -209,8 +207,19 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
         name == "Offset" || name == "Scale" || name == "UnitType" || name == "Histograms" || name == "Overview" ||
         name == "CategoryNames")
       continue;  // nothing a full-resolution read of raw values depends on (GDAL applies scale and offset after)
+    return refuse(fmt::format("a <{}>", name));
+  }
+  std::string refusal;
+  const auto add_source = [&](const VrtSourceVisit& visit) {
+    if (visit.band != 0) return true;  // the first band only
+    auto reject = [&](std::string why) {
+      refusal = std::move(why);
+      return false;
+    };
+    const CPLXMLNode* n = visit.node;
+    const std::string name = n->pszValue;
     const bool complex = name == "ComplexSource";
-    if (!complex && name != "SimpleSource") return refuse(fmt::format("a <{}>", name));
+    if (!complex && name != "SimpleSource") return reject(fmt::format("a <{}>", name));
     Source s;
     bool has_file = false, has_src = false, has_dst = false;
     int sw = 0, sh = 0;
@@ -219,41 +228,41 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
       const std::string cn = c->pszValue;
       if (cn == "SourceFilename") {
         const char* f = CPLGetXMLValue(c, nullptr, "");
-        if (!plain_file_name(f)) return refuse(fmt::format("source {}", f));
+        if (!plain_file_name(f)) return reject(fmt::format("source {}", f));
         s.path = vrt_source_file(c, dir);
         has_file = true;
       } else if (cn == "SourceBand") {
-        if (std::strcmp(CPLGetXMLValue(c, nullptr, ""), "1") != 0) return refuse("a source band other than 1");
+        if (std::strcmp(CPLGetXMLValue(c, nullptr, ""), "1") != 0) return reject("a source band other than 1");
       } else if (cn == "SourceProperties") {
         if (!whole_samples(CPLGetXMLValue(c, "RasterXSize", nullptr), s.tile_w) ||
             !whole_samples(CPLGetXMLValue(c, "RasterYSize", nullptr), s.tile_h) ||
             type_named(CPLGetXMLValue(c, "DataType", nullptr)) != type)
-          return refuse("a source of another data type or without its size");
+          return reject("a source of another data type or without its size");
         int block_h = 0;  // for the block cache's size before the tile opens
         if (whole_samples(CPLGetXMLValue(c, "BlockYSize", nullptr), block_h) && block_h > 0)
           note_tiff_block_column(uint64_t(std::min(block_h, s.tile_h)) * uint64_t(bytes_of(type)));
       } else if (cn == "SrcRect") {
         has_src = rect_of(c, s.src_x, s.src_y, sw, sh);
-        if (!has_src) return refuse("a SrcRect off whole samples");
+        if (!has_src) return reject("a SrcRect off whole samples");
       } else if (cn == "DstRect") {
         has_dst = rect_of(c, s.dst_x, s.dst_y, s.w, s.h);
-        if (!has_dst) return refuse("a DstRect off whole samples");
+        if (!has_dst) return reject("a DstRect off whole samples");
       } else if (cn == "NODATA" && complex) {
         s.nodata_value = CPLAtofM(CPLGetXMLValue(c, nullptr, ""));
         const NodataRule rule(type, s.nodata_value);
         s.has_nodata = rule.nan || rule.in_range;  // out of the working type's range it matches nothing
       } else {
-        return refuse(fmt::format("a source with <{}>", cn));
+        return reject(fmt::format("a source with <{}>", cn));
       }
     }
-    if (!has_file || !has_src || !has_dst || s.tile_w <= 0 || s.tile_h <= 0) return refuse("a source without its rectangles");
-    if (sw != s.w || sh != s.h || s.w <= 0 || s.h <= 0) return refuse("a resampled source");
+    if (!has_file || !has_src || !has_dst || s.tile_w <= 0 || s.tile_h <= 0) return reject("a source without its rectangles");
+    if (sw != s.w || sh != s.h || s.w <= 0 || s.h <= 0) return reject("a resampled source");
     if (s.src_x < 0 || s.src_y < 0 || s.src_x + s.w > s.tile_w || s.src_y + s.h > s.tile_h)
-      return refuse("a SrcRect outside its tile");
+      return reject("a SrcRect outside its tile");
     // Clipped to the raster, as GDAL draws it; a source wholly outside draws nothing.
     const int cx0 = std::max(0, s.dst_x), cy0 = std::max(0, s.dst_y);
     const int cx1 = std::min(width, s.dst_x + s.w), cy1 = std::min(height, s.dst_y + s.h);
-    if (cx0 >= cx1 || cy0 >= cy1) continue;
+    if (cx0 >= cx1 || cy0 >= cy1) return true;
     s.src_x += cx0 - s.dst_x;
     s.src_y += cy0 - s.dst_y;
     s.dst_x = cx0;
@@ -261,7 +270,10 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
     s.w = cx1 - cx0;
     s.h = cy1 - cy0;
     r->sources_.push_back(std::move(s));
-  }
+    return true;
+  };
+  if (const VrtRead read = read_vrt_stream(path, vrt, add_source); read != VrtRead::ok)
+    return refuse(read == VrtRead::stopped ? refusal : "not a VRT file the cooker's XML reader streams");
   if (r->sources_.empty()) return refuse("no source");
   // A source is drawn sample by sample only where an earlier source may lie under it; else its
   // samples are read in place and those matching its NODATA set back to the band's fill.
@@ -351,82 +363,86 @@ Status write_vrt_windows(const std::string& path, const std::vector<std::array<i
                          const std::vector<std::string>& outputs, bool& written) {
   written = false;
   if (!path.ends_with(".vrt") || windows.size() != outputs.size()) return Status::success();
-  CPLXMLNode* tree = CPLParseXMLFile(path.c_str());
-  if (!tree) return Status::success();  // the units' open names what is wrong with it
-  const std::unique_ptr<CPLXMLNode, void (*)(CPLXMLNode*)> hold(tree, CPLDestroyXMLNode);
-  CPLXMLNode* ds = CPLGetXMLNode(tree, "=VRTDataset");
-  if (!ds) return Status::success();
   const std::string dir = vrt_folder(std::filesystem::absolute(path).lexically_normal().string());
-  std::vector<BandChildren> bands;
-  for (CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
-    if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
-    BandChildren bc;
-    bc.band = b;
-    for (CPLXMLNode* c = b->psChild; c; c = c->psNext) {
-      const bool is_source = is_vrt_source(c);
-      std::array<double, 4> r{-INFINITY, -INFINITY, INFINITY, INFINITY};
-      if (is_source) {
-        if (CPLXMLNode* f = CPLGetXMLNode(c, "SourceFilename")) {
-          if (vrt_name_is_relative(f)) {
-            // /vsi... and driver:prefixed names resolve relative to the VRT in GDAL's own ways.
-            if (!plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return Status::success();
-            const std::string full = vrt_source_file(f, dir);
-            CPLSetXMLValue(f, "#relativeToVRT", "0");
-            for (CPLXMLNode* t = f->psChild; t; t = t->psNext)
-              if (t->eType == CXT_Text) {
-                CPLFree(t->pszValue);
-                t->pszValue = CPLStrdup(full.c_str());
-              }
-          }
-        }
-        // A source without a DstRect is kept in every cut.
-        if (VrtRect d; vrt_dst_rect(c, d)) r = {d.x, d.y, d.x + d.w, d.y + d.h};
-      }
-      bc.children.push_back(c);
-      bc.source.push_back(is_source);
-      bc.rect.push_back(r);
-    }
-    bands.push_back(std::move(bc));
-  }
-  if (has_relative_name(ds->psChild)) return Status::success();  // left after the sources' own
-  // Every child back in its band, so that CPLDestroyXMLNode frees each once.
-  auto relink_all = [&] {
-    for (BandChildren& bc : bands) {
-      CPLXMLNode** link = &bc.band->psChild;
-      for (CPLXMLNode* c : bc.children) {
-        *link = c;
-        link = &c->psNext;
-      }
-      *link = nullptr;
-    }
+  // Each source's bytes in the VRT and its DstRect (x0, y0, x1, y1; infinite when it has none: it
+  // is kept in every cut), streamed (vrt_stream.h): the cuts read the sources' text again.
+  struct SourceSpan {
+    int band = 0;
+    uint64_t begin = 0, end = 0;
+    std::array<double, 4> rect{-INFINITY, -INFINITY, INFINITY, INFINITY};
+    bool relative = false;  // its SourceFilename is written out absolute
   };
+  std::vector<SourceSpan> sources;
+  const auto note = [&](const VrtSourceVisit& v) {
+    SourceSpan s{v.band, v.begin, v.end};
+    if (const CPLXMLNode* f = CPLGetXMLNode(v.node, "SourceFilename"); f && vrt_name_is_relative(f)) {
+      // /vsi... and driver:prefixed names resolve relative to the VRT in GDAL's own ways.
+      if (!plain_file_name(CPLGetXMLValue(f, nullptr, ""))) return false;
+      s.relative = true;
+    }
+    if (VrtRect d; vrt_dst_rect(v.node, d)) s.rect = {d.x, d.y, d.x + d.w, d.y + d.h};
+    sources.push_back(s);
+    return true;
+  };
+  VrtStream vrt;
+  if (read_vrt_stream(path, vrt, note) != VrtRead::ok) return Status::success();  // the units' open names what is wrong
+  {
+    XmlTree header;
+    header.root = CPLParseXMLString(vrt.header.c_str());
+    if (!header.root || has_relative_name(header.root)) return Status::success();  // left after the sources' own
+  }
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(std::fopen(path.c_str(), "rb"), std::fclose);
+  if (!in) return Status::success();
+  // A source's text as the cut holds it: its bytes, or with its relative name made absolute.
+  const auto source_text = [&](const SourceSpan& s, std::string& text) {
+    text.resize(size_t(s.end - s.begin));
+    if (fseeko(in.get(), off_t(s.begin), SEEK_SET) != 0 || std::fread(text.data(), 1, text.size(), in.get()) != text.size())
+      return false;
+    if (!s.relative) return true;
+    XmlTree t;
+    t.root = CPLParseXMLString(text.c_str());
+    CPLXMLNode* f = t.root ? CPLGetXMLNode(t.root, "SourceFilename") : nullptr;
+    if (!f) return false;
+    const std::string full = vrt_source_file(f, dir);
+    CPLSetXMLValue(f, "#relativeToVRT", "0");
+    for (CPLXMLNode* c = f->psChild; c; c = c->psNext)
+      if (c->eType == CXT_Text) {
+        CPLFree(c->pszValue);
+        c->pszValue = CPLStrdup(full.c_str());
+      }
+    char* xml = CPLSerializeXMLTree(t.root);
+    text = xml ? xml : "";
+    CPLFree(xml);
+    return !text.empty();
+  };
+  std::string body, text;
   for (size_t w = 0; w < windows.size(); ++w) {
     // Samples c0..c1 cover [c0, c1 + 1); one more on every side for a source's edge.
     const auto& [c0, r0, c1, r1] = windows[w];
-    for (BandChildren& bc : bands) {
-      CPLXMLNode** link = &bc.band->psChild;
-      for (size_t i = 0; i < bc.children.size(); ++i) {
-        const auto& r = bc.rect[i];
-        if (bc.source[i] && !(r[0] < c1 + 2 && r[2] > c0 - 1 && r[1] < r1 + 2 && r[3] > r0 - 1)) continue;
-        *link = bc.children[i];
-        link = &bc.children[i]->psNext;
+    body.clear();
+    size_t at = 0;  // header bytes written
+    for (size_t i = 0; i < sources.size(); ++i) {
+      const SourceSpan& s = sources[i];
+      if (i == 0 || sources[i - 1].band != s.band) {  // the band's sources stood here
+        const size_t to = vrt.band_sources_at[size_t(s.band)];
+        body.append(vrt.header, at, to - at);
+        at = to;
       }
-      *link = nullptr;
+      const auto& r = s.rect;
+      if (!(r[0] < c1 + 2 && r[2] > c0 - 1 && r[1] < r1 + 2 && r[3] > r0 - 1)) continue;
+      if (!source_text(s, text)) return Status::success();
+      body += text;
     }
-    char* text = CPLSerializeXMLTree(tree);
-    const std::string body = text ? text : "";
-    CPLFree(text);
+    body.append(vrt.header, at, std::string::npos);
     const std::string temp = staging_path(outputs[w]);
     std::FILE* f = std::fopen(temp.c_str(), "wb");
     const bool ok = f && std::fwrite(body.data(), 1, body.size(), f) == body.size();
     if ((f && std::fclose(f) != 0) || !ok || std::rename(temp.c_str(), outputs[w].c_str()) != 0) {
       const int err = errno;
       std::remove(temp.c_str());
-      relink_all();
       return Status::failure(Error::io_write, fmt::format("{}: cannot write: {}", outputs[w], std::strerror(err)));
     }
   }
-  relink_all();
   written = true;
   return Status::success();
 }

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "vrt_stream.h"
+
 namespace terrain::cook {
 
 std::string vrt_folder(const std::string& vrt_path) { return CPLGetPath(vrt_path.c_str()); }
@@ -25,38 +27,13 @@ bool plain_file_name(std::string_view name) {
   return !name.starts_with("/vsi") && name.find(':') == std::string_view::npos;
 }
 
-bool is_vrt_source(const CPLXMLNode* child) {
-  return child->eType == CXT_Element && std::string_view(child->pszValue).ends_with("Source");
-}
+bool is_vrt_source_name(std::string_view element) { return element.ends_with("Source"); }
+
+bool is_vrt_source(const CPLXMLNode* child) { return child->eType == CXT_Element && is_vrt_source_name(child->pszValue); }
 
 std::string vrt_without_sources(const std::string& path) {
-  CPLPushErrorHandler(CPLQuietErrorHandler);
-  CPLXMLNode* root = CPLParseXMLFile(path.c_str());
-  CPLPopErrorHandler();
-  if (!root) return {};
-  std::string text;
-  if (CPLXMLNode* ds = CPLGetXMLNode(root, "=VRTDataset")) {
-    for (CPLXMLNode* band = ds->psChild; band; band = band->psNext) {
-      if (band->eType != CXT_Element || std::string_view(band->pszValue) != "VRTRasterBand") continue;
-      CPLXMLNode* prev = nullptr;
-      for (CPLXMLNode* c = band->psChild; c;) {
-        CPLXMLNode* next = c->psNext;
-        if (is_vrt_source(c)) {
-          (prev ? prev->psNext : band->psChild) = next;
-          c->psNext = nullptr;
-          CPLDestroyXMLNode(c);
-        } else {
-          prev = c;
-        }
-        c = next;
-      }
-    }
-    char* xml = CPLSerializeXMLTree(ds);
-    if (xml) text = xml;
-    CPLFree(xml);
-  }
-  CPLDestroyXMLNode(root);
-  return text;
+  VrtStream vrt;
+  return read_vrt_stream(path, vrt, {}) == VrtRead::ok ? std::move(vrt.header) : std::string();
 }
 
 bool vrt_dst_rect(const CPLXMLNode* source, VrtRect& rect) {

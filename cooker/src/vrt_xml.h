@@ -25,6 +25,7 @@ bool plain_file_name(std::string_view name);
 
 // A band child that is a source (<SimpleSource>, <ComplexSource>, <KernelFilteredSource>, ...).
 bool is_vrt_source(const CPLXMLNode* child);
+bool is_vrt_source_name(std::string_view element);
 
 // The VRT at `path` as XML text without its bands' sources (every is_vrt_source child): GDAL opens
 // that with the size, georeferencing, band type, nodata, scale and metadata of the VRT, without an

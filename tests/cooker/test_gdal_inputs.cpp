@@ -16,6 +16,7 @@
 #include "inputs.h"
 #include "source_raster.h"
 #include "test_data.h"
+#include "vrt_stream.h"
 #include "vrt_xml.h"
 #include "web_tiles.h"
 
@@ -395,4 +396,125 @@ TEST(VrtXml, SourceFilesResolveAsGdalResolvesThem) {
   // Both readings occur among the spellings (else the test could not tell them apart).
   EXPECT_GE(relative, 3);
   EXPECT_GE(not_relative, 3);
+}
+
+namespace {
+
+// A node alone, serialized (CPLSerializeXMLTree also writes the siblings that follow it).
+std::string serialized_alone(CPLXMLNode* node) {
+  CPLXMLNode* next = node->psNext;
+  node->psNext = nullptr;
+  char* text = CPLSerializeXMLTree(node);
+  node->psNext = next;
+  std::string s = text ? text : "";
+  CPLFree(text);
+  return s;
+}
+
+}  // namespace
+
+// vrt_stream.h against the whole-file tree it replaces (CPLParseXMLFile): the same sources, in the
+// same order and bands, and the same dataset without them, whatever the chunk size (1 byte splits
+// every tag and entity across chunks); a source as an empty element, entities, CDATA holding a
+// tag's text, comments, a prolog and a band's <Overview> (not a source) on the way.
+TEST(VrtStream, SourcesAndHeaderAreTheWholeTreesAtAnyChunkSize) {
+  const fs::path dir = fs::absolute(scratch_dir("vrt_stream"));
+  fs::create_directories(dir);
+  const std::string vrt = (dir / "m.vrt").string();
+  std::ofstream(vrt, std::ios::trunc)
+      << "<?xml version=\"1.0\"?>\n<!-- made by hand -->\n"
+         "<VRTDataset rasterXSize=\"20\" rasterYSize=\"10\">\n"
+         " <GeoTransform>0, 1, 0, 10, 0, -1</GeoTransform>\n"
+         " <Metadata><MDI key=\"note\"><![CDATA[<SimpleSource>not a source</SimpleSource>]]></MDI></Metadata>\n"
+         " <VRTRasterBand dataType=\"Float32\" band=\"1\">\n"
+         "  <NoDataValue>-9999</NoDataValue>\n"
+         "  <ComplexSource>\n   <SourceFilename relativeToVRT=\"1\">a&amp;b.tif</SourceFilename>\n"
+         "   <SourceBand>1</SourceBand>\n   <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"10\" ySize=\"10\"/>\n"
+         "   <DstRect xOff=\"0\" yOff=\"0\" xSize=\"10\" ySize=\"10\"/>\n   <NODATA>-9999</NODATA>\n  </ComplexSource>\n"
+         "  <!-- between two sources -->\n"
+         "  <SimpleSource/>\n"
+         "  <Overview><SourceFilename relativeToVRT=\"1\">m.ovr</SourceFilename><SourceBand>1</SourceBand></Overview>\n"
+         "  <KernelFilteredSource><SourceFilename relativeToVRT=\"0\">/abs/c.tif</SourceFilename>"
+         "<Kernel><Size>3</Size><Coefs>0 0 0 0 1 0 0 0 0</Coefs></Kernel></KernelFilteredSource>\n"
+         " </VRTRasterBand>\n"
+         " <VRTRasterBand dataType=\"Float32\" band=\"2\">\n"
+         "  <SimpleSource><SourceFilename relativeToVRT=\"1\">d.tif</SourceFilename>"
+         "<DstRect xOff=\"10\" yOff=\"0\" xSize=\"10\" ySize=\"10\"/></SimpleSource>\n"
+         " </VRTRasterBand>\n"
+         "</VRTDataset>\n<!-- after -->\n";
+  // The reference: the whole tree, its sources serialized one by one, then removed.
+  std::vector<std::pair<int, std::string>> want;
+  std::string want_header;
+  {
+    CPLXMLNode* root = CPLParseXMLFile(vrt.c_str());
+    ASSERT_TRUE(root);
+    CPLXMLNode* ds = CPLGetXMLNode(root, "=VRTDataset");
+    ASSERT_TRUE(ds);
+    int band = -1;
+    for (CPLXMLNode* b = ds->psChild; b; b = b->psNext) {
+      if (b->eType != CXT_Element || !EQUAL(b->pszValue, "VRTRasterBand")) continue;
+      ++band;
+      CPLXMLNode** link = &b->psChild;
+      while (CPLXMLNode* c = *link) {
+        if (!cook::is_vrt_source(c)) {
+          link = &c->psNext;
+          continue;
+        }
+        want.emplace_back(band, serialized_alone(c));
+        *link = c->psNext;
+        c->psNext = nullptr;
+        CPLDestroyXMLNode(c);
+      }
+    }
+    want_header = serialized_alone(ds);
+    CPLDestroyXMLNode(root);
+  }
+  ASSERT_EQ(want.size(), 4u);
+  std::string file;
+  {
+    std::ifstream in(vrt, std::ios::binary);
+    file.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  for (size_t chunk : {size_t(1), size_t(2), size_t(3), size_t(7), size_t(64), size_t(1) << 20}) {
+    SCOPED_TRACE(fmt::format("chunk {}", chunk));
+    std::vector<std::pair<int, std::string>> got;
+    cook::VrtStream stream;
+    const cook::VrtRead read = cook::read_vrt_stream(
+        vrt, stream,
+        [&](const cook::VrtSourceVisit& v) {
+          got.emplace_back(v.band, serialized_alone(const_cast<CPLXMLNode*>(v.node)));
+          // Its bytes in the file are the element itself.
+          CPLXMLNode* again = CPLParseXMLString(file.substr(size_t(v.begin), size_t(v.end - v.begin)).c_str());
+          EXPECT_TRUE(again);
+          if (again) {
+            EXPECT_EQ(serialized_alone(again), got.back().second);
+          }
+          CPLDestroyXMLNode(again);
+          return true;
+        },
+        chunk);
+    ASSERT_EQ(read, cook::VrtRead::ok);
+    EXPECT_EQ(got, want);
+    ASSERT_TRUE(stream.header.starts_with("<VRTDataset"));  // what GDAL's VRT driver opens as text
+    CPLXMLNode* header = CPLParseXMLString(stream.header.c_str());
+    ASSERT_TRUE(header);
+    EXPECT_EQ(serialized_alone(header), want_header);
+    CPLDestroyXMLNode(header);
+    ASSERT_EQ(stream.band_sources_at.size(), 2u);
+    // Where band 1's first source stood: after its NoDataValue, before the comment that followed it.
+    EXPECT_TRUE(stream.header.substr(0, stream.band_sources_at[0]).ends_with("</NoDataValue>\n  "));
+  }
+  // A reader that stops, a document that is not a VRT, a truncated one and a missing one.
+  cook::VrtStream stream;
+  int visits = 0;
+  EXPECT_EQ(cook::read_vrt_stream(vrt, stream, [&](const cook::VrtSourceVisit&) { return ++visits < 2; }), cook::VrtRead::stopped);
+  EXPECT_EQ(visits, 2);
+  const std::string other = (dir / "other.vrt").string(), cut = (dir / "cut.vrt").string();
+  std::ofstream(other, std::ios::trunc) << "<?xml version=\"1.0\"?><VRTDatasetX><VRTRasterBand/></VRTDatasetX>";
+  std::ofstream(cut, std::ios::trunc) << file.substr(0, file.size() / 2);
+  EXPECT_EQ(cook::read_vrt_stream(other, stream, {}), cook::VrtRead::not_vrt);
+  EXPECT_EQ(cook::read_vrt_stream(cut, stream, {}), cook::VrtRead::unreadable);
+  EXPECT_EQ(cook::read_vrt_stream((dir / "none.vrt").string(), stream, {}), cook::VrtRead::unreadable);
+  // GDAL opens the header as the VRT without its sources.
+  EXPECT_EQ(cook::vrt_without_sources(vrt).substr(0, 11), "<VRTDataset");
 }
