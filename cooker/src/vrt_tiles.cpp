@@ -415,31 +415,38 @@ Status write_vrt_windows(const std::string& path, const std::vector<std::array<i
     CPLFree(xml);
     return !text.empty();
   };
-  std::string body, text;
+  std::string text;
   for (size_t w = 0; w < windows.size(); ++w) {
     // Samples c0..c1 cover [c0, c1 + 1); one more on every side for a source's edge.
     const auto& [c0, r0, c1, r1] = windows[w];
-    body.clear();
+    const std::string temp = staging_path(outputs[w]);
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(temp.c_str(), "wb"), std::fclose);
+    bool ok = f != nullptr, readable = true;
+    int err = ok ? 0 : errno;
+    const auto put = [&](std::string_view t) {
+      if (ok && std::fwrite(t.data(), 1, t.size(), f.get()) != t.size()) ok = false, err = errno;
+    };
     size_t at = 0;  // header bytes written
-    for (size_t i = 0; i < sources.size(); ++i) {
+    for (size_t i = 0; ok && readable && i < sources.size(); ++i) {
       const SourceSpan& s = sources[i];
       if (i == 0 || sources[i - 1].band != s.band) {  // the band's sources stood here
         const size_t to = vrt.band_sources_at[size_t(s.band)];
-        body.append(vrt.header, at, to - at);
+        put(std::string_view(vrt.header).substr(at, to - at));
         at = to;
       }
       const auto& r = s.rect;
       if (!(r[0] < c1 + 2 && r[2] > c0 - 1 && r[1] < r1 + 2 && r[3] > r0 - 1)) continue;
-      if (!source_text(s, text)) return Status::success();
-      body += text;
+      readable = source_text(s, text);
+      put(text);
     }
-    body.append(vrt.header, at, std::string::npos);
-    const std::string temp = staging_path(outputs[w]);
-    std::FILE* f = std::fopen(temp.c_str(), "wb");
-    const bool ok = f && std::fwrite(body.data(), 1, body.size(), f) == body.size();
-    if ((f && std::fclose(f) != 0) || !ok || std::rename(temp.c_str(), outputs[w].c_str()) != 0) {
-      const int err = errno;
+    put(std::string_view(vrt.header).substr(at));
+    if (ok && std::fclose(f.release()) != 0) ok = false, err = errno;
+    if (ok && readable && std::rename(temp.c_str(), outputs[w].c_str()) != 0) ok = false, err = errno;
+    if (!ok || !readable) {
+      f.reset();
       std::remove(temp.c_str());
+      // A VRT that changed under the plan gives no cut: the units' open names what is wrong.
+      if (!readable) return Status::success();
       return Status::failure(Error::io_write, fmt::format("{}: cannot write: {}", outputs[w], std::strerror(err)));
     }
   }

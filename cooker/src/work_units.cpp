@@ -53,15 +53,6 @@ std::string unit_fingerprint(const std::string& plan_fingerprint, const UnitPlan
   return hex64(fnv1a(text));
 }
 
-// Input files as the lists give them.
-template <typename Files>
-json files_json(const Files& files) {
-  json a = json::array();
-  for (const InputFile& f : files)
-    a.push_back({{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
-                 {"footprint", rect_json(f.footprint)}});
-  return a;
-}
 // The plan's files a unit reads (plan.unit_files[u]), iterated as InputFile. (A plain iterator:
 // clang with libstdc++ 12, the sanitizer and fuzzer builds, rejects std::views here.)
 struct UnitFiles {
@@ -413,20 +404,81 @@ Status write_all(int fd, const uint8_t* p, size_t n, const std::string& path) {
   }
   return Status::success();
 }
-// `text` under `path` through a staged name renamed into place; with `durable`, fsynced first
-// (else the caller syncs the folder's filesystem before anything names the file).
+// A file written piece by piece (through a 64 KB buffer) under a staged name, then renamed into
+// place by commit(); with `durable`, fsynced first (else the caller syncs the folder's filesystem
+// before anything names the file). Uncommitted, the staged file is removed.
+class StagedText {
+ public:
+  explicit StagedText(const std::string& stage_for) : temp_(staging_path(stage_for)) {
+    fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd_ < 0) st_ = Status::failure(Error::io_write, fmt::format("{}: {}", temp_, std::strerror(errno)));
+    buf_.reserve(kBuffer);
+  }
+  ~StagedText() {
+    if (fd_ >= 0) ::close(fd_);
+    if (!committed_) ::unlink(temp_.c_str());
+  }
+  StagedText(const StagedText&) = delete;
+  StagedText& operator=(const StagedText&) = delete;
+  void put(std::string_view text) {
+    buf_.append(text);
+    if (buf_.size() >= kBuffer) flush();
+  }
+  Status commit(const std::string& path, bool durable) {
+    flush();
+    if (st_.ok() && durable && ::fsync(fd_) != 0)
+      st_ = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp_, std::strerror(errno)));
+    if (fd_ >= 0 && ::close(fd_) != 0 && st_.ok())
+      st_ = Status::failure(Error::io_write, fmt::format("{}: {}", temp_, std::strerror(errno)));
+    fd_ = -1;
+    if (st_.ok() && ::rename(temp_.c_str(), path.c_str()) != 0)
+      st_ = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
+    committed_ = st_.ok();
+    return st_;
+  }
+
+ private:
+  static constexpr size_t kBuffer = size_t(1) << 16;
+  void flush() {
+    if (st_.ok() && !buf_.empty()) st_ = write_all(fd_, reinterpret_cast<const uint8_t*>(buf_.data()), buf_.size(), temp_);
+    buf_.clear();
+  }
+  std::string temp_, buf_;
+  int fd_ = -1;
+  Status st_;
+  bool committed_ = false;
+};
+
+// `text` under `path` through a staged name renamed into place (StagedText).
 Status write_text_file(const std::string& path, const std::string& text, bool durable) {
-  const std::string temp = staging_path(path);
-  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Status::failure(Error::io_write, fmt::format("{}: {}", temp, std::strerror(errno)));
-  Status st = write_all(fd, reinterpret_cast<const uint8_t*>(text.data()), text.size(), temp);
-  if (st.ok() && durable && ::fsync(fd) != 0)
-    st = Status::failure(Error::io_write, fmt::format("{}: fsync: {}", temp, std::strerror(errno)));
-  ::close(fd);
-  if (st.ok() && ::rename(temp.c_str(), path.c_str()) != 0)
-    st = Status::failure(Error::io_rename, fmt::format("{}: {}", path, std::strerror(errno)));
-  if (!st.ok()) ::unlink(temp.c_str());
-  return st;
+  StagedText f(path);
+  f.put(text);
+  return f.commit(path, durable);
+}
+
+// A list of input files as `head` (a JSON object) with a "files" array of them appended, in the
+// bytes head.dump(1) + "\n" would give, handed to `put` entry by entry: a list of a national grid
+// never stands in memory as one JSON document (62 500 entries took 80 MB as a tree).
+template <class Files, class Put>
+void put_file_list(const json& head, const Files& files, Put&& put) {
+  const std::string h = head.dump(1);  // "{\n ...\n}"
+  put(std::string_view(h).substr(0, h.size() - 2));
+  put(",\n \"files\": [");
+  bool first = true;
+  for (const InputFile& f : files) {
+    const std::string e = json{{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
+                               {"footprint", rect_json(f.footprint)}}.dump(1);
+    put(first ? "\n  " : ",\n  ");
+    first = false;
+    size_t from = 0;  // the entry's lines, two levels in
+    for (size_t nl = e.find('\n'); nl != std::string::npos; from = nl + 1, nl = e.find('\n', from)) {
+      put(std::string_view(e).substr(from, nl + 1 - from));
+      put("  ");
+    }
+    put(std::string_view(e).substr(from));
+  }
+  put(first ? "]" : "\n ]");
+  put("\n}\n");
 }
 
 Status read_at(int fd, uint8_t* p, size_t n, uint64_t off, const std::string& path) {
@@ -585,10 +637,11 @@ std::string unit_inputs_file(const std::string& work_dir, const UnitPlan& unit) 
 Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::string& work_dir) {
   // Each unit's own list of the files it reads (all of them are in the plan's inputs file).
   for (const UnitPlan& u : plan.units) {
-    const json list = {{"format", "terrain-cook-unit-inputs"}, {"unit", u.index}, {"fingerprint", u.fingerprint},
-                       {"files", files_json(unit_files(plan, u.index))}};
-    if (Status st = write_text_file(unit_inputs_file(work_dir, u), list.dump(1) + "\n", /*durable=*/false); !st.ok())
-      return st;
+    const std::string path = unit_inputs_file(work_dir, u);
+    StagedText f(path);
+    put_file_list(json{{"format", "terrain-cook-unit-inputs"}, {"unit", u.index}, {"fingerprint", u.fingerprint}},
+                  unit_files(plan, u.index), [&](std::string_view t) { f.put(t); });
+    if (Status st = f.commit(path, /*durable=*/false); !st.ok()) return st;
   }
   const std::vector<MosaicSource::InputStat>& inputs = s.source.inputs();
   std::set<std::string> current;
@@ -653,12 +706,18 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   // Every input file in a file of its own, named by its contents' fingerprint: only `plan` and the
   // merge read it (a unit reads its own list), so plan.json stays small however many tiles there are.
   const std::string work_dir = std::filesystem::path(path).parent_path().string();
-  const json all = {{"format", "terrain-cook-inputs"}, {"files", files_json(plan.files)}};
-  const std::string inputs_text = all.dump(1) + "\n";
-  const std::string inputs_fingerprint = hex64(fnv1a(inputs_text));
+  // Staged before its name (its fingerprint) is known.
+  const std::string staged_for = work_dir + "/inputs.json";
+  remove_stale_staging(staged_for);
+  StagedText list(staged_for);
+  uint64_t h = fnv1a({});
+  put_file_list(json{{"format", "terrain-cook-inputs"}}, plan.files, [&](std::string_view t) {
+    h = fnv1a(t, h);
+    list.put(t);
+  });
+  const std::string inputs_fingerprint = hex64(h);
   const std::string inputs_path = inputs_file(work_dir, inputs_fingerprint);
-  remove_stale_staging(inputs_path);
-  if (Status st = write_text_file(inputs_path, inputs_text, /*durable=*/true); !st.ok()) return st;
+  if (Status st = list.commit(inputs_path, /*durable=*/true); !st.ok()) return st;
   j["inputs"] = {{"count", plan.files.size()}, {"fingerprint", inputs_fingerprint}};
   const Raster& header = s.source.header();
   j["source"] = {{"width", header.width}, {"height", header.height}};
