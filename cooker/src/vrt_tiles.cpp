@@ -7,6 +7,7 @@
 #include <gdal_priv.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cfloat>
 #include <cerrno>
 #include <cmath>
@@ -24,6 +25,10 @@
 
 namespace terrain::cook {
 namespace {
+
+// VrtTileReader::state_ of a source's reader.
+constexpr uint8_t kUntried = 0, kRefused = 1, kOpen = 2, kOpenUsed = 3;
+std::atomic<size_t> open_tile_limit{16384};
 
 enum class Type { none, u16, i16, u32, i32, f32 };
 
@@ -295,24 +300,79 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
         v.push_back(i);
       }
   }
+  // The grid: cells as large as the largest source (each source meets at most 2 x 2 of them).
+  r->cell_ = cell;
+  r->cells_x_ = (width + cell - 1) / cell;
+  r->cells_y_ = (height + cell - 1) / cell;
+  r->cell_start_.assign(size_t(r->cells_x_) * size_t(r->cells_y_) + 1, 0);
+  const auto for_cells = [&](const Source& s, auto&& f) {
+    for (int cy = s.dst_y / cell; cy <= (s.dst_y + s.h - 1) / cell; ++cy)
+      for (int cx = s.dst_x / cell; cx <= (s.dst_x + s.w - 1) / cell; ++cx) f(size_t(cy) * size_t(r->cells_x_) + size_t(cx));
+  };
+  for (const Source& s : r->sources_) for_cells(s, [&](size_t k) { ++r->cell_start_[k + 1]; });
+  for (size_t k = 1; k < r->cell_start_.size(); ++k) r->cell_start_[k] += r->cell_start_[k - 1];
+  r->cell_sources_.resize(r->cell_start_.back());
+  {
+    std::vector<uint32_t> fill(r->cell_start_.begin(), r->cell_start_.end() - 1);
+    for (size_t i = 0; i < r->sources_.size(); ++i) for_cells(r->sources_[i], [&](size_t k) { r->cell_sources_[fill[k]++] = uint32_t(i); });
+  }
   r->type_ = int(type);
   r->tiles_.resize(r->sources_.size());
-  r->tried_.assign(r->sources_.size(), 0);
+  r->state_.assign(r->sources_.size(), kUntried);
   return r;
 }
 
-const TiffBlockReader* VrtTileReader::tile(size_t i) const {
+size_t VrtTileReader::set_open_tile_limit(size_t limit) { return open_tile_limit.exchange(limit); }
+
+std::shared_ptr<const TiffBlockReader> VrtTileReader::tile(size_t i) const {
   std::lock_guard<std::mutex> lock(m_);
-  if (!tried_[i]) {
-    tried_[i] = 1;
-    const Source& s = sources_[i];
-    const Type type = Type(type_);
-    tiles_[i] = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_of(type));
-    // The tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale
-    // VRT over a replaced tile may claim another type of the same size).
-    if (tiles_[i] && tiles_[i]->layout().sample_format != sample_format_of(type)) tiles_[i].reset();
+  if (state_[i] == kOpen || state_[i] == kOpenUsed) {
+    state_[i] = kOpenUsed;
+    return tiles_[i];
   }
-  return tiles_[i].get();
+  if (state_[i] == kRefused) return nullptr;
+  const Source& s = sources_[i];
+  const Type type = Type(type_);
+  std::unique_ptr<TiffBlockReader> t = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_of(type));
+  // The tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale
+  // VRT over a replaced tile may claim another type of the same size).
+  if (!t || t->layout().sample_format != sample_format_of(type)) {
+    state_[i] = kRefused;
+    return nullptr;
+  }
+  tiles_[i] = std::move(t);
+  state_[i] = kOpenUsed;
+  if (open_.size() < std::max<size_t>(1, open_tile_limit.load())) {
+    open_.push_back(uint32_t(i));
+    return tiles_[i];
+  }
+  // The clock: the first open reader not used since the hand last passed is closed (a read still
+  // holding it keeps it until it ends), and this one takes its place.
+  for (;; hand_ = (hand_ + 1) % open_.size()) {
+    const uint32_t j = open_[hand_];
+    if (state_[j] == kOpenUsed) {
+      state_[j] = kOpen;
+      continue;
+    }
+    tiles_[j].reset();
+    state_[j] = kUntried;
+    open_[hand_] = uint32_t(i);
+    hand_ = (hand_ + 1) % open_.size();
+    return tiles_[i];
+  }
+}
+
+void VrtTileReader::sources_in(int x0, int y0, int w, int h, std::vector<uint32_t>& out) const {
+  out.clear();
+  const int cx0 = std::max(0, x0 / cell_), cx1 = std::min(cells_x_ - 1, (x0 + w - 1) / cell_);
+  const int cy0 = std::max(0, y0 / cell_), cy1 = std::min(cells_y_ - 1, (y0 + h - 1) / cell_);
+  for (int cy = cy0; cy <= cy1; ++cy)
+    for (int cx = cx0; cx <= cx1; ++cx) {
+      const size_t k = size_t(cy) * size_t(cells_x_) + size_t(cx);
+      out.insert(out.end(), cell_sources_.begin() + cell_start_[k], cell_sources_.begin() + cell_start_[k + 1]);
+    }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
 uint64_t VrtTileReader::scratch_bytes(int w, int h) const {
@@ -331,17 +391,24 @@ bool VrtTileReader::read_window(int x0, int y0, int w, int h, uint8_t* slots, in
   };
   // Every tile of the window first: one left to GDAL makes the whole window GDAL's, before any
   // other tile is decoded for nothing.
-  for (size_t i = 0; i < sources_.size(); ++i) {
+  static thread_local std::vector<uint32_t> near;
+  static thread_local std::vector<std::shared_ptr<const TiffBlockReader>> held;  // open for the whole read
+  struct Release {  // however the read ends: a closed tile's reader goes with it
+    ~Release() { held.clear(); }
+  } release;
+  sources_in(x0, y0, w, h, near);
+  held.assign(near.size(), nullptr);
+  for (size_t n = 0; n < near.size(); ++n) {
     int cx0, cy0, cx1, cy1;
-    if (overlap(sources_[i], cx0, cy0, cx1, cy1) && !tile(i)) return false;
+    if (overlap(sources_[near[n]], cx0, cy0, cx1, cy1) && !(held[n] = tile(near[n]))) return false;
   }
   std::fill_n(reinterpret_cast<uint32_t*>(slots), size_t(w) * size_t(h), fill_bits_);  // slots are 4-byte words
   std::vector<uint8_t> scratch;
-  for (size_t i = 0; i < sources_.size(); ++i) {
-    const Source& s = sources_[i];
+  for (size_t n = 0; n < near.size(); ++n) {
+    const Source& s = sources_[near[n]];
     int cx0, cy0, cx1, cy1;
     if (!overlap(s, cx0, cy0, cx1, cy1)) continue;
-    const TiffBlockReader* t = tile(i);
+    const TiffBlockReader* t = held[n].get();
     const int tx = s.src_x + (cx0 - s.dst_x), ty = s.src_y + (cy0 - s.dst_y), tw = cx1 - cx0, th = cy1 - cy0;
     uint8_t* at = slots + (size_t(cy0 - y0) * size_t(w) + size_t(cx0 - x0)) * 4;
     const NodataRule rule(type, s.nodata_value);

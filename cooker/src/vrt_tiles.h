@@ -32,6 +32,9 @@ class VrtTileReader {
   // samples; else nullptr and `why_not` says why.
   static std::unique_ptr<VrtTileReader> open(const std::string& path, int width, int height,
                                              std::string* why_not = nullptr);
+  // Tile readers a VrtTileReader keeps open (default 16384, about 8 MB); returns the previous
+  // limit (tests: a tiny one closes and opens tiles again within and between reads).
+  static size_t set_open_tile_limit(size_t limit);
 
   // As TiffBlockReader::read_window: the band's native samples at the start of 4-byte slots. False
   // (slots undefined) when a tile of the window is not one the block reader decodes, or a block
@@ -53,15 +56,26 @@ class VrtTileReader {
                             // the band's fill may lie under it)
   };
   VrtTileReader() = default;
-  // The tile's block reader, opened on first use; null when the block reader refuses the tile.
-  const TiffBlockReader* tile(size_t i) const;
+  // The tile's block reader, opened on first use; null when the block reader refuses the tile. At
+  // most open_tile_limit() stay open (a clock keeps the ones in use): a reader holds its tile's
+  // layout, and a national mosaic has 10^5 to 10^6 tiles.
+  std::shared_ptr<const TiffBlockReader> tile(size_t i) const;
+  // The sources whose DstRect meets the window, in the VRT's order (later ones draw over earlier).
+  void sources_in(int x0, int y0, int w, int h, std::vector<uint32_t>& out) const;
 
   int width_ = 0, height_ = 0, type_ = 0;  // type_: the band's sample type (vrt_tiles.cpp's Type)
   uint32_t fill_bits_ = 0;  // the band's NoDataValue (or 0) as native bytes
   std::vector<Source> sources_;
+  // The sources by grid cell (cell_ x cell_ samples, cells_x_ per row): those of cell k are
+  // cell_sources_[cell_start_[k] .. cell_start_[k + 1]), ascending. A window looks at the cells it
+  // meets, not at every source: a national mosaic has 10^5 to 10^6 of them.
+  int cell_ = 1, cells_x_ = 0, cells_y_ = 0;
+  std::vector<uint32_t> cell_start_, cell_sources_;
   mutable std::mutex m_;
-  mutable std::vector<std::unique_ptr<TiffBlockReader>> tiles_;
-  mutable std::vector<uint8_t> tried_;
+  mutable std::vector<std::shared_ptr<const TiffBlockReader>> tiles_;
+  mutable std::vector<uint8_t> state_;     // per source: kUntried, kRefused, kOpen, kOpenUsed
+  mutable std::vector<uint32_t> open_;     // the open readers' sources, in the clock's order
+  mutable size_t hand_ = 0;
 };
 
 }  // namespace terrain::cook

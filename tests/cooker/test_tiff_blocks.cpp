@@ -392,61 +392,68 @@ void expect_windows_are_gdals(const fs::path& vrt, int bps, int* composed_reads 
   if (composed_reads) *composed_reads = checked;
 }
 
+// Each case twice: with the default number of open tile readers, and with one (each tile is
+// closed and opened again within a read and between reads: the same samples).
 TEST(TiffBlocks, VrtWindowsAreGdalsBitForBit) {
   const fs::path dir = scratch_dir("TiffBlocks.VrtWindowsAreGdalsBitForBit");
   GDALAllRegister();
-  const Layout f32{GDT_Float32, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3"}};
-  const fs::path a = write_tiff(dir, "a", 300, 200, f32), b = write_tiff(dir, "b", 300, 200, f32),
-                 c = write_tiff(dir, "c", 300, 200, f32);
-  // gdalbuildvrt's layout: tiles side by side, ComplexSource NODATA = the band's nodata, a gap
-  // (the fourth quarter) left at the band's nodata.
-  expect_windows_are_gdals(write_vrt(dir, "side_by_side", 600, 400, "Float32", "-9999",
-                                     {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
-                                      {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
-                                      {c, 300, 200, 0, 0, 0, 200, 300, 200, "-9999"}}),
-                           4);
-  // Overlaps: a tile of exact nodata, values a few ulps from it (GDAL's ARE_REAL_EQUAL counts them
-  // as nodata), values just beyond, NaN and data, drawn over others with NODATA -9999, with NaN
-  // as NODATA, and as a SimpleSource (drawn whole); part of a tile (SrcRect inside it).
-  const fs::path odd = write_float_tile(dir, "odd", 200, 150, [](int col, int row) {
-    switch ((col / 7 + row / 5) % 6) {
-      case 0: return -9999.0f;
-      case 1: return std::nextafter(std::nextafter(-9999.0f, 0.0f), 0.0f);  // 2 ulps off: nodata to GDAL
-      case 2: return -9998.99f;                                              // data
-      case 3: return NAN;
-      default: return float(col * 0.25 - row * 1.5);
-    }
-  });
-  expect_windows_are_gdals(write_vrt(dir, "overlaps", 600, 400, "Float32", "-9999",
-                                     {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
-                                      {odd, 200, 150, 0, 0, 200, 100, 200, 150, "-9999"},
-                                      {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
-                                      {odd, 200, 150, 0, 0, 350, 150, 200, 150, "nan"},
-                                      {c, 300, 200, 50, 40, 20, 220, 250, 160, std::nullopt},
-                                      {odd, 200, 150, 10, 10, 380, 300, 150, 100, "-9999"}}),
-                           4);
-  // No band nodata (the window starts at 0), NaN nodata where nothing lies under the tile, sources
-  // reaching past the raster's edges (clipped) and one wholly outside it.
-  expect_windows_are_gdals(write_vrt(dir, "zero_fill", 500, 300, "Float32", std::nullopt,
-                                     {{odd, 200, 150, 0, 0, 0, 0, 200, 150, "nan"},
-                                      {odd, 200, 150, 0, 0, 210, 100, 200, 150, "-9999"},
-                                      {odd, 200, 150, 0, 0, -60, 220, 200, 150, "-9999"},
-                                      {odd, 200, 150, 0, 0, 420, -40, 200, 150, std::nullopt},
-                                      {odd, 200, 150, 0, 0, 900, 900, 200, 150, std::nullopt}}),
-                           4);
-  // 16-bit tiles: Int16 (deflate, predictor 2) with NODATA, UInt16 (LZW) as SimpleSources.
-  const Layout i16{GDT_Int16, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=DEFLATE", "PREDICTOR=2"}};
-  const fs::path i1 = write_tiff(dir, "i1", 300, 200, i16), i2 = write_tiff(dir, "i2", 300, 200, i16);
-  expect_windows_are_gdals(write_vrt(dir, "int16", 500, 350, "Int16", "-9999",
-                                     {{i1, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
-                                      {i2, 300, 200, 0, 0, 150, 120, 300, 200, "-9999"}}),
-                           2);
-  const Layout u16{GDT_UInt16, {"COMPRESS=LZW", "PREDICTOR=2"}};
-  const fs::path u1 = write_tiff(dir, "u1", 300, 200, u16), u2 = write_tiff(dir, "u2", 300, 200, u16);
-  expect_windows_are_gdals(write_vrt(dir, "uint16", 600, 200, "UInt16", std::nullopt,
-                                     {{u1, 300, 200, 0, 0, 0, 0, 300, 200, std::nullopt},
-                                      {u2, 300, 200, 0, 0, 250, 0, 300, 200, std::nullopt}}),
-                           2);
+  for (const size_t limit : {size_t(16384), size_t(1)}) {
+    SCOPED_TRACE(fmt::format("{} open tile readers", limit));
+    const size_t before = cook::VrtTileReader::set_open_tile_limit(limit);
+    const Layout f32{GDT_Float32, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=ZSTD", "PREDICTOR=3"}};
+    const fs::path a = write_tiff(dir, "a", 300, 200, f32), b = write_tiff(dir, "b", 300, 200, f32),
+                   c = write_tiff(dir, "c", 300, 200, f32);
+    // gdalbuildvrt's layout: tiles side by side, ComplexSource NODATA = the band's nodata, a gap
+    // (the fourth quarter) left at the band's nodata.
+    expect_windows_are_gdals(write_vrt(dir, "side_by_side", 600, 400, "Float32", "-9999",
+                                       {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                        {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
+                                        {c, 300, 200, 0, 0, 0, 200, 300, 200, "-9999"}}),
+                             4);
+    // Overlaps: a tile of exact nodata, values a few ulps from it (GDAL's ARE_REAL_EQUAL counts them
+    // as nodata), values just beyond, NaN and data, drawn over others with NODATA -9999, with NaN
+    // as NODATA, and as a SimpleSource (drawn whole); part of a tile (SrcRect inside it).
+    const fs::path odd = write_float_tile(dir, "odd", 200, 150, [](int col, int row) {
+      switch ((col / 7 + row / 5) % 6) {
+        case 0: return -9999.0f;
+        case 1: return std::nextafter(std::nextafter(-9999.0f, 0.0f), 0.0f);  // 2 ulps off: nodata to GDAL
+        case 2: return -9998.99f;                                              // data
+        case 3: return NAN;
+        default: return float(col * 0.25 - row * 1.5);
+      }
+    });
+    expect_windows_are_gdals(write_vrt(dir, "overlaps", 600, 400, "Float32", "-9999",
+                                       {{a, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                        {odd, 200, 150, 0, 0, 200, 100, 200, 150, "-9999"},
+                                        {b, 300, 200, 0, 0, 300, 0, 300, 200, "-9999"},
+                                        {odd, 200, 150, 0, 0, 350, 150, 200, 150, "nan"},
+                                        {c, 300, 200, 50, 40, 20, 220, 250, 160, std::nullopt},
+                                        {odd, 200, 150, 10, 10, 380, 300, 150, 100, "-9999"}}),
+                             4);
+    // No band nodata (the window starts at 0), NaN nodata where nothing lies under the tile, sources
+    // reaching past the raster's edges (clipped) and one wholly outside it.
+    expect_windows_are_gdals(write_vrt(dir, "zero_fill", 500, 300, "Float32", std::nullopt,
+                                       {{odd, 200, 150, 0, 0, 0, 0, 200, 150, "nan"},
+                                        {odd, 200, 150, 0, 0, 210, 100, 200, 150, "-9999"},
+                                        {odd, 200, 150, 0, 0, -60, 220, 200, 150, "-9999"},
+                                        {odd, 200, 150, 0, 0, 420, -40, 200, 150, std::nullopt},
+                                        {odd, 200, 150, 0, 0, 900, 900, 200, 150, std::nullopt}}),
+                             4);
+    // 16-bit tiles: Int16 (deflate, predictor 2) with NODATA, UInt16 (LZW) as SimpleSources.
+    const Layout i16{GDT_Int16, {"TILED=YES", "BLOCKXSIZE=128", "BLOCKYSIZE=128", "COMPRESS=DEFLATE", "PREDICTOR=2"}};
+    const fs::path i1 = write_tiff(dir, "i1", 300, 200, i16), i2 = write_tiff(dir, "i2", 300, 200, i16);
+    expect_windows_are_gdals(write_vrt(dir, "int16", 500, 350, "Int16", "-9999",
+                                       {{i1, 300, 200, 0, 0, 0, 0, 300, 200, "-9999"},
+                                        {i2, 300, 200, 0, 0, 150, 120, 300, 200, "-9999"}}),
+                             2);
+    const Layout u16{GDT_UInt16, {"COMPRESS=LZW", "PREDICTOR=2"}};
+    const fs::path u1 = write_tiff(dir, "u1", 300, 200, u16), u2 = write_tiff(dir, "u2", 300, 200, u16);
+    expect_windows_are_gdals(write_vrt(dir, "uint16", 600, 200, "UInt16", std::nullopt,
+                                       {{u1, 300, 200, 0, 0, 0, 0, 300, 200, std::nullopt},
+                                        {u2, 300, 200, 0, 0, 250, 0, 300, 200, std::nullopt}}),
+                             2);
+    cook::VrtTileReader::set_open_tile_limit(before);
+  }
 }
 
 // What the VRT reader leaves to GDAL: sources with arithmetic or resampling are refused at open;
