@@ -300,7 +300,10 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
         v.push_back(i);
       }
   }
-  // The grid: cells as large as the largest source (each source meets at most 2 x 2 of them).
+  // The grid: cells as large as the largest source (each source meets at most 2 x 2 of them), and
+  // no more cells than about four per source (a few small tiles over a vast raster).
+  const double per_cell = double(width) * double(height) / (4.0 * double(r->sources_.size()) + 1.0);
+  cell = std::max(cell, int(std::min(std::ceil(std::sqrt(per_cell)), double(std::max(width, height)))));
   r->cell_ = cell;
   r->cells_x_ = (width + cell - 1) / cell;
   r->cells_y_ = (height + cell - 1) / cell;
