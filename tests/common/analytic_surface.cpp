@@ -14,8 +14,13 @@
 namespace terrain::synthetic {
 namespace {
 
-double height_local(double lx, double ly, double relief, double detail, double flat_from) {
-  const double w = std::clamp((flat_from - lx) / 300.0, 0.0, 1.0);
+// Weight of the hills at local x: 1, fading to 0 over 300 m east of flat_from_x_m and west of flat_until_x_m.
+double relief_weight(const Spec& o, double lx) {
+  return std::min(std::clamp((o.flat_from_x_m - lx) / 300.0, 0.0, 1.0), std::clamp((lx - o.flat_until_x_m) / 300.0, 0.0, 1.0));
+}
+
+double height_local(double lx, double ly, double relief, double detail, const Spec& o) {
+  const double w = relief_weight(o, lx);
   return 300.0 + w * relief * (0.35 * std::sin(lx / 700.0) * std::cos(ly / 900.0) + 0.25 * std::sin(lx / 230.0 + ly / 310.0) +
                            detail * (0.12 * std::sin(lx / 61.0) * std::cos(ly / 47.0) +
                                      0.04 * std::sin(lx / 13.0 + 0.7) * std::sin(ly / 17.0)));
@@ -23,8 +28,8 @@ double height_local(double lx, double ly, double relief, double detail, double f
 
 // Canonical height units of the vertex at (hx, hy) half metres: a multiple of the step, the same
 // for every level holding it.
-int32_t canonical_units(int64_t hx, int64_t hy, double relief, double detail, double flat_from) {
-  const double h = height_local(double(hx) * 0.5, double(hy) * 0.5, relief, detail, flat_from);
+int32_t canonical_units(int64_t hx, int64_t hy, double relief, double detail, const Spec& o) {
+  const double h = height_local(double(hx) * 0.5, double(hy) * 0.5, relief, detail, o);
   return int32_t(std::llround(h * 1024.0 / 16.0) * 16);
 }
 
@@ -136,7 +141,7 @@ void build_node(const Ctx& c, const NodeKey& key, Node& out) {
     for (int i = 0; i < kExt; ++i) {
       const int64_t hx = (int64_t(key.x) * kQuadsPerSide + i - 2) * (int64_t(1) << level);
       const int64_t hy = (int64_t(key.y) * kQuadsPerSide + j - 2) * (int64_t(1) << level);
-      ext[size_t(j) * kExt + i] = canonical_units(hx, hy, relief, c.o->detail, c.o->flat_from_x_m);
+      ext[size_t(j) * kExt + i] = canonical_units(hx, hy, relief, c.o->detail, *c.o);
     }
   auto ext_units = [&](int i, int j) { return ext[size_t(j + 2) * kExt + size_t(i + 2)]; };
   std::vector<int32_t> units(kHeightCount);
@@ -166,10 +171,10 @@ void build_node(const Ctx& c, const NodeKey& key, Node& out) {
     for (int i = 0; i < kQuadsPerSide; ++i) {
       const double lx = (double(key.x) * kQuadsPerSide + i + 0.5) * s, ly = (double(key.y) * kQuadsPerSide + j + 0.5) * s;
       const double mid = (ext_units(i, j) + ext_units(i + 1, j + 1)) / 2048.0;  // on the SW-NE diagonal
-      err = std::max(err, std::abs(height_local(lx, ly, relief, c.o->detail, c.o->flat_from_x_m) - mid));
+      err = std::max(err, std::abs(height_local(lx, ly, relief, c.o->detail, *c.o) - mid));
     }
   const double centre_x = (double(key.x) + 0.5) * node_size_m(level);
-  const double weight = std::clamp((c.o->flat_from_x_m - centre_x) / 300.0, 0.0, 1.0);
+  const double weight = relief_weight(*c.o, centre_x);
   rec.geometric_error_m = float(std::max(err, c.o->error_floor_m * std::pow(4.0, level) * weight));
 
   // Normals and albedo (132 x 132): texel (t, u) is the cell between vertices (t-2, u-2) and (t-1, u-1).

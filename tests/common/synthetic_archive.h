@@ -49,6 +49,7 @@ struct Spec {
   double relief_m = 350.0;  // peak-to-valley scale of the hills
   double detail = 1.0;      // weight of the short-wavelength terms (0: smooth slopes, narrow cones)
   double flat_from_x_m = 1e30;  // local x (m from the origin) from where the terrain is flat (fades over 300 m)
+  double flat_until_x_m = -1e30;  // ... and up to where it is flat (fades over 300 m east of it)
   // The geometric error is at least error_floor_m * 4^level (times the relief weight at the node),
   // so views refine deep where the smooth field alone would not ask for it. 0 = measured only.
   double error_floor_m = 0;

@@ -271,28 +271,40 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   EXPECT_TRUE(levels.count(0) && levels.count(5) && levels.count(7) && levels.count(8)) << "levels 7, 8: coarsened roots";
 }
 
-// Per-patch decimation of roots (config.h "Patch decimation"): root patches drawn with every 2nd..16th
-// vertex next to full patches of the same root, finer nodes and coarsened roots stay watertight,
-// and each decimation keeps the patch's total error within the target at the patch's distance.
+// Per-patch decimation of roots (config.h "Patch decimation"): patches of roots drawn coarsened or
+// not, drawn with every 2nd..16th vertex of their grid next to full patches of the same root, finer
+// nodes and coarsened roots, stay watertight, and each decimation keeps the patch's total error
+// within the target at the patch's distance.
 TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
+  std::set<uint32_t> decimations, interior_deltas;
+  size_t checked = 0;
+  size_t beside_coarsened = 0;  // decimated patches on a root edge facing a coarsened root
+  size_t coarsened_decimated = 0;  // decimated patches of coarsened roots
+  // Flat east (rough root column 0, flattening across column 1, flat column 2), then mirrored: the
+  // coarser roots then lie west of the finer ones, whose west edges collapse (rounding down, onto
+  // their own corners) while their inner edges stitch too.
+  for (const bool flat_west : {false, true}) {
   synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
   o.roots_y = 2;
   o.cones = false;
   o.relief_m = 120;
-  o.flat_from_x_m = 2600;  // rough root column 0, flattening across root column 1, flat column 2
+  if (flat_west)
+    o.flat_until_x_m = 3 * 2048 - 2600;
+  else
+    o.flat_from_x_m = 2600;
   o.keep = [](const NodeKey& k) { return k.level >= 3; };
   const auto scene = resident_scene(o);
   ASSERT_TRUE(scene);
   const auto& [sw, st, cpu, table] = *scene;
-  std::set<uint32_t> decimations, interior_deltas;
-  size_t checked = 0;
-  size_t beside_coarsened = 0;  // decimated patches on a root edge facing a coarsened root
   // (2100, 1000, 200) at 10 px: a root decimated next to a coarsened root (cracked before the cap).
-  for (const auto& [x, y, h] : {std::array{2600.0, 2048.0, 400.0}, std::array{1000.0, 500.0, 900.0},
-                                std::array{-3000.0, 2048.0, 1500.0}, std::array{2100.0, 1000.0, 200.0},
-                                std::array{-1000.0, 4000.0, 3000.0}})
+  for (auto [x, y, h] : {std::array{2600.0, 2048.0, 400.0}, std::array{1000.0, 500.0, 900.0},
+                         std::array{-3000.0, 2048.0, 1500.0}, std::array{2100.0, 1000.0, 200.0},
+                         std::array{-1000.0, 4000.0, 3000.0}, std::array{4000.0, -300.0, 300.0},
+                         std::array{4000.0, -1000.0, 600.0}, std::array{4500.0, 0.0, 200.0},
+                         std::array{3500.0, -2000.0, 1000.0}, std::array{4096.0, 4500.0, 400.0}})
     for (double target : {0.3, 1.0, 3.0, 10.0}) {
+      if (flat_west) x = 3 * 2048 - x;
       Camera cam;
       cam.position[0] = sw.world.origin_x_m + x;
       cam.position[1] = sw.world.origin_y_m + y;
@@ -311,17 +323,25 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
           if (east < sectors_x && lod[size_t(lod_index(u, east, row))] > kRootLevel + 1) ++beside_coarsened;
         }
         if (e > 0) {
-          ASSERT_EQ(patch_level(p), uint32_t(kRootLevel)) << "only uncoarsened roots decimate";
-          // The bound the decimation promises: total error * pixels per radian <= target * distance.
+          const uint32_t c = patch_coarsening(p);
+          ASSERT_EQ(patch_node_level(p), kRootLevel) << "only roots decimate";
+          coarsened_decimated += c > 0;
+          // The bound the decimation promises: total error * pixels per radian <= target * distance,
+          // over the patch's box (a coarsened patch covers (1 << c)^2 root patches).
           const GpuNodeDesc& d = st.descriptor(patch_slot(p));
-          const GpuPatchBounds b = cpu[patch_slot(p)].bounds[patch_py(p) * 8 + patch_px(p)];
-          const double size = node_size_m(kRootLevel) / 8;
+          int32_t lo = INT32_MAX, hi = INT32_MIN;
+          for (uint32_t q = patch_py(p) << c; q < (patch_py(p) + 1) << c; ++q)
+            for (uint32_t r = patch_px(p) << c; r < (patch_px(p) + 1) << c; ++r) {
+              lo = std::min(lo, cpu[patch_slot(p)].bounds[q * 8 + r].min_units);
+              hi = std::max(hi, cpu[patch_slot(p)].bounds[q * 8 + r].max_units);
+            }
+          const double size = node_size_m(kRootLevel) / 8 * double(1u << c);
           const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - (cam.position[0] - sw.world.origin_x_m);
           const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - (cam.position[1] - sw.world.origin_y_m);
           const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
-          const double dz = std::max({b.min_units / 1024.0 - h, 0.0, h - b.max_units / 1024.0});
+          const double dz = std::max({lo / 1024.0 - h, 0.0, h - hi / 1024.0});
           const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
-          const double err = double(cpu[patch_slot(p)].patch_error[patch_py(p) * 8 + patch_px(p)][e - 1]);
+          const double err = double(cpu[patch_slot(p)].patch_error[patch_error_index(c, patch_px(p), patch_py(p))][e - 1]);
           EXPECT_LE(err * double(u.cam_frac[3]), target * dist * (1 + 1e-5));
           ++checked;
         }
@@ -331,10 +351,101 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
       EXPECT_EQ(m.open_edges, 0u) << "target " << target << " camera " << x << "," << y;
       EXPECT_DOUBLE_EQ(m.area, m.expected_area);
     }
+  }
   EXPECT_EQ(decimations, (std::set<uint32_t>{0, 1, 2, 3, 4}));
   EXPECT_FALSE(interior_deltas.empty()) << "decimated root patches must border less decimated ones inside a root";
   EXPECT_GT(checked, 100u);
   EXPECT_GT(beside_coarsened, 0u) << "decimated root patches must face coarsened roots";
+  EXPECT_GT(coarsened_decimated, 0u) << "patches of coarsened roots must decimate too";
+}
+
+// Patches with hole vertices decimate too, but only as far as a root may coarsen (c + e <= 3, quads
+// of at most 128 m: the holes' drawn outline moves by at most one such quad, as for coarsened
+// roots), and within the target over what the coarse mesh draws: every vertex of a coarse
+// triangle without a hole corner, recomputed here from the node's heights and hole mask.
+TEST(ViewerReference, PatchesWithHolesDecimateWithinTheTargetOverWhatTheyDraw) {
+  synthetic::Spec o = synthetic::analytic_surface();
+  o.roots_x = 3;
+  o.roots_y = 2;
+  o.cones = false;
+  o.relief_m = 120;
+  o.flat_from_x_m = 2600;
+  o.hole_x_m = o.origin_x_m + 3000;  // a 250 m disc across the flattening and the flat root columns
+  o.hole_y_m = o.origin_y_m + 1900;
+  o.hole_radius_m = 250;
+  o.keep = [](const NodeKey& k) { return k.level >= 3; };
+  const auto scene = resident_scene(o);
+  ASSERT_TRUE(scene);
+  const auto& [sw, st, cpu, table] = *scene;
+  size_t checked = 0, deep = 0;
+  for (const auto& [x, y, h] : {std::array{3000.0, 2048.0, 3000.0}, std::array{3000.0, -2000.0, 1500.0},
+                                std::array{6000.0, 2048.0, 2000.0}, std::array{1000.0, 2048.0, 5000.0},
+                                std::array{3000.0, 1900.0, 8000.0}})
+    for (double target : {0.5, 1.0, 3.0}) {
+      Camera cam;
+      cam.position[0] = sw.world.origin_x_m + x;
+      cam.position[1] = sw.world.origin_y_m + y;
+      cam.position[2] = h;
+      const FrameUniforms u = uniforms_for(cam, sw.world, target, TV_FLAG_DECIMATE);
+      const NodeList list = reference_traverse(st, u, cpu);
+      const auto lod = reference_lod_map(st, u, list);
+      const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
+      for (const auto& p : patches.patches) {
+        const uint32_t c = patch_coarsening(p), e = patch_decimation(p);
+        if (e == 0) continue;
+        const GpuNodeDesc& d = st.descriptor(patch_slot(p));
+        const synthetic::Node* node = nullptr;
+        for (const auto& n : sw.nodes)
+          if (n.record.key.level == uint32_t(kRootLevel) && n.record.key.x == d.x && n.record.key.y == d.y) node = &n;
+        ASSERT_NE(node, nullptr);
+        std::vector<uint8_t> holes(kHeightCount);
+        decode_hole_mask(node->data, holes.data());
+        const int span = TV_QUADS_PER_PATCH << c, i0 = int(patch_px(p)) * span, j0 = int(patch_py(p)) * span;
+        const int step = 1 << (c + e);
+        auto hole = [&](int i, int j) { return holes[size_t(j0 + j) * kHeightSamples + size_t(i0 + i)] != 0; };
+        auto height = [&](int i, int j) {
+          const uint16_t r = node->data.heights[size_t(j0 + j) * kHeightSamples + size_t(i0 + i)];
+          return double(vertex_units(node->record.height_offset, r, sw.world.step_log2[kRootLevel])) / 1024.0;
+        };
+        bool any_hole = false;
+        for (int j = 0; j <= span; ++j)
+          for (int i = 0; i <= span; ++i) any_hole = any_hole || hole(i, j);
+        if (!any_hole) continue;
+        EXPECT_LE(c + e, 3u) << "a patch with holes decimates at most as far as a root coarsens";
+        double worst = 0;
+        for (int j = 0; j <= span; ++j)
+          for (int i = 0; i <= span; ++i) {
+            const int ci = std::min(i / step, span / step - 1) * step, cj = std::min(j / step, span / step - 1) * step;
+            const double a = double(i - ci) / step, b = double(j - cj) / step;
+            const bool upper = a < b;  // SW->NE split: (00, 10, 11) below the diagonal, (00, 11, 01) above
+            if (hole(i, j) || hole(ci, cj) || hole(ci + step, cj + step) || (upper ? hole(ci, cj + step) : hole(ci + step, cj)))
+              continue;
+            const double h00 = height(ci, cj), h10 = height(ci + step, cj), h01 = height(ci, cj + step),
+                         h11 = height(ci + step, cj + step);
+            const double drawn = upper ? h00 + a * (h11 - h01) + b * (h01 - h00) : h00 + a * (h10 - h00) + b * (h11 - h10);
+            worst = std::max(worst, std::abs(drawn - height(i, j)));
+          }
+        int32_t lo = INT32_MAX, hi = INT32_MIN;
+        for (uint32_t q = patch_py(p) << c; q < (patch_py(p) + 1) << c; ++q)
+          for (uint32_t r = patch_px(p) << c; r < (patch_px(p) + 1) << c; ++r) {
+            lo = std::min(lo, cpu[patch_slot(p)].bounds[q * 8 + r].min_units);
+            hi = std::max(hi, cpu[patch_slot(p)].bounds[q * 8 + r].max_units);
+          }
+        const double size = node_size_m(kRootLevel) / 8 * double(1u << c);
+        const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - x;
+        const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - y;
+        const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
+        const double dz = std::max({lo / 1024.0 - h, 0.0, h - hi / 1024.0});
+        const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+        EXPECT_LE((worst + double(node->record.geometric_error_m)) * double(u.cam_frac[3]), target * dist * (1 + 1e-5))
+            << "camera " << x << "," << y << "," << h << " target " << target;
+        ++checked;
+        deep += c + e == 3;
+      }
+    }
+  EXPECT_GT(checked, 20u) << "patches with holes must decimate";
+  EXPECT_GT(deep, 0u) << "some as far as 128 m quads";
+  std::printf("decimated patches with holes: %zu, %zu of them to 128 m quads\n", checked, deep);
 }
 
 TEST(ViewerReference, LodMapMatchesCoverage) {

@@ -252,7 +252,7 @@ TEST(ViewerGpu, NoCracksAcrossLodBoundaries) {
 // Per-patch decimation of roots (config.h): rough, flattening and flat root columns seen from far
 // and near at several targets. The GPU patch list (with each patch's decimation and the deltas of
 // edges inside a root) equals the CPU reference, no magenta shows through, and the views do
-// decimate (every e = 1..4) and stitch decimated patches inside roots.
+// decimate (every e = 1..4, patches of coarsened roots too) and stitch decimated patches inside roots.
 synthetic::World decimation_world() {
   synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;
@@ -269,9 +269,12 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
   const ViewSpec views[] = {{2600, 2048, 900, 0, -70, 1.0},   {1500, 1500, 1200, 45, -75, 0.5},
                             {3500, 2000, 1500, 0, -80, 1.0},   {2000, 1500, 600, 90, -60, 2.0},
                             {3000, 2048, 1200, 180, -65, 0.3}, {3000, 2048, 2000, 270, -85, 4.0},
-                            {4500, 2048, 1400, 90, -70, 1.5},  {2100, 1000, 500, 90, -60, 10.0}};
+                            {4500, 2048, 1400, 90, -70, 1.5},  {2100, 1000, 500, 90, -60, 10.0},
+                            // Straight down: coarsened roots whose patches decimate unequally.
+                            {3000, 2048, 2500, 0, -89, 1.0},   {3000, 2048, 2500, 0, -89, 2.0},
+                            {2000, 2048, 2000, 0, -89, 1.5}};
   std::set<uint32_t> decimations;
-  size_t interior = 0, unstitched = 0;
+  size_t interior = 0, unstitched = 0, coarsened = 0, coarsened_interior = 0;
   for (const ViewSpec& v : views) {
     FrameSettings s = magenta_clear(v.error);
     GpuLists lists;
@@ -290,6 +293,10 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
       interior += patch_level(p) == uint32_t(kRootLevel) &&
                   ((patch_px(p) > 0 && edge_delta(p, TV_EDGE_W) > 0) || (patch_px(p) < 7 && edge_delta(p, TV_EDGE_E) > 0) ||
                    (patch_py(p) > 0 && edge_delta(p, TV_EDGE_S) > 0) || (patch_py(p) < 7 && edge_delta(p, TV_EDGE_N) > 0));
+      const uint32_t c = patch_coarsening(p), last = (8u >> c) - 1;
+      coarsened += c > 0 && patch_decimation(p) > 0;
+      coarsened_interior += c > 0 && ((patch_px(p) > 0 && edge_delta(p, TV_EDGE_W) > 0) || (patch_px(p) < last && edge_delta(p, TV_EDGE_E) > 0) ||
+                                      (patch_py(p) > 0 && edge_delta(p, TV_EDGE_S) > 0) || (patch_py(p) < last && edge_delta(p, TV_EDGE_N) > 0));
     }
     unstitched += cracks_only_unstitched(*gpu, uploads, camera_at(world.synthetic.world, v.x, v.y, v.h, v.yaw, v.pitch), s,
                                          "decimated_" + std::to_string(&v - views));
@@ -297,6 +304,9 @@ TEST(ViewerGpu, DecimatedRootPatchesEqualTheReferenceWithoutCracks) {
   EXPECT_GT(unstitched, 0u) << "control: unstitched decimated edges must crack";
   EXPECT_EQ(decimations, (std::set<uint32_t>{0, 1, 2, 3, 4}));
   EXPECT_GT(interior, 0u) << "decimated patches must border less decimated ones inside a root";
+  EXPECT_GT(coarsened, 0u) << "patches of coarsened roots must decimate";
+  EXPECT_GT(coarsened_interior, 0u) << "patches of a coarsened root must border more decimated ones inside it";
+  std::printf("decimated patches of coarsened roots: %zu, with a delta inside their root: %zu\n", coarsened, coarsened_interior);
 }
 
 TEST(ViewerGpu, NoCracksAtTheStreamingFrontier) {

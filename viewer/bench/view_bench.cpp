@@ -24,6 +24,7 @@
 
 #include "bench_chart.h"
 #include "session.h"
+#include "terrain/bc_decode.h"
 
 namespace terrain::view {
 namespace {
@@ -52,16 +53,20 @@ using DecimationMap = std::unordered_map<uint32_t, uint32_t>;
 DecimationMap decimations(const std::vector<GpuPatch>& patches) {
   DecimationMap m;
   for (const GpuPatch& p : patches)
-    if (patch_decimation(p) > 0) m[patch_slot(p) * 64 + patch_py(p) * 8 + patch_px(p)] = patch_decimation(p);
+    if (patch_decimation(p) > 0)
+      m[patch_slot(p) * TV_PATCH_ERRORS_PER_NODE + patch_error_index(patch_coarsening(p), patch_px(p), patch_py(p))] =
+          patch_decimation(p);
   return m;
 }
 
 // Height (m) of the surface the frame draws at local point (lx, ly) (metres from the world
 // origin): the node drawing the sector (LOD map), its triangle (SW->NE split) at the node's
-// geometric level and, for a decimated root patch, every 2^e-th vertex. Stitching (only the
-// outermost quad strip of a node or decimated patch) is ignored. NaN if none.
-double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, const DecimationMap& dec, double lx,
-                    double ly) {
+// geometric level and, for a decimated root patch (coarsened or not), every 2^e-th vertex. Stitching
+// (only the outermost quad strip of a node or decimated patch) is ignored. NaN if none, or where
+// that triangle has a hole corner (holes drawn: the frame drops it there).
+using HoleMasks = std::unordered_map<uint32_t, std::vector<uint8_t>>;
+double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, const DecimationMap& dec, HoleMasks& holes,
+                    double lx, double ly) {
   const TerrainState& st = s.state;
   if (lx < 0 || ly < 0) return NAN;
   const int64_t k = lod_index(s.renderer.uniforms(), int64_t(lx / 64.0), int64_t(ly / 64.0));
@@ -78,10 +83,12 @@ double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, cons
   const uint32_t nx = uint32_t(lx / size), ny = uint32_t(ly / size);
   const uint16_t slot = st.slot_of(NodeKey{uint32_t(level), nx, ny});
   if (slot >= TV_SLOT_INVALID) return NAN;
-  if (geo == uint32_t(terrain::kRootLevel)) {
-    const double patch = size / TV_PATCHES_PER_SIDE;
-    const uint32_t px = std::min(uint32_t((lx - nx * size) / patch), 7u), py = std::min(uint32_t((ly - ny * size) / patch), 7u);
-    if (auto it = dec.find(slot * 64u + py * 8 + px); it != dec.end()) c = it->second;
+  if (level == terrain::kRootLevel) {  // a root patch, coarsened or not, may be decimated
+    const uint32_t pps = TV_PATCHES_PER_SIDE >> c;
+    const double patch = size / pps;
+    const uint32_t px = std::min(uint32_t((lx - nx * size) / patch), pps - 1);
+    const uint32_t py = std::min(uint32_t((ly - ny * size) / patch), pps - 1);
+    if (auto it = dec.find(slot * TV_PATCH_ERRORS_PER_NODE + patch_error_index(c, px, py)); it != dec.end()) c += it->second;
   }
   const double step = vertex_spacing_m(level) * double(1 << c);
   const NodeData* data = s.source->slot_data(slot);
@@ -95,6 +102,15 @@ double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, cons
     const int ti = i << c, tj = j << c;
     return units_to_metres(vertex_units(d.height_offset, data->heights[size_t(tj) * kHeightSamples + ti], d.step_log2));
   };
+  if (s.options.settings.holes && (d.flags & kNodeFlagHasHoles)) {
+    auto [it, fresh] = holes.try_emplace(slot);
+    if (fresh) {
+      it->second.resize(kHeightCount);
+      terrain::decode_hole_mask(*data, it->second.data());
+    }
+    auto hole = [&](int i, int j) { return it->second[size_t(j << c) * kHeightSamples + size_t(i << c)] != 0; };
+    if (hole(ci, cj) || hole(ci + 1, cj + 1) || (a >= b ? hole(ci + 1, cj) : hole(ci, cj + 1))) return NAN;
+  }
   const double h00 = h(ci, cj), h10 = h(ci + 1, cj), h01 = h(ci, cj + 1), h11 = h(ci + 1, cj + 1);
   return a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
 }
@@ -309,6 +325,7 @@ int main(int argc, char** argv) {
       const terrain::WorldInfo& wi = s.source->world();
       const double ppr = pixels_per_radian(cam.fovy, s.target.height);
       const DecimationMap dec = decimations(patches);
+      HoleMasks holes;
       std::vector<double> errs;
       for (uint32_t py = 0; py < s.target.height; ++py)
         for (uint32_t px = 0; px < s.target.width; ++px) {
@@ -317,7 +334,7 @@ int main(int argc, char** argv) {
           double rel[3];
           unproject(cam, s.target.width, s.target.height, px, py, d, rel);
           const double lx = cam.position[0] + rel[0] - wi.origin_x_m, ly = cam.position[1] + rel[1] - wi.origin_y_m;
-          const double hl = drawn_height(s, lod, dec, lx, ly);
+          const double hl = drawn_height(s, lod, dec, holes, lx, ly);
           if (std::isnan(hl)) continue;
           const double dist = std::sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]);
           errs.push_back(std::abs(hl - (cam.position[2] + rel[2])) * ppr / dist);

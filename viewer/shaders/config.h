@@ -16,6 +16,7 @@
 #define TV_PATCHES_PER_SIDE 8
 #define TV_PATCHES_PER_NODE 64
 #define TV_QUADS_PER_PATCH 16
+#define TV_QUADS_PER_PATCH_LOG2 4
 // Patch meshes: triangle lists of (16 >> e)^2 quads split SW->NE, one per decimation e (a strip
 // per row measured no faster on lavapipe).
 #define TV_HEIGHT_SAMPLES 129
@@ -109,14 +110,25 @@
 // screen-space error stays within the target. Every patch can evaluate a neighbour root patch's e
 // (a pure function of camera and that patch's data), so edges stitch without an extra pass: the
 // finer side collapses onto the coarser one as for LOD differences (effective level = 5 + e).
-// Only root patches decimate: they are never smaller than a neighbour's patch edge, so one delta
-// per edge stays exact; the exception, a coarsened root's patch spanning several root patches, is
-// never the finer side (a root patch facing it keeps e <= its coarsening). The cap
-// 5 + e <= 7 + finest drawn level keeps every collapse d <= 7.
+// Root patches decimate, uncoarsened or coarsened (a coarsened root's patch, which spans
+// (1 << c)^2 root patches, decimates on its own coarse grid: effective level 5 + c + e). Where two
+// patches of different widths meet, the narrower one is never the coarser side, so the wider one
+// needs no delta there: a patch of coarsening c keeps e <= c' - c on an edge facing a root drawn
+// at coarsening c' > c. And the narrower patch's collapse stays within itself (d <= 4, groups of
+// at most its 16 quads), because its other edges may collapse onto different neighbours too: a
+// patch of coarsening c keeps c - c' + e <= 4 on an edge facing a root drawn at coarsening c' < c
+// (finer nodes have no deltas inside a node, so only the d <= 7 below holds for them). Equal
+// widths stitch either way (the finer collapses). The cap 5 + c + e <= 7 + finest drawn level
+// keeps every collapse d <= 7. Coarsened patches decimate only in worlds without overview levels,
+// where LOD map values 7..9 can only be coarsened roots.
 #define TV_PATCH_DECIM_SHIFT 27   // e in bits 27..29 of the patch entry's x
 #define TV_PATCH_COARSE_SHIFT 30  // coarsening c in bits 30..31 (a root drawn at level 5 + c)
 #define TV_PATCH_LEVEL_MASK 31u
 #define TV_MAX_DECIMATE 4
+// Decimation errors per node slot: the 64 root patches (c = 0), then the coarsened patches of
+// c = 1, 2, 3 (16, 4, 1), patch (px, py) of coarsening c at TV_PATCH_ERROR_BASE(c) + py * (8 >> c) + px.
+#define TV_PATCH_ERRORS_PER_NODE 85
+#define TV_PATCH_ERROR_BASE(c) ((c) == 0 ? 0 : (c) == 1 ? 64 : (c) == 2 ? 80 : 84)
 
 // Shading groups (FC5 section 3, step 4): patches whose box is within the near-shading distance
 // go to the near list (splat materials), the others to the far list (baked albedo + normal). Each

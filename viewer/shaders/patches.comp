@@ -12,7 +12,7 @@ layout(std430, set = 0, binding = 6) readonly buffer LodMap { uint lod_map[]; };
 layout(std430, set = 0, binding = 7) buffer Draw { uint draw[]; };
 layout(std430, set = 0, binding = 8) writeonly buffer Patches { uvec4 patches[]; };
 layout(set = 0, binding = 13) uniform sampler2DArray cones_tex;
-// Per root patch: total error (m) drawn with decimation e = 1..4 in component e - 1.
+// Per root patch of each coarsening (config.h): total error (m) drawn with decimation e = 1..4 in component e - 1.
 layout(std430, set = 0, binding = 16) readonly buffer PatchErrors { vec4 patch_error[]; };
 
 uint lod_at(int sx, int sy) {
@@ -43,39 +43,61 @@ bool frustum_visible(vec3 mn, vec3 mx) {
   return true;
 }
 
-// Largest decimation this frame allows (max_decimation() in src/reference.cpp).
-uint max_decimation() {
+// Bounds of patch (px, py) of a node drawn with coarsening c: its (1 << c)^2 node patches.
+ivec2 coarse_patch_bounds(uint base, uint c, uint px, uint py, ivec2 b) {
+  for (uint q = py << c; q < ((py + 1u) << c); ++q)
+    for (uint p = px << c; p < ((px + 1u) << c); ++p) {
+      ivec2 o = patch_bounds[base + q * 8u + p];
+      b = ivec2(min(b.x, o.x), max(b.y, o.y));
+    }
+  return b;
+}
+
+// Largest c + e of a root patch this frame allows (decimation_budget() in src/reference.cpp).
+uint decimation_budget() {
   if ((frame.misc.y & TV_FLAG_DECIMATE) == 0u) return 0u;
   uint finest = uint(TV_ROOT_LEVEL);
   for (int l = TV_ROOT_LEVEL; l >= 0; --l)
     if (node_list[TV_NL_LEVEL_COUNTS + l] > 0u) finest = uint(l);
-  return min(uint(TV_MAX_DECIMATE), 7u + finest - uint(TV_ROOT_LEVEL));
+  return 7u + finest - uint(TV_ROOT_LEVEL);
 }
 
-// Same operations, in the same order, as root_patch_decimation() in src/reference.cpp, trying
-// e = max_e down to above_e + 1 only (0 when none passes: the caller only asks whether e > above_e).
-uint coarsened_cap(uint max_e, uint v) { return v >= uint(TV_ROOT_LEVEL + 2) ? min(max_e, v - uint(TV_ROOT_LEVEL + 1)) : max_e; }
+// max_patch_decimation() in src/reference.cpp.
+uint max_patch_decimation(uint budget, uint c) {
+  if (c > 0u && frame.misc.x != uint(TV_ROOT_LEVEL)) return 0u;  // LOD map values 7.. may be overview nodes
+  return budget > c ? min(uint(TV_MAX_DECIMATE), budget - c) : 0u;
+}
 
-// On an edge facing a coarsened root (LOD map 7..9) e <= its coarsening: that root's patches span
-// several root patches and take one delta per edge, so they must never be the finer side there.
-uint root_patch_decimation(uint slot, uint px, uint py, uint max_e, uint above_e) {
+// Same operations, in the same order, as patch_decimation() in src/reference.cpp, trying
+// e = max_e down to above_e + 1 only (0 when none passes: the caller only asks whether e > above_e).
+// On an edge facing a root drawn at coarsening c' (LOD map 5 + c' + 1): e <= c' - c when c' > c
+// (the wider patches there must never be the finer side), c - c' + e <= 4 when c' < c (the
+// narrower patches there collapse within themselves). Config.h "Patch decimation".
+uint neighbour_cap(uint max_e, uint c, uint v) {
+  if (v >= uint(TV_ROOT_LEVEL + 2) + c) return min(max_e, v - uint(TV_ROOT_LEVEL + 1) - c);
+  if (v >= uint(TV_ROOT_LEVEL + 1) && v < uint(TV_ROOT_LEVEL + 1) + c)
+    return min(max_e, uint(TV_QUADS_PER_PATCH_LOG2) + (v - uint(TV_ROOT_LEVEL + 1)) - c);
+  return max_e;
+}
+
+uint patch_decimation(uint slot, uint c, uint px, uint py, uint max_e, uint above_e) {
   NodeDesc d = nodes[slot];
   if (max_e == 0u) return 0u;
   int rx = int(d.x) << TV_ROOT_LEVEL, ry = int(d.y) << TV_ROOT_LEVEL;
-  const int spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+  uint pps = uint(TV_PATCHES_PER_SIDE) >> c;
+  int spp = (TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE) << c;
   int mx = rx + int(px) * spp + spp / 2, my = ry + int(py) * spp + spp / 2;
-  if (px == 0u) max_e = coarsened_cap(max_e, lod_at(rx - 1, my));
-  if (px == uint(TV_PATCHES_PER_SIDE - 1)) max_e = coarsened_cap(max_e, lod_at(rx + TV_SECTORS_PER_ROOT, my));
-  if (py == 0u) max_e = coarsened_cap(max_e, lod_at(mx, ry - 1));
-  if (py == uint(TV_PATCHES_PER_SIDE - 1)) max_e = coarsened_cap(max_e, lod_at(mx, ry + TV_SECTORS_PER_ROOT));
+  if (px == 0u) max_e = neighbour_cap(max_e, c, lod_at(rx - 1, my));
+  if (px == pps - 1u) max_e = neighbour_cap(max_e, c, lod_at(rx + TV_SECTORS_PER_ROOT, my));
+  if (py == 0u) max_e = neighbour_cap(max_e, c, lod_at(mx, ry - 1));
+  if (py == pps - 1u) max_e = neighbour_cap(max_e, c, lod_at(mx, ry + TV_SECTORS_PER_ROOT));
   if (max_e <= above_e) return 0u;
-  uint p = slot * uint(TV_PATCHES_PER_NODE) + py * uint(TV_PATCHES_PER_SIDE) + px;
-  ivec2 b = patch_bounds[p];
+  ivec2 b = coarse_patch_bounds(slot * uint(TV_PATCHES_PER_NODE), c, px, py, ivec2(0x7FFFFFFF, -0x7FFFFFFF - 1));
   uint q = uint(TV_QUADS_PER_PATCH);
-  float mnx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), px * q));
-  float mxx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), (px + 1u) * q));
-  float mny = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), py * q));
-  float mxy = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), (py + 1u) * q));
+  float mnx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), (px * q) << c));
+  float mxx = rel_x(half_metres(d.x, uint(TV_ROOT_LEVEL), ((px + 1u) * q) << c));
+  float mny = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), (py * q) << c));
+  float mxy = rel_y(half_metres(d.y, uint(TV_ROOT_LEVEL), ((py + 1u) * q) << c));
   float mnz = rel_z(b.x);
   float mxz = rel_z(b.y);
   precise float dx = max(max(mnx, -mxx), 0.0);
@@ -83,7 +105,7 @@ uint root_patch_decimation(uint slot, uint px, uint py, uint max_e, uint above_e
   precise float dz = max(max(mnz, -mxz), 0.0);
   precise float d2 = dx * dx + dy * dy + dz * dz;
   precise float t = frame.lod.x;
-  vec4 errors = patch_error[p];
+  vec4 errors = patch_error[slot * uint(TV_PATCH_ERRORS_PER_NODE) + uint(TV_PATCH_ERROR_BASE(c)) + py * pps + px];
   for (uint e = max_e; e > above_e; --e) {
     precise float err = errors[e - 1u] * frame.cam_frac.w;
     precise float lhs = err * err;
@@ -94,16 +116,19 @@ uint root_patch_decimation(uint slot, uint px, uint py, uint max_e, uint above_e
 }
 
 // Effective level + 1 of the surface drawn at a sector: the LOD map's, plus the decimation of the
-// root patch there when its root is drawn uncoarsened. Exact only when above `own` (the effective
-// level of the asking patch): only a coarser neighbour changes a delta.
-uint eff_at(int sx, int sy, uint max_e, uint own) {
+// root patch there when a root draws it (coarsened or not). Exact only when above `own` (the
+// effective level of the asking patch): only a coarser neighbour changes a delta.
+uint eff_at(int sx, int sy, uint budget, uint own) {
   uint v = lod_at(sx, sy);
-  if (v != uint(TV_ROOT_LEVEL + 1) || max_e == 0u || own >= uint(TV_ROOT_LEVEL) + max_e) return v;
-  uint above = own > uint(TV_ROOT_LEVEL) ? own - uint(TV_ROOT_LEVEL) : 0u;
+  if (v < uint(TV_ROOT_LEVEL + 1) || v > uint(TV_ROOT_LEVEL + 1 + TV_MAX_COARSEN)) return v;
+  uint c = v - uint(TV_ROOT_LEVEL + 1);
+  uint max_e = max_patch_decimation(budget, c);
+  uint above = own + 1u > v ? own + 1u - v : 0u;
+  if (max_e <= above) return v;
   uint root = texelFetch(root_tex, ivec2(sx >> TV_ROOT_LEVEL, sy >> TV_ROOT_LEVEL), 0).r;
-  const int spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
-  return v + root_patch_decimation(root, uint((sx & (TV_SECTORS_PER_ROOT - 1)) / spp),
-                                   uint((sy & (TV_SECTORS_PER_ROOT - 1)) / spp), max_e, above);
+  int spp = (TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE) << c;
+  return v + patch_decimation(root, c, uint((sx & (TV_SECTORS_PER_ROOT - 1)) / spp),
+                              uint((sy & (TV_SECTORS_PER_ROOT - 1)) / spp), max_e, above);
 }
 
 float cone_sin2(uint a) { return palette.cone_sin2[a >> 2][a & 3u]; }
@@ -131,16 +156,6 @@ bool cone_backfacing(vec3 mn, vec3 mx, uvec4 t) {
   return true;
 }
 
-// Bounds of patch (px, py) of a node drawn with coarsening c: its (1 << c)^2 node patches.
-ivec2 coarse_patch_bounds(uint base, uint c, uint px, uint py, ivec2 b) {
-  for (uint q = py << c; q < ((py + 1u) << c); ++q)
-    for (uint p = px << c; p < ((px + 1u) << c); ++p) {
-      ivec2 o = patch_bounds[base + q * 8u + p];
-      b = ivec2(min(b.x, o.x), max(b.y, o.y));
-    }
-  return b;
-}
-
 void main() {
   if (gl_GlobalInvocationID.x >= node_list[TV_NL_PATCH_ITEMS]) return;
   uint item = patch_work[gl_GlobalInvocationID.x];  // a patch of a drawn quadrant
@@ -152,11 +167,12 @@ void main() {
   NodeDesc d = nodes[slot];
   uint level = node_level(d);
   uint geo = level + c;
-  // Decimation: root patches drawn uncoarsened only (their edges then also face decimated root
-  // patches of the same node, so every edge is looked up).
-  uint max_e = max_decimation();
-  bool root_patch = level == uint(TV_ROOT_LEVEL) && c == 0u && max_e > 0u;
-  uint dec = root_patch ? root_patch_decimation(slot, px, py, max_e, 0u) : 0u;
+  // Decimation: root patches, coarsened or not (their edges then also face decimated patches of
+  // the same node, so every edge is looked up).
+  uint budget = decimation_budget();
+  uint max_e = level == uint(TV_ROOT_LEVEL) ? max_patch_decimation(budget, c) : 0u;
+  bool root_patch = max_e > 0u;
+  uint dec = root_patch ? patch_decimation(slot, c, px, py, max_e, 0u) : 0u;
   // Per-edge LOD deltas (node vertices at the geometric level) from the sector just outside the
   // patch edge's middle: the finer side collapses onto the coarser one.
   int node_sx = int(d.x << level), node_sy = int(d.y << level);
@@ -165,10 +181,10 @@ void main() {
   int x0 = node_sx + int((px << level) / pps), x1 = node_sx + int(((px + 1u) << level) / pps);
   int y0 = node_sy + int((py << level) / pps), y1 = node_sy + int(((py + 1u) << level) / pps);
   uint own = geo + dec;
-  uint ds = py == 0u || root_patch ? delta_of(eff_at(mid_x, y0 - 1, max_e, own), own, geo) : 0u;
-  uint dw = px == 0u || root_patch ? delta_of(eff_at(x0 - 1, mid_y, max_e, own), own, geo) : 0u;
-  uint dn = py == pps - 1u || root_patch ? delta_of(eff_at(mid_x, y1, max_e, own), own, geo) : 0u;
-  uint de = px == pps - 1u || root_patch ? delta_of(eff_at(x1, mid_y, max_e, own), own, geo) : 0u;
+  uint ds = py == 0u || root_patch ? delta_of(eff_at(mid_x, y0 - 1, budget, own), own, geo) : 0u;
+  uint dw = px == 0u || root_patch ? delta_of(eff_at(x0 - 1, mid_y, budget, own), own, geo) : 0u;
+  uint dn = py == pps - 1u || root_patch ? delta_of(eff_at(mid_x, y1, budget, own), own, geo) : 0u;
+  uint de = px == pps - 1u || root_patch ? delta_of(eff_at(x1, mid_y, budget, own), own, geo) : 0u;
 
   // Bounds, grown over the earlier patches a wide stitch collapses onto (see reference.cpp).
   uint dsn = max(ds, dn), dwe = max(dw, de);

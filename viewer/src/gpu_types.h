@@ -14,6 +14,7 @@ static_assert(TV_QUADS_PER_NODE == kQuadsPerSide && TV_HEIGHT_SAMPLES == kHeight
 static_assert(TV_TEXELS == kTexels && TV_APRON == kApron && TV_SPLAT_SAMPLES == kSplatSamples);
 static_assert(TV_PATCHES_PER_SIDE == kPatchesPerSide && TV_QUADS_PER_PATCH == kQuadsPerPatch);
 static_assert(TV_PATCHES_PER_SIDE * TV_QUADS_PER_PATCH == TV_QUADS_PER_NODE);
+static_assert((1 << TV_QUADS_PER_PATCH_LOG2) == TV_QUADS_PER_PATCH);
 static_assert(TV_SECTORS_PER_ROOT == (1 << TV_ROOT_LEVEL));
 // The GLSL mirror of terrain/surface_contract.h.
 static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode);

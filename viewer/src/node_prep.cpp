@@ -63,32 +63,47 @@ PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_off
   PatchErrorArray out{};
   std::vector<uint8_t> holes(kHeightCount);
   decode_hole_mask(data, holes.data());
-  auto h = [&](int i, int j) {
-    return double(vertex_units(height_offset, data.heights[size_t(j) * kHeightSamples + i], step_log2)) * kHeightUnitM;
-  };
-  for (int q = 0; q < TV_PATCHES_PER_SIDE; ++q)
-    for (int p = 0; p < TV_PATCHES_PER_SIDE; ++p) {
-      const int i0 = p * TV_QUADS_PER_PATCH, j0 = q * TV_QUADS_PER_PATCH;
-      for (int e = 1; e <= TV_MAX_DECIMATE; ++e) {
-        const int s = 1 << e, cells = TV_QUADS_PER_PATCH / s;
-        double worst = 0;
-        for (int j = 0; j <= TV_QUADS_PER_PATCH; ++j)
-          for (int i = 0; i <= TV_QUADS_PER_PATCH; ++i) {
-            const int ci = std::min(i / s, cells - 1) * s, cj = std::min(j / s, cells - 1) * s;
-            const double a = double(i - ci) / s, b = double(j - cj) / s;
-            const double h00 = h(i0 + ci, j0 + cj), h10 = h(i0 + ci + s, j0 + cj);
-            const double h01 = h(i0 + ci, j0 + cj + s), h11 = h(i0 + ci + s, j0 + cj + s);
-            const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
-            worst = std::max(worst, std::abs(coarse - h(i0 + i, j0 + j)));
+  std::vector<double> heights(kHeightCount);
+  for (size_t k = 0; k < heights.size(); ++k)
+    heights[k] = double(vertex_units(height_offset, data.heights[k], step_log2)) * kHeightUnitM;
+  auto h = [&](int i, int j) { return heights[size_t(j) * kHeightSamples + i]; };
+  for (int c = 0; c <= TV_MAX_COARSEN; ++c) {
+    const int pps = TV_PATCHES_PER_SIDE >> c, span = TV_QUADS_PER_PATCH << c;  // node quads per patch side
+    for (int q = 0; q < pps; ++q)
+      for (int p = 0; p < pps; ++p) {
+        auto& errors = out[patch_error_index(uint32_t(c), uint32_t(p), uint32_t(q))];
+        const int i0 = p * span, j0 = q * span;
+        // A patch with a hole vertex decimates only as far as a root may coarsen (c + e <= 3): a
+        // coarse triangle with a hole corner drops, one without draws over the holes inside it, so
+        // the drawn outline of the holes moves by up to one quad of at most 128 m, as for coarsened
+        // roots. Its error is taken over the vertices the coarse mesh draws (no hole corner).
+        bool any_hole = false;
+        for (int j = j0; j <= j0 + span; ++j)
+          for (int i = i0; i <= i0 + span; ++i) any_hole = any_hole || holes[size_t(j) * kHeightSamples + i];
+        auto hole = [&](int i, int j) { return holes[size_t(j) * kHeightSamples + i] != 0; };
+        for (int e = 1; e <= TV_MAX_DECIMATE; ++e) {
+          if (any_hole && c + e > TV_MAX_COARSEN) {
+            errors[size_t(e - 1)] = kNeverDecimate;
+            continue;
           }
-        out[size_t(q * TV_PATCHES_PER_SIDE + p)][size_t(e - 1)] = float(worst);
+          const int s = 1 << (c + e), cells = span / s;
+          double worst = 0;
+          for (int j = 0; j <= span; ++j)
+            for (int i = 0; i <= span; ++i) {
+              const int ci = std::min(i / s, cells - 1) * s, cj = std::min(j / s, cells - 1) * s;
+              const double a = double(i - ci) / s, b = double(j - cj) / s;
+              if (any_hole && (hole(i0 + i, j0 + j) || hole(i0 + ci, j0 + cj) || hole(i0 + ci + s, j0 + cj + s) ||
+                               (a >= b ? hole(i0 + ci + s, j0 + cj) : hole(i0 + ci, j0 + cj + s))))
+                continue;  // not drawn by the coarse mesh (or a hole itself)
+              const double h00 = h(i0 + ci, j0 + cj), h10 = h(i0 + ci + s, j0 + cj);
+              const double h01 = h(i0 + ci, j0 + cj + s), h11 = h(i0 + ci + s, j0 + cj + s);
+              const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+              worst = std::max(worst, std::abs(coarse - h(i0 + i, j0 + j)));
+            }
+          errors[size_t(e - 1)] = float(worst);
+        }
       }
-      // A patch with a hole vertex keeps every vertex (its holes drop exactly their triangles).
-      bool any_hole = false;
-      for (int j = j0; j <= j0 + TV_QUADS_PER_PATCH; ++j)
-        for (int i = i0; i <= i0 + TV_QUADS_PER_PATCH; ++i) any_hole = any_hole || holes[size_t(j) * kHeightSamples + i];
-      if (any_hole) out[size_t(q * TV_PATCHES_PER_SIDE + p)].fill(kNeverDecimate);
-    }
+  }
   return out;
 }
 

@@ -21,12 +21,16 @@ ConeTexels decode_cones(const NodeData& data);
 // triangulation), over non-hole vertices. Index 0 is 0.
 std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offset, int step_log2);
 
-// Patch decimation (config.h): per patch (q * 8 + p), for e = 1..TV_MAX_DECIMATE in component
-// e - 1, the largest vertical distance (metres) between the patch's surface and the surface of its
-// every (1 << e)-th vertex (same SW->NE triangulation); kNeverDecimate for patches with a hole
-// vertex.
+// Patch decimation (config.h): per patch of every coarsening c = 0..3 (index
+// TV_PATCH_ERROR_BASE(c) + py * (8 >> c) + px), for e = 1..TV_MAX_DECIMATE in component e - 1, the
+// largest vertical distance (metres) between the node's surface over the patch (every vertex) and
+// the surface of its every (1 << (c + e))-th vertex (same SW->NE triangulation);
+// kNeverDecimate for patches with a hole vertex.
 inline constexpr float kNeverDecimate = 1e30f;  // squared at any distance: +inf, never within the target
-using PatchErrorArray = std::array<std::array<float, 4>, TV_PATCHES_PER_NODE>;
+using PatchErrorArray = std::array<std::array<float, 4>, TV_PATCH_ERRORS_PER_NODE>;
+inline constexpr uint32_t patch_error_index(uint32_t c, uint32_t px, uint32_t py) {
+  return uint32_t(TV_PATCH_ERROR_BASE(c)) + py * (TV_PATCHES_PER_SIDE >> c) + px;
+}
 static_assert(TV_MAX_DECIMATE == 4);
 PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_offset, int step_log2);
 

@@ -191,48 +191,59 @@ std::vector<uint32_t> reference_lod_map(const TerrainState& state, const FrameUn
   return map;
 }
 
-uint32_t max_decimation(const FrameUniforms& u, const NodeList& list) {
+uint32_t decimation_budget(const FrameUniforms& u, const NodeList& list) {
   if (!(u.misc[1] & TV_FLAG_DECIMATE)) return 0;
   uint32_t finest = kRootLevel;
   for (int l = kRootLevel; l >= 0; --l)
     if (list.level_counts[size_t(l)] > 0) finest = uint32_t(l);
-  return std::min<uint32_t>(TV_MAX_DECIMATE, 7 + finest - kRootLevel);
+  return 7 + finest - kRootLevel;
 }
 
-uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
-                               const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t px, uint32_t py,
-                               uint32_t max_e) {
-  // Same operations, in the same order, as root_patch_decimation() in shaders/patches.comp.
+uint32_t max_patch_decimation(const FrameUniforms& u, uint32_t budget, uint32_t c) {
+  if (c > 0 && u.misc[0] != uint32_t(kRootLevel)) return 0;  // LOD map values 7.. may be overview nodes
+  return budget > c ? std::min<uint32_t>(TV_MAX_DECIMATE, budget - c) : 0u;
+}
+
+uint32_t patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
+                          const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t c, uint32_t px, uint32_t py,
+                          uint32_t max_e) {
+  // Same operations, in the same order, as patch_decimation() in shaders/patches.comp.
   const GpuNodeDesc& d = state.descriptor(slot);
   if (max_e == 0) return 0;
-  // Edges facing a coarsened root (LOD map value 7..9): e <= its coarsening.
+  // Edges facing a root drawn at coarsening c' (LOD map value 5 + c' + 1): e <= c' - c when
+  // c' > c, c - c' + e <= 4 when c' < c (config.h "Patch decimation").
   const int64_t rx = int64_t(d.x) << kRootLevel, ry = int64_t(d.y) << kRootLevel;
-  const int64_t spp = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
+  const uint32_t pps = TV_PATCHES_PER_SIDE >> c;
+  const int64_t spp = int64_t(TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE) << c;
   const int64_t mx = rx + int64_t(px) * spp + spp / 2, my = ry + int64_t(py) * spp + spp / 2;
   auto cap = [&](int64_t sx, int64_t sy) {
     const int64_t k = lod_index(u, sx, sy);
     if (k < 0) return;
     const uint32_t v = lod_map[size_t(k)];
-    if (v >= kRootLevel + 2) max_e = std::min(max_e, v - (kRootLevel + 1));
+    if (v >= kRootLevel + 2 + c)
+      max_e = std::min(max_e, v - (kRootLevel + 1) - c);
+    else if (v >= kRootLevel + 1 && v < kRootLevel + 1 + c)
+      max_e = std::min(max_e, TV_QUADS_PER_PATCH_LOG2 + (v - (kRootLevel + 1)) - c);
   };
   if (px == 0) cap(rx - 1, my);
-  if (px == TV_PATCHES_PER_SIDE - 1) cap(rx + TV_SECTORS_PER_ROOT, my);
+  if (px == pps - 1) cap(rx + TV_SECTORS_PER_ROOT, my);
   if (py == 0) cap(mx, ry - 1);
-  if (py == TV_PATCHES_PER_SIDE - 1) cap(mx, ry + TV_SECTORS_PER_ROOT);
+  if (py == pps - 1) cap(mx, ry + TV_SECTORS_PER_ROOT);
   if (max_e == 0) return 0;
-  const uint32_t p = py * TV_PATCHES_PER_SIDE + px;
-  const GpuPatchBounds b = slots[slot].bounds[p];
+  int32_t lo = INT32_MAX, hi = INT32_MIN;
+  coarse_patch_bounds(slots[slot].bounds, c, px, py, lo, hi);
   const int q = TV_QUADS_PER_PATCH;
-  const float mnx = rel_x(vertex_half_metres(d.x, kRootLevel, int(px) * q), u);
-  const float mxx = rel_x(vertex_half_metres(d.x, kRootLevel, int(px + 1) * q), u);
-  const float mny = rel_y(vertex_half_metres(d.y, kRootLevel, int(py) * q), u);
-  const float mxy = rel_y(vertex_half_metres(d.y, kRootLevel, int(py + 1) * q), u);
-  const float mnz = rel_z(b.min_units, u);
-  const float mxz = rel_z(b.max_units, u);
+  const float mnx = rel_x(vertex_half_metres(d.x, kRootLevel, (int(px) * q) << c), u);
+  const float mxx = rel_x(vertex_half_metres(d.x, kRootLevel, (int(px + 1) * q) << c), u);
+  const float mny = rel_y(vertex_half_metres(d.y, kRootLevel, (int(py) * q) << c), u);
+  const float mxy = rel_y(vertex_half_metres(d.y, kRootLevel, (int(py + 1) * q) << c), u);
+  const float mnz = rel_z(lo, u);
+  const float mxz = rel_z(hi, u);
   const float d2 = box_distance2(mnx, mxx, mny, mxy, mnz, mxz);
   const float t = u.lod[0];
+  const auto& errors = slots[slot].patch_error[patch_error_index(c, px, py)];
   for (uint32_t e = max_e; e >= 1; --e) {
-    const float err = slots[slot].patch_error[p][e - 1] * u.cam_frac[3];
+    const float err = errors[e - 1] * u.cam_frac[3];
     if (!(err * err > (t * t) * d2)) return e;
   }
   return 0;
@@ -246,16 +257,18 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
     const int64_t k = lod_index(u, sx, sy);
     return k < 0 ? 0u : lod_map[size_t(k)];
   };
-  const uint32_t max_e = max_decimation(u, list);
+  const uint32_t budget = decimation_budget(u, list);
   // Effective level + 1 of the surface drawn at a sector: the LOD map's, plus the decimation of
-  // the root patch there when its root is drawn uncoarsened.
+  // the root patch there when a root draws it (coarsened or not).
   auto eff_at = [&](int64_t sx, int64_t sy) -> uint32_t {
     const uint32_t v = lod_at(sx, sy);
-    if (v != kRootLevel + 1 || max_e == 0) return v;
+    if (v < kRootLevel + 1 || v > kRootLevel + 1 + TV_MAX_COARSEN) return v;
+    const uint32_t c = v - (kRootLevel + 1), max_e = max_patch_decimation(u, budget, c);
+    if (max_e == 0) return v;
     const uint16_t root = state.root(sx >> kRootLevel, sy >> kRootLevel);
-    const uint32_t sectors_per_patch = TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE;
-    return v + root_patch_decimation(state, u, slots, lod_map, root, uint32_t(sx & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch,
-                                     uint32_t(sy & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch, max_e);
+    const uint32_t sectors_per_patch = (TV_SECTORS_PER_ROOT / TV_PATCHES_PER_SIDE) << c;
+    return v + patch_decimation(state, u, slots, lod_map, root, c, uint32_t(sx & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch,
+                                uint32_t(sy & (TV_SECTORS_PER_ROOT - 1)) / sectors_per_patch, max_e);
   };
   for (uint32_t e : list.entries) {
     const uint32_t slot = e & TV_ENTRY_SLOT_MASK, mask = (e >> TV_ENTRY_QUAD_SHIFT) & 0xFu;
@@ -269,10 +282,11 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
         const uint32_t quadrant = uint32_t(px >= pps / 2) | uint32_t(py >= pps / 2) << 1;
         if (c == 0 && !(mask & (1u << quadrant))) continue;
         ++out.considered;
-        // Decimation: root patches drawn uncoarsened only (their edges then also face decimated
-        // root patches of the same node, so every edge is looked up).
-        const bool root_patch = level == kRootLevel && c == 0 && max_e > 0;
-        const uint32_t dec = root_patch ? root_patch_decimation(state, u, slots, lod_map, slot, px, py, max_e) : 0u;
+        // Decimation: root patches, coarsened or not (their edges then also face decimated patches
+        // of the same node, so every edge is looked up).
+        const uint32_t max_e = level == kRootLevel ? max_patch_decimation(u, budget, c) : 0u;
+        const bool root_patch = max_e > 0;
+        const uint32_t dec = root_patch ? patch_decimation(state, u, slots, lod_map, slot, c, px, py, max_e) : 0u;
         // Per-edge LOD deltas (in node vertices at this node's geometric level) from the sector just
         // outside the patch edge's middle: the finer side collapses onto the coarser one.
         const int64_t node_sx = int64_t(d.x) << level, node_sy = int64_t(d.y) << level;

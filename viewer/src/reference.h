@@ -26,8 +26,9 @@ struct SlotCpuData {
   // Total error (metres) of the node drawn with coarsening c = 1..3 (roots only; see config.h):
   // its geometric error plus the decimation error. Index 0 unused.
   std::array<float, 4> coarse_error{};
-  // Total error (metres) of each patch drawn with decimation e = 1..4 in component e - 1 (roots
-  // only; see config.h "Patch decimation"): geometric error plus the patch's decimation error.
+  // Total error (metres) of each patch of each coarsening drawn with decimation e = 1..4 in
+  // component e - 1 (roots only; index patch_error_index(c, px, py); config.h "Patch
+  // decimation"): geometric error plus the patch's decimation error.
   PatchErrorArray patch_error{};
 };
 
@@ -56,16 +57,19 @@ PatchList reference_patches(const TerrainState& state, const FrameUniforms& u, c
                             const std::vector<uint32_t>& lod_map, const std::vector<SlotCpuData>& slots,
                             const float* cone_sin2_table);
 
-// Largest patch decimation this frame allows (0 = none): TV_MAX_DECIMATE capped so that every
-// stitch onto a decimated root patch collapses by d <= 7 (config.h), from the list's finest level.
-uint32_t max_decimation(const FrameUniforms& u, const NodeList& list);
-// Decimation e of root patch (px, py) of `slot` (a root drawn uncoarsened), at most `max_e`: the
+// Largest c + e (coarsening plus patch decimation) of a root patch this frame allows (0 = no
+// decimation): every stitch onto it then collapses by d <= 7 (config.h), from the list's finest level.
+uint32_t decimation_budget(const FrameUniforms& u, const NodeList& list);
+// Largest decimation of a patch of a root drawn at coarsening c: TV_MAX_DECIMATE within the budget;
+// 0 for coarsened roots in worlds with overview levels (config.h "Patch decimation").
+uint32_t max_patch_decimation(const FrameUniforms& u, uint32_t budget, uint32_t c);
+// Decimation e of patch (px, py) of the root `slot` drawn at coarsening c, at most `max_e`: the
 // largest e whose total error seen at the patch box's distance meets the target. On an edge facing
-// a coarsened root (level 5 + c in the LOD map) e <= c: that root's patches span several root
-// patches and take one delta per edge, so they must never be the finer side there.
-uint32_t root_patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
-                               const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t px, uint32_t py,
-                               uint32_t max_e);
+// a root drawn coarser (level 5 + c' in the LOD map, c' > c) e <= c' - c: that root's patches are
+// wider and take one delta per edge, so they must never be the finer side there.
+uint32_t patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
+                          const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t c, uint32_t px, uint32_t py,
+                          uint32_t max_e);
 
 // The patch's place, decimation and edge deltas, as the stitching rule takes them
 // (terrain/surface_contract.h).

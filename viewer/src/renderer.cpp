@@ -123,7 +123,7 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatchBounds), storage,
                               patch_bounds_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 16, storage, coarse_errors_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 16, storage, patch_errors_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCH_ERRORS_PER_NODE * 16, storage, patch_errors_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
@@ -469,7 +469,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     pending_buffers_.push_back({patch_bounds_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.bounds), sizeof(cpu.bounds)}});
     TV_TRY(stage_bytes(cpu.coarse_error.data(), 16, 16, off));
     pending_buffers_.push_back({coarse_errors_.buffer, {off, VkDeviceSize(n.slot) * 16, 16}});
-    static_assert(sizeof(cpu.patch_error) == TV_PATCHES_PER_NODE * 16);
+    static_assert(sizeof(cpu.patch_error) == TV_PATCH_ERRORS_PER_NODE * 16);
     TV_TRY(stage_bytes(cpu.patch_error.data(), sizeof(cpu.patch_error), 16, off));
     pending_buffers_.push_back(
         {patch_errors_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.patch_error), sizeof(cpu.patch_error)}});
