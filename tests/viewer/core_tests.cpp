@@ -271,6 +271,44 @@ TEST(ViewerReference, StitchedMeshIsWatertightForEveryLodDifference) {
   EXPECT_TRUE(levels.count(0) && levels.count(5) && levels.count(7) && levels.count(8)) << "levels 7, 8: coarsened roots";
 }
 
+// The reference patch list of a frame seen from local (x, y) metres at height h, decimation on.
+struct ReferenceFrame {
+  FrameUniforms u;
+  std::vector<uint32_t> lod;
+  PatchList patches;
+};
+ReferenceFrame reference_frame(const ResidentScene& scene, double x, double y, double h, double target) {
+  Camera cam;
+  cam.position[0] = scene.sw.world.origin_x_m + x;
+  cam.position[1] = scene.sw.world.origin_y_m + y;
+  cam.position[2] = h;
+  ReferenceFrame f;
+  f.u = uniforms_for(cam, scene.sw.world, target, TV_FLAG_DECIMATE);
+  const NodeList list = reference_traverse(scene.st, f.u, scene.cpu);
+  f.lod = reference_lod_map(scene.st, f.u, list);
+  f.patches = reference_patches(scene.st, f.u, list, f.lod, scene.cpu, scene.cone_table);
+  return f;
+}
+
+// Distance (m) from local point (x, y, h) to the box of root patch p (coarsened or not: its
+// (1 << c)^2 root patches' bounds).
+double root_patch_distance(const ResidentScene& scene, const GpuPatch& p, double x, double y, double h) {
+  const uint32_t c = patch_coarsening(p);
+  const GpuNodeDesc& d = scene.st.descriptor(patch_slot(p));
+  int32_t lo = INT32_MAX, hi = INT32_MIN;
+  for (uint32_t q = patch_py(p) << c; q < (patch_py(p) + 1) << c; ++q)
+    for (uint32_t r = patch_px(p) << c; r < (patch_px(p) + 1) << c; ++r) {
+      lo = std::min(lo, scene.cpu[patch_slot(p)].bounds[q * 8 + r].min_units);
+      hi = std::max(hi, scene.cpu[patch_slot(p)].bounds[q * 8 + r].max_units);
+    }
+  const double size = node_size_m(kRootLevel) / 8 * double(1u << c);
+  const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - x;
+  const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - y;
+  const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
+  const double dz = std::max({lo / 1024.0 - h, 0.0, h - hi / 1024.0});
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
 // Per-patch decimation of roots (config.h "Patch decimation"): patches of roots drawn coarsened or
 // not, drawn with every 2nd..16th vertex of their grid next to full patches of the same root, finer
 // nodes and coarsened roots, stay watertight, and each decimation keeps the patch's total error
@@ -305,14 +343,7 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
                          std::array{3500.0, -2000.0, 1000.0}, std::array{4096.0, 4500.0, 400.0}})
     for (double target : {0.3, 1.0, 3.0, 10.0}) {
       if (flat_west) x = 3 * 2048 - x;
-      Camera cam;
-      cam.position[0] = sw.world.origin_x_m + x;
-      cam.position[1] = sw.world.origin_y_m + y;
-      cam.position[2] = h;
-      const FrameUniforms u = uniforms_for(cam, sw.world, target, TV_FLAG_DECIMATE);
-      const NodeList list = reference_traverse(st, u, cpu);
-      const auto lod = reference_lod_map(st, u, list);
-      const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
+      const auto [u, lod, patches] = reference_frame(*scene, x, y, h, target);
       for (const auto& p : patches.patches) {
         const uint32_t e = patch_decimation(p);
         decimations.insert(e);
@@ -326,21 +357,8 @@ TEST(ViewerReference, DecimatedRootPatchesStayWatertightAndWithinTheTarget) {
           const uint32_t c = patch_coarsening(p);
           ASSERT_EQ(patch_node_level(p), kRootLevel) << "only roots decimate";
           coarsened_decimated += c > 0;
-          // The bound the decimation promises: total error * pixels per radian <= target * distance,
-          // over the patch's box (a coarsened patch covers (1 << c)^2 root patches).
-          const GpuNodeDesc& d = st.descriptor(patch_slot(p));
-          int32_t lo = INT32_MAX, hi = INT32_MIN;
-          for (uint32_t q = patch_py(p) << c; q < (patch_py(p) + 1) << c; ++q)
-            for (uint32_t r = patch_px(p) << c; r < (patch_px(p) + 1) << c; ++r) {
-              lo = std::min(lo, cpu[patch_slot(p)].bounds[q * 8 + r].min_units);
-              hi = std::max(hi, cpu[patch_slot(p)].bounds[q * 8 + r].max_units);
-            }
-          const double size = node_size_m(kRootLevel) / 8 * double(1u << c);
-          const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - (cam.position[0] - sw.world.origin_x_m);
-          const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - (cam.position[1] - sw.world.origin_y_m);
-          const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
-          const double dz = std::max({lo / 1024.0 - h, 0.0, h - hi / 1024.0});
-          const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+          // The bound the decimation promises: total error * pixels per radian <= target * distance.
+          const double dist = root_patch_distance(*scene, p, x, y, h);
           const double err = double(cpu[patch_slot(p)].patch_error[patch_error_index(c, patch_px(p), patch_py(p))][e - 1]);
           EXPECT_LE(err * double(u.cam_frac[3]), target * dist * (1 + 1e-5));
           ++checked;
@@ -382,14 +400,7 @@ TEST(ViewerReference, PatchesWithHolesDecimateWithinTheTargetOverWhatTheyDraw) {
                                 std::array{6000.0, 2048.0, 2000.0}, std::array{1000.0, 2048.0, 5000.0},
                                 std::array{3000.0, 1900.0, 8000.0}})
     for (double target : {0.5, 1.0, 3.0}) {
-      Camera cam;
-      cam.position[0] = sw.world.origin_x_m + x;
-      cam.position[1] = sw.world.origin_y_m + y;
-      cam.position[2] = h;
-      const FrameUniforms u = uniforms_for(cam, sw.world, target, TV_FLAG_DECIMATE);
-      const NodeList list = reference_traverse(st, u, cpu);
-      const auto lod = reference_lod_map(st, u, list);
-      const PatchList patches = reference_patches(st, u, list, lod, cpu, table);
+      const auto [u, lod, patches] = reference_frame(*scene, x, y, h, target);
       for (const auto& p : patches.patches) {
         const uint32_t c = patch_coarsening(p), e = patch_decimation(p);
         if (e == 0) continue;
@@ -425,18 +436,7 @@ TEST(ViewerReference, PatchesWithHolesDecimateWithinTheTargetOverWhatTheyDraw) {
             const double drawn = upper ? h00 + a * (h11 - h01) + b * (h01 - h00) : h00 + a * (h10 - h00) + b * (h11 - h10);
             worst = std::max(worst, std::abs(drawn - height(i, j)));
           }
-        int32_t lo = INT32_MAX, hi = INT32_MIN;
-        for (uint32_t q = patch_py(p) << c; q < (patch_py(p) + 1) << c; ++q)
-          for (uint32_t r = patch_px(p) << c; r < (patch_px(p) + 1) << c; ++r) {
-            lo = std::min(lo, cpu[patch_slot(p)].bounds[q * 8 + r].min_units);
-            hi = std::max(hi, cpu[patch_slot(p)].bounds[q * 8 + r].max_units);
-          }
-        const double size = node_size_m(kRootLevel) / 8 * double(1u << c);
-        const double x0 = d.x * node_size_m(kRootLevel) + patch_px(p) * size - x;
-        const double y0 = d.y * node_size_m(kRootLevel) + patch_py(p) * size - y;
-        const double dx = std::max({x0, 0.0, -(x0 + size)}), dy = std::max({y0, 0.0, -(y0 + size)});
-        const double dz = std::max({lo / 1024.0 - h, 0.0, h - hi / 1024.0});
-        const double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+        const double dist = root_patch_distance(*scene, p, x, y, h);
         EXPECT_LE((worst + double(node->record.geometric_error_m)) * double(u.cam_frac[3]), target * dist * (1 + 1e-5))
             << "camera " << x << "," << y << "," << h << " target " << target;
         ++checked;
