@@ -556,7 +556,7 @@ bool vrt_source_placements(const std::string& path, const FilePlacement& vrt, st
 std::vector<FilePlacement> gdal_file_placements(const std::string& path) {
   init_gdal_once();
   // A VRT mosaic of thousands of tiles: placed from its XML, not by opening every tile again, and
-  // its own placement read by GDAL from the VRT without its sources (vrt_xml.h).
+  // its own placement read by GDAL from the VRT without its sources (vrt_stream.h).
   if (const std::string header = ends_with(path, ".vrt") ? vrt_without_sources(path) : std::string(); !header.empty()) {
     QuietErrors quiet;
     std::unique_ptr<GDALDataset> h(GDALDataset::Open(header.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
@@ -582,7 +582,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   init_gdal_once();
   QuietErrors quiet;
   // A VRT mosaic the cooker composes from its tiles' blocks (vrt_tiles.h) is opened by GDAL without
-  // its sources (vrt_xml.h), for its size, georeferencing and band: GDAL's VRT driver keeps an
+  // its sources (vrt_stream.h), for its size, georeferencing and band: GDAL's VRT driver keeps an
   // object per source (28 MB of the one-process cook's peak for 62 500 tiles) and reads through
   // them only where the cooker's reader gives a window up, so the whole VRT is opened then
   // (GdalSource::gdal_band).

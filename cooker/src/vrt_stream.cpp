@@ -133,4 +133,9 @@ VrtRead read_vrt_stream(const std::string& path, VrtStream& out,
   return p.root_done ? VrtRead::ok : VrtRead::unreadable;
 }
 
+std::string vrt_without_sources(const std::string& path) {
+  VrtStream vrt;
+  return read_vrt_stream(path, vrt, {}) == VrtRead::ok ? std::move(vrt.header) : std::string();
+}
+
 }  // namespace terrain::cook

@@ -42,4 +42,10 @@ enum class VrtRead {
 VrtRead read_vrt_stream(const std::string& path, VrtStream& out,
                         const std::function<bool(const VrtSourceVisit&)>& on_source, size_t chunk = size_t(1) << 20);
 
+// The VRT at `path` as XML text without its bands' sources (every is_vrt_source child): GDAL opens
+// that with the size, georeferencing, band type, nodata, scale and metadata of the VRT, without an
+// object per source (the cooker's own reader composes the tiles). Empty when the file is not a
+// VRTDataset's XML.
+std::string vrt_without_sources(const std::string& path);
+
 }  // namespace terrain::cook

@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "vrt_stream.h"
 
 namespace terrain::cook {
 
@@ -30,11 +29,6 @@ bool plain_file_name(std::string_view name) {
 bool is_vrt_source_name(std::string_view element) { return element.ends_with("Source"); }
 
 bool is_vrt_source(const CPLXMLNode* child) { return child->eType == CXT_Element && is_vrt_source_name(child->pszValue); }
-
-std::string vrt_without_sources(const std::string& path) {
-  VrtStream vrt;
-  return read_vrt_stream(path, vrt, {}) == VrtRead::ok ? std::move(vrt.header) : std::string();
-}
 
 bool vrt_dst_rect(const CPLXMLNode* source, VrtRect& rect) {
   const CPLXMLNode* d = CPLGetXMLNode(source, "DstRect");

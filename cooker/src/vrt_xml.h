@@ -27,12 +27,6 @@ bool plain_file_name(std::string_view name);
 bool is_vrt_source(const CPLXMLNode* child);
 bool is_vrt_source_name(std::string_view element);
 
-// The VRT at `path` as XML text without its bands' sources (every is_vrt_source child): GDAL opens
-// that with the size, georeferencing, band type, nodata, scale and metadata of the VRT, without an
-// object per source (the cooker's own reader composes the tiles). Empty when the file is not a
-// VRTDataset's XML.
-std::string vrt_without_sources(const std::string& path);
-
 // A source's <DstRect> in VRT samples; false when it has none or a value is not finite.
 struct VrtRect {
   double x = 0, y = 0, w = 0, h = 0;
