@@ -104,12 +104,13 @@
 #define TV_EDGE_N 8
 #define TV_EDGE_E 12
 
-// Patch decimation (roots drawn uncoarsened only): a patch whose own error allows it is drawn with
-// every 2^e-th vertex, e = 1..TV_MAX_DECIMATE (16 >> e quads per side), chosen per patch from its
-// own box distance and its total error (node geometric error + decimation error) so that the
-// screen-space error stays within the target. Every patch can evaluate a neighbour root patch's e
-// (a pure function of camera and that patch's data), so edges stitch without an extra pass: the
-// finer side collapses onto the coarser one as for LOD differences (effective level = 5 + e).
+// Patch decimation (root patches, of roots drawn coarsened or not): a patch whose own error allows
+// it is drawn with every 2^e-th vertex of its grid, e = 1..TV_MAX_DECIMATE (16 >> e quads per
+// side), chosen per patch from its own box distance and its total error (node geometric error +
+// decimation error) so that the screen-space error stays within the target. Every patch can
+// evaluate a neighbour root patch's e (a pure function of the camera, the LOD map and that patch's
+// data), so edges stitch without an extra pass: the finer side collapses onto the coarser one as
+// for LOD differences (effective level = 5 + c + e).
 // Root patches decimate, uncoarsened or coarsened (a coarsened root's patch, which spans
 // (1 << c)^2 root patches, decimates on its own coarse grid: effective level 5 + c + e). Where two
 // patches of different widths meet, the narrower one is never the coarser side, so the wider one

@@ -24,8 +24,9 @@ std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offs
 // Patch decimation (config.h): per patch of every coarsening c = 0..3 (index
 // TV_PATCH_ERROR_BASE(c) + py * (8 >> c) + px), for e = 1..TV_MAX_DECIMATE in component e - 1, the
 // largest vertical distance (metres) between the node's surface over the patch (every vertex) and
-// the surface of its every (1 << (c + e))-th vertex (same SW->NE triangulation);
-// kNeverDecimate for patches with a hole vertex.
+// the surface of its every (1 << (c + e))-th vertex (same SW->NE triangulation). A patch with a
+// hole vertex: the distance over the vertices the coarse mesh draws (coarse triangles without a
+// hole corner), and kNeverDecimate where c + e > TV_MAX_COARSEN.
 inline constexpr float kNeverDecimate = 1e30f;  // squared at any distance: +inf, never within the target
 using PatchErrorArray = std::array<std::array<float, 4>, TV_PATCH_ERRORS_PER_NODE>;
 inline constexpr uint32_t patch_error_index(uint32_t c, uint32_t px, uint32_t py) {

@@ -65,8 +65,9 @@ uint32_t decimation_budget(const FrameUniforms& u, const NodeList& list);
 uint32_t max_patch_decimation(const FrameUniforms& u, uint32_t budget, uint32_t c);
 // Decimation e of patch (px, py) of the root `slot` drawn at coarsening c, at most `max_e`: the
 // largest e whose total error seen at the patch box's distance meets the target. On an edge facing
-// a root drawn coarser (level 5 + c' in the LOD map, c' > c) e <= c' - c: that root's patches are
-// wider and take one delta per edge, so they must never be the finer side there.
+// a root drawn at coarsening c' (level 5 + c' in the LOD map): e <= c' - c when c' > c (that root's
+// patches are wider and take one delta per edge, so they must never be the finer side there), and
+// c - c' + e <= 4 when c' < c (the narrower patches' collapse stays within each of them).
 uint32_t patch_decimation(const TerrainState& state, const FrameUniforms& u, const std::vector<SlotCpuData>& slots,
                           const std::vector<uint32_t>& lod_map, uint32_t slot, uint32_t c, uint32_t px, uint32_t py,
                           uint32_t max_e);
