@@ -304,5 +304,96 @@ TEST(ViewerArchives, EveryDebugViewDrawsItsOwnPicture) {
   }
 }
 
+
+// Far lighting per texel (src/far_light.h, auto on CPU devices) against per pixel, on real archives
+// (Jacksboro's DEM ships with Debian, so this runs without ../shared) from three cameras: the
+// default overview, one from above, one level just over the ground. Splat shading is off, so every
+// patch is in the far group; the same patches are drawn and only the far colour's path differs.
+// Bounds, per channel over terrain pixels: mean |difference| <= 1/255, mean signed difference
+// within +-0.25/255 (no shift in colour), 99th percentile <= 4/255. The lit colour is stored in 8
+// bits at a quarter of its range, sRGB-coded (half a code there is about one code of output), and
+// filtering lit texels instead of lighting filtered ones differs where neighbours differ in both
+// light and albedo. A frame with another sun than the baked one lights per pixel: bit-identical.
+TEST(ViewerArchives, FarLightPerTexelMatchesPerPixel) {
+  size_t views = 0;
+  for (const char* name : {"kilauea", "slovenia", "tahoe", "jacksboro"}) {
+    const auto path = archive(name);
+    if (!std::filesystem::exists(path)) continue;
+    std::unique_ptr<Session> s[2];
+    for (int texel = 0; texel < 2; ++texel) {
+      ViewerOptions o = headless_options(path);
+      o.width = 640;
+      o.height = 360;
+      o.max_deliveries = 4096;
+      o.load_all = true;
+      o.far_light = texel ? "texel" : "pixel";
+      o.settings.splat = false;
+      bool skip = false;
+      s[texel] = open_or_skip(o, skip);
+      if (skip) GTEST_SKIP() << "no Vulkan device";
+      ASSERT_TRUE(s[texel]);
+    }
+    std::vector<Camera> cams = {initial_camera(*s[0]), views_over_data(*s[0])[0]};
+    {
+      Camera c = views_over_data(*s[0])[0];
+      int32_t lo = 0, hi = 0;
+      s[0]->source->height_range(lo, hi);
+      c.position[2] = hi / 1024.0 + 50;
+      c.pitch = -0.1;
+      cams.push_back(c);
+    }
+    for (size_t v = 0; v < cams.size(); ++v) {
+      std::vector<uint8_t> image[2];
+      uint32_t far_patches = 0;
+      for (int texel = 0; texel < 2; ++texel) {
+        FrameRecord rec;
+        for (int f = 0; f < 3; ++f) ASSERT_TRUE(render_frame(*s[texel], cams[v], true, rec).ok());
+        read_color(s[texel]->target, image[texel]);
+        far_patches = rec.gpu.patches_drawn - rec.gpu.patches_near;
+      }
+      // Another sun: the per-texel session must light per pixel, exactly as the other.
+      for (int texel = 0; texel < 2; ++texel) s[texel]->options.settings.sun_azimuth_deg += 90;
+      std::vector<uint8_t> other_sun[2];
+      for (int texel = 0; texel < 2; ++texel) {
+        FrameRecord rec;
+        ASSERT_TRUE(render_frame(*s[texel], cams[v], true, rec).ok());
+        read_color(s[texel]->target, other_sun[texel]);
+        s[texel]->options.settings.sun_azimuth_deg -= 90;
+      }
+      EXPECT_EQ(other_sun[0], other_sun[1]) << name << " view " << v << ": a frame with another sun lights per pixel";
+      std::vector<int> diffs;
+      double sum = 0, signed_sum = 0;
+      const auto& clear = s[0]->options.settings.clear;
+      const uint8_t sky[3] = {uint8_t(std::lround(clear[0] * 255)), uint8_t(std::lround(clear[1] * 255)),
+                              uint8_t(std::lround(clear[2] * 255))};
+      for (size_t i = 0; i < image[0].size(); i += 4) {
+        if (std::memcmp(&image[0][i], sky, 3) == 0 && std::memcmp(&image[1][i], sky, 3) == 0) continue;
+        for (size_t c = 0; c < 3; ++c) {
+          const int d = int(image[1][i + c]) - int(image[0][i + c]);
+          diffs.push_back(std::abs(d));
+          sum += diffs.back();
+          signed_sum += d;
+        }
+      }
+      ASSERT_GT(diffs.size(), image[0].size() / 8) << name << " view " << v << ": terrain should fill a sixth of the view";
+      std::sort(diffs.begin(), diffs.end());
+      const double mean = sum / double(diffs.size()), bias = signed_sum / double(diffs.size());
+      const int p99 = diffs[diffs.size() * 99 / 100], max = diffs.back();
+      std::printf("%s view %zu (%u far patches): per texel - per pixel: mean %+.3f, |mean| %.3f, p99 %d, max %d (/255) "
+                  "over %zu channels\n", name, v, far_patches, bias, mean, p99, max, diffs.size());
+      EXPECT_LE(mean, 1.0) << name << " view " << v;
+      EXPECT_LE(std::abs(bias), 0.25) << name << " view " << v;
+      EXPECT_LE(p99, 4) << name << " view " << v;
+      EXPECT_GT(max, 0) << name << " view " << v << ": the per-texel path was not drawn";
+      if (mean > 1.0 || p99 > 4) {
+        dump_ppm(s[0]->target, image[0], std::string("far_pixel_") + name + std::to_string(v));
+        dump_ppm(s[1]->target, image[1], std::string("far_texel_") + name + std::to_string(v));
+      }
+      ++views;
+    }
+  }
+  if (views == 0) GTEST_SKIP() << "no archives in " << archive_dir();
+}
+
 }  // namespace
 }  // namespace terrain::view

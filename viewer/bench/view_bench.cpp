@@ -203,6 +203,9 @@ int main(int argc, char** argv) {
   std::string chart;
   app.add_option("--chart", chart, "also write an SVG chart: frame and work ms against the measured error, per view");
   app.add_flag("--no-decimate", no_decimate, "no per-patch decimation of roots (the baseline it is measured against)");
+  std::string far_light = "auto";
+  app.add_option("--far-light", far_light, "far-field lighting as terrain-view's: texel, pixel, auto (texel on CPU devices)")
+      ->capture_default_str()->check(CLI::IsMember({"auto", "texel", "pixel"}));
   app.add_flag("--profile", profile,
                "also split the draw: vertex work only (rasterizer discard), constant-colour fragments, shading");
   CLI11_PARSE(app, argc, argv);
@@ -218,6 +221,7 @@ int main(int argc, char** argv) {
   o.load_all = true;
   o.quiet = true;
   o.settings.decimate = !no_decimate;
+  o.far_light = far_light;
   unsigned w = 0, h = 0;
   char x = 0;
   std::istringstream sz(size);

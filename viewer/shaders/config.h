@@ -42,6 +42,9 @@
 #define TV_CONE_R_SCALE 123
 #define TV_CONE_G_CENTRE 130
 #define TV_CONE_G_SCALE 125
+// Far lighting per texel (src/far_light.h): the lit atlas holds sRGB(albedo * light / TV_LIT_SCALE),
+// since the sun alone is 2.9x and a lit texel exceeds 1.
+#define TV_LIT_SCALE 4.0
 
 // ---- Traversal (one workgroup, FC5 section 4.2) ----
 // Group size: more threads finish a wide level in fewer steps; lavapipe caps a group at 1024.

@@ -9,6 +9,7 @@ layout(set = 0, binding = 10) uniform sampler2DArray normals_tex;
 layout(set = 0, binding = 11) uniform sampler2DArray albedo_tex;
 layout(set = 0, binding = 12) uniform usampler2DArray splat_tex;
 layout(set = 0, binding = 13) uniform sampler2DArray cones_tex;
+layout(set = 0, binding = 19) uniform sampler2DArray lit_tex;  // far colour lit per texel (src/far_light.h)
 
 layout(location = 0) in float v_dist;
 layout(location = 1) in vec2 v_node;
@@ -27,6 +28,9 @@ layout(constant_id = 2) const bool kNearGroup = false;
 layout(constant_id = 3) const bool kHoleDiscard = true;
 // Profiling only (FrameSettings::DrawProfile::kFlat): a constant colour, to time the rest of the draw.
 layout(constant_id = 4) const bool kFlatProfile = false;
+// Far group only: the colour lit per texel at upload (src/far_light.h, RendererConfig::prelit_far),
+// one bilinear sample instead of the normal and albedo samples and the per-pixel lighting.
+layout(constant_id = 5) const bool kPrelitFar = false;
 
 // The colour target is UNORM holding sRGB-encoded values, and the albedo atlas is read as UNORM:
 // both conversions are done here with cheap fits (within 1/255 over [0, 1]), which a CPU
@@ -80,6 +84,13 @@ void main() {
   }
   if (kHoleDiscard && v_hole > 0.0) discard;  // defined hole method: any triangle touching a hole vertex
   uint slot = v_patch.x & 0xFFFFu;
+  if (kPrelitFar) {
+    // Hole texels are transparent black, as in the albedo: undo their bleed into the bilinear colour.
+    vec4 a = texture(lit_tex, vec3((v_node + float(TV_APRON)) / float(TV_TEXELS), float(slot)));
+    vec3 color = float(TV_LIT_SCALE) * srgb_to_linear(a.a > 0.01 ? a.rgb / a.a : a.rgb);
+    out_color = vec4(linear_to_srgb(mix(color, frame.fog.rgb, clamp(v_fog, 0.0, 1.0))), 1.0);
+    return;
+  }
   uint level = (v_patch.x >> TV_PATCH_LEVEL_SHIFT) & TV_PATCH_LEVEL_MASK;  // geometric level
   vec3 uvw = vec3((v_node + float(TV_APRON)) / float(TV_TEXELS), float(slot));
   vec4 normal_texel = texture(normals_tex, uvw);

@@ -29,8 +29,9 @@ struct ViewerOptions {
   uint32_t worker_threads = 0;
   uint32_t max_deliveries = 128;  // nodes the streamer hands over per frame
   bool load_all = false;       // decode every node up front instead of streaming
-  std::string atlas = "auto";
-  std::string holes = "auto";  // nan | discard | auto (nan on lavapipe, where a test checks it; discard elsewhere)  // bc | rgba8 | auto (rgba8 on CPU devices: see RendererConfig::decode_bc)
+  std::string atlas = "auto";      // bc | rgba8 | auto (rgba8 on CPU devices: see RendererConfig::decode_bc)
+  std::string far_light = "auto";  // texel | pixel | auto (texel on CPU devices: see RendererConfig::prelit_far)
+  std::string holes = "auto";  // nan | discard | auto (nan on lavapipe, where a test checks it; discard elsewhere)
   bool validation = false;
   bool quiet = false;
 };

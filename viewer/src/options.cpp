@@ -54,6 +54,10 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
       ->capture_default_str()->check(CLI::Range(1u, 65535u));
   app.add_option("--atlas", o.atlas, "normal/albedo atlas format: bc (as cooked), rgba8 (decoded at upload), auto (rgba8 on CPU devices)")
       ->capture_default_str()->check(CLI::IsMember({"auto", "bc", "rgba8"}));
+  app.add_option("--far-light", o.far_light,
+                 "far-field lighting: texel (lit once per texel when a node arrives; one texture sample per pixel), "
+                 "pixel (per pixel), auto (texel on CPU devices)")
+      ->capture_default_str()->check(CLI::IsMember({"auto", "texel", "pixel"}));
   app.add_flag("--load-all", o.load_all, "decode every node up front instead of streaming (small archives)");
   bool no_frustum = false, no_cone = false, no_holes = false, no_splat = false, no_decimate = false;
   app.add_flag("--no-frustum-cull", no_frustum, "draw patches outside the view too");

@@ -14,7 +14,7 @@
 namespace terrain::view {
 namespace {
 
-enum AtlasImage { kHeights = 0, kNormals = 1, kAlbedo = 2, kSplat = 3, kCones = 4, kRoots = 5 };
+enum AtlasImage { kHeights = 0, kNormals = 1, kAlbedo = 2, kSplat = 3, kCones = 4, kRoots = 5, kLit = 6 };
 
 enum Binding : uint32_t {
   kBindFrame = 0,
@@ -36,7 +36,8 @@ enum Binding : uint32_t {
   kBindPatchErrors = 16,
   kBindLists = 17,
   kBindTree = 18,
-  kBindCount = 19,
+  kBindLit = 19,
+  kBindCount = 20,
 };
 
 // The patch meshes of every decimation e, one after the other: (16 >> e)^2 quads each.
@@ -64,6 +65,7 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   ctx_ = &ctx;
   world_ = world;
   config_ = config;
+  if (config.prelit_far) lit_light_ = texel_lighting(scene_light(config.lit_sun_azimuth_deg, config.lit_sun_elevation_deg));
   if (config.slot_count == 0 || config.slot_count > TV_SLOT_INVALID)
     return Status::failure(Error::invalid_argument, "renderer: slot_count must be 1..65534");
   if (world.roots_x == 0 || world.roots_y == 0) return Status::failure(Error::invalid_argument, "renderer: empty world");
@@ -90,10 +92,11 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   const VkImageUsageFlags tex_usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
   TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, kHeightSamples, kHeightSamples, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kHeights]));
-  TV_TRY(create_image(ctx, config.decode_bc ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC3_UNORM_BLOCK, kTexels, kTexels,
+  const bool decode = config.decode_bc || config.prelit_far;
+  TV_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC3_UNORM_BLOCK, kTexels, kTexels,
                       slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kNormals]));
   // Albedo is sRGB-encoded; the shader linearises it after filtering (cheaper than sRGB sampling).
-  TV_TRY(create_image(ctx, config.decode_bc ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC1_RGBA_UNORM_BLOCK, kTexels, kTexels,
+  TV_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC1_RGBA_UNORM_BLOCK, kTexels, kTexels,
                       slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kAlbedo]));
   TV_TRY(create_image(ctx, VK_FORMAT_R8_UINT, kSplatSamples, kSplatSamples, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kSplat]));
@@ -101,8 +104,11 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kCones]));
   TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, world.roots_x, world.roots_y, 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT,
                       false, images_[kRoots]));
-  const char* names[6] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "roots"};
-  for (int i = 0; i < 6; ++i) set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(images_[size_t(i)].image), names[i]);
+  // The lit far atlas (far_light.h), or a one-texel stand-in that keeps its binding valid.
+  TV_TRY(create_image(ctx, VK_FORMAT_R8G8B8A8_UNORM, config.prelit_far ? kTexels : 1, config.prelit_far ? kTexels : 1,
+                      config.prelit_far ? slots : 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kLit]));
+  const char* names[7] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "roots", "atlas.lit"};
+  for (int i = 0; i < 7; ++i) set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(images_[size_t(i)].image), names[i]);
 
   VkSamplerCreateInfo sci{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
   sci.magFilter = sci.minFilter = VK_FILTER_LINEAR;
@@ -205,7 +211,7 @@ Status TerrainRenderer::create_pipelines() {
   }
   b[kBindFrame].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   b[kBindPalette].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  for (uint32_t t : {kBindRootTex, kBindHeights, kBindNormals, kBindAlbedo, kBindSplat, kBindCones})
+  for (uint32_t t : {kBindRootTex, kBindHeights, kBindNormals, kBindAlbedo, kBindSplat, kBindCones, kBindLit})
     b[t].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   VkDescriptorSetLayoutCreateInfo lci{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   lci.bindingCount = kBindCount;
@@ -260,6 +266,7 @@ Status TerrainRenderer::create_pipelines() {
   img(kBindAlbedo, images_[kAlbedo], linear_);
   img(kBindSplat, images_[kSplat], nearest_);
   img(kBindCones, images_[kCones], nearest_);
+  img(kBindLit, images_[kLit], linear_);
   for (uint32_t i = 0; i < kBindCount; ++i) {
     w[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w[i].dstSet = set_;
@@ -296,10 +303,10 @@ Status TerrainRenderer::create_pipelines() {
   return Status::success();
 }
 
-VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
+VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire, bool prelit) {
   const bool discard = !settings_.hole_nan;
   const int profile = int(settings_.profile);
-  const int key = (profile * 16 + debug) * 8 + (discard ? 4 : 0) + (near ? 2 : 0) + (wire ? 1 : 0);
+  const int key = ((profile * 16 + debug) * 2 + (prelit ? 1 : 0)) * 8 + (discard ? 4 : 0) + (near ? 2 : 0) + (wire ? 1 : 0);
   if (auto it = graphics_.find(key); it != graphics_.end()) return it->second;
   const Context& ctx = *ctx_;
   struct Spec {
@@ -308,14 +315,16 @@ VkPipeline TerrainRenderer::graphics_pipeline(int debug, bool near, bool wire) {
     VkBool32 near;
     VkBool32 discard;
     VkBool32 flat;
+    VkBool32 prelit;
   } spec_data{wire ? VK_TRUE : VK_FALSE, debug, near ? VK_TRUE : VK_FALSE, discard ? VK_TRUE : VK_FALSE,
-              settings_.profile == FrameSettings::DrawProfile::kFlat ? VK_TRUE : VK_FALSE};
-  const VkSpecializationMapEntry entries[5] = {{0, offsetof(Spec, wire), sizeof(VkBool32)},
+              settings_.profile == FrameSettings::DrawProfile::kFlat ? VK_TRUE : VK_FALSE, prelit ? VK_TRUE : VK_FALSE};
+  const VkSpecializationMapEntry entries[6] = {{0, offsetof(Spec, wire), sizeof(VkBool32)},
                                                {1, offsetof(Spec, debug), sizeof(int32_t)},
                                                {2, offsetof(Spec, near), sizeof(VkBool32)},
                                                {3, offsetof(Spec, discard), sizeof(VkBool32)},
-                                               {4, offsetof(Spec, flat), sizeof(VkBool32)}};
-  VkSpecializationInfo spec{5, entries, sizeof(Spec), &spec_data};
+                                               {4, offsetof(Spec, flat), sizeof(VkBool32)},
+                                               {5, offsetof(Spec, prelit), sizeof(VkBool32)}};
+  VkSpecializationInfo spec{6, entries, sizeof(Spec), &spec_data};
   VkPipelineShaderStageCreateInfo stages[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
                                                {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
   stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
@@ -448,12 +457,20 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
       return Status::success();
     };
     TV_TRY(layer_copy(kHeights, d.heights.data(), sizeof(d.heights), kHeightSamples, kHeightSamples));
-    if (config_.decode_bc) {
-      scratch_.resize(size_t(kTexels) * kTexels * 4);
-      terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, scratch_.data());
-      TV_TRY(layer_copy(kNormals, scratch_.data(), scratch_.size(), kTexels, kTexels));
-      terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, scratch_.data());
-      TV_TRY(layer_copy(kAlbedo, scratch_.data(), scratch_.size(), kTexels, kTexels));
+    if (config_.decode_bc || config_.prelit_far) {
+      constexpr size_t kLayer = size_t(kTexels) * kTexels * 4;
+      scratch_.resize(3 * kLayer);
+      uint8_t* normals = scratch_.data();
+      uint8_t* albedo = normals + kLayer;
+      terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, normals);
+      terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, albedo);
+      TV_TRY(layer_copy(kNormals, normals, kLayer, kTexels, kTexels));
+      TV_TRY(layer_copy(kAlbedo, albedo, kLayer, kTexels, kTexels));
+      if (config_.prelit_far) {
+        uint8_t* lit = albedo + kLayer;
+        light_texels(normals, albedo, kTexels * kTexels, lit_light_, lit);
+        TV_TRY(layer_copy(kLit, lit, kLayer, kTexels, kTexels));
+      }
     } else {
       TV_TRY(layer_copy(kNormals, d.normals_bc3.data(), sizeof(d.normals_bc3), kTexels, kTexels));
       TV_TRY(layer_copy(kAlbedo, d.albedo_bc1.data(), sizeof(d.albedo_bc1), kTexels, kTexels));
@@ -537,17 +554,10 @@ void TerrainRenderer::set_frame(const Camera& camera, const FrameSettings& s, ui
   u.misc[1] = flags;
   u.misc[2] = uint32_t(s.debug);
   u.misc[3] = config_.slot_count * TV_PATCHES_PER_NODE;
-  const double az = s.sun_azimuth_deg * M_PI / 180.0, el = s.sun_elevation_deg * M_PI / 180.0;
-  u.sun_dir[0] = float(std::sin(az) * std::cos(el));
-  u.sun_dir[1] = float(std::cos(az) * std::cos(el));
-  u.sun_dir[2] = float(std::sin(el));
-  u.sun_color[0] = 2.9f;
-  u.sun_color[1] = 2.75f;
-  u.sun_color[2] = 2.45f;
-  u.sun_color[3] = 0.42f;  // ambient strength
-  u.sky_color[0] = 0.42f;
-  u.sky_color[1] = 0.55f;
-  u.sky_color[2] = 0.78f;
+  const SceneLight light = scene_light(s.sun_azimuth_deg, s.sun_elevation_deg);
+  std::copy_n(light.sun_dir, 3, u.sun_dir);
+  std::copy_n(light.sun_color, 4, u.sun_color);
+  std::copy_n(light.sky_color, 3, u.sky_color);
   u.fog[0] = 0.52f;
   u.fog[1] = 0.62f;
   u.fog[2] = 0.76f;
@@ -673,7 +683,7 @@ void TerrainRenderer::record_frame(VkCommandBuffer cmd, const RenderTarget& targ
     }
   };
   draw_group(TV_DRAW_NEAR);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, false));
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, false, far_prelit()));
   draw_group(TV_DRAW_FAR);
   if (debug == TV_DEBUG_WIRE) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, graphics_pipeline(debug, false, true));

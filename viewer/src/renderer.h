@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "camera.h"
+#include "far_light.h"
 #include "reference.h"
 #include "resources.h"
 #include "target.h"
@@ -23,6 +24,10 @@ struct RendererConfig {
   // 4x the memory, but a CPU rasteriser (lavapipe) decodes a BC block for every bilinear tap, which
   // costs more than all the rest of the far shading (see viewer/README.md).
   bool decode_bc = false;
+  // The far group lit per texel at upload (far_light.h) with this sun, into a third RGBA8 atlas;
+  // implies decode_bc. Frames with another sun, and debug views, light per pixel as without it.
+  bool prelit_far = false;
+  double lit_sun_azimuth_deg = kDefaultSunAzimuthDeg, lit_sun_elevation_deg = kDefaultSunElevationDeg;
 };
 
 struct FrameSettings {
@@ -44,7 +49,7 @@ struct FrameSettings {
   float clear[3] = {0.55f, 0.68f, 0.85f};  // sRGB-encoded, 0..1
   double cone_margin_deg = 0.0;
   double near_start_m = 150, near_end_m = 400;   // splat shading fades into the baked albedo
-  double sun_azimuth_deg = 125, sun_elevation_deg = 24;
+  double sun_azimuth_deg = kDefaultSunAzimuthDeg, sun_elevation_deg = kDefaultSunElevationDeg;
   double fog_density = 1.0 / 60000.0;
 };
 
@@ -101,8 +106,16 @@ class TerrainRenderer {
   };
   Status stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset);
   Status create_pipelines();
-  // Graphics pipeline specialised for (debug view, shading group, wire overlay), made on first use.
-  VkPipeline graphics_pipeline(int debug, bool near, bool wire);
+  // Graphics pipeline specialised for (debug view, shading group, wire overlay, far lighting per
+  // texel), made on first use.
+  VkPipeline graphics_pipeline(int debug, bool near, bool wire, bool prelit = false);
+  // Whether this frame's far group can read the lit atlas: it was lit with this frame's sun, and the
+  // frame shows the terrain's colours (not a debug view).
+  bool far_prelit() const {
+    return config_.prelit_far && (settings_.debug == TV_DEBUG_NONE || settings_.debug == TV_DEBUG_WIRE) &&
+           settings_.sun_azimuth_deg == config_.lit_sun_azimuth_deg &&
+           settings_.sun_elevation_deg == config_.lit_sun_elevation_deg;
+  }
 
   const Context* ctx_ = nullptr;
   WorldInfo world_;
@@ -111,8 +124,10 @@ class TerrainRenderer {
   size_t lod_map_uints_ = 0;
   uint32_t top_level_ = kRootLevel;  // of the state last uploaded  // LOD map window (at most 512 x 512 sectors) + one cell per root
 
-  // Atlases: 0 heights R16_UINT, 1 normals BC3, 2 albedo BC1 sRGB, 3 splat R8_UINT, 4 cones BC3, 5 index.
-  std::array<Image, 6> images_;
+  // Atlases: 0 heights R16_UINT, 1 normals BC3, 2 albedo BC1 sRGB, 3 splat R8_UINT, 4 cones BC3, 5 index,
+  // 6 lit far colour RGBA8 (prelit_far; else one texel).
+  std::array<Image, 7> images_;
+  TexelLighting lit_light_;  // the light of the lit atlas (prelit_far only)
   bool images_initialised_ = false;
   VkSampler linear_ = VK_NULL_HANDLE, nearest_ = VK_NULL_HANDLE;
 

@@ -63,7 +63,11 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
       o.holes == "nan" || (o.holes == "auto" && s->ctx.device_name.find("llvmpipe") != std::string::npos);
   RendererConfig rc;
   rc.slot_count = s->source->slot_count();
-  rc.decode_bc = o.atlas == "rgba8" || (o.atlas == "auto" && s->ctx.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU);
+  const bool cpu_device = s->ctx.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  rc.decode_bc = o.atlas == "rgba8" || (o.atlas == "auto" && cpu_device);
+  rc.prelit_far = o.far_light == "texel" || (o.far_light == "auto" && cpu_device);
+  rc.lit_sun_azimuth_deg = o.settings.sun_azimuth_deg;
+  rc.lit_sun_elevation_deg = o.settings.sun_elevation_deg;
   TV_TRY(s->renderer.init(s->ctx, s->source->world(), rc));
   TV_TRY(create_target(s->ctx, o.width, o.height, s->target));
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
