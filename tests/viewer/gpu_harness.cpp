@@ -15,7 +15,7 @@ Gpu::~Gpu() {
 }
 
 std::unique_ptr<Gpu> make_gpu(const WorldInfo& world, uint32_t slot_count, uint32_t width, uint32_t height, bool& skip,
-                              Status& error) {
+                              Status& error, RendererConfig rc) {
   auto gpu = std::make_unique<Gpu>();
   DeviceOptions o;
   o.quiet = true;
@@ -25,7 +25,6 @@ std::unique_ptr<Gpu> make_gpu(const WorldInfo& world, uint32_t slot_count, uint3
     skip = is_no_device(error);
     return nullptr;
   }
-  RendererConfig rc;
   rc.slot_count = slot_count;
   if (!(error = gpu->renderer.init(gpu->ctx, world, rc)).ok()) return nullptr;
   if (!(error = create_target(gpu->ctx, width, height, gpu->target)).ok()) return nullptr;
