@@ -111,8 +111,7 @@ double drawn_height(const Session& s, const std::vector<uint32_t>& lod_map, cons
     auto hole = [&](int i, int j) { return it->second[size_t(j << c) * kHeightSamples + size_t(i << c)] != 0; };
     if (hole(ci, cj) || hole(ci + 1, cj + 1) || (a >= b ? hole(ci + 1, cj) : hole(ci, cj + 1))) return NAN;
   }
-  const double h00 = h(ci, cj), h10 = h(ci + 1, cj), h01 = h(ci, cj + 1), h11 = h(ci + 1, cj + 1);
-  return a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+  return quad_height(h(ci, cj), h(ci + 1, cj), h(ci, cj + 1), h(ci + 1, cj + 1), a, b);
 }
 
 struct Row {

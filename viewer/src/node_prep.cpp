@@ -51,8 +51,7 @@ std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offs
         const double a = double(i - ci * s) / s, b = double(j - cj * s) / s;
         const double h00 = h(ci * s, cj * s), h10 = h(ci * s + s, cj * s);
         const double h01 = h(ci * s, cj * s + s), h11 = h(ci * s + s, cj * s + s);
-        const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
-        worst = std::max(worst, std::abs(coarse - h(i, j)));
+        worst = std::max(worst, std::abs(quad_height(h00, h10, h01, h11, a, b) - h(i, j)));
       }
     out[size_t(c)] = float(worst);
   }
@@ -97,8 +96,7 @@ PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_off
                 continue;  // not drawn by the coarse mesh (or a hole itself)
               const double h00 = h(i0 + ci, j0 + cj), h10 = h(i0 + ci + s, j0 + cj);
               const double h01 = h(i0 + ci, j0 + cj + s), h11 = h(i0 + ci + s, j0 + cj + s);
-              const double coarse = a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
-              worst = std::max(worst, std::abs(coarse - h(i0 + i, j0 + j)));
+              worst = std::max(worst, std::abs(quad_height(h00, h10, h01, h11, a, b) - h(i0 + i, j0 + j)));
             }
           errors[size_t(e - 1)] = float(worst);
         }

@@ -16,6 +16,14 @@ using ConeTexels = std::array<std::array<uint8_t, 4>, TV_PATCHES_PER_NODE>;  // 
 // Min/max height units over each patch's 17x17 vertices (hole vertices included).
 PatchBoundsArray compute_patch_bounds(const NodeData& data, int32_t height_offset, int step_log2);
 ConeTexels decode_cones(const NodeData& data);
+// Height at (a, b) in [0, 1]^2 of a quad with corner heights h00 (SW), h10 (SE), h01 (NW) and h11
+// (NE), drawn as two triangles split SW->NE (the index buffer's split; the triangle holding (a, b)
+// has its third corner at SE when a >= b, else at NW). The errors below and terrain-view-bench's
+// drawn surface use it.
+inline double quad_height(double h00, double h10, double h01, double h11, double a, double b) {
+  return a >= b ? h00 + a * (h10 - h00) + b * (h11 - h10) : h00 + a * (h11 - h01) + b * (h01 - h00);
+}
+
 // Root coarsening (config.h TV_MAX_COARSEN): for c = 1..TV_MAX_COARSEN, the largest vertical distance (metres)
 // between the node's surface and the surface of every (1 << c)-th vertex (same SW->NE
 // triangulation), over non-hole vertices. Index 0 is 0.
