@@ -368,6 +368,57 @@ TEST(ViewerGpu, CullingNeverChangesTheImage) {
   EXPECT_GT(cone, 0u);
 }
 
+// One frame of the deep world with every node uploaded in one batch, prepared on `threads` threads
+// (RendererConfig::upload_threads), far group lit per texel: its image, lists and per-slot data.
+struct UploadResult {
+  std::vector<uint8_t> image;
+  GpuLists lists;
+  std::vector<SlotCpuData> slots;
+  size_t nodes = 0;
+};
+void render_uploaded_with(unsigned threads, UploadResult& out) {
+  RendererConfig config;
+  config.prelit_far = true;
+  config.upload_threads = threads;
+  TV_ALL_RESIDENT(deep_world().synthetic, 1024, 320, 180, config);
+  out.nodes = uploads.size();
+  const Camera cam = camera_at(world.synthetic.world, kFocusX - 60, kFocusY - 80, 800, 45, -20);
+  FrameSettings s;
+  s.error_target_px = 0.05;
+  ASSERT_TRUE(render_view(*gpu, uploads, cam, s, out.lists).ok());
+  read_color(gpu->target, out.image);
+  out.slots = gpu->renderer.slot_cpu();
+  // The GPU appends list entries in no fixed order.
+  std::sort(out.lists.nodes.entries.begin(), out.lists.nodes.entries.end());
+  std::sort(out.lists.patches.begin(), out.lists.patches.end(), [](const GpuPatch& x, const GpuPatch& y) {
+    return std::memcmp(&x, &y, sizeof(GpuPatch)) < 0;
+  });
+}
+
+TEST(ViewerGpu, UploadsPreparedOnManyThreadsEqualOneThread) {
+  // A frame's nodes are decoded, lit and measured (bounds, coarsening and patch errors) in
+  // parallel: with 1, 2 and 5 threads the staged bytes must be the same, so the image, the GPU
+  // lists and the per-slot data are equal byte for byte.
+  UploadResult one, many[2];
+  render_uploaded_with(1, one);
+  render_uploaded_with(2, many[0]);
+  render_uploaded_with(5, many[1]);
+  if (one.image.empty()) return;  // skipped: no device
+  ASSERT_GT(one.nodes, 100u);
+  for (const UploadResult& r : many) {
+    EXPECT_EQ(r.image, one.image);
+    EXPECT_EQ(r.lists.nodes.entries, one.lists.nodes.entries);
+    EXPECT_EQ(r.lists.lod, one.lists.lod);
+    ASSERT_EQ(r.lists.patches.size(), one.lists.patches.size());
+    EXPECT_EQ(std::memcmp(r.lists.patches.data(), one.lists.patches.data(), one.lists.patches.size() * sizeof(GpuPatch)), 0);
+    ASSERT_EQ(r.slots.size(), one.slots.size());
+    size_t differ = 0;
+    for (size_t k = 0; k < one.slots.size(); ++k)
+      differ += std::memcmp(&r.slots[k], &one.slots[k], sizeof(SlotCpuData)) != 0;
+    EXPECT_EQ(differ, 0u);
+  }
+}
+
 TEST(ViewerGpu, OneDrawPerMeshMatchesTheMultiDraw) {
   // Devices without multiDrawIndirect get one indirect draw per decimation mesh instead of one
   // multi-draw per shading group: the same image, byte for byte. The view looks down on

@@ -27,6 +27,7 @@ struct ViewerOptions {
   FrameSettings settings;      // error target, culling, holes, debug view, clear colour ...
   uint32_t budget_nodes = 0;  // 0 = automatic: 512, or roots + 512 without overview levels
   uint32_t worker_threads = 0;
+  uint32_t upload_threads = 0;     // RendererConfig::upload_threads
   uint32_t max_deliveries = 128;  // nodes the streamer hands over per frame
   bool load_all = false;       // decode every node up front instead of streaming
   std::string atlas = "auto";      // bc | rgba8 | auto (rgba8 on CPU devices: see RendererConfig::decode_bc)

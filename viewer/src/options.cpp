@@ -50,6 +50,9 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer; 0 = automatic (512, or roots + 512 for an archive without overview levels)")
       ->capture_default_str()->check(terrain::cli::int_range(1, 65534));
   app.add_option("--threads", o.worker_threads, "streamer worker threads (0 = all cores)")->check(terrain::cli::int_range(0, 256));
+  app.add_option("--upload-threads", o.upload_threads,
+                 "threads that prepare delivered nodes for upload: decoding, lighting, patch bounds and errors (0 = all cores)")
+      ->check(terrain::cli::int_range(0, 256));
   app.add_option("--deliveries", o.max_deliveries, "most nodes uploaded per frame (small values show the streaming frontier)")
       ->capture_default_str()->check(CLI::Range(1u, 65535u));
   app.add_option("--atlas", o.atlas, "normal/albedo atlas format: bc (as cooked), rgba8 (decoded at upload), auto (rgba8 on CPU devices)")

@@ -7,6 +7,7 @@
 #include <new>
 #include <string>
 
+#include "parallel.h"
 #include "shaders.h"
 #include "terrain/bc_decode.h"
 #include "vk_common.h"
@@ -423,6 +424,12 @@ void TerrainRenderer::destroy() {
 }
 
 Status TerrainRenderer::stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset) {
+  TV_TRY(stage_reserve(size, align, offset));
+  std::memcpy(static_cast<uint8_t*>(staging_.mapped) + offset, data, size);
+  return Status::success();
+}
+
+Status TerrainRenderer::stage_reserve(size_t size, size_t align, VkDeviceSize& offset) {
   VkDeviceSize at = (staging_used_ + align - 1) / align * align;
   if (at + size > staging_.size) {
     // Grow: the previous frame has finished (one frame in flight), so only this frame's staged
@@ -434,62 +441,95 @@ Status TerrainRenderer::stage_bytes(const void* data, size_t size, size_t align,
     destroy_buffer(*ctx_, staging_);
     staging_ = bigger;
   }
-  std::memcpy(static_cast<uint8_t*>(staging_.mapped) + at, data, size);
   staging_used_ = at + size;
   offset = at;
   return Status::success();
 }
 
 Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& state) {
-  for (const NodeUpload& n : nodes) {
+  for (const NodeUpload& n : nodes)
     if (n.slot >= config_.slot_count || !n.data)
       return Status::failure(Error::invalid_argument, "renderer: upload into slot " + std::to_string(n.slot) +
                                                           " outside the atlas (" + std::to_string(config_.slot_count) + ")");
-    const NodeData& d = *n.data;
-    auto layer_copy = [&](int image, const void* bytes, size_t size, uint32_t w, uint32_t h) -> Status {
-      VkDeviceSize off;
-      TV_TRY(stage_bytes(bytes, size, 16, off));
-      VkBufferImageCopy c{};
-      c.bufferOffset = off;
-      c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, n.slot, 1};
-      c.imageExtent = {w, h, 1};
-      pending_images_.push_back({image, c});
-      return Status::success();
-    };
-    TV_TRY(layer_copy(kHeights, d.heights.data(), sizeof(d.heights), kHeightSamples, kHeightSamples));
-    if (config_.decode_bc || config_.prelit_far) {
-      constexpr size_t kLayer = size_t(kTexels) * kTexels * 4;
-      scratch_.resize(3 * kLayer);
-      uint8_t* normals = scratch_.data();
-      uint8_t* albedo = normals + kLayer;
-      terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, normals);
-      terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, albedo);
-      TV_TRY(layer_copy(kNormals, normals, kLayer, kTexels, kTexels));
-      TV_TRY(layer_copy(kAlbedo, albedo, kLayer, kTexels, kTexels));
-      if (config_.prelit_far) {
-        uint8_t* lit = albedo + kLayer;
-        light_texels(normals, albedo, kTexels * kTexels, lit_light_, lit);
-        TV_TRY(layer_copy(kLit, lit, kLayer, kTexels, kTexels));
+  // Each node's staged bytes, one 16-aligned part after the other: the atlas layers, then the
+  // patch bounds and errors the viewer derives (prepare_slot).
+  const bool decode = config_.decode_bc || config_.prelit_far;
+  constexpr size_t kLayer = size_t(kTexels) * kTexels * 4;
+  struct Part {
+    int image;  // atlas image, or -1 for a buffer part
+    size_t size;
+    uint32_t w, h;
+  };
+  std::vector<Part> parts = {{kHeights, sizeof(NodeData::heights), kHeightSamples, kHeightSamples},
+                             {kNormals, decode ? kLayer : sizeof(NodeData::normals_bc3), kTexels, kTexels},
+                             {kAlbedo, decode ? kLayer : sizeof(NodeData::albedo_bc1), kTexels, kTexels},
+                             {kSplat, sizeof(NodeData::splat), kSplatSamples, kSplatSamples},
+                             {kCones, sizeof(NodeData::cones_bc3), kPatchesPerSide, kPatchesPerSide},
+                             {-1, sizeof(SlotCpuData::bounds), 0, 0},
+                             {-1, 16, 0, 0},
+                             {-1, sizeof(SlotCpuData::patch_error), 0, 0}};
+  if (config_.prelit_far) parts.push_back({kLit, kLayer, kTexels, kTexels});
+  std::vector<size_t> part_at(parts.size());
+  size_t node_bytes = 0;
+  for (size_t k = 0; k < parts.size(); ++k) {
+    part_at[k] = node_bytes;
+    node_bytes += (parts[k].size + 15) / 16 * 16;
+  }
+  VkDeviceSize base = 0;
+  TV_TRY(stage_reserve(node_bytes * nodes.size(), 16, base));
+  uint8_t* const staged = static_cast<uint8_t*>(staging_.mapped) + base;
+
+  // The CPU work of each node (BC decoding, lighting, bounds and errors) on every core: nodes are
+  // independent, and the device is idle meanwhile (one frame in flight). A batch naming a slot
+  // twice (the later upload wins) runs in order.
+  std::vector<uint16_t> slots(nodes.size());
+  for (size_t k = 0; k < nodes.size(); ++k) slots[k] = uint16_t(nodes[k].slot);
+  std::sort(slots.begin(), slots.end());
+  const bool distinct = std::adjacent_find(slots.begin(), slots.end()) == slots.end();
+  parallel_for(
+      nodes.size(),
+      [&](size_t k) {
+        const NodeData& d = *nodes[k].data;
+        uint8_t* const at = staged + k * node_bytes;
+        auto part = [&](size_t p) { return at + part_at[p]; };
+        std::memcpy(part(0), d.heights.data(), sizeof(d.heights));
+        if (decode) {
+          terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, part(1));
+          terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, part(2));
+          if (config_.prelit_far) light_texels(part(1), part(2), kTexels * kTexels, lit_light_, part(8));
+        } else {
+          std::memcpy(part(1), d.normals_bc3.data(), sizeof(d.normals_bc3));
+          std::memcpy(part(2), d.albedo_bc1.data(), sizeof(d.albedo_bc1));
+        }
+        std::memcpy(part(3), d.splat.data(), sizeof(d.splat));
+        std::memcpy(part(4), d.cones_bc3.data(), sizeof(d.cones_bc3));
+        // The slot's descriptor (from the state) tells the quantization of these heights.
+        SlotCpuData& cpu = slot_cpu_[nodes[k].slot];
+        cpu = prepare_slot(d, state.descriptor(nodes[k].slot));
+        std::memcpy(part(5), cpu.bounds.data(), sizeof(cpu.bounds));
+        std::memcpy(part(6), cpu.coarse_error.data(), 16);
+        std::memcpy(part(7), cpu.patch_error.data(), sizeof(cpu.patch_error));
+      },
+      distinct ? config_.upload_threads : 1u);
+
+  static_assert(sizeof(SlotCpuData::patch_error) == TV_PATCH_ERRORS_PER_NODE * 16);
+  const VkDeviceSize buffer_size[3] = {sizeof(SlotCpuData::bounds), 16, sizeof(SlotCpuData::patch_error)};
+  const VkBuffer buffers[3] = {patch_bounds_.buffer, coarse_errors_.buffer, patch_errors_.buffer};
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    const uint32_t slot = nodes[k].slot;
+    for (size_t p = 0; p < parts.size(); ++p) {
+      const VkDeviceSize off = base + k * node_bytes + part_at[p];
+      if (parts[p].image >= 0) {
+        VkBufferImageCopy c{};
+        c.bufferOffset = off;
+        c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, slot, 1};
+        c.imageExtent = {parts[p].w, parts[p].h, 1};
+        pending_images_.push_back({parts[p].image, c});
+      } else {
+        const size_t b = p - 5;
+        pending_buffers_.push_back({buffers[b], {off, VkDeviceSize(slot) * buffer_size[b], buffer_size[b]}});
       }
-    } else {
-      TV_TRY(layer_copy(kNormals, d.normals_bc3.data(), sizeof(d.normals_bc3), kTexels, kTexels));
-      TV_TRY(layer_copy(kAlbedo, d.albedo_bc1.data(), sizeof(d.albedo_bc1), kTexels, kTexels));
     }
-    TV_TRY(layer_copy(kSplat, d.splat.data(), sizeof(d.splat), kSplatSamples, kSplatSamples));
-    TV_TRY(layer_copy(kCones, d.cones_bc3.data(), sizeof(d.cones_bc3), kPatchesPerSide, kPatchesPerSide));
-    // The slot's descriptor (from the state) tells the quantization of these heights.
-    const SlotDescriptor& desc = state.descriptor(n.slot);
-    SlotCpuData& cpu = slot_cpu_[n.slot];
-    cpu = prepare_slot(d, desc);
-    VkDeviceSize off;
-    TV_TRY(stage_bytes(cpu.bounds.data(), sizeof(cpu.bounds), 16, off));
-    pending_buffers_.push_back({patch_bounds_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.bounds), sizeof(cpu.bounds)}});
-    TV_TRY(stage_bytes(cpu.coarse_error.data(), 16, 16, off));
-    pending_buffers_.push_back({coarse_errors_.buffer, {off, VkDeviceSize(n.slot) * 16, 16}});
-    static_assert(sizeof(cpu.patch_error) == TV_PATCH_ERRORS_PER_NODE * 16);
-    TV_TRY(stage_bytes(cpu.patch_error.data(), sizeof(cpu.patch_error), 16, off));
-    pending_buffers_.push_back(
-        {patch_errors_.buffer, {off, VkDeviceSize(n.slot) * sizeof(cpu.patch_error), sizeof(cpu.patch_error)}});
   }
   TerrainState::Dirty dirty = state.take_dirty();
   // The traversal's start list and every resident node's children (small: 12 bytes per slot).

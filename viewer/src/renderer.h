@@ -27,6 +27,9 @@ struct RendererConfig {
   // The far group lit per texel at upload (far_light.h) with this sun, into a third RGBA8 atlas;
   // implies decode_bc. Frames with another sun, and debug views, light per pixel as without it.
   bool prelit_far = false;
+  // Threads that prepare a frame's delivered nodes (decoding, lighting, bounds and errors); 0 = one
+  // per hardware thread.
+  unsigned upload_threads = 0;
   double lit_sun_azimuth_deg = kDefaultSunAzimuthDeg, lit_sun_elevation_deg = kDefaultSunElevationDeg;
 };
 
@@ -105,6 +108,8 @@ class TerrainRenderer {
     VkBufferCopy region;
   };
   Status stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset);
+  // Room for `size` bytes in the staging buffer (grown as needed) at `offset`, to be written by the caller.
+  Status stage_reserve(size_t size, size_t align, VkDeviceSize& offset);
   Status create_pipelines();
   // Graphics pipeline specialised for (debug view, shading group, wire overlay, far lighting per
   // texel), made on first use.

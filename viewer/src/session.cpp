@@ -66,6 +66,7 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
   const bool cpu_device = s->ctx.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
   rc.decode_bc = o.atlas == "rgba8" || (o.atlas == "auto" && cpu_device);
   rc.prelit_far = o.far_light == "texel" || (o.far_light == "auto" && cpu_device);
+  rc.upload_threads = o.upload_threads;
   rc.lit_sun_azimuth_deg = o.settings.sun_azimuth_deg;
   rc.lit_sun_elevation_deg = o.settings.sun_elevation_deg;
   TV_TRY(s->renderer.init(s->ctx, s->source->world(), rc));
@@ -118,7 +119,9 @@ Status begin_frame(Session& s, const Camera& camera, FrameRecord& rec, double& s
   s.renderer.set_frame(camera, s.options.settings, s.target.width, s.target.height);
   std::vector<NodeUpload> uploads;
   TV_TRY(s.source->update(camera, s.renderer.uniforms(), s.state, uploads));
+  const double upload = now_ms();
   TV_TRY(s.renderer.upload(uploads, s.state));
+  rec.upload_ms = now_ms() - upload;
   rec.source = s.source->stats();
   return Status::success();
 }
@@ -186,6 +189,7 @@ Status write_stats_json(const Session& s, const std::string& path) {
     f["frame"] = r.frame;
     f["camera"] = {r.camera.position[0], r.camera.position[1], r.camera.position[2]};
     f["cpu_ms"] = r.cpu_ms;
+    f["upload_ms"] = r.upload_ms;
     f["frame_ms"] = r.wait_ms;
     f["gpu_traversal_ms"] = r.gpu.gpu_traverse_ms;
     f["gpu_lodmap_ms"] = r.gpu.gpu_lodmap_ms;

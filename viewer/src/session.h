@@ -15,6 +15,7 @@ namespace terrain::view {
 struct FrameRecord {
   int frame = 0;
   double cpu_ms = 0;    // source update + staging + command recording
+  double upload_ms = 0; // of which staging the delivered nodes (decoding, lighting, patch bounds and errors)
   double wait_ms = 0;   // submit to fence (the GPU frame on lavapipe)
   FrameStats gpu;
   SourceStats source;
