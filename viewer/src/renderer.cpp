@@ -460,6 +460,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     size_t size;
     uint32_t w, h;
   };
+  enum : size_t { kPartHeights, kPartNormals, kPartAlbedo, kPartSplat, kPartCones, kPartBounds, kPartCoarse, kPartPatch, kPartLit };
   std::vector<Part> parts = {{kHeights, sizeof(NodeData::heights), kHeightSamples, kHeightSamples},
                              {kNormals, decode ? kLayer : sizeof(NodeData::normals_bc3), kTexels, kTexels},
                              {kAlbedo, decode ? kLayer : sizeof(NodeData::albedo_bc1), kTexels, kTexels},
@@ -492,23 +493,24 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         const NodeData& d = *nodes[k].data;
         uint8_t* const at = staged + k * node_bytes;
         auto part = [&](size_t p) { return at + part_at[p]; };
-        std::memcpy(part(0), d.heights.data(), sizeof(d.heights));
+        std::memcpy(part(kPartHeights), d.heights.data(), sizeof(d.heights));
         if (decode) {
-          terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, part(1));
-          terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, part(2));
-          if (config_.prelit_far) light_texels(part(1), part(2), kTexels * kTexels, lit_light_, part(8));
+          terrain::decode_bc3_image(d.normals_bc3.data(), kTexelBlocks, kTexelBlocks, part(kPartNormals));
+          terrain::decode_bc1_image(d.albedo_bc1.data(), kTexelBlocks, kTexelBlocks, part(kPartAlbedo));
+          if (config_.prelit_far)
+            light_texels(part(kPartNormals), part(kPartAlbedo), kTexels * kTexels, lit_light_, part(kPartLit));
         } else {
-          std::memcpy(part(1), d.normals_bc3.data(), sizeof(d.normals_bc3));
-          std::memcpy(part(2), d.albedo_bc1.data(), sizeof(d.albedo_bc1));
+          std::memcpy(part(kPartNormals), d.normals_bc3.data(), sizeof(d.normals_bc3));
+          std::memcpy(part(kPartAlbedo), d.albedo_bc1.data(), sizeof(d.albedo_bc1));
         }
-        std::memcpy(part(3), d.splat.data(), sizeof(d.splat));
-        std::memcpy(part(4), d.cones_bc3.data(), sizeof(d.cones_bc3));
+        std::memcpy(part(kPartSplat), d.splat.data(), sizeof(d.splat));
+        std::memcpy(part(kPartCones), d.cones_bc3.data(), sizeof(d.cones_bc3));
         // The slot's descriptor (from the state) tells the quantization of these heights.
         SlotCpuData& cpu = slot_cpu_[nodes[k].slot];
         cpu = prepare_slot(d, state.descriptor(nodes[k].slot));
-        std::memcpy(part(5), cpu.bounds.data(), sizeof(cpu.bounds));
-        std::memcpy(part(6), cpu.coarse_error.data(), 16);
-        std::memcpy(part(7), cpu.patch_error.data(), sizeof(cpu.patch_error));
+        std::memcpy(part(kPartBounds), cpu.bounds.data(), sizeof(cpu.bounds));
+        std::memcpy(part(kPartCoarse), cpu.coarse_error.data(), 16);
+        std::memcpy(part(kPartPatch), cpu.patch_error.data(), sizeof(cpu.patch_error));
       },
       distinct ? config_.upload_threads : 1u);
 
@@ -526,7 +528,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         c.imageExtent = {parts[p].w, parts[p].h, 1};
         pending_images_.push_back({parts[p].image, c});
       } else {
-        const size_t b = p - 5;
+        const size_t b = p - kPartBounds;
         pending_buffers_.push_back({buffers[b], {off, VkDeviceSize(slot) * buffer_size[b], buffer_size[b]}});
       }
     }
