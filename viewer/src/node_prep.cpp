@@ -34,27 +34,51 @@ ConeTexels decode_cones(const NodeData& data) {
   return out;
 }
 
+namespace {
+
+// Largest vertical distance between the surface of every s-th vertex (SW->NE triangles) and the
+// vertices of [i0, i0 + span]^2 that drawn(i, j, ci, cj, upper) accepts (patch-local vertex i, j in
+// the cell whose SW corner is ci, cj; upper: the triangle with the SE corner). `h` holds the
+// node's 129 x 129 heights in metres. Vertices on the far edges belong to the last cell. One cell
+// at a time, so its corners are read once.
+template <class Drawn>
+double coarse_surface_error(const std::vector<double>& h, int i0, int j0, int span, int s, Drawn&& drawn) {
+  const int cells = span / s;
+  const double inv_s = 1.0 / s;  // s is a power of two: x * inv_s == x / s exactly
+  double worst = 0;
+  for (int cj = 0; cj < span; cj += s)
+    for (int ci = 0; ci < span; ci += s) {
+      const size_t sw = size_t(j0 + cj) * kHeightSamples + size_t(i0 + ci), nw = sw + size_t(s) * kHeightSamples;
+      const double h00 = h[sw], h10 = h[sw + size_t(s)], h01 = h[nw], h11 = h[nw + size_t(s)];
+      const int j_end = cj + s - (cj / s < cells - 1 ? 1 : 0), i_end = ci + s - (ci / s < cells - 1 ? 1 : 0);
+      for (int j = cj; j <= j_end; ++j)
+        for (int i = ci; i <= i_end; ++i) {
+          const double a = double(i - ci) * inv_s, b = double(j - cj) * inv_s;
+          if (!drawn(i, j, ci, cj, a >= b)) continue;
+          worst = std::max(worst, std::abs(quad_height(h00, h10, h01, h11, a, b) - h[size_t(j0 + j) * kHeightSamples + size_t(i0 + i)]));
+        }
+    }
+  return worst;
+}
+
+std::vector<double> heights_m(const NodeData& data, int32_t height_offset, int step_log2) {
+  std::vector<double> heights(kHeightCount);
+  for (size_t k = 0; k < heights.size(); ++k)
+    heights[k] = double(vertex_units(height_offset, data.heights[k], step_log2)) * kHeightUnitM;
+  return heights;
+}
+
+}  // namespace
+
 std::array<float, 4> coarsening_errors(const NodeData& data, int32_t height_offset, int step_log2) {
   std::array<float, 4> out{};
   std::vector<uint8_t> holes(kHeightCount);
   decode_hole_mask(data, holes.data());
-  auto h = [&](int i, int j) {
-    return double(vertex_units(height_offset, data.heights[size_t(j) * kHeightSamples + i], step_log2)) * kHeightUnitM;
-  };
-  for (int c = 1; c <= TV_MAX_COARSEN; ++c) {
-    const int s = 1 << c;
-    double worst = 0;
-    for (int j = 0; j < kHeightSamples; ++j)
-      for (int i = 0; i < kHeightSamples; ++i) {
-        if (holes[size_t(j) * kHeightSamples + i]) continue;
-        const int ci = std::min(i / s, (kQuadsPerSide / s) - 1), cj = std::min(j / s, (kQuadsPerSide / s) - 1);
-        const double a = double(i - ci * s) / s, b = double(j - cj * s) / s;
-        const double h00 = h(ci * s, cj * s), h10 = h(ci * s + s, cj * s);
-        const double h01 = h(ci * s, cj * s + s), h11 = h(ci * s + s, cj * s + s);
-        worst = std::max(worst, std::abs(quad_height(h00, h10, h01, h11, a, b) - h(i, j)));
-      }
-    out[size_t(c)] = float(worst);
-  }
+  const std::vector<double> heights = heights_m(data, height_offset, step_log2);
+  for (int c = 1; c <= TV_MAX_COARSEN; ++c)
+    out[size_t(c)] = float(coarse_surface_error(heights, 0, 0, kQuadsPerSide, 1 << c, [&](int i, int j, int, int, bool) {
+      return holes[size_t(j) * kHeightSamples + size_t(i)] == 0;
+    }));
   return out;
 }
 
@@ -62,10 +86,7 @@ PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_off
   PatchErrorArray out{};
   std::vector<uint8_t> holes(kHeightCount);
   decode_hole_mask(data, holes.data());
-  std::vector<double> heights(kHeightCount);
-  for (size_t k = 0; k < heights.size(); ++k)
-    heights[k] = double(vertex_units(height_offset, data.heights[k], step_log2)) * kHeightUnitM;
-  auto h = [&](int i, int j) { return heights[size_t(j) * kHeightSamples + i]; };
+  const std::vector<double> heights = heights_m(data, height_offset, step_log2);
   for (int c = 0; c <= TV_MAX_COARSEN; ++c) {
     const int pps = TV_PATCHES_PER_SIDE >> c, span = TV_QUADS_PER_PATCH << c;  // node quads per patch side
     for (int q = 0; q < pps; ++q)
@@ -79,26 +100,17 @@ PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_off
         bool any_hole = false;
         for (int j = j0; j <= j0 + span; ++j)
           for (int i = i0; i <= i0 + span; ++i) any_hole = any_hole || holes[size_t(j) * kHeightSamples + i];
-        auto hole = [&](int i, int j) { return holes[size_t(j) * kHeightSamples + i] != 0; };
+        auto hole = [&](int i, int j) { return holes[size_t(j0 + j) * kHeightSamples + size_t(i0 + i)] != 0; };
         for (int e = 1; e <= TV_MAX_DECIMATE; ++e) {
           if (any_hole && c + e > TV_MAX_COARSEN) {
             errors[size_t(e - 1)] = kNeverDecimate;
             continue;
           }
-          const int s = 1 << (c + e), cells = span / s;
-          double worst = 0;
-          for (int j = 0; j <= span; ++j)
-            for (int i = 0; i <= span; ++i) {
-              const int ci = std::min(i / s, cells - 1) * s, cj = std::min(j / s, cells - 1) * s;
-              const double a = double(i - ci) / s, b = double(j - cj) / s;
-              if (any_hole && (hole(i0 + i, j0 + j) || hole(i0 + ci, j0 + cj) || hole(i0 + ci + s, j0 + cj + s) ||
-                               (a >= b ? hole(i0 + ci + s, j0 + cj) : hole(i0 + ci, j0 + cj + s))))
-                continue;  // not drawn by the coarse mesh (or a hole itself)
-              const double h00 = h(i0 + ci, j0 + cj), h10 = h(i0 + ci + s, j0 + cj);
-              const double h01 = h(i0 + ci, j0 + cj + s), h11 = h(i0 + ci + s, j0 + cj + s);
-              worst = std::max(worst, std::abs(quad_height(h00, h10, h01, h11, a, b) - h(i0 + i, j0 + j)));
-            }
-          errors[size_t(e - 1)] = float(worst);
+          const int s = 1 << (c + e);
+          errors[size_t(e - 1)] = float(coarse_surface_error(heights, i0, j0, span, s, [&](int i, int j, int ci, int cj, bool upper) {
+            // Not drawn by the coarse mesh (or a hole itself).
+            return !any_hole || !(hole(i, j) || hole(ci, cj) || hole(ci + s, cj + s) || (upper ? hole(ci + s, cj) : hole(ci, cj + s)));
+          }));
         }
       }
   }
