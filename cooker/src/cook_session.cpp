@@ -124,6 +124,8 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
   j["finest_level"] = r.finest_level;
   j["voids_filled_samples"] = r.voids_filled_samples;
   j["hole_samples"] = r.hole_samples;
+  // Lets terrain-inspect give bytes per source sample as the cook report does.
+  j["source_valid_samples"] = r.source_valid_samples;
   if (r.overview_levels > 0) j["overview_levels"] = r.overview_levels;  // absent: none (version-1 bytes kept)
   return j.dump();
 }

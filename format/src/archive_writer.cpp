@@ -147,6 +147,7 @@ struct ArchiveWriter::Impl {
   std::string path, temp_path;
   int fd = -1;
   uint64_t offset = 0;  // end of the payloads added so far (some may still be in `out`)
+  uint64_t file_size = 0;  // set by a successful finish()
   std::vector<NodeRecord> records;
   std::unordered_set<NodeKey, KeyHash> keys;
   Status failed;  // sticky first error
@@ -396,6 +397,7 @@ Status ArchiveWriter::open(const std::string& path) {
   const uint8_t zeros[layout::kHeaderSize] = {};
   if (Status s = write_all(impl_->fd, zeros, sizeof(zeros), 0, impl_->temp_path); !s.ok()) return impl_->fail(s);
   impl_->offset = impl_->out_offset = layout::kHeaderSize;
+  impl_->file_size = 0;
   impl_->out.reserve(Impl::kOutBuffer);
   return Status::success();
 }
@@ -532,6 +534,7 @@ Status ArchiveWriter::finish(const WorldInfo& world) {
   }
   w.records.clear();
   w.keys.clear();
+  w.file_size = h.file_size;
   return Status::success();
 }
 
@@ -539,7 +542,7 @@ void ArchiveWriter::abort() {
   if (impl_) impl_->close_and_remove();
 }
 
-uint64_t ArchiveWriter::bytes_written() const { return impl_->offset; }
+uint64_t ArchiveWriter::bytes_written() const { return impl_->file_size ? impl_->file_size : impl_->offset; }
 
 SectionBytes ArchiveWriter::section_bytes() const { return impl_->sections; }
 

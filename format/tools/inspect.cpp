@@ -43,6 +43,16 @@ double level_bytes_per_km2(const SectionBytes& b, int l) {
   return km2 > 0 ? double(level_stored_bytes(b, l)) / km2 : 0.0;
 }
 
+// The valid source samples the cooker recorded in the cook info (0 when absent: other writers,
+// earlier cooks), the denominator of the cook report's bytes per source sample.
+uint64_t source_valid_samples(const WorldInfo& w) {
+  if (w.cook_info_json.empty()) return 0;
+  const nlohmann::json j = nlohmann::json::parse(w.cook_info_json, nullptr, false);
+  if (!j.is_object()) return 0;
+  const auto it = j.find("source_valid_samples");
+  return it != j.end() && it->is_number_unsigned() ? it->get<uint64_t>() : 0;
+}
+
 struct Facts {
   SectionBytes sections;
   std::vector<uint32_t> per_level;  // levels 0 .. top (overview levels included, SPEC 19)
@@ -84,12 +94,18 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
   o << fmt::format("extent     x {:.3f} .. {:.3f}, y {:.3f} .. {:.3f} ({:.3f} x {:.3f} km)\n", w.extent_min_x_m, w.extent_max_x_m,
                    w.extent_min_y_m, w.extent_max_y_m, (w.extent_max_x_m - w.extent_min_x_m) / 1000,
                    (w.extent_max_y_m - w.extent_min_y_m) / 1000);
-  o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m  stored_bytes  bytes_per_km2\n";
+  const uint64_t samples = source_valid_samples(w);
+  const auto per_sample = [&](uint64_t bytes) {
+    return samples ? fmt::format("{:>16.4f}", double(bytes) / double(samples)) : fmt::format("{:>16}", "-");
+  };
+  o << "levels     level  node_m  spacing_m  step_mm   nodes  max_error_m  stored_bytes  bytes_per_km2  bytes_per_sample\n";
   for (int l = level_count(w) - 1; l >= 0; --l)
-    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}  {:>12}  {:>13.0f}{}\n", l, node_size_m(l),
+    o << fmt::format("           {:>5}  {:>6.0f}  {:>9.4f}  {:>7.3f}  {:>6}  {:>11.4f}  {:>12}  {:>13.0f}{}{}\n", l, node_size_m(l),
                      vertex_spacing_m(l), 1000.0 * double(1 << level_step_log2(w, l)) * kHeightUnitM, f.per_level[size_t(l)],
                      f.max_error[size_t(l)], level_stored_bytes(f.sections, l), level_bytes_per_km2(f.sections, l),
-                     l > kRootLevel ? "  overview" : "");
+                     per_sample(level_stored_bytes(f.sections, l)), l > kRootLevel ? "  overview" : "");
+  o << fmt::format("           bytes_per_sample: stored bytes per valid source sample ({})\n",
+                   samples ? fmt::format("{} samples", samples) : std::string("not recorded by the writer"));
   if (level_count(w) > kLevelCount)
     o << fmt::format("overview   {} levels above the roots (6..{}), top level {} holds {} nodes\n", level_count(w) - kLevelCount,
                      top_level(w), top_level(w), f.per_level[size_t(top_level(w))]);
@@ -130,12 +146,19 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   j["origin_m"] = {w.origin_x_m, w.origin_y_m};
   j["roots"] = {w.roots_x, w.roots_y};
   j["extent_m"] = {{"min_x", w.extent_min_x_m}, {"min_y", w.extent_min_y_m}, {"max_x", w.extent_max_x_m}, {"max_y", w.extent_max_y_m}};
-  for (int l = 0; l < level_count(w); ++l)
+  const uint64_t samples = source_valid_samples(w);
+  for (int l = 0; l < level_count(w); ++l) {
     j["levels"].push_back({{"level", l}, {"node_size_m", node_size_m(l)}, {"vertex_spacing_m", vertex_spacing_m(l)},
                            {"step_log2", level_step_log2(w, l)}, {"nodes", f.per_level[size_t(l)]},
                            {"max_geometric_error_m", f.max_error[size_t(l)]}, {"overview", l > kRootLevel},
                            {"stored_bytes", level_stored_bytes(f.sections, l)},
                            {"bytes_per_km2", level_bytes_per_km2(f.sections, l)}});
+    if (samples) j["levels"].back()["bytes_per_source_sample"] = double(level_stored_bytes(f.sections, l)) / double(samples);
+  }
+  if (samples) {
+    j["source_valid_samples"] = samples;
+    j["bytes_per_source_sample"] = double(reader.file_size()) / double(samples);
+  }
   j["overview_levels"] = level_count(w) - kLevelCount;
   j["top_level"] = top_level(w);
   if (f.any) j["height_range_m"] = {units_to_metres(f.min_units), units_to_metres(f.max_units)};

@@ -222,6 +222,10 @@ TEST(HardCase, VerticalStepOf1000m) {
   }
   EXPECT_GT(all_levels, 0u);
   EXPECT_LT(all_levels, c.report.archive_bytes);  // the rest is the header, directory and metadata
+  EXPECT_EQ(c.report.archive_bytes, c.archive.reader.file_size());
+  // terrain-inspect's denominator: the cook info records the valid source samples.
+  EXPECT_EQ(nlohmann::json::parse(c.archive.reader.world().cook_info_json)["source_valid_samples"].get<uint64_t>(),
+            600u * 120u);
   EXPECT_NEAR(j["output"]["bytes_per_source_sample"].get<double>(), double(c.report.archive_bytes) / (600.0 * 120.0), 1e-9);
 }
 

@@ -6,11 +6,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "archive_fixture.h"
 #include "inspect.h"
 #include "scratch_archive_test.h"
 #include "synthetic_archive.h"
+#include "terrain/archive_writer.h"
 #include "test_data.h"
 
 namespace terrain {
@@ -112,6 +114,53 @@ TEST_F(Inspect, SummaryJsonCarriesTheFacts) {
   EXPECT_NE(text.find("\"epsg\": 32605"), std::string::npos);
   EXPECT_NE(text.find("\"nodes\": 6"), std::string::npos);
   EXPECT_NE(text.find("\"tool\": \"test\""), std::string::npos);
+}
+
+// Bytes per source sample (issue 17): the cooker records its valid source samples in the cook info;
+// inspect divides each level's stored bytes (as the reader counts them) and the file by them, as
+// the cook report does. Without the record the column says so and the JSON has no such key.
+TEST_F(Inspect, BytesPerSourceSampleFollowTheCookInfo) {
+  using namespace test;
+  WorldInfo w = make_world(1, 1);
+  w.cook_info_json = R"({"tool":"test","source_valid_samples":1000})";
+  const std::vector<NodeKey> keys = close_tree({{0, 4, 3}});
+  ArchiveWriter writer;
+  ASSERT_TRUE(writer.open(path_).ok());
+  std::vector<uint8_t> payload;
+  for (const NodeKey& k : keys) {
+    BuiltNode n = make_seed_node(w, k);
+    n.record.child_mask = child_mask_of(keys, k);
+    ASSERT_TRUE(encode_node_payload(*n.data, PayloadOptions{}, payload).ok());
+    ASSERT_TRUE(writer.add_node(n.record, payload).ok());
+  }
+  ASSERT_TRUE(writer.finish(w).ok());
+  ASSERT_TRUE(reader_.open(path_).ok());
+  // The cook report's archive_bytes: the whole file once finished (it was the payloads' end).
+  EXPECT_EQ(writer.bytes_written(), std::filesystem::file_size(path_));
+  SectionBytes sb;
+  ASSERT_TRUE(reader_.section_bytes(sb).ok());
+  std::string text;
+  ASSERT_TRUE(inspect::summary_json(reader_, path_, text).ok());
+  const auto j = nlohmann::json::parse(text);
+  EXPECT_EQ(j["source_valid_samples"].get<uint64_t>(), 1000u);
+  EXPECT_DOUBLE_EQ(j["bytes_per_source_sample"].get<double>(), double(std::filesystem::file_size(path_)) / 1000.0);
+  for (int l = 0; l < kLevelCount; ++l) {
+    uint64_t stored = 0;
+    for (int k = 0; k < 5; ++k) stored += sb.stored_by_level[l][k];
+    EXPECT_GT(stored, 0u) << "level " << l;  // the chain has one node on every level
+    EXPECT_DOUBLE_EQ(j["levels"][size_t(l)]["bytes_per_source_sample"].get<double>(), double(stored) / 1000.0) << "level " << l;
+  }
+  ASSERT_TRUE(inspect::summary_text(reader_, path_, text).ok());
+  EXPECT_NE(text.find("bytes_per_sample: stored bytes per valid source sample (1000 samples)"), std::string::npos) << text;
+
+  reader_ = ArchiveReader();
+  ASSERT_NO_FATAL_FAILURE(open_seed_chain());
+  ASSERT_TRUE(inspect::summary_json(reader_, path_, text).ok());
+  const auto k = nlohmann::json::parse(text);
+  EXPECT_FALSE(k.contains("bytes_per_source_sample"));
+  EXPECT_FALSE(k["levels"][0].contains("bytes_per_source_sample"));
+  ASSERT_TRUE(inspect::summary_text(reader_, path_, text).ok());
+  EXPECT_NE(text.find("(not recorded by the writer)"), std::string::npos) << text;
 }
 
 TEST_F(Inspect, SummaryShowsOverviewLevels) {

@@ -87,6 +87,7 @@ class ArchiveWriter {
   // Removes the temp file; the final path is left as it was.
   void abort();
 
+  // The header and payloads written so far; after a successful finish(), the whole file's size.
   uint64_t bytes_written() const;
   // Stored and raw bytes per section of the nodes added so far (as ArchiveReader::section_bytes).
   SectionBytes section_bytes() const;
