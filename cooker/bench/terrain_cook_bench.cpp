@@ -985,6 +985,7 @@ int against_main(const std::string& before, const std::string& tool, const std::
     std::string dem;
     uint64_t nodes = 0;
     double before_ms = 0, after_ms = 0;
+    double surface_ratio = 0, archive_ratio = 0;  // after / before: normals + albedo bytes, the file
     bool same = false;
   };
   std::vector<Summary> summary;
@@ -1023,11 +1024,25 @@ int against_main(const std::string& before, const std::string& tool, const std::
       if (!(a > 0.0005) && !(b > 0.0005)) continue;  // stages this cook does not have
       fmt::print("  {:<16} {:>9.3f} {:>9.3f} {:>8.2f}\n", stage, b, a, a / b);
     }
-    const double samples = ra["source"]["valid_samples"].get<double>();
-    fmt::print("  bytes per source sample:");
-    for (const auto& [section, v] : ra["output"]["sections"].items())
-      fmt::print(" {} {:.3f}", section, v["stored_bytes"].get<double>() / samples);
-    fmt::print("\n");
+    // Stored bytes per valid source sample, per section and for normals + albedo together (the
+    // sections the rate-distortion pass works on), each side over its own report.
+    auto per_sample = [](const nlohmann::json& r, const std::string& section) {
+      const nlohmann::json& sections = r["output"]["sections"];
+      const double samples = r["source"]["valid_samples"].get<double>();
+      if (section == "normals+albedo")
+        return sections.contains("normals") && sections.contains("albedo")
+                   ? (sections["normals"]["stored_bytes"].get<double>() + sections["albedo"]["stored_bytes"].get<double>()) / samples
+                   : NAN;
+      return sections.contains(section) ? sections[section]["stored_bytes"].get<double>() / samples : NAN;
+    };
+    fmt::print("  {:<16} {:>9} {:>9} {:>8}\n", "bytes/sample", "before", "after", "after/b");
+    std::vector<std::string> sections;
+    for (const auto& [section, v] : ra["output"]["sections"].items()) sections.push_back(section);
+    sections.push_back("normals+albedo");
+    for (const std::string& section : sections) {
+      const double b = per_sample(rb, section), a = per_sample(ra, section);
+      fmt::print("  {:<16} {:>9.3f} {:>9.3f} {:>8.2f}\n", section, b, a, a / b);
+    }
     auto errors = [](const nlohmann::json& r) {
       std::string e = fmt::format("height max {:.3f} m rms {:.4f} m", r["full_detail_error"]["max_m"].get<double>(),
                                   r["full_detail_error"]["rms_m"].get<double>());
@@ -1041,13 +1056,16 @@ int against_main(const std::string& before, const std::string& tool, const std::
       return e;
     };
     fmt::print("  errors before: {}\n  errors after:  {}\n", errors(rb), errors(ra));
-    summary.push_back({dem.name, nodes, median(ms[0]["total"]), median(ms[1]["total"]), same});
+    summary.push_back({dem.name, nodes, median(ms[0]["total"]), median(ms[1]["total"]),
+                       per_sample(ra, "normals+albedo") / per_sample(rb, "normals+albedo"),
+                       double(last[1]->bytes.size()) / double(last[0]->bytes.size()), same});
   }
   std::filesystem::remove_all(scratch);
-  fmt::print("\n{:<16} {:>7} {:>10} {:>10} {:>8} {}\n", "dem", "nodes", "before ms", "after ms", "after/b", "bytes");
+  fmt::print("\n{:<16} {:>7} {:>10} {:>10} {:>8} {:>8} {:>8} {}\n", "dem", "nodes", "before ms", "after ms", "after/b",
+             "n+a a/b", "file a/b", "bytes");
   for (const Summary& r : summary)
-    fmt::print("{:<16} {:>7} {:>10.3f} {:>10.3f} {:>8.2f} {}\n", r.dem, r.nodes, r.before_ms, r.after_ms,
-               r.after_ms / r.before_ms, r.same ? "identical" : "different");
+    fmt::print("{:<16} {:>7} {:>10.3f} {:>10.3f} {:>8.2f} {:>8.3f} {:>8.3f} {}\n", r.dem, r.nodes, r.before_ms, r.after_ms,
+               r.after_ms / r.before_ms, r.surface_ratio, r.archive_ratio, r.same ? "identical" : "different");
   return rc;
 }
 
