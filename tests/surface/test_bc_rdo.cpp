@@ -327,3 +327,53 @@ TEST(BcRdo, TheAvx2AlbedoPassWritesTheSameBytes) {
   EXPECT_GT(changed, compared / 20) << "the pass changed too little to compare";
   EXPECT_EQ(blocks_differing, 0u) << "of " << compared << " blocks";
 }
+
+// Where the previous block decodes exactly to a block's x and y, the normal pass takes its bytes
+// without searching (bc_rdo.h, rdo_neighbour_shortcut): the search would choose that block for
+// both halves (distance 0, one block back, a match without error). The pass must write the same
+// bytes with the shortcut on and off. Nodes: sea level with an island (flat blocks take the
+// shortcut, the island's and the coast's search), terraces (flat steps between ramps), ridges
+// running north-south (neighbours differ in x only), a gentle saddle (along a block row x stays
+// the same, y changes) and the smooth hills (no block takes it), every lambda from almost nothing
+// to very large.
+TEST(BcRdo, TheFlatGroundShortcutWritesTheSearchsBytes) {
+  // A steep island in the middle of node (2, 2) at levels 0 (64 m) and 2 (256 m): the sea around
+  // it is flat, its AO darkest next to the shore.
+  const auto island = [](double x, double y) {
+    const double c = x < 256 ? 160 : 640, r = x < 256 ? 12 : 50;
+    return std::max(0.0, 30.0 * (1.0 - std::hypot(x - c, y - c) / r));
+  };
+  const auto terraces = [](double x, double y) {
+    const double t = (x + 0.5 * y) / 40.0;
+    return 5.0 * (std::floor(t) + std::clamp((t - std::floor(t) - 0.7) / 0.3, 0.0, 1.0));
+  };
+  std::vector<bench::DemNode> nodes;
+  for (uint32_t level : {0u, 2u}) nodes.push_back(synthetic_node(island, level, 2, 2));
+  nodes.push_back(synthetic_node(terraces, 0, 2, 2));
+  nodes.push_back(synthetic_node([](double x, double) { return 5.0 * std::sin(x / 9.0); }, 0, 2, 2));
+  nodes.push_back(synthetic_node([](double x, double y) { return (x - 160) * (y - 160) / 400.0; }, 0, 2, 2));
+  nodes.push_back(synthetic_node(smooth_hills, 1, 2, 3));
+  size_t blocks_differing = 0, compared = 0, taken_whole = 0;
+  for (const auto& node : nodes) {
+    const Encoded e = encode(node);
+    for (float lambda : {0.5f, 8.0f, 28.0f, 200.0f}) {
+      std::vector<uint8_t> with = e.blocks, without = e.blocks;
+      const bool had = rdo_neighbour_shortcut(true);
+      rdo_normal_blocks(e.rgba.data(), lambda, with.data());
+      rdo_neighbour_shortcut(false);
+      rdo_normal_blocks(e.rgba.data(), lambda, without.data());
+      rdo_neighbour_shortcut(had);
+      for (size_t k = 0; k < with.size(); k += 16) {
+        blocks_differing += !std::equal(with.begin() + long(k), with.begin() + long(k) + 16, without.begin() + long(k));
+        // Inner blocks equal to their left neighbour after the pass: those the shortcut may give.
+        const int b = int(k / 16), bx = b % kTexelBlocks, by = b / kTexelBlocks;
+        const bool inner = bx > 0 && by > 0 && bx < kTexelBlocks - 1 && by < kTexelBlocks - 1;
+        taken_whole += inner && std::equal(with.begin() + long(k), with.begin() + long(k) + 16, with.begin() + long(k) - 16);
+      }
+      compared += with.size() / 16;
+    }
+  }
+  EXPECT_EQ(blocks_differing, 0u) << "of " << compared << " blocks";
+  // The flat sea and the terraces' steps give the shortcut work: at least a tenth of the blocks.
+  EXPECT_GT(taken_whole, compared / 10);
+}

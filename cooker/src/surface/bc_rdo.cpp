@@ -174,6 +174,10 @@ constexpr int kBackBits = 11;  // back <= 33 * 33
 static_assert((kBlocksX * kBlocksX) < (1 << kBackBits));
 constexpr int32_t kNoKey = INT32_MAX;
 
+// Whether rdo_normal_blocks takes the previous block without a scan where it decodes exactly to a
+// block's values (rdo_neighbour_shortcut; tests compare the two).
+bool neighbour_shortcut_enabled = true;
+
 inline void keep_two_least(int32_t key, int32_t& k0, int32_t& k1) {
   if (key < k1) {
     if (key < k0)
@@ -388,6 +392,12 @@ SourceScan scan_sources(const DecodedNormals& image, int b, const uint8_t x[16],
 
 }  // namespace
 
+bool rdo_neighbour_shortcut(bool enabled) {
+  const bool was = neighbour_shortcut_enabled;
+  neighbour_shortcut_enabled = enabled;
+  return was;
+}
+
 bool rdo_avx2_scan(bool enabled) {
 #if defined(TERRAIN_RDO_AVX2)
   const bool was = avx2_scan_enabled;
@@ -420,8 +430,20 @@ void rdo_normal_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
       if (bx == 0 || by == 0 || bx == kBlocksX - 1 || by == kBlocksX - 1) continue;
       ++n.blocks;
       // Costs J = squared error + lambda * expected stored bytes; the own halves are 8 literals each.
-      const int own_ea = sse16(image.x[b], x), own_ec = sse16(image.y[b], y);
       const uint32_t own_rb = colour_rb_bits(own + 8);
+      // Where the previous block decodes to exactly this block's x and y (with the same R and B
+      // bits), it is what the scan below would choose for both halves: its key (distance 0, one
+      // block back) is the least possible, a match without error costs lambda * kMatchBytes, less
+      // than own literals, and an index copy costs more. Flat ground (the sea) takes this path.
+      const int prev = b - 1;
+      if (neighbour_shortcut_enabled && image.rb[prev] == int32_t(own_rb) && std::memcmp(image.x[prev], x, 16) == 0 &&
+          std::memcmp(image.y[prev], y, 16) == 0) {
+        std::memcpy(own, blocks + size_t(prev) * kBlockBytes, kBlockBytes);
+        decode_for_rdo(own, image, b);
+        n.half_copies += 2;
+        continue;
+      }
+      const int own_ea = sse16(image.x[b], x), own_ec = sse16(image.y[b], y);
       const bool own_eight = own[0] > own[1];
       const SourceScan scan = scan_sources(image, b, x, y, own_rb, own_eight);
       const int from_a = scan.whole_x, from_c = scan.whole_y;

@@ -32,5 +32,9 @@ void rdo_albedo_blocks(const uint8_t* rgba, float lambda, uint8_t* blocks, RdoCo
 // Tests: whether the normal pass may search its sources 8 at a time with AVX2 (on by default where
 // the CPU has it); returns the previous setting. Either way the pass gives the same bytes.
 bool rdo_avx2_scan(bool enabled);
+// Tests: whether the normal pass gives a block the previous block's bytes without searching where
+// that block decodes exactly to its x and y (the search's own choice there; on by default);
+// returns the previous setting. Either way the pass gives the same bytes.
+bool rdo_neighbour_shortcut(bool enabled);
 
 }  // namespace terrain::cook
