@@ -334,8 +334,8 @@ TEST(BcRdo, TheAvx2AlbedoPassWritesTheSameBytes) {
 // bytes with the shortcut on and off. Nodes: sea level with an island (flat blocks take the
 // shortcut, the island's and the coast's search), terraces (flat steps between ramps), ridges
 // running north-south (neighbours differ in x only), a gentle saddle (along a block row x stays
-// the same, y changes) and the smooth hills (no block takes it), every lambda from almost nothing
-// to very large.
+// the same, y changes) and the smooth hills (few blocks or none take it), every lambda from
+// almost nothing to very large.
 TEST(BcRdo, TheFlatGroundShortcutWritesTheSearchsBytes) {
   // A steep island in the middle of node (2, 2) at levels 0 (64 m) and 2 (256 m): the sea around
   // it is flat, its AO darkest next to the shore.
