@@ -1,15 +1,10 @@
-// Memory-mapped reader. open() checks header, metadata and directory before anything else is
-// believed; payload bytes are checked (CRC-32, then the section table) on every decode.
+// Reader over a ByteSource (terrain/byte_source.h). open() copies header, metadata and directory into
+// memory and checks them before anything else is believed; payloads are read (pread for a file) into
+// a buffer on every decode and checked there (CRC-32, then the section table). Nothing is mapped, so
+// a file that shrinks after open() fails the reads that reach past its end (truncated), never faults.
 #include "terrain/archive_reader.h"
-#include "terrain/output_paths.h"
-
-#include <fcntl.h>
-#include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstring>
 
 #include "bytes.h"
@@ -21,29 +16,30 @@
 namespace terrain {
 
 struct ArchiveReader::Impl {
-  const uint8_t* map = nullptr;  // mmap'ed file, or owned.data()
-  size_t size = 0;
-  bool mapped = false;
-  std::vector<uint8_t> owned;
+  std::unique_ptr<ByteSource> source;
+  uint64_t size = 0;
   detail::Header header;
   WorldInfo world;
   std::vector<NodeRecord> nodes;
   std::array<uint32_t, kMaxLevels> per_level{};
   std::array<size_t, kMaxLevels + 1> level_begin{};
 
-  ~Impl() {
-    if (mapped && map) ::munmap(const_cast<uint8_t*>(map), size);
+  Status read_section(uint64_t offset, uint64_t bytes, std::vector<uint8_t>& out) const {
+    out.resize(size_t(bytes));  // inside the source's size: decode_header checked the layout
+    return source->read(offset, out);
   }
 
   Status parse() {
-    const std::span<const uint8_t> file(map, size);
-    if (Status s = detail::decode_header(file, header); !s.ok()) return s;
-    const auto metadata = file.subspan(header.metadata_offset, header.metadata_size);
+    std::vector<uint8_t> head(size_t(std::min<uint64_t>(size, layout::kHeaderSize)));
+    if (Status s = source->read(0, head); !s.ok()) return s;
+    if (Status s = detail::decode_header(head, size, header); !s.ok()) return s;
+    std::vector<uint8_t> metadata, directory;
+    if (Status s = read_section(header.metadata_offset, header.metadata_size, metadata); !s.ok()) return s;
     if (detail::crc32_of(metadata) != header.metadata_crc32)
       return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
                                                            std::to_string(header.metadata_offset) + ")");
     if (Status s = detail::decode_metadata(metadata, header.format_version, world); !s.ok()) return s;
-    const auto directory = file.subspan(header.directory_offset, header.directory_size);
+    if (Status s = read_section(header.directory_offset, header.directory_size, directory); !s.ok()) return s;
     if (detail::crc32_of(directory) != header.directory_crc32)
       return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +
                                                             std::to_string(header.directory_offset) + ")");
@@ -54,6 +50,23 @@ struct ArchiveReader::Impl {
     for (int l = 0; l < kMaxLevels; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
     return Status::success();
   }
+
+  std::string where(const NodeRecord& r) const {
+    return "node " + node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
+  }
+
+  // The stored bytes of nodes[index] into out, CRC-32 checked unless `check_crc` is false. Errors
+  // name the node.
+  Status read_payload(size_t index, std::vector<uint8_t>& out, bool check_crc = true) const {
+    const NodeRecord& r = nodes[index];
+    out.resize(r.payload_size);
+    if (Status s = source->read(r.payload_offset, out); !s.ok()) {
+      s.message = where(r) + s.message;
+      return s;
+    }
+    if (check_crc && detail::crc32_of(out) != r.payload_crc32) return Status::failure(Error::payload_checksum, where(r) + "payload CRC-32 mismatch");
+    return Status::success();
+  }
 };
 
 ArchiveReader::ArchiveReader() = default;
@@ -61,51 +74,37 @@ ArchiveReader::~ArchiveReader() = default;
 ArchiveReader::ArchiveReader(ArchiveReader&&) noexcept = default;
 ArchiveReader& ArchiveReader::operator=(ArchiveReader&&) noexcept = default;
 
-Status ArchiveReader::open(const std::string& path) {
+Status ArchiveReader::open(std::unique_ptr<ByteSource> source) {
   impl_.reset();
+  if (!source) return Status::failure(Error::invalid_argument, "no byte source");
   auto impl = std::make_unique<Impl>();
-  // O_NONBLOCK: opening a FIFO must not wait for a writer; the file-type check below refuses it.
-  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) return Status::failure(Error::io_open, path + ": cannot open: " + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(fd, &st) != 0) {
-    const int e = errno;
-    ::close(fd);
-    return Status::failure(Error::io_read, path + ": cannot stat: " + std::strerror(e));
-  }
-  if (!S_ISREG(st.st_mode)) {
-    ::close(fd);
-    return Status::failure(Error::io_open, path + ": not a regular file (" + file_kind_name(st.st_mode) + ")");
-  }
-  impl->size = size_t(st.st_size);
-  if (impl->size == 0) {
-    ::close(fd);
-    return Status::failure(Error::truncated, path + ": file is empty");
-  }
-  void* m = ::mmap(nullptr, impl->size, PROT_READ, MAP_PRIVATE, fd, 0);
-  const int e = errno;
-  ::close(fd);
-  if (m == MAP_FAILED) return Status::failure(Error::io_read, path + ": mmap failed: " + std::strerror(e));
-  impl->map = static_cast<const uint8_t*>(m);
-  impl->mapped = true;
+  impl->size = source->size();
+  impl->source = std::move(source);
+  if (impl->size == 0) return Status::failure(Error::truncated, impl->source->name() + ": archive is empty");
   if (Status s = impl->parse(); !s.ok()) {
-    s.message = path + ": " + s.message;
+    // A file source names its path in read errors already; decode errors get it here.
+    const std::string& name = impl->source->name();
+    if (s.message.compare(0, name.size() + 2, name + ": ") != 0) s.message = name + ": " + s.message;
     return s;
   }
   impl_ = std::move(impl);
   return Status::success();
 }
 
+Status ArchiveReader::open(const std::string& path) {
+  impl_.reset();
+  std::unique_ptr<ByteSource> source;
+  if (Status s = open_file_source(path, source); !s.ok()) return s;
+  return open(std::move(source));
+}
+
 Status ArchiveReader::open_memory(std::span<const uint8_t> bytes) {
   impl_.reset();
-  auto impl = std::make_unique<Impl>();
-  impl->owned.assign(bytes.begin(), bytes.end());
-  impl->map = impl->owned.data();
-  impl->size = impl->owned.size();
-  if (impl->size == 0) return Status::failure(Error::truncated, "archive is empty");
-  if (Status s = impl->parse(); !s.ok()) return s;
-  impl_ = std::move(impl);
-  return Status::success();
+  if (bytes.empty()) return Status::failure(Error::truncated, "archive is empty");
+  Status s = open(make_memory_source(std::vector<uint8_t>(bytes.begin(), bytes.end())));
+  // Messages of an archive in memory do not start with "memory: " (as before sources existed).
+  if (!s.ok() && s.message.rfind("memory: ", 0) == 0) s.message.erase(0, 8);
+  return s;
 }
 
 bool ArchiveReader::is_open() const { return impl_ != nullptr; }
@@ -116,6 +115,7 @@ const WorldInfo& ArchiveReader::world() const {
 }
 uint32_t ArchiveReader::format_version() const { return impl_ ? impl_->header.format_version : 0; }
 uint64_t ArchiveReader::file_size() const { return impl_ ? impl_->size : 0; }
+const ByteSource* ArchiveReader::source() const { return impl_ ? impl_->source.get() : nullptr; }
 
 std::span<const NodeRecord> ArchiveReader::nodes() const {
   if (!impl_) return {};
@@ -142,23 +142,20 @@ std::span<const NodeRecord> ArchiveReader::level_nodes(int level) const {
   return std::span<const NodeRecord>(impl_->nodes).subspan(impl_->level_begin[size_t(level)], impl_->per_level[size_t(level)]);
 }
 
-std::span<const uint8_t> ArchiveReader::payload(size_t index) const {
-  if (!impl_ || index >= impl_->nodes.size()) return {};
-  const NodeRecord& r = impl_->nodes[index];
-  return {impl_->map + r.payload_offset, r.payload_size};
-}
-
-Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections) const {
+Status ArchiveReader::read_payload(size_t index, std::vector<uint8_t>& out) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
   if (index >= impl_->nodes.size())
     return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
                                                       std::to_string(impl_->nodes.size()) + " nodes)");
-  const NodeRecord& r = impl_->nodes[index];
-  const auto bytes = payload(index);
-  const std::string where = "node " + node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
-  if (detail::crc32_of(bytes) != r.payload_crc32) return Status::failure(Error::payload_checksum, where + "payload CRC-32 mismatch");
+  return impl_->read_payload(index, out);
+}
+
+Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections) const {
+  // One payload buffer per thread, reused: the largest payload is 1 MiB (SPEC 12).
+  thread_local std::vector<uint8_t> bytes;
+  if (Status s = read_payload(index, bytes); !s.ok()) return s;
   if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
-    s.message = where + s.message;
+    s.message = impl_->where(impl_->nodes[index]) + s.message;
     return s;
   }
   return Status::success();
@@ -167,9 +164,11 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
 Status ArchiveReader::section_bytes(SectionBytes& out) const {
   out = {};
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  std::vector<uint8_t> bytes;
   for (size_t i = 0; i < impl_->nodes.size(); ++i) {
     detail::PayloadTable table;
-    if (Status s = detail::parse_payload_table(payload(i), table); !s.ok()) {
+    if (Status s = impl_->read_payload(i, bytes, false); !s.ok()) return s;  // tables only, as documented
+    if (Status s = detail::parse_payload_table(bytes, table); !s.ok()) {
       s.message = "node " + node_name(impl_->nodes[i].key) + ": " + s.message;
       return s;
     }

@@ -123,18 +123,18 @@ void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]) {
   store_u32(out + f::header_crc32, crc32_of({out, f::header_crc32}));
 }
 
-Status decode_header(std::span<const uint8_t> file, Header& h) {
+Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& h) {
   namespace f = layout::header;
-  const uint8_t* p = file.data();
-  if (file.size() < layout::kMagic.size() || std::memcmp(p, layout::kMagic.data(), layout::kMagic.size()) != 0)
+  const uint8_t* p = head.data();
+  if (head.size() < layout::kMagic.size() || std::memcmp(p, layout::kMagic.data(), layout::kMagic.size()) != 0)
     return fail(Error::bad_magic, "not a terrain archive (the first 8 bytes are not \"TERRAIN\\x1A\")");
-  if (file.size() < 12) return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " bytes)");
+  if (head.size() < 12) return fail(Error::truncated, "file ends inside the header (" + std::to_string(head.size()) + " bytes)");
   h.format_version = load_u32(p + f::format_version);
   if (h.format_version < layout::kFormatVersion || h.format_version > layout::kMaxFormatVersion)
     return fail(Error::unsupported_version, "archive format version " + std::to_string(h.format_version) +
                                                 ", this reader supports versions 1 and 2");
-  if (file.size() < layout::kHeaderSize)
-    return fail(Error::truncated, "file ends inside the header (" + std::to_string(file.size()) + " of 128 bytes)");
+  if (head.size() < layout::kHeaderSize)
+    return fail(Error::truncated, "file ends inside the header (" + std::to_string(head.size()) + " of 128 bytes)");
   const uint32_t stored_crc = load_u32(p + f::header_crc32);
   const uint32_t crc = crc32_of({p, f::header_crc32});
   if (stored_crc != crc) return fail(Error::header_checksum, "header CRC-32 mismatch");
@@ -145,11 +145,11 @@ Status decode_header(std::span<const uint8_t> file, Header& h) {
     return fail(Error::header_invalid, "reserved header bytes 88..123 are not zero");
   header_fields(h, loader(p));
 
-  if (h.file_size > file.size())
-    return fail(Error::truncated, "file is " + std::to_string(file.size()) + " bytes, the header says " +
+  if (h.file_size > file_size)
+    return fail(Error::truncated, "file is " + std::to_string(file_size) + " bytes, the header says " +
                                       std::to_string(h.file_size));
-  if (h.file_size < file.size())
-    return fail(Error::header_invalid, std::to_string(file.size() - h.file_size) +
+  if (h.file_size < file_size)
+    return fail(Error::header_invalid, std::to_string(file_size - h.file_size) +
                                            " trailing bytes after the end the header declares (" +
                                            std::to_string(h.file_size) + ")");
   if (h.node_count > layout::kMaxNodeCount)

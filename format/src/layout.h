@@ -24,8 +24,9 @@ struct Header {
 };
 
 void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]);
-// Checks magic, version, CRC, reserved fields and the section layout against `actual_file_size`.
-Status decode_header(std::span<const uint8_t> file, Header& out);
+// Checks magic, version, CRC, reserved fields and the section layout against `file_size` (the
+// archive's actual size). `head` holds the file's first min(file_size, 128) bytes.
+Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& out);
 
 Status validate_world(const WorldInfo& world);
 // 1, or 2 when `world` uses a version-2 feature (SPEC 6.5): today's archives stay version 1.

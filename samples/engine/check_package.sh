@@ -22,12 +22,16 @@ work=$(cd "$work" && pwd)
 
 echo "check_package: install $build -> $prefix"
 cmake --install "$build" --prefix "$prefix" >"$work/install.log"
-for f in include/terrain/streamer.h include/terrain/format.h bin/terrain-cook bin/terrain-inspect; do
+for f in include/terrain/streamer.h include/terrain/format.h include/terrain/byte_source.h bin/terrain-cook \
+         bin/terrain-inspect; do
   [ -e "$prefix/$f" ] || fail "$prefix/$f not installed"
 done
 config=$(find "$prefix" -name terrainConfig.cmake -print -quit)
 pcfile=$(find "$prefix" -name terrain-streamer.pc -print -quit)
 [ -n "$config" ] && [ -n "$pcfile" ] || fail "terrainConfig.cmake or terrain-streamer.pc not installed"
+# 0.2 changed the reader's API (issue 48): the version file says so and refuses a request for 0.1.
+grep -q 'PACKAGE_VERSION "0.2.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
+  fail "terrainConfigVersion.cmake does not say 0.2.0"
 [ ! -e "$prefix/include/terrain/cli_checks.h" ] || fail "cli_checks.h (tools only, needs CLI11) was installed"
 # Public headers: standard library and our own headers only.
 if grep -n '#include <' "$prefix"/include/terrain/*.h | grep -v -E '#include <[a-z_]+>$'; then

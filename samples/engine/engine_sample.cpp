@@ -304,6 +304,11 @@ int main(int argc, char** argv) {
   auto frame = [&](const terrain::View& view) {
     const terrain::FrameUpdate& u = streamer.update({&view, 1});
     checks.frame = u.frame;
+    // A node that failed to load (corrupt payload, or the file truncated or unreadable since open):
+    // its parent stays drawn; an engine logs it. Here it fails the run.
+    for (const terrain::NodeFailure& nf : u.failed)
+      checks.fail("node " + std::to_string(nf.key.level) + "/" + std::to_string(nf.key.x) + "/" + std::to_string(nf.key.y) +
+                  " failed to load: " + nf.status.to_string());
     upload(u, streamer, atlas, checks);
     const uint32_t resident = check_atlas(streamer, atlas, checks);
     const QueryReport q = run_gameplay_queries(streamer, finest, view, checks);

@@ -25,12 +25,12 @@ NaiveLoader::FrameStats NaiveLoader::update(std::span<const View> views) {
   for (const detail::WantedNode& w : wanted_) {
     if (data_[w.index] || failed_[w.index]) continue;
     auto d = std::make_unique<NodeData>();
-    if (!reader_.decode_node(w.index, *d, config_.sections).ok()) {
+    if (Status s = reader_.decode_node(w.index, *d, config_.sections); !s.ok()) {
       failed_[w.index] = 1;
-      ++fs.failed;
+      if (fs.failed++ == 0) fs.first_failure = s.to_string();
       continue;
     }
-    fs.bytes_read += reader_.payload(w.index).size();
+    fs.bytes_read += reader_.nodes()[w.index].payload_size;
     data_[w.index] = std::move(d);
     ++resident_count_;
     ++fs.loaded;

@@ -3,6 +3,7 @@
 // on the caller's thread inside update(), into a freshly allocated buffer.
 #pragma once
 #include <memory>
+#include <string>
 #include <span>
 #include <vector>
 
@@ -19,6 +20,7 @@ class NaiveLoader {
     uint32_t evicted = 0;
     uint64_t bytes_read = 0;
     uint64_t failed = 0;
+    std::string first_failure;  // Status::to_string() of the first failed load, empty when none
   };
 
   NaiveLoader(const ArchiveReader& reader, const StreamerConfig& config);

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -45,6 +46,32 @@ struct Options {
   std::exit(code);
 }
 
+[[noreturn]] void bad_value(const std::string& flag, const char* value, const char* expected) {
+  std::fprintf(stderr, "terrain-query-bench: %s expects %s, got '%s'\n", flag.c_str(), expected, value);
+  std::exit(2);
+}
+
+// The whole of `text` as a decimal integer in [lo, hi], else a usage error naming the flag.
+long integer_value(const std::string& flag, const char* text, long lo, long hi) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text, &end, 10);
+  if (end == text || *end != '\0' || errno == ERANGE || v < lo || v > hi) {
+    const std::string expected = "an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
+    bad_value(flag, text, expected.c_str());
+  }
+  return v;
+}
+
+// The whole of `text` as a finite number (positive when `positive`), else a usage error.
+double number_value(const std::string& flag, const char* text, bool positive) {
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !std::isfinite(v) || (positive && !(v > 0)))
+    bad_value(flag, text, positive ? "a positive number" : "a finite number");
+  return v;
+}
+
 Options parse(int argc, char** argv) {
   Options o;
   for (int i = 1; i < argc; ++i) {
@@ -54,12 +81,12 @@ Options parse(int argc, char** argv) {
       return argv[++i];
     };
     if (a == "--help" || a == "-h") usage(0);
-    if (a == "--runs") o.runs = std::max(1, std::atoi(value()));
-    else if (a == "--radius") o.radius = std::atof(value());
-    else if (a == "--x") o.x = std::atof(value());
-    else if (a == "--y") o.y = std::atof(value());
-    else if (a == "--budget") o.budget = uint32_t(std::atoi(value()));
-    else if (a == "--error-px") o.error_px = std::atof(value());
+    if (a == "--runs") o.runs = int(integer_value(a, value(), 1, 1000));
+    else if (a == "--radius") o.radius = number_value(a, value(), true);
+    else if (a == "--x") o.x = number_value(a, value(), false);
+    else if (a == "--y") o.y = number_value(a, value(), false);
+    else if (a == "--budget") o.budget = uint32_t(integer_value(a, value(), 1, kMaxSlots));
+    else if (a == "--error-px") o.error_px = number_value(a, value(), true);
     else if (!a.empty() && a[0] != '-' && o.archive.empty()) o.archive = a;
     else usage(2);
   }
@@ -82,14 +109,27 @@ double median_rate(int runs, const std::function<size_t()>& work) {
   return rates[rates.size() / 2];
 }
 
+// Queries that read the archive themselves (SurfaceSampler, ArchiveSurface, the brute force) and
+// failed: a node that could not be read or decoded (bad payload, file truncated since open).
+struct ReadFailures {
+  uint64_t count = 0;
+  std::string first;
+  void note(const Status& s) {
+    if (!s.ok() && count++ == 0) first = s.to_string();
+  }
+};
+
 // Every drawn triangle of every resident node (no culling at all), Moeller-Trumbore.
 class BruteForce {
  public:
-  BruteForce(const ArchiveReader& reader, const std::vector<NodeKey>& resident) : world_(reader.world()) {
+  BruteForce(const ArchiveReader& reader, const std::vector<NodeKey>& resident, ReadFailures& failures)
+      : world_(reader.world()) {
     auto data = std::make_unique<NodeData>();
     for (const NodeKey& k : resident) {
       const size_t index = size_t(reader.find(k));
-      if (!reader.decode_node(index, *data, kSectionHeights | kSectionAlbedo).ok()) continue;
+      const Status s = reader.decode_node(index, *data, kSectionHeights | kSectionAlbedo);
+      failures.note(s);
+      if (!s.ok()) continue;
       const NodeRecord& r = reader.nodes()[index];
       Node n{k, std::vector<double>(kHeightCount), std::vector<uint8_t>(kHeightCount), {}};
       for (int i = 0; i < kHeightCount; ++i)
@@ -155,12 +195,15 @@ class BruteForce {
 };
 
 // A ray marched in `step` metre steps with SurfaceSampler (what a game without ray queries does).
-bool march(SurfaceSampler& sampler, const Ray& ray, double step) {
+bool march(SurfaceSampler& sampler, const Ray& ray, double step, ReadFailures& failures) {
   const double len = std::hypot(ray.direction[0], ray.direction[1], ray.direction[2]);
   for (double t = 0; t <= ray.max_distance_m; t += step) {
     const double x = ray.origin[0] + t * ray.direction[0] / len, y = ray.origin[1] + t * ray.direction[1] / len;
     std::optional<SurfaceSample> s;
-    if (sampler.sample(x, y, s).ok() && s && s->height_m >= ray.origin[2] + t * ray.direction[2] / len) return true;
+    const Status st = sampler.sample(x, y, s);
+    failures.note(st);
+    if (!st.ok()) return false;  // counted; the run will fail
+    if (s && s->height_m >= ray.origin[2] + t * ray.direction[2] / len) return true;
   }
   return false;
 }
@@ -179,7 +222,13 @@ int main(int argc, char** argv) {
   }
   const WorldInfo& w = streamer.world();
   ArchiveReader reader;
-  if (!reader.open(opt.archive).ok()) return 1;
+  if (Status s = reader.open(opt.archive); !s.ok()) {
+    std::fprintf(stderr, "terrain-query-bench: %s\n", s.to_string().c_str());
+    return 1;
+  }
+  ReadFailures read_failures;
+  uint64_t stream_failures = 0;
+  std::string first_stream_failure;
   // Default camera: over the middle node (directory order) of the archive's finest level.
   const auto nodes = reader.nodes();
   const uint32_t finest = nodes.front().key.level;
@@ -196,7 +245,9 @@ int main(int argc, char** argv) {
   v.z = (ground.hit ? ground.height_m : 0) + 2;
   const auto settle_start = Clock::now();
   for (int f = 0; f < 20000; ++f) {
-    streamer.update({&v, 1});
+    const FrameUpdate& u = streamer.update({&v, 1});
+    for (const NodeFailure& nf : u.failed)
+      if (stream_failures++ == 0) first_stream_failure = nf.status.to_string();
     if (streamer.stats().wanted_missing == 0 && f > 2) break;
     if (std::chrono::duration<double>(Clock::now() - settle_start).count() > 60) break;
   }
@@ -244,6 +295,9 @@ int main(int argc, char** argv) {
     return std::string(b);
   };
 
+  // Once a load or read has failed the rates describe a different archive: the measurements stop
+  // there (failing queries would only be timed failing) and the run reports the failure.
+  auto failing = [&] { return stream_failures > 0 || read_failures.count > 0; };
   // Heights.
   const double r_height = median_rate(opt.runs, [&] {
     surface.heights_at(points, out);
@@ -258,25 +312,27 @@ int main(int argc, char** argv) {
     return points.size();
   });
   rows.push_back({"height", "ResidentSurface::height_at", r_single, ""});
+  const bool settled_badly = failing();
   const size_t n_sampler = 200000;
   SurfaceSampler sampler(reader);
-  const double r_sampler = median_rate(opt.runs, [&] {
+  const double r_sampler = settled_badly ? 0 : median_rate(opt.runs, [&] {
     for (size_t i = 0; i < n_sampler; ++i) {
       std::optional<SurfaceSample> s;
-      (void)sampler.sample(points[i][0], points[i][1], s);
+      read_failures.note(sampler.sample(points[i][0], points[i][1], s));
     }
     return n_sampler;
   });
-  rows.push_back({"height", "SurfaceSampler::sample (finest)", r_sampler, ""});
-  const double r_archive = median_rate(opt.runs, [&] {
+  if (!settled_badly) rows.push_back({"height", "SurfaceSampler::sample (finest)", r_sampler, ""});
+  const double r_archive = failing() ? 0 : median_rate(opt.runs, [&] {
     SurfacePoint p;
-    for (size_t i = 0; i < n_sampler; ++i) (void)archive.height_at(points[i][0], points[i][1], p);
+    for (size_t i = 0; i < n_sampler; ++i) read_failures.note(archive.height_at(points[i][0], points[i][1], p));
     return n_sampler;
   });
-  rows.push_back({"height", "ArchiveSurface::height_at (finest)", r_archive, ""});
+  if (r_archive > 0) rows.push_back({"height", "ArchiveSurface::height_at (finest)", r_archive, ""});
 
   // Rays.
   auto ray_rows = [&](const std::string& name, const std::vector<Ray>& rays, size_t n_brute, size_t n_march) {
+    if (failing()) return;
     hits.resize(rays.size());
     const double r = median_rate(opt.runs, [&] {
       surface.raycast(rays, hits);
@@ -284,14 +340,16 @@ int main(int argc, char** argv) {
     });
     const size_t h = size_t(std::count_if(hits.begin(), hits.end(), [](const RayHit& x) { return x.hit; }));
     rows.push_back({name, "ResidentSurface::raycast", r, hit_share(h, rays.size())});
+    if (failing()) return;
     const double rm = median_rate(std::min(opt.runs, 3), [&] {
-      for (size_t i = 0; i < n_march; ++i) (void)march(sampler, rays[i], 0.5);
+      for (size_t i = 0; i < n_march; ++i) (void)march(sampler, rays[i], 0.5, read_failures);
       return n_march;
     });
+    if (failing()) return;
     rows.push_back({name, "SurfaceSampler march, 0.5 m steps", rm, "approximate"});
     if (n_brute) {
       static std::unique_ptr<BruteForce> brute;
-      if (!brute) brute = std::make_unique<BruteForce>(reader, surface.nodes());
+      if (!brute) brute = std::make_unique<BruteForce>(reader, surface.nodes(), read_failures);
       size_t agree = 0;
       const double rb = median_rate(1, [&] {
         for (size_t i = 0; i < n_brute; ++i) {
@@ -327,6 +385,15 @@ int main(int argc, char** argv) {
     else
       std::snprintf(rate, sizeof rate, "%.2f", r.rate);
     std::printf("| %-18s | %-37s | %14s | %-14s |\n", r.query.c_str(), r.method.c_str(), rate, r.note.c_str());
+  }
+  std::printf("failed loads: %llu streamer node loads, %llu archive reads by the queries that read the file\n",
+              (unsigned long long)stream_failures, (unsigned long long)read_failures.count);
+  // The rates above then describe a different (smaller) archive: the run failed.
+  if (stream_failures > 0 || read_failures.count > 0) {
+    std::fprintf(stderr, "terrain-query-bench: %s: %llu streamer node loads and %llu archive reads failed (first: %s)\n",
+                 opt.archive.c_str(), (unsigned long long)stream_failures, (unsigned long long)read_failures.count,
+                 (stream_failures > 0 ? first_stream_failure : read_failures.first).c_str());
+    return 1;
   }
   return 0;
 }

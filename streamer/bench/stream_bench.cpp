@@ -177,6 +177,8 @@ struct Result {
   std::vector<double> update_cpu_ms;  // ... CPU time of the caller's thread
   uint64_t bytes_read = 0;
   uint64_t loads = 0;
+  uint64_t failed = 0;         // node loads that failed (bad payload, short read): reported, never retried
+  std::string first_failure;   // the first of them, as the loader reported it
   bool invariants_ok = true;
 };
 
@@ -206,6 +208,8 @@ nlohmann::json to_json(const Result& r) {
   j["update_cpu_ms_max"] = r.update_cpu_ms.empty() ? 0 : *std::max_element(r.update_cpu_ms.begin(), r.update_cpu_ms.end());
   j["bytes_read"] = r.bytes_read;
   j["loads"] = r.loads;
+  j["failed_loads"] = r.failed;
+  if (!r.first_failure.empty()) j["first_failure"] = r.first_failure;
   j["invariants_ok"] = r.invariants_ok;
   return j;
 }
@@ -279,6 +283,9 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
       ++res.loads;
       if (delivered) delivered->insert(uint32_t(s.archive().find(d.key)));
     }
+    for (const NodeFailure& f : u.failed) {
+      if (res.failed++ == 0) res.first_failure = f.status.to_string();
+    }
     const StreamerStats st = s.stats();
     res.wanted_missing_frames += st.wanted_missing > 0;
     res.gap_frames += st.required_missing > 0;
@@ -292,6 +299,7 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
       if (frame(v, scratch).wanted_missing == 0) break;
       pacer.wait();
     }
+    return scratch;
   };
   for (const Path& p : paths) {
     Result res;
@@ -324,10 +332,12 @@ std::vector<Result> run_streamer(const std::string& archive, const std::vector<P
         }
       }
     } else {
-      settle(p.views.front());
+      const Result settled = settle(p.views.front());
       res = Result{};
       res.path = p.name;
       res.loader = "streamer";
+      res.failed = settled.failed;  // failures while settling count too
+      res.first_failure = settled.first_failure;
       bytes0 = s.stats().bytes_read;
       pacer.reset();
       for (const View& v : p.views) {
@@ -361,6 +371,8 @@ std::vector<Result> run_naive(const ArchiveReader& reader, const std::vector<Pat
       res.update_ms.push_back(ms);
       ++res.frames;
       res.loads += fs.loaded;
+      res.failed += fs.failed;
+      if (fs.failed > 0 && res.first_failure.empty()) res.first_failure = fs.first_failure;
       res.bytes_read += fs.bytes_read;
       peak_buffers = std::max(peak_buffers, naive.buffer_bytes());
       mem.sample();
@@ -381,9 +393,13 @@ std::vector<Result> run_naive(const ArchiveReader& reader, const std::vector<Pat
       }
     } else {
       frame(p.views.front());
+      const uint64_t settle_failed = res.failed;
+      const std::string settle_failure = res.first_failure;
       res = Result{};
       res.path = p.name;
       res.loader = "naive";
+      res.failed = settle_failed;  // failures while settling count too
+      res.first_failure = settle_failure;
       for (const View& v : p.views) frame(v);  // no pacing: nothing runs in the background
     }
     results.push_back(res);
@@ -402,7 +418,7 @@ uint32_t load_u32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 
 DecodeSpeed measure_decode(const ArchiveReader& reader, const std::set<uint32_t>& nodes) {
   DecodeSpeed d;
   auto data = std::make_unique<NodeData>();
-  std::vector<uint8_t> out(64 * 1024);
+  std::vector<uint8_t> out(64 * 1024), p;
   ZSTD_DCtx* dctx = ZSTD_createDCtx();
   for (int rep = 0; rep < 3; ++rep) {  // best of 3 (first pass also warms caches)
     double dec = 0, zs = 0;
@@ -411,7 +427,7 @@ DecodeSpeed measure_decode(const ArchiveReader& reader, const std::set<uint32_t>
       auto t0 = Clock::now();
       if (!reader.decode_node(i, *data).ok()) continue;
       dec += std::chrono::duration<double>(Clock::now() - t0).count();
-      const std::span<const uint8_t> p = reader.payload(i);
+      if (!reader.read_payload(i, p).ok()) continue;  // outside the timing: the bytes zstd is timed on
       stored += p.size();
       raw += sizeof(NodeData::heights) + sizeof(NodeData::normals_bc3) + sizeof(NodeData::albedo_bc1) +
              sizeof(NodeData::splat) + sizeof(NodeData::cones_bc3);
@@ -495,6 +511,7 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   {
     std::vector<Path> tp = {paths.front()};
     auto r = run_streamer(archive, tp, config, 0, umem, ustats, nullptr, error);
+    if (!error.empty()) std::fprintf(stderr, "terrain-stream-bench: unpaced run: %s\n", error.c_str());
     for (auto& x : r) {
       x.loader = "streamer, unpaced";
       results.push_back(x);
@@ -510,6 +527,7 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
     MemoryPeak m;
     StreamerStats ss;
     auto r = run_streamer(archive, tp, uncapped, o.fps, m, ss, nullptr, error);
+    if (!error.empty()) std::fprintf(stderr, "terrain-stream-bench: %s run: %s\n", uncapped_name.c_str(), error.c_str());
     for (auto& x : r) {
       x.loader = uncapped_name;
       results.push_back(x);
@@ -559,6 +577,12 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   const double ceiling_paced = median(nt->settle_ms) / std::max(1e-9, median(paced_bound));
   int flight_gap_frames = 0;
   bool invariants = true;
+  uint64_t failed_loads = 0;
+  std::string first_failure;
+  for (const Result& r : results) {
+    failed_loads += r.failed;
+    if (first_failure.empty()) first_failure = r.first_failure;
+  }
   for (const Result& r : results)
     if (r.loader == "streamer") {
       invariants = invariants && r.invariants_ok;
@@ -608,6 +632,8 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
                   {"settle_ms_lower_bound_paced_median", median(paced_bound)},
                   {"speedup_ceiling_paced", ceiling_paced},
                   {"flight_and_walk_gap_frames", flight_gap_frames},
+                  {"failed_loads", failed_loads},
+                  {"runs_that_could_not_open", error.empty() ? 0 : 1},
                   {"invariants_ok", invariants}};
   json_out.push_back(j);
 
@@ -617,8 +643,8 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
                 archive.c_str(), reader.nodes().size(), roots, double(reader.file_size()) / 1e6, o.budget, o.threads,
                 o.max_deliveries, o.fps,
                 o.target_px, config.prefetch_ratio, std::thread::hardware_concurrency(), load_average().c_str());
-    std::printf("%-16s %-18s %7s %26s %14s %10s %17s %12s %8s %6s\n", "path", "loader", "frames", "settle ms med/max (frames)",
-                "wanted-missing", "gap frames", "update ms p50/max", "update cpu max", "MB read", "loads");
+    std::printf("%-16s %-18s %7s %26s %14s %10s %17s %12s %8s %6s %6s\n", "path", "loader", "frames", "settle ms med/max (frames)",
+                "wanted-missing", "gap frames", "update ms p50/max", "update cpu max", "MB read", "loads", "failed");
     for (const Result& r : results) {
       std::string settle = "-";
       if (!r.settle_ms.empty()) {
@@ -628,10 +654,10 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
       }
       const double umax = r.update_ms.empty() ? 0 : *std::max_element(r.update_ms.begin(), r.update_ms.end());
       const double cmax = r.update_cpu_ms.empty() ? 0 : *std::max_element(r.update_cpu_ms.begin(), r.update_cpu_ms.end());
-      std::printf("%-16s %-18s %7d %26s %14d %10d %17s %12.2f %8.1f %6llu\n", r.path.c_str(), r.loader.c_str(), r.frames,
+      std::printf("%-16s %-18s %7d %26s %14d %10d %17s %12.2f %8.1f %6llu %6llu\n", r.path.c_str(), r.loader.c_str(), r.frames,
                   settle.c_str(), r.wanted_missing_frames, r.gap_frames,
                   (fmt("%.3f", median(r.update_ms)) + " / " + fmt("%.2f", umax)).c_str(), cmax, double(r.bytes_read) / 1e6,
-                  (unsigned long long)r.loads);
+                  (unsigned long long)r.loads, (unsigned long long)r.failed);
     }
     if (st) {
       std::vector<double> w(st->settled_wanted.begin(), st->settled_wanted.end());
@@ -676,7 +702,12 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
                 "ancestor is drawn there; wanted-missing also counts prefetched nodes)\n",
                 invariants ? "held" : "BROKEN", flight_gap_frames);
   }
-  return invariants ? 0 : 1;
+  // Failed loads make every figure above describe a different (smaller) archive: the run failed.
+  if (failed_loads > 0)
+    std::fprintf(stderr, "terrain-stream-bench: %s: %llu node loads failed (first: %s)\n", archive.c_str(),
+                 (unsigned long long)failed_loads, first_failure.c_str());
+  if (!error.empty()) std::fprintf(stderr, "terrain-stream-bench: %s: a streamer run could not open the archive\n", archive.c_str());
+  return invariants && failed_loads == 0 && error.empty() ? 0 : 1;
 }
 
 }  // namespace

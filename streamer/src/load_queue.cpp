@@ -104,7 +104,7 @@ void LoadQueue::worker_main() {
     }
     lock.unlock();
 
-    // All file access (page faults on the map) and decompression happen here, off the owner's thread.
+    // All file access (pread of the payload) and decompression happen here, off the owner's thread.
     std::unique_ptr<NodeData> fresh;
     if (!data) {
       fresh = std::make_unique<NodeData>();
@@ -117,7 +117,7 @@ void LoadQueue::worker_main() {
     if (status.ok() && surfaces_) surface = make_node_surface(reader_, node, *data, (sections_ & kSectionAlbedo) != 0);
     const double cpu_seconds = thread_cpu_seconds() - c0;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const uint64_t bytes = reader_.payload(node).size();
+    const uint64_t bytes = reader_.nodes()[node].payload_size;
 
     lock.lock();
     if (fresh) {

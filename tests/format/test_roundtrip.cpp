@@ -14,8 +14,10 @@
 #include "scratch_archive_test.h"
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
+#include "terrain/byte_source.h"
 #include "terrain/height_codec.h"
 #include "terrain/output_paths.h"
+#include "terrain/surface_contract.h"
 #include "test_data.h"
 
 namespace terrain {
@@ -229,9 +231,12 @@ TEST_F(ArchiveRoundTrip, SameInputsGiveIdenticalBytesAtAnyThreadCount) {
   ASSERT_TRUE(a.open(path_).ok());
   ASSERT_TRUE(b.open(path_ + "3").ok());
   ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  std::vector<uint8_t> pa, pb;
   for (size_t i = 0; i < a.nodes().size(); ++i) {
     EXPECT_EQ(a.nodes()[i].key, b.nodes()[i].key);
-    EXPECT_TRUE(std::ranges::equal(a.payload(i), b.payload(i)));
+    ASSERT_TRUE(a.read_payload(i, pa).ok());
+    ASSERT_TRUE(b.read_payload(i, pb).ok());
+    EXPECT_EQ(pa, pb);
   }
 }
 
@@ -401,6 +406,81 @@ TEST_F(ArchiveRoundTrip, WriterRejectsCallerMistakesWithoutLosingTheArchive) {
   EXPECT_TRUE(reader.verify().ok());
 }
 
+// Issue 48: the reader used to map the file, so a file cut short after open() raised SIGBUS on the
+// first decode that touched a lost page. Now every node whose payload lies past the new end fails
+// with `truncated`, naming the node and the sizes; the nodes before it still decode; nothing dies.
+TEST_F(ArchiveRoundTrip, FileTruncatedAfterOpenFailsTheLostNodesByName) {
+  ArchiveReader reader;
+  ASSERT_NO_FATAL_FAILURE(open_sparse_world(reader));
+  const uint64_t size = reader.file_size();
+  const uint64_t half = size / 2;
+  std::filesystem::resize_file(path_, half);
+  auto data = std::make_unique<NodeData>();
+  std::vector<uint8_t> bytes;
+  size_t lost = 0, kept = 0;
+  for (size_t i = 0; i < reader.nodes().size(); ++i) {
+    const NodeRecord& r = reader.nodes()[i];
+    const std::string name = node_name(r.key);
+    const Status d = reader.decode_node(i, *data);
+    const Status p = reader.read_payload(i, bytes);
+    if (r.payload_offset + r.payload_size <= half) {
+      ++kept;
+      EXPECT_TRUE(d.ok()) << name << ": " << d.to_string();
+      EXPECT_TRUE(p.ok()) << name << ": " << p.to_string();
+      continue;
+    }
+    ++lost;
+    for (const Status& s : {d, p}) {
+      EXPECT_EQ(s.code, Error::truncated) << s.to_string();
+      EXPECT_NE(s.message.find("node " + name + " at offset " + std::to_string(r.payload_offset)), std::string::npos) << s.message;
+      EXPECT_NE(s.message.find("short read"), std::string::npos) << s.message;
+      EXPECT_NE(s.message.find("the file ends at " + std::to_string(half) + " bytes, it had " + std::to_string(size)),
+                std::string::npos)
+          << s.message;
+    }
+  }
+  EXPECT_GT(lost, 0u);
+  EXPECT_GT(kept, 0u);
+  EXPECT_EQ(reader.verify().code, Error::truncated);
+  SectionBytes sections;
+  EXPECT_EQ(reader.section_bytes(sections).code, Error::truncated);
+  // The directory was copied at open(): lookups still answer.
+  EXPECT_EQ(reader.find(reader.nodes().back().key), int64_t(reader.nodes().size() - 1));
+  // Reopening sees the cut file as the truncated archive it now is.
+  ArchiveReader again;
+  const Status reopened = again.open(path_);
+  EXPECT_EQ(reopened.code, Error::truncated) << reopened.to_string();
+}
+
+// The same through a caller's own ByteSource (what a remote source implements): its errors reach
+// the caller of decode_node() with the node named in front.
+TEST_F(ArchiveRoundTrip, ByteSourceErrorsReachTheCallerNamingTheNode) {
+  ASSERT_TRUE(test::write_synthetic_archive(path_, world_, test::sparse_keys()).ok());
+  struct FailingSource final : ByteSource {
+    std::unique_ptr<ByteSource> inner;
+    uint64_t fail_from = UINT64_MAX;  // set after open()
+    std::string label = "flaky";
+    uint64_t size() const override { return inner->size(); }
+    const std::string& name() const override { return label; }
+    Status read(uint64_t offset, std::span<uint8_t> dst) const override {
+      if (offset >= fail_from) return Status::failure(Error::io_read, label + ": connection reset");
+      return inner->read(offset, dst);
+    }
+  };
+  auto source = std::make_unique<FailingSource>();
+  ASSERT_TRUE(open_file_source(path_, source->inner).ok());
+  FailingSource& raw = *source;
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(std::move(source)).ok());
+  EXPECT_EQ(reader.source(), &raw);
+  raw.fail_from = reader.nodes()[0].payload_offset;  // every payload from here on
+  auto data = std::make_unique<NodeData>();
+  const Status s = reader.decode_node(0, *data);
+  EXPECT_EQ(s.code, Error::io_read);
+  EXPECT_EQ(s.message, "node " + node_name(reader.nodes()[0].key) + " at offset " +
+                           std::to_string(reader.nodes()[0].payload_offset) + ": flaky: connection reset");
+}
+
 TEST_F(ArchiveRoundTrip, OpenFromMemoryMatchesOpenFromFile) {
   const WorldInfo w = make_world();
   ASSERT_TRUE(test::write_synthetic_archive(path_, w, test::sparse_keys()).ok());
@@ -408,7 +488,13 @@ TEST_F(ArchiveRoundTrip, OpenFromMemoryMatchesOpenFromFile) {
   ASSERT_TRUE(a.open(path_).ok());
   ASSERT_TRUE(b.open_memory(read_file(path_)).ok());
   ASSERT_EQ(a.nodes().size(), b.nodes().size());
-  for (size_t i = 0; i < a.nodes().size(); ++i) EXPECT_TRUE(std::ranges::equal(a.payload(i), b.payload(i)));
+  std::vector<uint8_t> pa, pb;
+  for (size_t i = 0; i < a.nodes().size(); ++i) {
+    ASSERT_TRUE(a.read_payload(i, pa).ok());
+    ASSERT_TRUE(b.read_payload(i, pb).ok());
+    EXPECT_EQ(pa, pb);
+    EXPECT_EQ(pa.size(), a.nodes()[i].payload_size);
+  }
   ArchiveReader closed;
   EXPECT_FALSE(closed.is_open());
   EXPECT_EQ(closed.find({5, 0, 0}), -1);

@@ -258,6 +258,7 @@ std::string StreamChecker::check(const FrameUpdate& u) {
   for (const NodeFailure& f : u.failed) {
     const Key k = key_of(f.key);
     if (++failure_count_[k] > 1) return fail("failure of " + key_name(k) + " reported twice");
+    failure_statuses_.push_back(f);
     if (f.status.ok()) return fail("failure of " + key_name(k) + " carries an ok status");
     if (resident_.count(k)) return fail("failed node " + key_name(k) + " is resident");
   }

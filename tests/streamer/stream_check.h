@@ -66,6 +66,8 @@ class StreamChecker {
   std::string check(const FrameUpdate& u);
 
   const std::map<Key, int>& failures() const { return failure_count_; }
+  // Every NodeFailure seen, in the order reported.
+  const std::vector<NodeFailure>& failure_statuses() const { return failure_statuses_; }
   std::set<Key> failed_set() const;
   std::set<Key> resident_set() const;
   uint64_t deliveries() const { return deliveries_; }
@@ -85,6 +87,7 @@ class StreamChecker {
   std::map<Key, uint16_t> resident_;
   std::map<Key, const NodeData*> data_;
   std::map<Key, int> failure_count_;
+  std::vector<NodeFailure> failure_statuses_;
   std::vector<Key> roots_;  // the top nodes (roots without overview levels): always resident
   uint32_t top_ = kRootLevel;
   bool grids_checked_ = true;  // config.index_grids

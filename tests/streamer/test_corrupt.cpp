@@ -1,6 +1,7 @@
 // Corrupt payloads: reported once, marked failed, the parent keeps covering, the streamer goes on.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -130,6 +131,58 @@ TEST(StreamerCorrupt, FailureStatusNamesTheNode) {
   }
   // The root covers the whole area alone, and stays resident.
   EXPECT_EQ(streamer.node_state(root), NodeState::resident);
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 48: the archive cut short after open() (a file replaced in place, a download still
+// running). The workers' reads of payloads past the new end fail as `truncated` naming the node;
+// those nodes are reported once and marked failed, every other node still loads. Before, the mapped
+// reader raised SIGBUS in a worker and killed the process. Payloads lie finest level first, so the
+// cut goes through the middle of the level-4 payloads the view wants: some of them are lost, the
+// others and everything under them are intact.
+TEST(StreamerCorrupt, ArchiveTruncatedAfterOpenFailsTheLostNodesByName) {
+  ArchiveCopy copy;
+  ASSERT_NO_FATAL_FAILURE(copy_to_corrupt("streamer-truncated", copy));
+  const auto& [dir, path, reader, root] = copy;
+  const synthetic::Spec s = spec();
+  const double cx = s.origin_x_m + 3000, cy = s.origin_y_m + 4100;
+  const View here = view_at(cx, cy, synthetic::surface_height_m(s, cx, cy) + 15);
+  const View away = view_at(s.origin_x_m + 9000, s.origin_y_m + 500, 900);
+  const StreamerConfig config = with_workers(2);
+  std::vector<uint64_t> level4;
+  for (const Key& k : reference_wanted(reader, config, {&here, 1}, {}))
+    if (node_key(k).level == 4) level4.push_back(reader.nodes()[size_t(reader.find(node_key(k)))].payload_offset);
+  ASSERT_GE(level4.size(), 2u);
+  std::sort(level4.begin(), level4.end());
+  const uint64_t half = level4[level4.size() / 2];  // the new end of the file
+  Streamer streamer;
+  ASSERT_TRUE(streamer.open(path, config).ok());
+  std::filesystem::resize_file(path, half);
+  StreamChecker checker(streamer, true);
+  ASSERT_EQ(settle(streamer, checker, {&here, 1}), "");
+  ASSERT_EQ(settle(streamer, checker, {&away, 1}), "");
+  size_t lost = 0;
+  for (const auto& [k, n] : checker.failures()) {
+    const NodeRecord& r = reader.nodes()[size_t(reader.find(node_key(k)))];
+    EXPECT_GT(r.payload_offset + r.payload_size, half) << key_name(k) << " failed but its payload is intact";
+    EXPECT_EQ(n, 1) << key_name(k);
+    EXPECT_EQ(streamer.node_state(node_key(k)), NodeState::failed) << key_name(k);
+    ++lost;
+  }
+  EXPECT_GT(lost, 0u) << "the two views loaded no node past the cut: the test checked nothing";
+  EXPECT_EQ(streamer.stats().failed, lost);
+  for (const NodeFailure& f : checker.failure_statuses()) {
+    EXPECT_EQ(f.status.code, Error::truncated) << f.status.to_string();
+    EXPECT_NE(f.status.message.find("node " + key_name(key_of(f.key))), std::string::npos) << f.status.message;
+    EXPECT_NE(f.status.message.find("short read"), std::string::npos) << f.status.message;
+  }
+  // Nodes whose payload lies before the cut still load: some non-top nodes are resident.
+  size_t intact_resident = 0;
+  for (const NodeKey& k : streamer.resident_nodes()) {
+    const NodeRecord& r = reader.nodes()[size_t(reader.find(k))];
+    intact_resident += k.level < uint32_t(reader.top_level()) && r.payload_offset + r.payload_size <= half;
+  }
+  EXPECT_GT(intact_resident, 0u);
   std::filesystem::remove_all(dir);
 }
 

@@ -1,5 +1,8 @@
-// Memory-mapped archive reader. open() validates header, metadata and directory (checksums,
-// bounds, ordering) before anything is trusted; payloads are checked when decoded.
+// Archive reader. open() copies header, metadata and directory out of a ByteSource (a file read with
+// pread, bytes in memory, ...) and validates them (checksums, bounds, ordering) before anything is
+// trusted; payloads are read into buffers and checked when decoded. Nothing is memory-mapped: when
+// the file shrinks or fails after open(), the reads that reach past its end return `truncated` (or
+// `io_read`) naming the node, and the caller decides (the streamer marks the node failed).
 // All const methods are safe to call concurrently from many threads.
 #pragma once
 #include <cstdint>
@@ -8,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "terrain/byte_source.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
@@ -27,7 +31,10 @@ class ArchiveReader {
   ArchiveReader(ArchiveReader&&) noexcept;
   ArchiveReader& operator=(ArchiveReader&&) noexcept;
 
+  // Opens a file (open_file_source(): regular files only, read with pread).
   Status open(const std::string& path);
+  // Opens an archive from any byte source; the reader owns it from here on. Same checks as open().
+  Status open(std::unique_ptr<ByteSource> source);
   // Opens an archive held in memory (the bytes are copied; used by the fuzzer and tests).
   // Same checks as open().
   Status open_memory(std::span<const uint8_t> bytes);
@@ -35,7 +42,10 @@ class ArchiveReader {
 
   const WorldInfo& world() const;
   uint32_t format_version() const;
+  // The source's size at open() (equal to the header's file_size).
   uint64_t file_size() const;
+  // The byte source (null when not open), e.g. to read raw ranges for a copy.
+  const ByteSource* source() const;
 
   // Directory, sorted by key_less. Empty until open() succeeded.
   std::span<const NodeRecord> nodes() const;
@@ -50,10 +60,12 @@ class ArchiveReader {
   // The directory entries of one level (a contiguous run of nodes()); empty for other levels.
   std::span<const NodeRecord> level_nodes(int level) const;
 
-  // Stored payload bytes of node `index` (bounds already validated at open()).
-  std::span<const uint8_t> payload(size_t index) const;
-  // Verifies the payload checksum, then decodes the requested sections into `out`.
-  // Errors name the node: "payload_checksum: node 2/40/17 at offset 123456: ...".
+  // Reads the stored payload bytes of node `index` into `out` (resized to its payload_size) and
+  // verifies their CRC-32. Errors name the node: "truncated: node 2/40/17 at offset 123456: <path>:
+  // short read ...", "payload_checksum: node 2/40/17 at offset 123456: payload CRC-32 mismatch".
+  Status read_payload(size_t index, std::vector<uint8_t>& out) const;
+  // read_payload() into a buffer of the calling thread, then decodes the requested sections into
+  // `out`. Errors name the node as above. On failure `out` holds unspecified data.
   Status decode_node(size_t index, NodeData& out, unsigned sections = kSectionAll) const;
 
   // Reads and checks everything: every payload checksum and decode, child masks against the
@@ -61,7 +73,8 @@ class ArchiveReader {
   // `progress` (may be null) gets a fraction 0..1.
   Status verify(void (*progress)(double fraction, void* user) = nullptr, void* user = nullptr) const;
 
-  // Per-section byte totals (parses each payload's section table; no decompression).
+  // Per-section byte totals (reads every payload and parses its section table; no checksum, no
+  // decompression).
   Status section_bytes(SectionBytes& out) const;
 
  private:

@@ -45,7 +45,10 @@
 //  - a slot evicted in update() number F receives a new node no earlier than update() number
 //    F + config.fence_frames (so GPU frames still in flight never see its contents change);
 //  - a node whose payload fails to load is reported once (FrameUpdate::failed), marked failed
-//    and never requested again; its parent keeps covering its area.
+//    and never requested again; its parent keeps covering its area. Failing to load covers a bad
+//    payload (checksum, section table, zstd) and a failed read: the workers read payloads with
+//    pread, so a file truncated or replaced after open() fails the nodes whose bytes are gone
+//    (`truncated`, naming the node and the file's new size) instead of raising SIGBUS.
 //
 // The wanted set (recomputed by every update(), deterministic for the same views and state):
 //  - projected error of node N from view V, in pixels:
@@ -245,7 +248,7 @@ class Streamer {
   Streamer(const Streamer&) = delete;
   Streamer& operator=(const Streamer&) = delete;
 
-  // Opens the archive (memory-mapped; validated by ArchiveReader::open), checks the config,
+  // Opens the archive (read with pread; validated by ArchiveReader::open), checks the config,
   // starts the workers and has them load every top node; returns when they are decoded (the
   // caller's thread waits, it does not decode). Any root count opens when the archive has
   // overview levels (their top level holds at most 16 nodes). Errors: the archive's own (io_open,
