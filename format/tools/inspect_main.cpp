@@ -96,7 +96,15 @@ int run(int argc, char** argv) {
     if (terrain::Status s = check_export_dir(path, export_args[1]); !s.ok()) return fail(s);
 
   terrain::ArchiveReader reader;
-  if (terrain::Status s = reader.open(path); !s.ok()) return fail(s);
+  if (terrain::Status s = reader.open(path); !s.ok()) {
+    // --json --verify promises its document for every file, an unreadable or foreign one too.
+    if (json && do_verify) {
+      const nlohmann::json doc = {{"file", path}, {"valid", false}, {"nodes", 0},
+                                  {"error", {{"code", int(s.code)}, {"name", terrain::error_name(s.code)}, {"message", s.message}}}};
+      std::printf("%s\n", doc.dump(2).c_str());
+    }
+    return fail(s);
+  }
 
   const bool summary = points.empty() && export_args.empty() && !do_verify;
   if (summary) {
