@@ -120,6 +120,12 @@ int run_viewer(const ViewerOptions& o, ImageWriter write_image) {
     std::fprintf(stderr, "terrain-view: %u validation errors\n", s.ctx.validation_errors);
     return 1;
   }
+  // A node that failed to load (bad payload, archive truncated or unreadable since open) is drawn as
+  // its parent: the picture is not the archive's. Each failure was named on stderr as it happened.
+  if (const uint32_t failed = s.source->stats().failed; failed > 0) {
+    std::fprintf(stderr, "terrain-view: %u nodes failed to load (named above); their parents were drawn instead\n", failed);
+    return 1;
+  }
   if (!o.quiet) {
     const FrameRecord& last = s.records.back();
     std::fprintf(stderr,
