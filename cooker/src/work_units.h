@@ -85,7 +85,7 @@ CookOptions resolved_options(CookOptions o);
 // True when a plan made with `planned` is the plan `given` would make from the same inputs (every
 // option that changes a byte; threads, the memory limit and the output path do not).
 bool same_plan_options(const CookOptions& planned, const CookOptions& given);
-// Every input file of the plan is as the plan saw it (size and mtime): else a named error. With
+// Every input file of the plan is as the plan saw it (size, mtime, inode, ctime): else a named error. With
 // `unit`, only the files that meet its window: those its fingerprint holds, the only ones it reads
 // (one stat per tile it may read, not one per tile of a national mosaic).
 Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit = std::nullopt);

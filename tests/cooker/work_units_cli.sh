@@ -363,6 +363,11 @@ PY
     expect_refused 2 "-o w/units/../plan.json: is a file of the work dir w" "$cook" merge w -o w/units/../plan.json -q
     expect_refused 2 "-o w/units/unit-1.tcu: is a file of the work dir w" \
       "$cook" in.npz "${flags[@]}" --work-dir w -o w/units/unit-1.tcu
+    # unit: its unit file's name taken by a directory is refused before the unit is cooked.
+    rm w/units/unit-3.tcu && mkdir w/units/unit-3.tcu
+    expect_refused 2 "^terrain-cook unit 3: invalid_argument: unit file w/units/unit-3.tcu: is a directory, not a regular file" \
+      "$cook" unit w 3 -q
+    rmdir w/units/unit-3.tcu && "$cook" unit w 3 -q || fail "unit 3"
     # plan: an input among the work dir's own files (which plan and unit rewrite or remove).
     cp in.npz w/units/dem.npz
     expect_refused 2 "w/units/dem.npz: an input lies among the files of the work dir w" \
