@@ -130,7 +130,7 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   session_for_merge(data, s);
   s.options.output = output;
   SurfaceOptions so;
-  so.materials_path = data.options.materials_path;
+  so.materials_path = data.resolved.materials_path;
   if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
   const CookReport planned = data.report;
   const uint64_t limit = report.memory_limit_bytes;
@@ -153,7 +153,7 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
     if (st.ok()) shape = shape_of({&overview}, shape);
     return st;
   };
-  Status merged = merge_unit_files(work_dir, data.plan, output, writer, totals, report, progress, with_overview);
+  Status merged = merge_unit_files(work_dir, data.plan, data.steps, output, writer, totals, report, progress, with_overview);
   if (merged.ok() && overview.nodes()) merged = overview.drain(writer);
   if (!merged.ok()) {
     writer.abort();
@@ -181,7 +181,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     PlanFile plan;
     PlanData existing;
     if (std::filesystem::exists(plan_file(options.work_dir)) && read_plan(options.work_dir, existing).ok() &&
-        same_plan_options(existing.options, options) &&
+        same_plan_options(existing.options, options) && same_plan_options(existing.resolved, resolved_options(options)) &&
         (options.unit_roots == 0 || options.unit_roots == existing.unit_roots) && check_plan_inputs(existing.plan).ok()) {
       if (Status st = open_session_from_plan(existing, options.threads, s, report); !st.ok()) return st;
       plan = existing.plan;
@@ -269,6 +269,14 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
     return Status::failure(Error::io_write, fmt::format("{}: cannot create the work dir: {}", options.work_dir, ec.message()));
   if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
   if (Status st = plan_units(s, plan); !st.ok()) return st;
+  // An input among the files the work dir's tools rewrite or remove would be lost (a VRT's tiles
+  // too, known only now).
+  for (const InputFile& f : plan.files)
+    if (work_dir_owns(options.work_dir, f.path))
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("{}: an input lies among the files of the work dir {} (its plan, input lists "
+                                         "and units), which plan, unit and merge rewrite or remove; move it out or "
+                                         "give another --work-dir", f.path, options.work_dir));
   summary.plan_path = plan_file(options.work_dir);
   summary.unit_count = uint32_t(plan.units.size());
   // An earlier plan in the work dir: keep the unit files this plan can use, say why others go.
@@ -326,21 +334,27 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
   }
   // A unit file from inputs that changed since the plan is not "complete": refuse before anything.
   if (Status st = check_plan_inputs(data.plan, index); !st.ok()) return st;
+  // Its unit file must not be one of the files it reads (nor a device, FIFO or directory).
+  {
+    std::vector<NamedPath> inputs;
+    for (const InputFile& f : data.plan.files) inputs.push_back({"input of the plan", f.path});
+    if (Status st = check_output_paths(inputs, {{"unit file", unit_file(work_dir, index)}}); !st.ok()) return st;
+  }
   std::string why;
   if (unit_file_valid(work_dir, data.plan, index, why)) {
     skipped = true;
     return Status::success();
   }
   CookSession s;
-  data.options.block_roots = block_roots;
+  data.resolved.block_roots = block_roots;
   // A VRT mosaic cut to the unit's window by the plan: GDAL parses the tiles the unit reads, not
   // every tile of the mosaic; every read must then stay inside that window.
   const UnitPlan& unit = data.plan.units[index];
   const std::string cut = unit_vrt_file(work_dir, unit);
-  const std::string input = data.options.inputs.size() == 1 ? data.options.inputs[0] : std::string();
+  const std::string input = data.resolved.inputs.size() == 1 ? data.resolved.inputs[0] : std::string();
   const bool use_cut = !input.empty() && std::filesystem::exists(cut);
   if (use_cut) {
-    data.options.inputs = {cut};
+    data.resolved.inputs = {cut};
     s.read_bounds = unit.window;
   }
   if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;
@@ -349,10 +363,13 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
 }
 
 Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
-                   CookReport& report) {
+                   CookReport& report, const std::vector<NamedPath>& outputs) {
   const auto t_start = Clock::now();
   PlanData data;
   if (Status st = read_plan(work_dir, data); !st.ok()) return st;
+  if (Status st = check_merge_outputs(work_dir, data.plan, outputs.empty() ? std::vector<NamedPath>{{"-o", output}} : outputs);
+      !st.ok())
+    return st;
   // Units cooked from inputs that changed since would mix two versions of the data.
   if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
   if (Status st = merge_into(data, work_dir, output, progress, report); !st.ok()) return st;

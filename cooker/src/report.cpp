@@ -1,5 +1,6 @@
 // The cook report: JSON for --report / --json, and the closing summary lines.
 #include <cmath>
+#include <fstream>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -52,6 +53,22 @@ nlohmann::ordered_json level_bytes_json(const CookReport& r, int l) {
           {"section_stored_bytes", sections},
           {"bytes_per_km2", km2 > 0 ? double(stored) / km2 : 0.0},
           {"bytes_per_source_sample", r.source_valid_samples ? double(stored) / double(r.source_valid_samples) : 0.0}};
+}
+
+bool is_cook_report(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return false;
+  f.seekg(0, std::ios::end);
+  const std::streamoff size = f.tellg();
+  if (size <= 0 || size > (std::streamoff(16) << 20)) return false;  // reports are kilobytes
+  f.seekg(0);
+  if (f.peek() != '{') return false;  // an archive, an image: no parse
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return false;
+  for (const char* key : {"inputs", "source", "frame", "levels", "output", "time_s"})
+    if (!j.contains(key)) return false;
+  return j.at("inputs").is_array() && j.at("levels").is_array() && j.at("output").is_object() &&
+         j.at("output").contains("archive_bytes");
 }
 
 std::string report_json(const CookReport& r) {

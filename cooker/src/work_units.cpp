@@ -21,6 +21,8 @@
 #include "crs.h"
 #include "node_spool.h"
 #include "source_raster.h"
+#include "terrain/archive_writer.h"
+#include "terrain/bc_decode.h"
 #include "terrain/output_paths.h"
 #include "terrain/surface_contract.h"
 
@@ -78,6 +80,8 @@ InputFile file_of(const json& fj) {
   fi.path = fj.at("path");
   fi.size = fj.at("size");
   fi.mtime_ns = fj.at("mtime_ns");
+  fi.inode = fj.at("inode");
+  fi.ctime_ns = fj.at("ctime_ns");
   fi.fingerprint = fj.at("fingerprint");
   fi.footprint = rect_of(fj.at("footprint"));
   return fi;
@@ -182,15 +186,57 @@ FrameCrs frame_of(const json& j) {
 }
 
 // ---- input files: fingerprints and footprints ----
-bool stat_file(const std::string& path, uint64_t& size, int64_t& mtime_ns) {
+// Size, mtime, inode and ctime of `f.path` into `f`.
+bool stat_file(InputFile& f) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return false;
-  size = uint64_t(st.st_size);
-  mtime_ns = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+  if (::stat(f.path.c_str(), &st) != 0) return false;
+  f.size = uint64_t(st.st_size);
+  f.mtime_ns = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+  f.inode = uint64_t(st.st_ino);
+  f.ctime_ns = int64_t(st.st_ctim.tv_sec) * 1000000000 + st.st_ctim.tv_nsec;
   return true;
 }
 std::string file_fingerprint(const InputFile& f) {
-  return hex64(fnv1a(fmt::format("{}\n{}\n{}", f.path, f.size, f.mtime_ns)));
+  return hex64(fnv1a(fmt::format("{}\n{}\n{}\n{}\n{}", f.path, f.size, f.mtime_ns, f.inode, f.ctime_ns)));
+}
+// What differs between two stats of one file, for messages: "size 10 -> 12, ctime 5 -> 9".
+std::string file_change(const InputFile& was, const InputFile& now) {
+  std::string what;
+  auto differ = [&](const char* name, auto a, auto b) {
+    if (a != b) what += fmt::format("{}{} {} -> {}", what.empty() ? "" : ", ", name, a, b);
+  };
+  differ("size", was.size, now.size);
+  differ("mtime", was.mtime_ns, now.mtime_ns);
+  differ("inode", was.inode, now.inode);
+  differ("ctime", was.ctime_ns, now.ctime_ns);
+  if (was.ctime_ns != now.ctime_ns && was.size == now.size && was.mtime_ns == now.mtime_ns)
+    what += ": rewritten or replaced keeping size and mtime (cp -p, rsync -t, tar), or its metadata changed";
+  return what.empty() ? "its fingerprint" : what;
+}
+
+// `path` made absolute against the working directory (not through symbolic links): what `unit`
+// and `merge` open, from whatever directory they run in. Paths GDAL reads through a virtual file
+// system ("/vsizip/...") are absolute already or left as given.
+std::string absolute_path(const std::string& path) {
+  if (path.empty() || path.front() == '/') return path;
+  std::error_code ec;
+  const std::filesystem::path abs = std::filesystem::absolute(path, ec);
+  return ec ? path : abs.lexically_normal().string();
+}
+
+// The options' file paths as plan.json's "resolved_paths" holds them, and back.
+json resolved_paths_json(const CookOptions& o) {
+  return {{"inputs", o.inputs}, {"materials", o.materials_path}, {"albedo", o.albedo_path}, {"holes", o.holes_path},
+          {"landcover", o.landcover_path}, {"landcover_table", o.landcover_table_path}};
+}
+CookOptions with_paths_of(CookOptions o, const json& j) {
+  o.inputs = j.at("inputs").get<std::vector<std::string>>();
+  o.materials_path = j.at("materials");
+  o.albedo_path = j.at("albedo");
+  o.holes_path = j.at("holes");
+  o.landcover_path = j.at("landcover");
+  o.landcover_table_path = j.at("landcover_table");
+  return o;
 }
 
 // The mosaic samples a raster file covers: its corners through the mosaic's georeferencing, one
@@ -219,14 +265,15 @@ Status collect_input_files(const CookSession& s, std::vector<InputFile>& out) {
   const Raster& header = s.source.header();
   const SampleRect whole{0, 0, header.width - 1, header.height - 1};
   std::map<std::string, size_t> seen;
-  auto add = [&](const std::string& path, const SampleRect& footprint) -> Status {
+  auto add = [&](const std::string& typed, const SampleRect& footprint) -> Status {
+    const std::string path = absolute_path(typed);
     if (auto it = seen.find(path); it != seen.end()) {
       out[it->second].footprint = unite(out[it->second].footprint, footprint);
       return Status::success();
     }
     InputFile f;
     f.path = path;
-    if (!stat_file(path, f.size, f.mtime_ns))
+    if (!stat_file(f))
       return Status::failure(Error::io_open, fmt::format("{}: cannot stat: {}", path, std::strerror(errno)));
     f.footprint = footprint;
     f.fingerprint = file_fingerprint(f);
@@ -466,8 +513,9 @@ void put_file_list(const json& head, const Files& files, Put&& put) {
   put(",\n \"files\": [");
   bool first = true;
   for (const InputFile& f : files) {
-    const std::string e = json{{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns}, {"fingerprint", f.fingerprint},
-                               {"footprint", rect_json(f.footprint)}}.dump(1);
+    const std::string e = json{{"path", f.path}, {"size", f.size}, {"mtime_ns", f.mtime_ns},
+                               {"inode", f.inode}, {"ctime_ns", f.ctime_ns},
+                               {"fingerprint", f.fingerprint}, {"footprint", rect_json(f.footprint)}}.dump(1);
     put(first ? "\n  " : ",\n  ");
     first = false;
     size_t from = 0;  // the entry's lines, two levels in
@@ -700,9 +748,10 @@ Status plan_units(CookSession& s, PlanFile& plan) {
 Status write_plan(const CookSession& s, const CookReport& report, const PlanFile& plan, const std::string& path) {
   json j;
   j["format"] = "terrain-cook-plan";
-  j["version"] = 2;
+  j["version"] = 3;
   j["fingerprint"] = plan.fingerprint;
-  j["options"] = options_json(s.options);
+  j["options"] = options_json(s.options);  // paths as typed: the cook info keeps them
+  j["resolved_paths"] = resolved_paths_json(resolved_options(s.options));  // what unit and merge open
   // Every input file in a file of its own, named by its contents' fingerprint: only `plan` and the
   // merge read it (a unit reads its own list), so plan.json stays small however many tiles there are.
   const std::string work_dir = std::filesystem::path(path).parent_path().string();
@@ -863,12 +912,13 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
   const json j = json::parse(f, nullptr, false);
   if (j.is_discarded() || !j.is_object() || j.value("format", "") != "terrain-cook-plan")
     return Status::failure(Error::invalid_argument, fmt::format("{}: not a terrain-cook plan", path));
-  if (j.value("version", 0) != 2)
-    return Status::failure(Error::unsupported_version, fmt::format("{}: plan version {} (this tool reads 2); run "
+  if (j.value("version", 0) != 3)
+    return Status::failure(Error::unsupported_version, fmt::format("{}: plan version {} (this tool reads 3); run "
                                                                    "`terrain-cook plan` again", path, j.value("version", 0)));
   try {
     out = PlanData{};
     out.options = options_of(j.at("options"));
+    out.resolved = with_paths_of(out.options, j.at("resolved_paths"));
     out.plan.fingerprint = j.at("fingerprint");
     out.source_width = j.at("source").at("width");
     out.source_height = j.at("source").at("height");
@@ -952,6 +1002,13 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
   return Status::success();
 }
 
+CookOptions resolved_options(CookOptions o) {
+  for (std::string& p : o.inputs) p = absolute_path(p);
+  for (std::string* p : {&o.materials_path, &o.albedo_path, &o.holes_path, &o.landcover_path, &o.landcover_table_path})
+    *p = absolute_path(*p);
+  return o;
+}
+
 bool same_plan_options(const CookOptions& planned, const CookOptions& given) {
   json a = options_json(planned), b = options_json(given);
   a.erase("memory_limit_bytes");
@@ -959,24 +1016,49 @@ bool same_plan_options(const CookOptions& planned, const CookOptions& given) {
   return a == b;
 }
 
+bool work_dir_owns(const std::string& work_dir, const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path dir = fs::weakly_canonical(fs::absolute(work_dir, ec), ec);
+  if (ec) return false;
+  const fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  if (ec) return false;
+  const std::string name = p.filename().string();
+  if (p.parent_path() == dir / "units") return true;
+  return p.parent_path() == dir &&
+         (name.starts_with("plan.json") || (name.starts_with("inputs") && name.find(".json") != std::string::npos));
+}
+
+Status check_merge_outputs(const std::string& work_dir, const PlanFile& plan, const std::vector<NamedPath>& outputs) {
+  for (const NamedPath& out : outputs)
+    if (work_dir_owns(work_dir, out.path))
+      return Status::failure(Error::invalid_argument,
+                             fmt::format("{} {}: is a file of the work dir {} (its plan, input lists and units); "
+                                         "refusing to overwrite it", out.flag, out.path, work_dir));
+  std::vector<NamedPath> inputs;
+  inputs.reserve(plan.files.size());
+  for (const InputFile& f : plan.files) inputs.push_back({"input of the plan", f.path});
+  return check_output_paths(inputs, outputs);
+}
+
 Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit) {
   for (const InputFile& f : plan.files) {
     if (unit && !meets(f.footprint, plan.units[*unit].window)) continue;  // not in the unit's fingerprint
     InputFile now = f;
-    if (!stat_file(f.path, now.size, now.mtime_ns))
+    if (!stat_file(now))
       return Status::failure(Error::io_open, fmt::format("{}: input of the plan is gone ({}); run `terrain-cook plan` again",
                                                          f.path, std::strerror(errno)));
     if (file_fingerprint(now) != f.fingerprint)
       return Status::failure(Error::unsupported_input,
-                             fmt::format("{}: changed since the plan (size {} -> {}, mtime {} -> {}); run `terrain-cook "
-                                         "plan` again (it keeps the units the change does not touch)",
-                                         f.path, f.size, now.size, f.mtime_ns, now.mtime_ns));
+                             fmt::format("{}: changed since the plan ({}); run `terrain-cook plan` again (it keeps "
+                                         "the units the change does not touch)",
+                                         f.path, file_change(f, now)));
   }
   return Status::success();
 }
 
 Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report) {
-  CookOptions o = data.options;
+  CookOptions o = data.resolved;  // the files the plan saw, from whatever directory this runs in
   o.threads = threads;
   o.unit_roots = data.unit_roots;
   // The callers checked the plan's files (check_plan_inputs) before anything is read from them.
@@ -1172,11 +1254,98 @@ class LevelCursor {
   uint64_t buf_at_ = 0;
 };
 
+// The heights units share along their edges (format.h: a shared vertex has one canonical value),
+// checked as the merge copies the nodes: what terrain-inspect --verify checks between west and
+// south neighbours, for the pairs of nodes that lie in different units (a unit's own nodes were
+// cooked in one session). Only nodes on a unit's edge are decoded (their heights, and their albedo
+// when they have holes). Held: the east column of the current row's edge nodes and the north row of
+// a band's top row of nodes, one level at a time (129 values per node: a row of nodes across the
+// world at most).
+class EdgeCheck {
+ public:
+  EdgeCheck(const PlanFile& plan, const std::array<uint8_t, kLevelCount>& steps) : steps_(steps) {
+    for (const UnitPlan& u : plan.units) {
+      grid_x1_ = std::max(grid_x1_, u.roots.x1);
+      grid_y1_ = std::max(grid_y1_, u.roots.y1);
+    }
+  }
+  void start_level() {
+    east_.clear();
+    north_.clear();
+  }
+  // Node `r` of unit `u` (the nodes of a level in the merge's order: bands south to north, rows
+  // south to north, units west to east). `problem` gets a message when an edge disagrees;
+  // a failure status when the payload cannot be decoded.
+  Status node(const NodeRecord& r, std::span<const uint8_t> payload, const UnitPlan& u, std::string& problem) {
+    const int level = int(r.key.level);
+    const int up = kRootLevel - level;
+    const uint32_t x0 = u.roots.x0 << up, x1 = u.roots.x1 << up, y0 = u.roots.y0 << up, y1 = u.roots.y1 << up;
+    if (r.key.y != row_) {  // a new row: the east columns of the last one met their neighbours
+      east_.clear();
+      row_ = r.key.y;
+    }
+    const bool west = r.key.x == x0 && u.roots.x0 > 0, south = r.key.y == y0 && u.roots.y0 > 0;
+    const bool east = r.key.x + 1 == x1 && u.roots.x1 < grid_x1_, north = r.key.y + 1 == y1 && u.roots.y1 < grid_y1_;
+    if (!west && !south && !east && !north) return Status::success();
+    const auto west_of = west ? east_.find(r.key.x - 1) : east_.end();
+    auto south_of = south ? north_.find(r.key.x) : north_.end();
+    if (south_of != north_.end() && south_of->second.y + 1 != r.key.y) south_of = north_.end();  // not adjacent
+    if (west_of == east_.end() && south_of == north_.end() && !east && !north) return Status::success();
+    const bool holes = (r.flags & kNodeFlagHasHoles) != 0;
+    if (Status st = decode_node_payload(payload, kSectionHeights | (holes ? kSectionAlbedo : 0u), data_); !st.ok())
+      return st;
+    if (holes) decode_hole_mask(data_, mask_.data());
+    const int step = steps_[size_t(level)];
+    auto at = [&](int i, int j) {  // vertex (i, j): its units, or kHole
+      const size_t k = size_t(j * kHeightSamples + i);
+      return holes && mask_[k] ? kHole : vertex_units(r.height_offset, data_.heights[k], step);
+    };
+    auto compare = [&](const Edge& other, bool column, const char* side, uint32_t ox, uint32_t oy) {
+      for (int k = 0; k < kHeightSamples && problem.empty(); ++k) {
+        const int32_t mine = column ? at(0, k) : at(k, 0);
+        if (mine == kHole || other[size_t(k)] == kHole || mine == other[size_t(k)]) continue;
+        problem = fmt::format("node {} vertex ({}, {}) = {} units but its {} neighbour {} (another unit) stores {} at "
+                              "the same point", node_name(r.key), column ? 0 : k, column ? k : 0, mine, side,
+                              node_name({r.key.level, ox, oy}), other[size_t(k)]);
+      }
+    };
+    if (west_of != east_.end()) compare(west_of->second, true, "west", r.key.x - 1, r.key.y);
+    if (south_of != north_.end()) compare(south_of->second.edge, false, "south", r.key.x, r.key.y - 1);
+    if (south_of != north_.end()) north_.erase(south_of);
+    if (east) {
+      Edge& e = east_[r.key.x];
+      for (int k = 0; k < kHeightSamples; ++k) e[size_t(k)] = at(kQuadsPerSide, k);
+    }
+    if (north) {
+      RowEdge& e = north_[r.key.x];
+      e.y = r.key.y;
+      for (int k = 0; k < kHeightSamples; ++k) e.edge[size_t(k)] = at(k, kQuadsPerSide);
+    }
+    return Status::success();
+  }
+
+ private:
+  static constexpr int32_t kHole = INT32_MIN;
+  using Edge = std::array<int32_t, kHeightSamples>;
+  const std::array<uint8_t, kLevelCount>& steps_;
+  uint32_t grid_x1_ = 0, grid_y1_ = 0;
+  uint32_t row_ = UINT32_MAX;
+  struct RowEdge {
+    uint32_t y = 0;
+    Edge edge{};
+  };
+  std::map<uint32_t, Edge> east_;       // by node x: the east columns of the current row's nodes
+  std::map<uint32_t, RowEdge> north_;  // by node x: the north rows of the bands' top rows (the last per x)
+  std::unique_ptr<NodeData> holder_ = std::make_unique<NodeData>();
+  NodeData& data_ = *holder_;
+  std::array<uint8_t, kHeightCount> mask_{};
+};
+
 }  // namespace
 
-Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
-                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress,
-                        const std::function<Status(ArchiveShape&)>& extend_shape) {
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::array<uint8_t, kLevelCount>& steps,
+                        const std::string& output, ArchiveWriter& writer, PyramidTotals& totals, CookReport& report,
+                        const ProgressFn& progress, const std::function<Status(ArchiveShape&)>& extend_shape) {
   // Two passes, memory independent of the archive's size. First every unit's head (header,
   // table, stats) is checked, one unit at a time: what the archive will hold per level, and per
   // unit where each level starts. Then the payloads are copied in the archive's order: a level at
@@ -1254,8 +1423,10 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
   size_t widest = 0;
   for (const auto& [rows, list] : bands) widest = std::max(widest, list.size());
   std::vector<ReadBuffer> buffers(widest);
+  EdgeCheck edges(plan, steps);
   for (int level = kRootLevel; level >= 0; --level) {
     const int up = kRootLevel - level;
+    edges.start_level();
     for (const auto& [rows, list] : bands) {
       // The band's files, each with a share of a 4 MB read budget (64-256 KB each: larger reads
       // gained nothing measurable, their fresh pages cost page faults).
@@ -1289,15 +1460,32 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
             const uint64_t at = r.payload_offset;
             std::span<const uint8_t> payload;
             if (Status st = cur.take(r.payload_size, payload); !st.ok()) return bad_unit(unit, st.message);
-            uint32_t crc = 0;
-            if (Status st = writer.add_node(r, payload, &crc); !st.ok()) {
-              // A payload or node the writer refuses: name the unit, as damaged when its CRC says so.
+            // A payload refused (by the writer, or undecodable on a unit's edge): name the unit, as
+            // damaged when its CRC says so.
+            auto is_damaged = [&] {
               uint32_t whole_crc = uint32_t(::crc32(u.crc, payload.data(), uInt(payload.size())));
               struct stat fs {};
               const bool whole = ::fstat(fds[k], &fs) == 0 &&
                                  crc_range(fds[k], at + r.payload_size, uint64_t(fs.st_size) - 8, whole_crc, paths[k]);
+              return !whole || whole_crc != u.stored_crc;
+            };
+            auto refused = [&](const std::string& why) {
               writer.abort();
-              return bad_unit(unit, !whole || whole_crc != u.stored_crc ? damaged : st.message);
+              return bad_unit(unit, is_damaged() ? damaged : why);
+            };
+            uint32_t crc = 0;
+            if (Status st = writer.add_node(r, payload, &crc); !st.ok()) return refused(st.message);
+            std::string disagree;
+            if (Status st = edges.node(r, payload, plan.units[unit], disagree); !st.ok()) return refused(st.message);
+            if (!disagree.empty()) {
+              writer.abort();
+              if (is_damaged()) return bad_unit(unit, damaged);
+              return Status::failure(
+                  Error::no_data,
+                  fmt::format("unit {} ({}): {}: the units disagree along their shared edge (cooked from inputs that "
+                              "differ, which their fingerprints did not show); nothing merged (run `terrain-cook plan` "
+                              "again, remove the unit files of both units and cook them again)",
+                              unit, unit_file(work_dir, unit), disagree));
             }
             u.crc = uint32_t(::crc32_combine(u.crc, crc, z_off_t(r.payload_size)));
             if (--u.left == 0 && u.crc != u.stored_crc) return bad_unit(unit, damaged);

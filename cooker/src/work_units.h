@@ -7,9 +7,11 @@
 // format/SPEC.md section 18 (Work units, with its "Input lists") specifies them so another tool
 // could merge them.
 //
-// Fingerprints are 64-bit FNV-1a hashes, written as 16 hex digits: of a file, its path, size and
-// modification time (a changed tile has a new mtime; contents are never hashed: national inputs are
-// terabytes); of a unit, the plan's global decisions, its roots, its source window and the
+// Fingerprints are 64-bit FNV-1a hashes, written as 16 hex digits: of a file, its absolute path
+// (resolved at plan time, so `unit` and `merge` run from any working directory), size, modification
+// time, inode number and status change time (a file rewritten or replaced gets a new ctime even
+// where `cp -p`, `rsync -t` or `tar` keep its size and mtime; no tool can set ctime back; contents
+// are never hashed: national inputs are terabytes); of a unit, the plan's global decisions, its roots, its source window and the
 // fingerprints of the input files whose footprint meets that window. A unit file is valid for a
 // plan when its unit fingerprint is the plan's for that unit, so re-planning after a change keeps
 // every unit the change does not touch.
@@ -22,6 +24,7 @@
 #include <vector>
 
 #include "cook_session.h"
+#include "terrain/output_paths.h"
 
 namespace terrain::cook {
 
@@ -39,9 +42,11 @@ struct UnitPlan {
 };
 
 struct InputFile {
-  std::string path, fingerprint;
+  std::string path, fingerprint;  // path: absolute, resolved at plan time
   uint64_t size = 0;
   int64_t mtime_ns = 0;
+  uint64_t inode = 0;    // st_ino
+  int64_t ctime_ns = 0;  // st_ctim: changes with every write, rename onto, chmod or new hard link
   SampleRect footprint;  // mosaic samples it may contribute to (the whole mosaic when unknown)
 };
 
@@ -59,7 +64,8 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
 
 // What plan.json holds, read back without opening any input (the merge needs none).
 struct PlanData {
-  CookOptions options;
+  CookOptions options;   // as given to `plan`: its paths as typed (the cook info records them)
+  CookOptions resolved;  // the same with every path absolute, resolved by `plan`: what is opened
   PlanFile plan;
   FrameCrs frame;
   WorldInfo world;  // frame, grid, footprint
@@ -73,13 +79,21 @@ struct PlanData {
 // With `unit`, the input files are that unit's only (its own list, unit_inputs_file): what it
 // reads does not grow with the number of tiles of the whole input.
 Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint32_t> unit = std::nullopt);
+// `o` with every input path (inputs, materials, overlays) made absolute against the working
+// directory, symbolic links kept.
+CookOptions resolved_options(CookOptions o);
 // True when a plan made with `planned` is the plan `given` would make from the same inputs (every
 // option that changes a byte; threads, the memory limit and the output path do not).
 bool same_plan_options(const CookOptions& planned, const CookOptions& given);
-// Every input file of the plan is as the plan saw it (size and mtime): else a named error. With
+// Every input file of the plan is as the plan saw it (size, mtime, inode, ctime): else a named error. With
 // `unit`, only the files that meet its window: those its fingerprint holds, the only ones it reads
 // (one stat per tile it may read, not one per tile of a national mosaic).
 Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit = std::nullopt);
+// The files the merge writes (`outputs`: the archive, the report) against the plan, before
+// anything is written: output_paths.h's rule with every input file of the plan (a VRT's tiles, the
+// overlays and the materials too) as the inputs, and none may be a file of the work dir
+// (work_dir_owns, cook.h): invalid_argument naming both.
+Status check_merge_outputs(const std::string& work_dir, const PlanFile& plan, const std::vector<NamedPath>& outputs);
 // The VRT a unit reads when the cook's one input is a VRT mosaic: the plan cuts it to the unit's
 // window (write_vrt_windows, source_raster.h), named by the unit's fingerprint so that a cut is
 // never one of another plan or window. A unit without one (an earlier version's plan, or not
@@ -124,11 +138,13 @@ bool unit_file_usable(const std::string& work_dir, const PlanFile& plan, uint32_
 // payloads are copied). Memory does not grow with the archive: one unit's node table at a time
 // (56 bytes per node of the largest unit) while checking, then a read buffer per unit of a band
 // (64-256 KB, 4 MB in all) and the writer's buffers. Fails naming a unit that is missing or
-// bad; the caller then aborts the writer. `extend_shape` (optional), called once every unit is
+// bad, or two units whose heights disagree along the edge they share (the check terrain-inspect
+// --verify makes between neighbours, made on the nodes of the units' edges only, decoded with the
+// plan's quantization `steps`); the caller then aborts the writer. `extend_shape` (optional), called once every unit is
 // checked and before the writer opens, adds the nodes the caller will add after the units' (the
 // overview levels).
-Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::string& output,
-                        ArchiveWriter& writer, PyramidTotals& totals, CookReport& report, const ProgressFn& progress,
-                        const std::function<Status(ArchiveShape&)>& extend_shape = {});
+Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const std::array<uint8_t, kLevelCount>& steps,
+                        const std::string& output, ArchiveWriter& writer, PyramidTotals& totals, CookReport& report,
+                        const ProgressFn& progress, const std::function<Status(ArchiveShape&)>& extend_shape = {});
 
 }  // namespace terrain::cook

@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -83,6 +84,15 @@ bool write_file_durably(const std::string& path, const std::string& text) {
   }
   const bool ok = done == text.size() && ::fsync(fd) == 0;
   return ::close(fd) == 0 && ok;
+}
+
+// Empty when --report may write `path`: nothing there, an empty file, a previous cook report, or
+// `force`; else why not (another archive, a DEM, any other file would be lost).
+std::string refuse_report(const std::string& path, bool force) {
+  struct stat st {};
+  if (force || ::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size == 0) return {};
+  if (terrain::cook::is_cook_report(path)) return {};
+  return "--report " + path + ": exists and is not a cook report; refusing to replace it (give --force to replace it)";
 }
 
 int run_unit(int argc, char** argv);
@@ -222,7 +232,7 @@ int run(int argc, char** argv) {
   app.add_flag("--heights-only", o.heights_only, "Skip normals, albedo, splat and cones (they stay zero)");
   app.add_flag("--force", o.force,
                fmt::format("Cook even when the plan needs more than {} root nodes or more than {} roots per side "
-                           "(terrain-view's limit)",
+                           "(terrain-view's limit); let --report replace a file that is not a cook report",
                            terrain::cook::kMaxPlannedRoots, terrain::kStreamerMaxRootsPerSide));
   app.add_option("--report", report_path, "Write the cook report (JSON) to this file");
   app.add_flag("--json", json, "Print the report as JSON on stdout instead of the summary");
@@ -282,6 +292,12 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "terrain-cook: %s\n", st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;
   };
+  if (planning && !o.output.empty())
+    return usage("plan: -o " + o.output + ": plan writes no archive, only the plan in --work-dir; give -o to "
+                 "`terrain-cook merge " + (o.work_dir.empty() ? std::string("WORK_DIR") : o.work_dir) + " -o ARCHIVE`");
+  if (planning && !report_path.empty())
+    return usage("plan: --report " + report_path + ": plan writes no cook report (it cooks nothing); give --report to "
+                 "`terrain-cook merge`");
   std::vector<terrain::NamedPath> inputs, outputs;
   if (!planning) outputs.push_back({"-o", o.output});
   for (const std::string& p : o.inputs) inputs.push_back({"input", p});
@@ -298,6 +314,13 @@ int run(int argc, char** argv) {
     if (terrain::Status st = terrain::check_input_file(in.flag == "input" ? "" : in.flag, in.path); !st.ok()) return fail(st);
   }
   if (terrain::Status st = terrain::check_output_paths(inputs, outputs); !st.ok()) return fail(st);
+  if (!o.work_dir.empty())
+    for (const terrain::NamedPath& out : outputs)
+      if (terrain::cook::work_dir_owns(o.work_dir, out.path))
+        return usage(out.flag + " " + out.path + ": is a file of the work dir " + o.work_dir +
+                     " (its plan, input lists and units); refusing to overwrite it");
+  if (!report_path.empty())
+    if (const std::string why = refuse_report(report_path, o.force); !why.empty()) return usage(why);
 
   if (planning) {
     terrain::TerminalProgress bar(!quiet && !json);
@@ -441,16 +464,19 @@ int run_unit(int argc, char** argv) {
 // `terrain-cook merge W -o ARCHIVE`: every unit checked, the archive written atomically.
 int run_merge(int argc, char** argv) {
   std::string work_dir, output, report_path;
-  bool quiet = false, json = false;
+  bool quiet = false, json = false, force = false;
   CLI::App app{"terrain-cook merge: checks every unit of the plan (present, complete, checksums, fingerprints) and "
                "writes the archive atomically; a missing or bad unit is named and nothing is written",
                "terrain-cook merge"};
-  app.footer(terrain::cli::kExitCodes);
   app.add_option("work_dir", work_dir, "Work dir of the plan and its units")->required();
   app.add_option("-o,--output", output, "Archive to write (atomically)")->required();
   app.add_option("--report", report_path, "Write the cook report (JSON) to this file");
   app.add_flag("--json", json, "Print the report as JSON on stdout instead of the summary");
+  app.add_flag("--force", force, "Let --report replace a file that is not a cook report");
   app.add_flag("-q,--quiet", quiet, "No progress bar and no summary");
+  app.footer(std::string(terrain::cli::kExitCodes) +
+             "\nOutputs (-o, --report) must not name an input of the plan (a VRT's tiles too), a file of the work "
+             "dir, each other, a device, a FIFO or a directory.");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -458,14 +484,21 @@ int run_merge(int argc, char** argv) {
   }
   std::vector<terrain::NamedPath> outputs{{"-o", output}};
   if (!report_path.empty()) outputs.push_back({"--report", report_path});
+  // Devices, FIFOs, directories and the outputs against each other now; against the plan's inputs
+  // and the work dir's files in merge_units, once it has read the plan, before it writes anything.
   if (terrain::Status st = terrain::check_output_paths({}, outputs); !st.ok()) {
     std::fprintf(stderr, "terrain-cook merge: %s\n", st.to_string().c_str());
     return st.code == terrain::Error::invalid_argument ? 2 : 1;
   }
+  if (!report_path.empty())
+    if (const std::string why = refuse_report(report_path, force); !why.empty()) {
+      std::fprintf(stderr, "terrain-cook merge: %s\n", why.c_str());
+      return 2;
+    }
   terrain::TerminalProgress bar(!quiet && !json);
   terrain::cook::CookReport report;
-  const terrain::Status st =
-      terrain::cook::merge_units(work_dir, output, bar.active() ? bar.callback() : terrain::ProgressFn{}, report);
+  const terrain::Status st = terrain::cook::merge_units(
+      work_dir, output, bar.active() ? bar.callback() : terrain::ProgressFn{}, report, outputs);
   bar.done();
   if (!st.ok()) {
     std::fprintf(stderr, "terrain-cook merge: %s\n", st.to_string().c_str());

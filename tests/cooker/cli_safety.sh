@@ -8,9 +8,10 @@ dem=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
 [ -f "$dem" ] || { echo "SKIP: $dem absent"; exit 0; }
 rm -rf "$work"; mkdir -p "$work"; cd "$work" || exit 1
 cp "$dem" in.npz
-"$bin/terrain-cook" in.npz --crs EPSG:4326 -q -o keep.terrain || { echo "FAIL: setup cook"; exit 1; }
+# old.json: the setup cook's report (a previous report is what --report may replace without --force).
+"$bin/terrain-cook" in.npz --crs EPSG:4326 -q -o keep.terrain --report old.json || { echo "FAIL: setup cook"; exit 1; }
 mknod null c 1 3 2>/dev/null || { echo "SKIP: mknod needs root"; exit 0; }
-mkfifo fifo; mkdir dir; echo '{"old": 1}' > old.json
+mkfifo fifo; mkdir dir
 snapshot() { find . -type f -print0 | sort -z | xargs -0 sha256sum; ls -l null fifo | cut -c1; }
 before=$(snapshot)
 . "$here/cli_expect.sh"
@@ -40,8 +41,10 @@ case $case_name in
       { echo "FAIL: not one JSON document: $out"; exit 1; }
     echo "ok: one document" ;;
   report_committed)  # a successful cook replaces archive and report together, nothing staged left
+    cp old.json previous.json
     "${cook[@]}" -o keep.terrain --report old.json || { echo "FAIL: cook"; exit 1; }
-    grep -q '"levels"\|"source"' old.json || { echo "FAIL: report not written"; exit 1; }
+    ! cmp -s old.json previous.json || { echo "FAIL: the previous report was not replaced"; exit 1; }
+    grep -q '"levels"' old.json || { echo "FAIL: report not written"; exit 1; }
     ls | grep -q 'tmp-' && { echo "FAIL: temp left"; exit 1; }
     echo "ok: committed" ;;
   signal)

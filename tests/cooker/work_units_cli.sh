@@ -24,6 +24,41 @@ units_shuffled() {
     xargs -P 2 -I{} "$cook" unit "$1" {} -q --threads 1 || fail "a unit of $1 failed"
 }
 
+# Every file under . but err.txt with its hash: "byte-identical after" checks.
+snapshot() { find . -type f ! -name err.txt -print0 | sort -z | xargs -0 sha256sum; }
+# expect_refused RC REGEX CMD...: CMD exits RC, its stderr matches REGEX, and every file is as it was.
+expect_refused() {
+  local want=$1 re=$2 before rc
+  shift 2
+  before=$(snapshot)
+  "$@" > /dev/null 2> err.txt
+  rc=$?
+  echo "exit $rc: $(cat err.txt)"
+  [ $rc = "$want" ] || fail "'$*': exit $rc, expected $want"
+  grep -Eq -- "$re" err.txt || fail "'$*': message does not match '$re'"
+  [ "$(snapshot)" = "$before" ] || fail "'$*': files changed: $(diff <(echo "$before") <(snapshot))"
+}
+# npz_plus SRC DST METRES: DST holds SRC's heights + METRES, every member stored uncompressed, so two
+# files made from one SRC have the same size whatever their heights.
+npz_plus() {
+  python3 - "$@" <<'PY'
+import array, sys, zipfile
+src, dst, add = sys.argv[1], sys.argv[2], int(sys.argv[3])
+zin = zipfile.ZipFile(src)
+with zipfile.ZipFile(dst, "w", zipfile.ZIP_STORED) as zout:
+    for info in zin.infolist():
+        b = zin.read(info.filename)
+        if info.filename == "elevation.npy":
+            start = int.from_bytes(b[8:10], "little") + 10
+            a = array.array("h", b[start:])
+            for i in range(len(a)):
+                a[i] += add
+            b = b[:start] + a.tobytes()
+        zout.writestr(zipfile.ZipInfo(info.filename, date_time=(2020, 1, 1, 0, 0, 0)), b)
+PY
+}
+unit_count() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['unit_count'])" "$1/plan.json"; }
+
 case $case_name in
   any_split_any_order)
     # Units of 1, 2 and 7 roots per side (256, 64 and 9 units of the 16 x 16 roots), run in shuffled
@@ -308,6 +343,176 @@ PY
     "$cook" merge w -o out.terrain -q || fail "merge after re-plan"
     "$cook" in.npz "${flags[@]}" -o ref.terrain || fail "reference"
     cmp ref.terrain out.terrain || fail "merged archive differs from the one-process cook"
+    no_leftovers ;;
+  merge_outputs)
+    # Issue 48 item 3: merge's outputs against the plan: its input (also through a hard link), a
+    # file of the work dir, a VRT's tile; the one-process cook with --work-dir and plan the same
+    # way. Each refused with exit 2 and a message naming both, every file byte-identical.
+    cp "$dem" in.npz
+    ln in.npz link.npz  # before the plan: a new hard link changes the file's ctime
+    "$cook" plan in.npz "${flags[@]}" --work-dir w --unit-roots 8 > /dev/null || fail "plan"
+    units_shuffled w 1
+    expect_refused 2 "^terrain-cook merge: .*-o in.npz: is the same file as input of the plan .*in.npz; refusing to overwrite an input" \
+      "$cook" merge w -o in.npz -q
+    expect_refused 2 "-o link.npz: is the same file as input of the plan .*/in.npz" "$cook" merge w -o link.npz -q
+    expect_refused 2 "--report in.npz: exists and is not a cook report" "$cook" merge w -o out.terrain --report in.npz -q
+    expect_refused 2 "--report in.npz: is the same file as input of the plan" \
+      "$cook" merge w -o out.terrain --report in.npz --force -q
+    expect_refused 2 "-o w/units/unit-0.tcu: is a file of the work dir w" "$cook" merge w -o w/units/unit-0.tcu -q
+    expect_refused 2 "-o w/plan.json: is a file of the work dir w" "$cook" merge w -o w/plan.json -q
+    expect_refused 2 "-o w/units/../plan.json: is a file of the work dir w" "$cook" merge w -o w/units/../plan.json -q
+    expect_refused 2 "-o w/units/unit-1.tcu: is a file of the work dir w" \
+      "$cook" in.npz "${flags[@]}" --work-dir w -o w/units/unit-1.tcu
+    # unit: its unit file's name taken by a directory is refused before the unit is cooked.
+    rm w/units/unit-3.tcu && mkdir w/units/unit-3.tcu
+    expect_refused 2 "^terrain-cook unit 3: invalid_argument: unit file w/units/unit-3.tcu: is a directory, not a regular file" \
+      "$cook" unit w 3 -q
+    rmdir w/units/unit-3.tcu && "$cook" unit w 3 -q || fail "unit 3"
+    # plan: an input among the work dir's own files (which plan and unit rewrite or remove).
+    cp in.npz w/units/dem.npz
+    expect_refused 2 "w/units/dem.npz: an input lies among the files of the work dir w" \
+      "$cook" plan w/units/dem.npz "${flags[@]}" --work-dir w
+    rm w/units/dem.npz
+    "$cook" merge w -o out.terrain -q || fail "the merge after the refusals"
+    "$cook" in.npz "${flags[@]}" -o ref.terrain || fail "reference"
+    cmp ref.terrain out.terrain || fail "merged archive differs from the one-process cook"
+    # A VRT's tiles are inputs of the plan too (GDAL's tools and the shared Kilauea DEM; skipped
+    # without them).
+    kil="$data/kilauea_utm5n.tif"
+    if [ -n "$data" ] && [ -f "$kil" ] && command -v gdalbuildvrt > /dev/null; then
+      mkdir tiles
+      for t in 0 1; do gdal_translate -q -srcwin $((300 + t * 100)) 300 100 150 "$kil" "tiles/t$t.tif" || fail "tile"; done
+      gdalbuildvrt -q mosaic.vrt tiles/t0.tif tiles/t1.tif || fail "gdalbuildvrt"
+      "$cook" plan mosaic.vrt -q --heights-only --work-dir wv --unit-roots 1 > /dev/null || fail "plan of the VRT"
+      for ((i = 0; i < $(unit_count wv); ++i)); do "$cook" unit wv $i -q --threads 1 || fail "unit $i of the VRT"; done
+      expect_refused 2 "-o tiles/t1.tif: is the same file as input of the plan .*tiles/t1.tif" "$cook" merge wv -o tiles/t1.tif -q
+      expect_refused 2 "--report tiles/t0.tif: is the same file as input of the plan .*tiles/t0.tif" \
+        "$cook" merge wv -o v.terrain --report tiles/t0.tif --force -q
+    else
+      echo "VRT tiles: skipped (needs gdalbuildvrt and kilauea_utm5n.tif)"
+    fi
+    no_leftovers ;;
+
+  report_flags)
+    # Issue 48 item 10: --report naming a file that is not a cook report (another archive) is
+    # refused without --force, by the cook and by the merge; a previous report is replaced; `plan`
+    # refuses -o and --report (it writes neither).
+    cp "$dem" in.npz
+    "$cook" in.npz "${flags[@]}" -o a.terrain --report r.json || fail "first cook"
+    expect_refused 2 "^terrain-cook: --report a.terrain: exists and is not a cook report; refusing to replace it \(give --force" \
+      "$cook" in.npz "${flags[@]}" -o b.terrain --report a.terrain
+    echo "some notes" > notes.txt
+    expect_refused 2 "--report notes.txt: exists and is not a cook report" "$cook" in.npz "${flags[@]}" -o b.terrain --report notes.txt
+    "$cook" plan in.npz "${flags[@]}" --work-dir w --unit-roots 8 > /dev/null || fail "plan"
+    units_shuffled w 1
+    expect_refused 2 "^terrain-cook merge: --report a.terrain: exists and is not a cook report" \
+      "$cook" merge w -o m.terrain --report a.terrain -q
+    expect_refused 2 "^terrain-cook: plan: -o x.terrain: plan writes no archive.*terrain-cook merge w2 -o ARCHIVE" \
+      "$cook" plan in.npz "${flags[@]}" --work-dir w2 -o x.terrain
+    expect_refused 2 "^terrain-cook: plan: --report x.json: plan writes no cook report" \
+      "$cook" plan in.npz "${flags[@]}" --work-dir w2 --report x.json
+    [ ! -e w2 ] || fail "a refused plan made its work dir"
+    # A previous report is replaced (the merge's too); --force replaces any regular file.
+    "$cook" in.npz "${flags[@]}" -o b.terrain --report r.json || fail "a cook replacing its previous report"
+    "$cook" merge w -o m.terrain --report r.json -q || fail "a merge replacing a previous report"
+    cmp a.terrain b.terrain && cmp a.terrain m.terrain || fail "archives differ"
+    python3 -c "import json,sys; json.load(open(sys.argv[1]))['levels']" r.json || fail "r.json is not a report"
+    cp notes.txt keep.txt
+    "$cook" merge w -o m2.terrain --report notes.txt --force -q || fail "merge --force"
+    ! cmp -s notes.txt keep.txt || fail "--force did not replace notes.txt"
+    "$cook" in.npz "${flags[@]}" -o b2.terrain --report a.terrain --force || fail "cook --force"
+    python3 -c "import json,sys; json.load(open(sys.argv[1]))['levels']" a.terrain || fail "a.terrain is not the report"
+    no_leftovers ;;
+
+  stale_same_size_mtime)
+    # Issue 48 item 4: an input replaced by one of the same size and mtime and other heights (cp -p
+    # of a file given the old mtime with touch -r): the unit re-run and the merge refuse, naming the
+    # file, and every file stays as it was; a new plan then merges to the new inputs' bytes.
+    cp "$dem" orig.npz
+    npz_plus orig.npz in.npz 0
+    npz_plus orig.npz new.npz 7
+    [ "$(stat -c %s in.npz)" = "$(stat -c %s new.npz)" ] || fail "the two inputs differ in size"
+    cmp -s in.npz new.npz && fail "the two inputs are the same"
+    "$cook" plan in.npz "${flags[@]}" --work-dir w --unit-roots 4 > /dev/null || fail "plan"
+    units_shuffled w 1
+    "$cook" merge w -o old.terrain -q || fail "merge"
+    touch -r in.npz new.npz
+    cp -p new.npz in.npz
+    [ "$(stat -c %s:%Y in.npz)" = "$(stat -c %s:%Y new.npz)" ] && cmp -s in.npz new.npz || fail "cp -p"
+    rm w/units/unit-1.tcu
+    expect_refused 1 "^terrain-cook unit 1: .*/in.npz: changed since the plan \(ctime .*rewritten or replaced keeping size and mtime" \
+      "$cook" unit w 1 -q
+    expect_refused 1 "^terrain-cook merge: .*/in.npz: changed since the plan \(ctime" "$cook" merge w -o stale.terrain -q
+    # The same input rewritten in place with its old mtime and size (no new inode).
+    touch -r in.npz t.ref
+    npz_plus orig.npz in2.npz 3 && cat in2.npz > in.npz && touch -r t.ref in.npz
+    expect_refused 1 "/in.npz: changed since the plan \(ctime" "$cook" merge w -o stale.terrain -q
+    cp -p new.npz in.npz
+    "$cook" plan in.npz --crs EPSG:4326 --heights-only --work-dir w --unit-roots 4 > plan.txt || fail "re-plan"
+    grep -q "in.npz: changed" plan.txt || fail "the re-plan does not name the changed input: $(cat plan.txt)"
+    units_shuffled w 2
+    "$cook" merge w -o new.terrain -q || fail "merge after the re-plan"
+    "$cook" in.npz "${flags[@]}" -o ref.terrain || fail "reference"
+    cmp ref.terrain new.terrain || fail "merged archive differs from the one-process cook of the new input"
+    ! cmp -s old.terrain new.terrain || fail "the new heights did not reach the archive"
+    no_leftovers ;;
+
+  edge_disagreement)
+    # Issue 48 item 4: units whose fingerprints match but whose heights along a shared edge differ
+    # (a unit of the same plan cooked from other heights, its fingerprint set to the plan's as a
+    # change no fingerprint shows would leave it) are refused by the merge, naming the nodes, and
+    # nothing is written.
+    mkdir a b
+    npz_plus "$dem" a/in.npz 0
+    npz_plus "$dem" b/in.npz 4
+    (cd a && "$cook" plan in.npz "${flags[@]}" --work-dir ../w --unit-roots 4 > /dev/null) || fail "plan a"
+    (cd b && "$cook" plan in.npz "${flags[@]}" --work-dir ../wb --unit-roots 4 > /dev/null) || fail "plan b"
+    units_shuffled w 1
+    units_shuffled wb 1
+    "$cook" merge w -o good.terrain -q || fail "merge of a"
+    python3 - w wb <<'PY' || fail "forging"
+import json, sys, zlib
+a, b = (json.load(open(f"{d}/plan.json")) for d in sys.argv[1:3])
+assert a["fingerprint"] == b["fingerprint"], "the plans differ in their global decisions"
+fp = a["units"][5]["fingerprint"]
+assert fp != b["units"][5]["fingerprint"]
+data = bytearray(open("wb/units/unit-5.tcu", "rb").read())
+data[32:48] = fp.encode()
+data[-8:-4] = (zlib.crc32(bytes(data[:-8])) & 0xffffffff).to_bytes(4, "little")
+open("w/units/unit-5.tcu", "wb").write(data)
+print(f"unit 5 of wb (heights + 4 m) put in w with w's unit fingerprint {fp}")
+PY
+    expect_refused 1 "^terrain-cook merge: no_data: unit [0-9]+ .*node [0-9]+/[0-9]+/[0-9]+ vertex .* units but its (west|south) neighbour .* \(another unit\) stores .*the units disagree along their shared edge" \
+      "$cook" merge w -o out.terrain -q
+    no_leftovers ;;
+
+  relative_paths)
+    # Issue 48 item 5: a plan of relative input paths, its units and merge run from another working
+    # directory (as a scheduler's jobs are): the inputs are opened by the absolute paths the plan
+    # resolved, the cook info keeps the paths as typed, and the archive is the one-process cook's.
+    mkdir d1 d2
+    cp "$dem" d1/in.npz
+    (cd d1 && "$cook" in.npz "${flags[@]}" -o ../ref.terrain) || fail "reference"
+    (cd d1 && "$cook" plan in.npz "${flags[@]}" --work-dir ../w --unit-roots 4 > /dev/null) || fail "plan"
+    n=$(unit_count w)
+    for ((i = 0; i < n; ++i)); do (cd d2 && "$cook" unit ../w $i -q --threads 1) || fail "unit $i from d2"; done
+    (cd d2 && "$cook" merge ../w -o ../m.terrain -q) || fail "merge from d2"
+    cmp ref.terrain m.terrain || fail "merged from another directory: not the one-process bytes"
+    python3 - "$(pwd -P)" <<'PY' || fail "paths in the plan"
+import json, sys
+p = json.load(open("w/plan.json"))
+assert p["options"]["inputs"] == ["in.npz"], p["options"]["inputs"]
+assert p["resolved_paths"]["inputs"] == [sys.argv[1] + "/d1/in.npz"], p["resolved_paths"]
+files = json.load(open(f"w/inputs-{p['inputs']['fingerprint']}.json"))["files"]
+assert [f["path"] for f in files] == [sys.argv[1] + "/d1/in.npz"], files
+print("plan: typed", p["options"]["inputs"], "opened", p["resolved_paths"]["inputs"])
+PY
+    # The one-process cook with --work-dir from another directory does not resume a plan whose
+    # relative paths named other files: it plans again.
+    mkdir d3 && npz_plus "$dem" d3/in.npz 5
+    (cd d3 && "$cook" in.npz "${flags[@]}" --work-dir ../w --unit-roots 4 -o ../m3.terrain) || fail "cook from d3"
+    (cd d3 && "$cook" in.npz "${flags[@]}" -o ../ref3.terrain) || fail "reference d3"
+    cmp ref3.terrain m3.terrain || fail "--work-dir from d3 resumed the plan of d1's file"
     no_leftovers ;;
   *) fail "unknown case" ;;
 esac

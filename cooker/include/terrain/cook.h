@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "terrain/format.h"
+#include "terrain/output_paths.h"
 #include "terrain/progress.h"
 #include "terrain/status.h"
 
@@ -269,10 +270,17 @@ Status plan_cook(const CookOptions& options, const ProgressFn& progress, PlanSum
 // they change no byte of the unit.
 Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint32_t block_roots, bool& skipped,
                  CookReport& report);
-// `terrain-cook merge`: checks every unit (present, complete, checksum, plan and input fingerprints)
-// and writes the archive atomically, payloads in canonical order.
+// True when `path` names a file that `plan`, `unit` or `merge` write or remove in `work_dir`:
+// plan.json, an inputs-*.json list or anything in units/ (compared after resolving both, so
+// another spelling of the same place counts).
+bool work_dir_owns(const std::string& work_dir, const std::string& path);
+// `terrain-cook merge`: checks every unit (present, complete, checksum, plan and input fingerprints,
+// heights along the edges units share) and writes the archive atomically, payloads in canonical
+// order. First, before anything is written, `outputs` (default: {"-o", output}; the caller adds
+// the report it will write) are checked against the plan: none may name an input file of the plan
+// (a VRT's tiles too), a file of the work dir, a device, a FIFO or a directory (invalid_argument).
 Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
-                   CookReport& report);
+                   CookReport& report, const std::vector<NamedPath>& outputs = {});
 
 // --memory-limit: "256M", "2G", "1.5G", "512K" (K/M/G/T are powers of 1024; a trailing B or iB is
 // accepted); false unless it is a finite size of at least 1 MB.
@@ -283,6 +291,9 @@ uint64_t default_memory_limit_bytes();
 
 // The report as JSON (the --report file) and as the closing summary lines.
 std::string report_json(const CookReport& report);
+// True when `path` holds a report report_json wrote (a JSON object with its sections): what
+// --report may replace without --force.
+bool is_cook_report(const std::string& path);
 std::string report_summary(const CookReport& report);
 
 }  // namespace terrain::cook
