@@ -169,6 +169,9 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
                             resolved.kind == CrsKind::projected) {
       if (pcs_name && *pcs_name && !EQUAL(pcs_name, "unknown")) resolved.name = resolved.tm.name = pcs_name;
       if (crs.epsg) resolved.epsg = resolved.tm.epsg = crs.epsg;
+      // The file's coordinates are in the CRS's unit (US survey feet for EPSG:2229): the reader
+      // turns them into metres by it, as for a Transverse Mercator and as the libgeotiff reader does.
+      resolved.model_unit = crs.model_unit;
       return resolved;
     }
     crs.kind = CrsKind::unsupported;
@@ -475,6 +478,15 @@ bool spatial_reference(const SourceCrs& crs, OGRSpatialReference& srs) {
   }
 }
 
+// Metres (projected) or degrees (geographic) per coordinate unit of `srs`: the points handed to
+// gdal_point_transforms are in metres and degrees (SampleGeo), OGR's in the CRS's own units (US
+// survey feet for EPSG:2229).
+double coordinate_unit(const OGRSpatialReference& srs) {
+  const double u = srs.IsGeographic() ? srs.GetAngularUnits() * 180.0 / M_PI : srs.GetLinearUnits();
+  // Degrees and metres exactly 1 (OGR's degree is pi/180 rounded: the points keep their bits).
+  return std::isfinite(u) && u > 0 && std::fabs(u - 1.0) > 1e-12 ? u : 1.0;
+}
+
 }  // namespace
 
 CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
@@ -485,8 +497,19 @@ CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b,
   std::shared_ptr<OGRCoordinateTransformation> there(OGRCreateCoordinateTransformation(&a_srs, &b_srs));
   std::shared_ptr<OGRCoordinateTransformation> back(OGRCreateCoordinateTransformation(&b_srs, &a_srs));
   if (!there || !back) return CrsTransformStatus::no_transformation;
-  a_to_b = [there](double& x, double& y) { return there->Transform(1, &x, &y) != 0; };
-  b_to_a = [back](double& x, double& y) { return back->Transform(1, &x, &y) != 0; };
+  const double ua = coordinate_unit(a_srs), ub = coordinate_unit(b_srs);
+  const auto through = [](const std::shared_ptr<OGRCoordinateTransformation>& t, double from, double to) {
+    return [t, from, to](double& x, double& y) {
+      x /= from;
+      y /= from;
+      const bool ok = t->Transform(1, &x, &y) != 0;
+      x *= to;
+      y *= to;
+      return ok;
+    };
+  };
+  a_to_b = through(there, ua, ub);
+  b_to_a = through(back, ub, ua);
   return CrsTransformStatus::ok;
 }
 
