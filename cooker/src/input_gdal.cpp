@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "crs.h"
+#include "height_units.h"
 #include "inputs.h"
 #include "source_raster.h"
 #include "tiff_blocks.h"
@@ -211,6 +212,29 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
   }
   crs.tm.name = crs.name;
   return crs;
+}
+
+// The unit the file declares for its heights (terrain/cook.h HeightUnit): the vertical CRS's
+// linear unit (PROJ gives its factor), else the band's unit type, looked up by name.
+HeightUnit declared_height_unit(const OGRSpatialReference* srs, GDALRasterBand* band) {
+  HeightUnit u;
+  if (srs && (srs->IsCompound() || srs->IsVertical())) {
+    const char* name = nullptr;
+    const double metres = srs->GetTargetLinearUnits("VERT_CS", &name);
+    if (name && *name && std::isfinite(metres) && metres > 0) {
+      u.declared = name;
+      u.declared_by = "vertical CRS";
+      u.declared_m = metres;
+      return u;
+    }
+  }
+  const char* type = band->GetUnitType();
+  if (type && *type) {
+    u.declared = type;
+    u.declared_by = "band unit type";
+    u.declared_m = height_unit_metres(type);
+  }
+  return u;
 }
 
 std::string type_name(GDALDataType t, GDALRasterBand* band) {
@@ -675,6 +699,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
   if (has_scale && std::isfinite(scale) && scale != 0.0) info.scale = scale;
   if (has_offset && std::isfinite(offset)) info.offset = offset;
+  info.height_unit = declared_height_unit(ds->GetSpatialRef(), band);
 
   const char* aop = ds->GetMetadataItem(GDALMD_AREA_OR_POINT);
   const bool point = aop && EQUAL(aop, GDALMD_AOP_POINT);

@@ -1,12 +1,18 @@
-// Feet in the inputs (issue 48), on small cuts of the shared DEMs warped at test time.
+// Feet in the inputs (issue 48, items 1 and 2), on small cuts of the shared DEMs warped at test time.
 //
 // Horizontal (item 1): a DEM in a non-Transverse-Mercator CRS in US survey feet (California zones
 // 3 and 5, Lambert, EPSG:2227 / 2229) lands where its data is: the frame is a Transverse Mercator
 // centred on the data (a frame is metric), the archive's extent is the data's, and
-// terrain-inspect --lonlat at source sample centres answers the source height. A Lambert in metres and a
-// Transverse Mercator in US feet keep working. A hole mask in the same feet CRS (read by
+// terrain-inspect --lonlat at source sample centres answers the source height. A Lambert in
+// metres and a Transverse Mercator in US feet keep working. A hole mask in the same feet CRS (read by
 // libgeotiff, not GDAL) lands on the same place as the DEM (GDAL), and a feet input resampled
 // onto a metre input's grid lands where it belongs.
+//
+// Vertical (item 2): heights declared in US survey feet or international feet (compound CRS
+// EPSG:32611+6360 / +8228, or the band's unit type "ft" / "US survey foot") come out in metres;
+// an explicit --height-scale replaces that conversion; an undeclared unit stays metres; a declared
+// unit the cooker does not know is refused by name; the factor is in the cook report, the plan,
+// the cook info and terrain-inspect.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,6 +23,7 @@
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 #include "cooker_test_util.h"
@@ -28,6 +35,7 @@ using namespace terrain::test;
 namespace {
 
 constexpr double kUsFootM = 1200.0 / 3937.0;
+constexpr double kFootM = 0.3048;
 constexpr double kMm = 1e-3;
 const char* const kTahoe = "tahoe_lidar_bareearth.tif";  // WGS 84 lon/lat, 39.29 N 119.93 W, 0.5 m lidar
 const char* const kKilauea = "kilauea_utm5n.tif";        // UTM 5N, 30 m, 19.3 N 155.2 W
@@ -57,6 +65,15 @@ std::filesystem::path work_dir() {
 }
 
 std::string tool(const char* name) { return q(bin_dir() / name); }
+
+// Runs `cmd` (stderr with stdout into `out`); its exit status.
+int run_status(const std::string& cmd, std::string& out) {
+  run_command("(" + cmd + ") 2>&1; echo \"exit=$?\"", out);
+  const size_t at = out.rfind("exit=");
+  const int rc = at == std::string::npos ? -1 : std::atoi(out.c_str() + at + 5);
+  if (at != std::string::npos) out.resize(at);
+  return rc;
+}
 
 // `name`.tif made once by `command` (which writes `@OUT@`), in the work dir.
 bool made(const std::string& name, std::string command, std::filesystem::path& out, std::string& why) {
@@ -494,4 +511,236 @@ TEST(FeetFrameChoice, FeetInputResampledOntoAMetreGridLandsInPlace) {
               a.answered, a.worst, bound);
   EXPECT_EQ(a.answered, east.size());
   EXPECT_EQ(a.violations, 0u) << a.first;
+}
+
+// ---- item 2: heights in feet -------------------------------------------------------------------
+
+namespace {
+
+// The Tahoe box in UTM 11N at 1 m, heights in metres, no unit declared.
+bool tahoe_metres(std::filesystem::path& out, std::string& why) {
+  return tahoe_in("heights_m.tif", "EPSG:32611", 1.0, out, why);
+}
+
+// The metre source with its values in `per_metre` units per metre (gdal_translate -scale) and
+// `srs` assigned (a compound CRS declares the heights' unit), optionally a band unit type.
+bool tahoe_heights(const std::string& name, double per_metre, const std::string& srs, const std::string& unit_type,
+                   std::filesystem::path& out, std::string& why) {
+  std::filesystem::path m;
+  if (!tahoe_metres(m, why)) return false;
+  char scale[64];
+  std::snprintf(scale, sizeof scale, "%.17g", per_metre);
+  if (unit_type.empty())
+    return made(name, "gdal_translate -q -ot Float32 -scale 0 1 0 " + std::string(scale) + " -a_srs " + srs + " " + q(m) +
+                          " @OUT@",
+                out, why);
+  // The band's unit type through a VRT (gdal_translate has no flag for it); GDAL keeps it in the
+  // GeoTIFF's GDAL_METADATA tag.
+  const auto vrt = work_dir() / (name + ".vrt");
+  return made(name,
+              "gdal_translate -q -of VRT -ot Float32 -scale 0 1 0 " + std::string(scale) + " -a_srs " + srs + " " + q(m) +
+                  " " + q(vrt) + " && sed -i 's|\\(<VRTRasterBand[^>]*>\\)|\\1<UnitType>" + unit_type +
+                  "</UnitType>|' " + q(vrt) + " && gdal_translate -q " + q(vrt) + " @OUT@",
+              out, why);
+}
+
+struct HeightCase {
+  const char* name;
+  double unit_m;          // metres per stored unit
+  const char* srs;        // gdal_translate -a_srs
+  const char* unit_type;  // band unit type ("" none)
+  const char* declared;   // what the report names
+  const char* declared_by;
+};
+void PrintTo(const HeightCase& c, std::ostream* os) { *os << c.name; }
+
+const HeightCase kHeightCases[] = {
+    {"navd88_ftus", kUsFootM, "EPSG:32611+6360", "", "US survey foot", "vertical CRS"},
+    {"navd88_ft", kFootM, "EPSG:32611+8228", "", "foot", "vertical CRS"},
+    {"band_ft", kFootM, "EPSG:32611", "ft", "ft", "band unit type"},
+    {"band_us_survey_foot", kUsFootM, "EPSG:32611", "US survey foot", "US survey foot", "band unit type"},
+};
+
+class FeetHeights : public ::testing::TestWithParam<HeightCase> {};
+
+// Heights of the metre source at `pts` (frame metres: the UTM frame) in `archive`, against the
+// metre source's values; fails the test on disagreement.
+void expect_metres(const std::filesystem::path& archive, const std::vector<Point>& pts, const char* what) {
+  std::vector<double> heights;
+  std::string why;
+  ASSERT_TRUE(inspect_heights(archive, pts, "", heights, why)) << why;
+  const double bound = bound_of(archive);
+  const Agreement a = agree(pts, heights, bound);
+  std::printf("%s: %zu points, %zu answered, worst |cooked - metre source| %.4f m (bound %.4f m)\n", what, pts.size(),
+              a.answered, a.worst, bound);
+  EXPECT_EQ(a.answered, pts.size()) << what;
+  EXPECT_EQ(a.violations, 0u) << what << ": " << a.first;
+}
+
+}  // namespace
+
+// The heights come out in metres (the metre source's, at its sample centres, within the oracle's
+// bound; in feet they were 3.28 times too high), and the unit and factor are in the report
+// (JSON), the cook info and terrain-inspect (text and JSON).
+TEST_P(FeetHeights, HeightsInMetresAndTheFactorIsRecorded) {
+  TERRAIN_REQUIRE_DATA(data_file(kTahoe));
+  const HeightCase& c = GetParam();
+  std::filesystem::path m, tif, archive;
+  std::string why, out;
+  ASSERT_TRUE(tahoe_metres(m, why)) << why;
+  ASSERT_TRUE(tahoe_heights(std::string(c.name) + ".tif", 1.0 / c.unit_m, c.srs, c.unit_type, tif, why)) << why;
+  const auto report = work_dir() / (std::string(c.name) + ".json");
+  ASSERT_TRUE(cook_cli(tif, c.name, "--heights-only --report " + q(report), archive, out)) << out;
+  std::vector<Point> pts;
+  ASSERT_TRUE(source_points(m, 300, 1.0, pts, why)) << why;
+  expect_metres(archive, pts, c.name);
+
+  std::ifstream rf(report);
+  const auto r = nlohmann::json::parse(rf, nullptr, false);
+  ASSERT_TRUE(r.is_object());
+  ASSERT_EQ(r["input_height_units"].size(), 1u);
+  const auto& u = r["input_height_units"][0];
+  EXPECT_EQ(u["unit"], c.declared);
+  EXPECT_EQ(u["declared_by"], c.declared_by);
+  EXPECT_NEAR(double(u["unit_m"]), c.unit_m, 1e-12);
+  EXPECT_NEAR(double(u["scale"]), c.unit_m, 1e-12);
+  EXPECT_EQ(u["scale_from"], "declared unit");
+
+  CookedArchive ca;
+  ASSERT_TRUE(ca.open(archive.string()).ok());
+  const auto info = nlohmann::json::parse(ca.reader.world().cook_info_json);
+  EXPECT_NEAR(double(info["inputs"][0]["heights"]["scale"]), c.unit_m, 1e-12);
+  EXPECT_EQ(info["inputs"][0]["heights"]["unit"], c.declared);
+
+  std::string js, text;
+  ASSERT_TRUE(run_command(tool("terrain-inspect") + " " + q(archive) + " --json", js)) << js;
+  const auto ij = nlohmann::json::parse(js, nullptr, false);
+  ASSERT_TRUE(ij.is_object());
+  EXPECT_NEAR(double(ij["input_height_units"][0]["scale"]), c.unit_m, 1e-12);
+  EXPECT_EQ(ij["input_height_units"][0]["path"], tif.string());
+  ASSERT_TRUE(run_command(tool("terrain-inspect") + " " + q(archive), text)) << text;
+  char factor[32];
+  std::snprintf(factor, sizeof factor, "%.10g", c.unit_m);
+  const std::string line = std::string("values x ") + factor + " to metres ('" + c.declared + "', " + c.declared_by + ")";
+  EXPECT_NE(text.find(line), std::string::npos) << "no '" << line << "' in\n" << text;
+}
+
+INSTANTIATE_TEST_SUITE_P(Tahoe, FeetHeights, ::testing::ValuesIn(kHeightCases),
+                         [](const ::testing::TestParamInfo<HeightCase>& i) { return std::string(i.param.name); });
+
+// An explicit --height-scale replaces the declared unit's conversion, never multiplies it: on the
+// US-feet file, 0.3048 gives metres (multiplied, 0.093 m per stored unit) and 1 gives the stored
+// feet values (multiplied, metres). The report says where the scale came from.
+TEST(FeetHeightsScale, ExplicitHeightScaleReplacesTheDeclaredUnit) {
+  TERRAIN_REQUIRE_DATA(data_file(kTahoe));
+  std::filesystem::path m, tif, archive;
+  std::string why, out;
+  ASSERT_TRUE(tahoe_metres(m, why)) << why;
+  ASSERT_TRUE(tahoe_heights("scale_ftus.tif", 1.0 / kUsFootM, "EPSG:32611+6360", "", tif, why)) << why;
+  std::vector<Point> pts;
+  ASSERT_TRUE(source_points(m, 200, 1.0, pts, why)) << why;
+
+  const auto report = work_dir() / "scale_0.3048.json";
+  ASSERT_TRUE(cook_cli(tif, "scale_0.3048", "--heights-only --height-scale 0.3048 --report " + q(report), archive, out)) << out;
+  // metres * (1 / 0.3048006) * 0.3048: 2 ppm low, 5 mm at 2500 m, inside the bound.
+  expect_metres(archive, pts, "--height-scale 0.3048 on US feet");
+  std::ifstream rf(report);
+  const auto r = nlohmann::json::parse(rf, nullptr, false);
+  ASSERT_TRUE(r.is_object());
+  EXPECT_EQ(r["input_height_units"][0]["scale"], 0.3048);
+  EXPECT_EQ(r["input_height_units"][0]["scale_from"], "--height-scale");
+  EXPECT_EQ(r["input_height_units"][0]["unit"], "US survey foot");
+
+  ASSERT_TRUE(cook_cli(tif, "scale_1", "--heights-only --height-scale 1", archive, out)) << out;
+  std::vector<Point> feet = pts;
+  for (Point& p : feet) p.value /= kUsFootM;
+  expect_metres(archive, feet, "--height-scale 1 on US feet (the stored values)");
+  CookedArchive ca;
+  ASSERT_TRUE(ca.open(archive.string()).ok());
+  const auto info = nlohmann::json::parse(ca.reader.world().cook_info_json);
+  EXPECT_EQ(info["inputs"][0]["heights"]["scale"], 1.0);
+  EXPECT_EQ(info["inputs"][0]["heights"]["scale_from"], "--height-scale");
+}
+
+// No declared unit: metres, as before (scale 1, "none declared: metres"); a declared metre is
+// metres too.
+TEST(FeetHeightsScale, UndeclaredAndMetreHeightsStayMetres) {
+  TERRAIN_REQUIRE_DATA(data_file(kTahoe));
+  std::filesystem::path m, navd88_m, archive;
+  std::string why, out;
+  ASSERT_TRUE(tahoe_metres(m, why)) << why;
+  ASSERT_TRUE(tahoe_heights("navd88_m.tif", 1.0, "EPSG:32611+5703", "", navd88_m, why)) << why;
+  std::vector<Point> pts;
+  ASSERT_TRUE(source_points(m, 200, 1.0, pts, why)) << why;
+  for (const auto& [tif, name, unit, from] :
+       {std::tuple{m, "undeclared", "", "none declared: metres"}, std::tuple{navd88_m, "navd88_m", "metre", "declared unit"}}) {
+    const auto report = work_dir() / (std::string(name) + ".json");
+    ASSERT_TRUE(cook_cli(tif, name, "--heights-only --report " + q(report), archive, out)) << out;
+    expect_metres(archive, pts, name);
+    std::ifstream rf(report);
+    const auto r = nlohmann::json::parse(rf, nullptr, false);
+    ASSERT_TRUE(r.is_object());
+    EXPECT_EQ(r["input_height_units"][0]["scale"], 1.0) << name;
+    EXPECT_EQ(r["input_height_units"][0]["unit"], unit) << name;
+    EXPECT_EQ(r["input_height_units"][0]["scale_from"], from) << name;
+  }
+}
+
+// A declared unit the cooker does not know is refused with exit 1, naming the unit and the file,
+// and leaves the archive it would replace as it was; --height-scale says what the unit is.
+TEST(FeetHeightsScale, UnknownDeclaredUnitIsRefusedByName) {
+  TERRAIN_REQUIRE_DATA(data_file(kTahoe));
+  std::filesystem::path tif, archive;
+  std::string why, out;
+  ASSERT_TRUE(tahoe_heights("furlong.tif", 1.0 / 201.168, "EPSG:32611", "furlong", tif, why)) << why;
+  archive = work_dir() / "furlong.terrain";
+  {
+    std::ofstream f(archive);
+    f << "an older archive";
+  }
+  const int rc = run_status(tool("terrain-cook") + " " + q(tif) + " -q --heights-only -o " + q(archive), out);
+  EXPECT_EQ(rc, 1) << out;
+  EXPECT_NE(out.find("'furlong'"), std::string::npos) << out;
+  EXPECT_NE(out.find("furlong.tif"), std::string::npos) << out;
+  EXPECT_NE(out.find("--height-scale"), std::string::npos) << out;
+  std::ifstream f(archive);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f)), {}), "an older archive");
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(work_dir()))
+    if (e.path().filename().string().find("tmp-") != std::string::npos) left.push_back(e.path().string());
+  EXPECT_TRUE(left.empty()) << left[0];
+  // Told what it is, it cooks.
+  std::filesystem::path told;
+  ASSERT_TRUE(cook_cli(tif, "furlong_told", "--heights-only --height-scale 201.168", told, out)) << out;
+}
+
+// The plan records the factor of each input, and the merge writes it into the cook info: a cook
+// through work units is byte-identical to the one-process cook of a US-feet file.
+TEST(FeetHeightsScale, PlanRecordsTheFactorAndTheMergeKeepsIt) {
+  TERRAIN_REQUIRE_DATA(data_file(kTahoe));
+  std::filesystem::path tif, one;
+  std::string why, out;
+  ASSERT_TRUE(tahoe_heights("plan_ftus.tif", 1.0 / kUsFootM, "EPSG:32611+6360", "", tif, why)) << why;
+  ASSERT_TRUE(cook_cli(tif, "plan_one", "--heights-only", one, out)) << out;
+  const auto wd = work_dir() / "plan_work";
+  const auto merged = work_dir() / "plan_merged.terrain";
+  ASSERT_TRUE(run_command(tool("terrain-cook") + " " + q(tif) + " -q --heights-only -o " + q(merged) + " --work-dir " +
+                              q(wd) + " 2>&1",
+                          out))
+      << out;
+  std::ifstream pf(wd / "plan.json");
+  const auto plan = nlohmann::json::parse(pf, nullptr, false);
+  ASSERT_TRUE(plan.is_object());
+  const auto& u = plan["report"]["input_height_units"];
+  ASSERT_EQ(u.size(), 1u);
+  EXPECT_NEAR(double(u[0]["scale"]), kUsFootM, 1e-12);
+  EXPECT_EQ(u[0]["unit"], "US survey foot");
+  std::ifstream a(one, std::ios::binary), b(merged, std::ios::binary);
+  const std::string ba((std::istreambuf_iterator<char>(a)), {}), bb((std::istreambuf_iterator<char>(b)), {});
+  ASSERT_GT(ba.size(), 1000u);
+  EXPECT_TRUE(ba == bb) << "the work-unit cook differs from the one-process cook";
+  CookedArchive ca;
+  ASSERT_TRUE(ca.open(merged.string()).ok());
+  const auto info = nlohmann::json::parse(ca.reader.world().cook_info_json);
+  EXPECT_NEAR(double(info["inputs"][0]["heights"]["scale"]), kUsFootM, 1e-12);
 }
