@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "crs.h"
+#include "height_units.h"
 #include "inputs.h"
 #include "overlays.h"
 #include "overview_levels.h"
@@ -96,8 +97,11 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
   j["tool"] = "terrain-cook";
   j["version"] = "0.1.0";
   nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
-  for (const auto& [path, description] : descriptions)
-    inputs.push_back({{"path", path}, {"description", description}});
+  for (size_t i = 0; i < descriptions.size(); ++i) {
+    inputs.push_back({{"path", descriptions[i].first}, {"description", descriptions[i].second}});
+    // The unit of its heights and the factor applied (terrain-inspect shows them).
+    if (i < r.input_height_units.size()) inputs.back()["heights"] = height_unit_json(r.input_height_units[i]);
+  }
   j["inputs"] = inputs;
   j["options"] = {{"tolerance_m", o.tolerance_m},
                   {"finest_level", o.finest_level},
@@ -171,8 +175,10 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   }
   s.descriptions.clear();
   report.input_descriptions.clear();
+  report.input_height_units.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
     s.descriptions.emplace_back(in.path, in.description);
+    report.input_height_units.push_back(in.height_unit);
     report.input_descriptions.push_back(fmt::format("{}: {}; {}{}{}", in.path, in.description, describe_crs(in.crs),
                                                     in.decoder.empty() ? "" : "; ", in.decoder));
   }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "crs.h"
+#include "height_units.h"
 #include "inputs.h"
 #include "source_raster.h"
 #include "tiff_blocks.h"
@@ -169,6 +170,9 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
                             resolved.kind == CrsKind::projected) {
       if (pcs_name && *pcs_name && !EQUAL(pcs_name, "unknown")) resolved.name = resolved.tm.name = pcs_name;
       if (crs.epsg) resolved.epsg = resolved.tm.epsg = crs.epsg;
+      // The file's coordinates are in the CRS's unit (US survey feet for EPSG:2229): the reader
+      // turns them into metres by it, as for a Transverse Mercator and as the libgeotiff reader does.
+      resolved.model_unit = crs.model_unit;
       return resolved;
     }
     crs.kind = CrsKind::unsupported;
@@ -208,6 +212,29 @@ SourceCrs crs_from_srs(const OGRSpatialReference* srs_in, double center_x, doubl
   }
   crs.tm.name = crs.name;
   return crs;
+}
+
+// The unit the file declares for its heights (terrain/cook.h HeightUnit): the vertical CRS's
+// linear unit (PROJ gives its factor), else the band's unit type, looked up by name.
+HeightUnit declared_height_unit(const OGRSpatialReference* srs, GDALRasterBand* band) {
+  HeightUnit u;
+  if (srs && (srs->IsCompound() || srs->IsVertical())) {
+    const char* name = nullptr;
+    const double metres = srs->GetTargetLinearUnits("VERT_CS", &name);
+    if (name && *name && std::isfinite(metres) && metres > 0) {
+      u.declared = name;
+      u.declared_by = "vertical CRS";
+      u.declared_m = metres;
+      return u;
+    }
+  }
+  const char* type = band->GetUnitType();
+  if (type && *type) {
+    u.declared = type;
+    u.declared_by = "band unit type";
+    u.declared_m = height_unit_metres(type);
+  }
+  return u;
 }
 
 std::string type_name(GDALDataType t, GDALRasterBand* band) {
@@ -475,6 +502,15 @@ bool spatial_reference(const SourceCrs& crs, OGRSpatialReference& srs) {
   }
 }
 
+// Metres (projected) or degrees (geographic) per coordinate unit of `srs`: the points handed to
+// gdal_point_transforms are in metres and degrees (SampleGeo), OGR's in the CRS's own units (US
+// survey feet for EPSG:2229).
+double coordinate_unit(const OGRSpatialReference& srs) {
+  const double u = srs.IsGeographic() ? srs.GetAngularUnits() * 180.0 / M_PI : srs.GetLinearUnits();
+  // Degrees and metres exactly 1 (OGR's degree is pi/180 rounded: the points keep their bits).
+  return std::isfinite(u) && u > 0 && std::fabs(u - 1.0) > 1e-12 ? u : 1.0;
+}
+
 }  // namespace
 
 CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
@@ -485,8 +521,19 @@ CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b,
   std::shared_ptr<OGRCoordinateTransformation> there(OGRCreateCoordinateTransformation(&a_srs, &b_srs));
   std::shared_ptr<OGRCoordinateTransformation> back(OGRCreateCoordinateTransformation(&b_srs, &a_srs));
   if (!there || !back) return CrsTransformStatus::no_transformation;
-  a_to_b = [there](double& x, double& y) { return there->Transform(1, &x, &y) != 0; };
-  b_to_a = [back](double& x, double& y) { return back->Transform(1, &x, &y) != 0; };
+  const double ua = coordinate_unit(a_srs), ub = coordinate_unit(b_srs);
+  const auto through = [](const std::shared_ptr<OGRCoordinateTransformation>& t, double from, double to) {
+    return [t, from, to](double& x, double& y) {
+      x /= from;
+      y /= from;
+      const bool ok = t->Transform(1, &x, &y) != 0;
+      x *= to;
+      y *= to;
+      return ok;
+    };
+  };
+  a_to_b = through(there, ua, ub);
+  b_to_a = through(back, ub, ua);
   return CrsTransformStatus::ok;
 }
 
@@ -652,6 +699,7 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   const double scale = band->GetScale(&has_scale), offset = band->GetOffset(&has_offset);
   if (has_scale && std::isfinite(scale) && scale != 0.0) info.scale = scale;
   if (has_offset && std::isfinite(offset)) info.offset = offset;
+  info.height_unit = declared_height_unit(ds->GetSpatialRef(), band);
 
   const char* aop = ds->GetMetadataItem(GDALMD_AREA_OR_POINT);
   const bool point = aop && EQUAL(aop, GDALMD_AOP_POINT);

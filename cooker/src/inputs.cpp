@@ -233,6 +233,7 @@ Status open_input_layer(const std::string& path, const CookOptions& options, con
     r.crs = info.crs;
     r.nodata_declared = info.nodata.has_value();
     r.description = info.description;
+    r.height_unit = info.height_unit;
   }
   if (r.width < 2 || r.height < 2)
     return Status::failure(Error::unsupported_input,
@@ -267,7 +268,17 @@ Status open_input_layer(const std::string& path, const CookOptions& options, con
                            fmt::format("{}: its CRS is {}, which terrain-cook cannot use (it reads geographic lon/lat, "
                                        "UTM and other Transverse Mercator CRSs); {}",
                                        path, describe_crs(r.crs), conversion_hint(r.crs, path)));
-  out.rules = HeightRules{options.height_scale, options.height_offset, options.valid_range_m,
+  // Heights to metres: the factor of the unit the file declares, unless --height-scale replaces it.
+  HeightUnit& unit = r.height_unit;
+  unit.scale_from_flag = options.height_scale_set || options.height_scale != 1.0;
+  if (!unit.scale_from_flag && !std::isfinite(unit.declared_m))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("{}: its heights are in '{}' (its {}), a unit terrain-cook does not know (it "
+                                       "converts metres, feet, US survey feet, centimetres and millimetres); give "
+                                       "--height-scale with the metres per unit of its values",
+                                       path, unit.declared, unit.declared_by));
+  unit.scale = unit.scale_from_flag ? options.height_scale : unit.declared_m;
+  out.rules = HeightRules{unit.scale, options.height_offset, options.valid_range_m,
                           r.nodata_declared || options.nodata_value.has_value()};
   // Inputs read whole are finished now (their implausible counts are then known).
   if (!src) finish_heights(r, out.rules.scale, out.rules.offset, out.rules.valid_range_m, out.rules.nodata_declared);

@@ -239,6 +239,7 @@ Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_byte
     s.description = r.description;
     s.crs = r.crs;
     s.windowed = l.input.source != nullptr;
+    s.height_unit = r.height_unit;
     if (s.windowed) s.decoder = l.input.source->info().decoder;
     if (!s.windowed) s.implausible = r.implausible;
     held += uint64_t(r.values.size()) * sizeof(float);

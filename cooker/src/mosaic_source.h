@@ -37,6 +37,7 @@ class MosaicSource {
     SourceCrs crs;
     uint64_t bytes_read = 0;        // SourceInfo::bytes_read of a windowed input; 0 for inputs read whole
     bool windowed = false;          // read by windows (GDAL); false: held whole (own readers)
+    HeightUnit height_unit;         // the unit its heights declare and the factor applied (Raster::height_unit)
     // Implausible heights of the input (Raster::Implausible as load_inputs counts them). Inputs held
     // whole: complete from open. Windowed inputs: counted by read() while count_implausible is on.
     Raster::Implausible implausible;

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "terrain/cook.h"
 #include "terrain/format.h"
 
 namespace terrain::cook {
@@ -66,6 +67,7 @@ struct Raster {
   SampleGeo geo;
   SourceCrs crs;
   bool nodata_declared = false;  // the file (or --nodata-value) says which value is nodata
+  HeightUnit height_unit;        // what the file declares; scale set by open_input_layer
   // Samples load_inputs turned into nodata because they cannot be elevations (inputs.h).
   struct Implausible {
     uint64_t out_of_range = 0;   // outside the valid range after scale/offset (incl. +-Inf)

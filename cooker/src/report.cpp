@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "crs.h"
+#include "height_units.h"
 #include "surface/surface_layers.h"
 #include "terrain/cook.h"
 
@@ -75,6 +76,10 @@ std::string report_json(const CookReport& r) {
   nlohmann::ordered_json j;
   j["inputs"] = r.input_descriptions;
   j["input_bytes_read"] = r.input_bytes_read;
+  // Per input: the unit its heights declare and the factor applied to its values.
+  nlohmann::ordered_json units = nlohmann::ordered_json::array();
+  for (const HeightUnit& u : r.input_height_units) units.push_back(height_unit_json(u));
+  j["input_height_units"] = units;
   j["source"] = {{"samples", r.source_samples},
                  {"valid_samples", r.source_valid_samples},
                  {"spacing_m", r.source_spacing_m},
@@ -196,6 +201,15 @@ std::string report_summary(const CookReport& r) {
   s += fmt::format("grid: origin ({:.1f}, {:.1f}) m, {}x{} roots of 2048 m; finest level {} ({} m); tolerance {} m\n",
                    r.origin_x_m, r.origin_y_m, r.roots_x, r.roots_y, r.finest_level, vertex_spacing_m(r.finest_level),
                    r.tolerance_m);
+  // Heights that were not taken as metres as they are: the unit and the factor applied.
+  for (size_t i = 0; i < r.input_height_units.size(); ++i) {
+    const HeightUnit& u = r.input_height_units[i];
+    if (u.declared.empty() && !u.scale_from_flag) continue;
+    const std::string which = r.input_height_units.size() > 1 ? fmt::format(" (input {})", i + 1) : "";
+    const std::string unit = u.declared.empty() ? "no unit declared" : fmt::format("'{}' ({})", u.declared, u.declared_by);
+    s += fmt::format("heights{}: {}; values x {:.10g} to metres{}\n", which, unit, u.scale,
+                     u.scale_from_flag ? " (--height-scale)" : "");
+  }
   if (r.voids_filled_samples || r.hole_samples)
     s += fmt::format("nodata: {} samples in {} voids filled, {} samples in {} regions left as holes\n",
                      r.voids_filled_samples, r.voids_filled_regions, r.hole_samples, r.hole_regions);

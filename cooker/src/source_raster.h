@@ -26,6 +26,7 @@ struct SourceInfo {
   SourceCrs crs;
   std::optional<double> nodata;  // the file's (or --nodata-value's) nodata value, as stored
   double scale = 1.0, offset = 0.0;  // the file's own value -> height (GDAL GetScale / GetOffset)
+  HeightUnit height_unit;  // the unit the file declares for its heights (declared fields only)
   std::string sample_type;  // "Int16", "Float32", ...
   uint64_t bytes_read = 0;  // grows with every window read (decoded bytes asked of the driver)
   // Who decodes the samples, for the report (not the archive): the cooker's block reader, or GDAL

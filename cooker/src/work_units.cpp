@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "crs.h"
+#include "height_units.h"
 #include "node_spool.h"
 #include "source_raster.h"
 #include "terrain/archive_writer.h"
@@ -99,6 +100,7 @@ json options_json(const CookOptions& o) {
   j["spacing"] = o.spacing ? json(*o.spacing) : json(nullptr);
   j["height_scale"] = o.height_scale;
   j["height_offset"] = o.height_offset;
+  if (o.height_scale_set) j["height_scale_set"] = true;  // absent: false (earlier plans kept)
   j["nodata_value"] = o.nodata_value ? json(*o.nodata_value) : json(nullptr);
   j["valid_range_m"] = o.valid_range_m;
   j["memory_limit_bytes"] = o.memory_limit_bytes;
@@ -135,6 +137,7 @@ CookOptions options_of(const json& j) {
   if (!j.at("spacing").is_null()) o.spacing = j.at("spacing").get<std::array<double, 2>>();
   o.height_scale = j.at("height_scale");
   o.height_offset = j.at("height_offset");
+  o.height_scale_set = j.value("height_scale_set", false);
   if (!j.at("nodata_value").is_null()) o.nodata_value = j.at("nodata_value").get<double>();
   o.valid_range_m = j.at("valid_range_m").get<std::array<double, 2>>();
   o.memory_limit_bytes = j.at("memory_limit_bytes");
@@ -795,6 +798,10 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                  {"source_spacing_m", report.source_spacing_m},
                  {"implausible_samples", report.implausible_samples},
                  {"warnings", report.warnings}};
+  // Per input: the unit its heights declare and the factor applied (the merge's report and cook info).
+  json height_units = json::array();
+  for (const HeightUnit& u : report.input_height_units) height_units.push_back(height_unit_json(u));
+  j["report"]["input_height_units"] = height_units;
   j["unit_count"] = plan.units.size();
   json units = json::array();
   for (const UnitPlan& u : plan.units)
@@ -958,6 +965,8 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
     rep.source_spacing_m = r.at("source_spacing_m");
     rep.implausible_samples = r.at("implausible_samples");
     rep.warnings = r.at("warnings").get<std::vector<std::string>>();
+    if (r.contains("input_height_units"))  // absent in plans written before it
+      for (const json& u : r.at("input_height_units")) rep.input_height_units.push_back(height_unit_of_json(u));
     rep.frame = out.frame;
     rep.source_valid_samples = out.voids.valid_samples;
     rep.voids_filled_samples = out.voids.stats.filled_samples;

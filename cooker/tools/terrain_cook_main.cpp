@@ -152,7 +152,10 @@ int run(int argc, char** argv) {
   app.add_option("--origin", origin,
                  "Images/raw: frame coordinates X,Y of the south-west sample (default 0,0; each within +-1e8 CRS units)");
   app.add_option("--spacing", spacing, "Images/raw: sample spacing D or DX,DY in CRS units (> 0, <= 1e7)");
-  app.add_option("--height-scale", o.height_scale, "metres = value * scale + offset (finite, non-zero)")
+  CLI::Option* height_scale =
+      app.add_option("--height-scale", o.height_scale,
+                     "metres = value * scale + offset (finite, non-zero); replaces the conversion of the unit an input "
+                     "declares for its heights (vertical CRS or band unit type: feet, US survey feet, ...)")
       ->capture_default_str()
       ->check(cli::number_check("finite and non-zero", [](double v) { return std::isfinite(v) && v != 0; }));
   app.add_option("--height-offset", o.height_offset, "metres = value * scale + offset")
@@ -247,6 +250,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "terrain-cook: %s\n", msg.c_str());
     return 2;
   };
+  o.height_scale_set = height_scale->count() > 0;
   if (!origin.empty()) {
     std::array<double, 2> v{};
     if (!parse_pair(origin, v, false)) return usage("--origin expects X,Y (two numbers), got '" + origin + "'");

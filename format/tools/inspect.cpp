@@ -11,6 +11,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
@@ -51,6 +54,20 @@ uint64_t source_valid_samples(const WorldInfo& w) {
   if (!j.is_object()) return 0;
   const auto it = j.find("source_valid_samples");
   return it != j.end() && it->is_number_unsigned() ? it->get<uint64_t>() : 0;
+}
+
+// Per input the cooker recorded: its path and the unit of its heights with the factor applied to
+// its values (cook info inputs[].heights: unit, declared_by, unit_m, scale, scale_from); empty when
+// absent (other writers, earlier cooks).
+std::vector<std::pair<std::string, nlohmann::json>> input_height_units(const WorldInfo& w) {
+  std::vector<std::pair<std::string, nlohmann::json>> out;
+  if (w.cook_info_json.empty()) return out;
+  const nlohmann::json j = nlohmann::json::parse(w.cook_info_json, nullptr, false);
+  if (!j.is_object() || !j.contains("inputs") || !j["inputs"].is_array()) return out;
+  for (const nlohmann::json& in : j["inputs"])
+    if (in.is_object() && in.contains("heights") && in["heights"].is_object() && in["heights"].value("scale", 0.0) != 0.0)
+      out.emplace_back(in.value("path", ""), in["heights"]);
+  return out;
 }
 
 struct Facts {
@@ -111,6 +128,12 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
                      top_level(w), top_level(w), f.per_level[size_t(top_level(w))]);
   if (f.any)
     o << fmt::format("heights    {:.3f} .. {:.3f} m\n", units_to_metres(f.min_units), units_to_metres(f.max_units));
+  for (const auto& [input, h] : input_height_units(w)) {
+    const std::string unit = h.value("unit", "");
+    o << fmt::format("           input {}: values x {:.10g} to metres ({}{})\n", input, h.value("scale", 0.0),
+                     unit.empty() ? "no unit declared" : fmt::format("'{}', {}", unit, h.value("declared_by", "")),
+                     h.value("scale_from", "") == "--height-scale" ? "; --height-scale" : "");
+  }
   o << "sections   section     stored_bytes      raw_bytes  ratio\n";
   uint64_t st = 0, rw = 0;
   for (size_t s = 0; s < layout::kSectionCount; ++s) {
@@ -162,6 +185,11 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   j["overview_levels"] = level_count(w) - kLevelCount;
   j["top_level"] = top_level(w);
   if (f.any) j["height_range_m"] = {units_to_metres(f.min_units), units_to_metres(f.max_units)};
+  for (const auto& [input, h] : input_height_units(w)) {
+    json e = h;
+    e["path"] = input;
+    j["input_height_units"].push_back(e);
+  }
   uint64_t st = 0, rw = 0;
   for (size_t s = 0; s < layout::kSectionCount; ++s) {
     st += f.sections.stored[s];

@@ -30,6 +30,18 @@ enum class SurfaceQuality : uint8_t { fast, balanced, best };
 enum class ErrorChecks : uint8_t { sample, all };
 enum class OverviewMode : uint8_t { automatic, on, off };
 
+// The unit an input declares for its heights and the factor the cook applies to its values
+// (metres = value * scale + height_offset). Declared: the vertical CRS's linear unit (a compound
+// CRS such as EPSG:32611+6360, NAVD88 height in US survey feet), else the band's unit type ("ft",
+// "US survey foot", "m"). An input that declares none is in metres (HGT, PNG, most GeoTIFFs).
+struct HeightUnit {
+  std::string declared;     // the unit as the file names it; empty: none declared
+  std::string declared_by;  // "vertical CRS" or "band unit type"; empty when none is declared
+  double declared_m = 1.0;  // metres per declared unit; NaN for a unit the cooker does not know
+  double scale = 1.0;       // the factor applied: CookOptions::height_scale when given (it replaces declared_m), else declared_m
+  bool scale_from_flag = false;  // scale is CookOptions::height_scale's
+};
+
 struct CookOptions {
   std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
   std::string output;               // archive path (written atomically)
@@ -45,6 +57,9 @@ struct CookOptions {
   std::optional<std::array<double, 2>> spacing;  // images/raw: sample spacing x, y (CRS units)
   double height_scale = 1.0;        // metres = value * scale + offset (after nodata detection)
   double height_offset = 0.0;
+  // height_scale was given (--height-scale): it replaces the factor of the unit an input declares
+  // for its heights (HeightUnit), never multiplies it. A height_scale other than 1 counts as given.
+  bool height_scale_set = false;
   std::optional<double> nodata_value;  // overrides the file's nodata value
   // Heights (metres, after scale/offset) outside this range cannot be elevations (Challenger Deep
   // is -10.9 km, Everest +8.8 km): they are undeclared voids (-3.4e38, 1e30) and become nodata,
@@ -186,6 +201,8 @@ struct CookReport {
   double void_fill_residual_m = 0;   // largest change of the last relaxation sweep of a filled void
   uint64_t implausible_samples = 0;  // outside valid_range_m or undeclared -9999 voids: made nodata
   double source_spacing_m = 0;       // finest source sample spacing, frame metres
+  // Per input (same order as input_descriptions): the unit its heights declare and the factor applied.
+  std::vector<HeightUnit> input_height_units;
   // Frame and grid
   FrameCrs frame;
   std::string frame_reason;          // why this frame was chosen
