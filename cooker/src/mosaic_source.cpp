@@ -223,6 +223,7 @@ Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_byte
   ro.bytes_per_sample = sizeof(float);  // what this source holds of an input read whole
   std::vector<std::string> paths;
   if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
   std::vector<MosaicSource::Layer> layers;
   std::vector<MosaicSource::InputStat> stats;
   uint64_t held = 0;
