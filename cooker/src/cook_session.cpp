@@ -209,6 +209,25 @@ Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report
       named.implausible = in.implausible;
       report.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
     }
+  // What each input gave (InputSamples, cook.h): one that the inputs before it cover is named.
+  report.input_samples.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    report.input_samples.push_back(InputSamples{in.path, in.samples_read, in.samples_used});
+    if (in.samples_used > 0 && in.samples_used * 100 >= in.samples_read) continue;
+    if (in.samples_read == 0)
+      report.warnings.push_back(fmt::format("{}: contributes nothing to the archive: it has no height on the mosaic's "
+                                            "grid (every sample nodata or implausible)", in.path));
+    else if (in.samples_used == 0)
+      report.warnings.push_back(fmt::format(
+          "{}: contributes nothing to the archive: inputs listed before it have a height at each of its {} samples on "
+          "the mosaic's grid (the first input's; where inputs overlap, the one listed first wins: list it first to "
+          "prefer it)", in.path, in.samples_read));
+    else
+      report.warnings.push_back(fmt::format(
+          "{}: contributes only {} of its {} samples on the mosaic's grid ({:.2f} %) to the archive: inputs listed "
+          "before it have heights at the others (where inputs overlap, the one listed first wins: list it first to "
+          "prefer it)", in.path, in.samples_used, in.samples_read, 100.0 * double(in.samples_used) / double(in.samples_read)));
+  }
   if (s.voids.valid_samples == 0)
     return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
   report.source_valid_samples = s.voids.valid_samples;

@@ -172,6 +172,14 @@ Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::st
   return Status::success();
 }
 
+Status check_tile_encoding_use(const CookOptions& options, const std::vector<std::string>& paths) {
+  if (options.tile_encoding.empty() || std::any_of(paths.begin(), paths.end(), is_encoded_image_name))
+    return Status::success();
+  return Status::failure(Error::invalid_argument,
+                         fmt::format("--tile-encoding {}: names what a PNG or WebP input holds (a web tile, or an "
+                                     "image of encoded heights); none of the inputs is one", options.tile_encoding));
+}
+
 InputLayer::InputLayer() = default;
 InputLayer::~InputLayer() = default;
 InputLayer::InputLayer(InputLayer&&) noexcept = default;
@@ -207,7 +215,17 @@ Status open_input_layer(const std::string& path, const CookOptions& options, con
   Raster r;
   std::unique_ptr<SourceRaster> src;
   Status st;
-  switch (format_of(path)) {
+  const Format format = format_of(path);
+  if (format != Format::web_tile && !options.tile_encoding.empty() && is_encoded_image_name(path)) {
+    // --tile-encoding says what a PNG / WebP outside a z/x/y path holds: heights encoded in RGB
+    // (never a grey heightmap, whose first channel would be cooked as metres), placed by the file's
+    // own georeferencing as GDAL reads it (.aux.xml, world file) or by the flags below.
+    TileEncoding enc = TileEncoding::none;
+    std::unique_ptr<SourceRaster> placement;
+    st = tile_encoding_of(path, options.tile_encoding, enc);
+    if (st.ok()) st = open_gdal_source(path, ro, placement);
+    if (st.ok()) st = open_encoded_image(path, enc, placement->info().geo, placement->info().crs, src);
+  } else switch (format) {
     case Format::gdal: st = open_gdal_source(path, ro, src); break;
     case Format::web_tile: {
       TileAddress t;
@@ -327,6 +345,7 @@ Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
 
   std::vector<std::string> paths;
   if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
   std::vector<float> scratch;
   for (const std::string& path : paths) {
     ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;

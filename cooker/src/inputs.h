@@ -88,6 +88,9 @@ struct InputLayer {
 Status input_read_options(const CookOptions& options, ReadOptions& ro);
 // The inputs with every directory replaced by the rasters under it, in path order.
 Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out);
+// --tile-encoding given while none of `paths` (expanded inputs) is a PNG / WebP it could apply to:
+// an invalid_argument error (a flag that would change nothing). Success otherwise.
+Status check_tile_encoding_use(const CookOptions& options, const std::vector<std::string>& paths);
 // Opens `path` (file checks, reader by name, --crs/--origin/--spacing, positioned, CRS usable, at
 // least 2x2) as load_inputs does, with `ro`'s memory budget for an input read whole.
 Status open_input_layer(const std::string& path, const CookOptions& options, const ReadOptions& ro, InputLayer& out);

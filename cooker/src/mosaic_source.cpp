@@ -150,6 +150,12 @@ Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
           !st.ok())
         return st;
       stats_[0].bytes_read = l.input.source->info().bytes_read;
+      if (count_implausible_) {
+        uint64_t valid = 0;
+        for (size_t k = 0, n = size_t(w) * size_t(h); k < n; ++k) valid += std::isnan(out[k]) ? 0 : 1;
+        stats_[0].samples_read += valid;
+        stats_[0].samples_used += valid;
+      }
       return Status::success();
     }
   }
@@ -183,12 +189,21 @@ Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
       src = &r.values[size_t(y0 - l.row) * size_t(r.width) + size_t(x0 - l.col)];
       src_stride = size_t(r.width);
     }
+    uint64_t read = 0, used = 0;
     for (int row = 0; row < ih; ++row) {
       float* dst = out + size_t(y0 - wr0 + row) * size_t(w) + size_t(x0 - wc0);
       const float* s = src + size_t(row) * src_stride;
+      if (count_implausible_)
+        for (int col = 0; col < iw; ++col) {
+          const bool has = !std::isnan(s[col]);
+          read += has ? 1 : 0;
+          used += has && std::isnan(dst[col]) ? 1 : 0;
+        }
       for (int col = 0; col < iw; ++col)
         if (std::isnan(dst[col])) dst[col] = s[col];  // first listed input wins
     }
+    stats_[i].samples_read += read;
+    stats_[i].samples_used += used;
   }
   return Status::success();
 }
@@ -223,6 +238,7 @@ Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_byte
   ro.bytes_per_sample = sizeof(float);  // what this source holds of an input read whole
   std::vector<std::string> paths;
   if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
   std::vector<MosaicSource::Layer> layers;
   std::vector<MosaicSource::InputStat> stats;
   uint64_t held = 0;

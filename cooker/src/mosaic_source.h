@@ -41,13 +41,17 @@ class MosaicSource {
     // Implausible heights of the input (Raster::Implausible as load_inputs counts them). Inputs held
     // whole: complete from open. Windowed inputs: counted by read() while count_implausible is on.
     Raster::Implausible implausible;
+    // Mosaic samples where the input has a height, and those of them the mosaic keeps (the first
+    // listed input wins): counted by read() while count_implausible is on (InputSamples, cook.h).
+    uint64_t samples_read = 0, samples_used = 0;
   };
   const std::vector<InputStat>& inputs() const { return stats_; }
 
   // While on, read() adds the implausible samples of each windowed input inside the window to its
   // InputStat::implausible. They equal load_inputs' counts when the windows read while it is on
   // cover every mosaic sample exactly once (the driver's first pass); overlapping windows would
-  // count twice. The 1-sample ring read around a window is never counted.
+  // count twice. The 1-sample ring read around a window is never counted. The same windows count
+  // each input's samples_read and samples_used.
   void set_count_implausible(bool on) { count_implausible_ = on; }
 
   // Bytes this source holds in memory now: inputs held whole (own readers), resampled inputs' anchors, its scratch,

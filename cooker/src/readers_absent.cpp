@@ -28,6 +28,10 @@ Status open_gdal_source(const std::string& path, const ReadOptions&, std::unique
 Status open_web_tile(const std::string& path, const TileAddress&, TileEncoding, std::unique_ptr<SourceRaster>&) {
   return absent(path);
 }
+Status open_encoded_image(const std::string& path, TileEncoding, const SampleGeo&, const SourceCrs&,
+                          std::unique_ptr<SourceRaster>&) {
+  return absent(path);
+}
 Status check_vrt_tiles(const std::string& path) { return absent(path); }
 Status write_vrt_windows(const std::string& path, const std::vector<std::array<int, 4>>&, const std::vector<std::string>&,
                          bool&) {

@@ -80,6 +80,11 @@ std::string report_json(const CookReport& r) {
   nlohmann::ordered_json units = nlohmann::ordered_json::array();
   for (const HeightUnit& u : r.input_height_units) units.push_back(height_unit_json(u));
   j["input_height_units"] = units;
+  // Per input, on the mosaic's grid: samples where it has a height, and those the archive is cooked from.
+  nlohmann::ordered_json input_samples = nlohmann::ordered_json::array();
+  for (const InputSamples& in : r.input_samples)
+    input_samples.push_back({{"path", in.path}, {"samples_read", in.read}, {"samples_used", in.used}});
+  j["input_samples"] = input_samples;
   j["source"] = {{"samples", r.source_samples},
                  {"valid_samples", r.source_valid_samples},
                  {"spacing_m", r.source_spacing_m},
@@ -213,6 +218,11 @@ std::string report_summary(const CookReport& r) {
   if (r.voids_filled_samples || r.hole_samples)
     s += fmt::format("nodata: {} samples in {} voids filled, {} samples in {} regions left as holes\n",
                      r.voids_filled_samples, r.voids_filled_regions, r.hole_samples, r.hole_regions);
+  if (r.input_samples.size() > 1) {
+    s += "inputs: samples used of read (on the mosaic's grid):";
+    for (const InputSamples& in : r.input_samples) s += fmt::format(" {} {} of {};", in.path, in.used, in.read);
+    s.back() = '\n';
+  }
   s += "level  spacing  nodes   step(mm)  err max(m)  err rms(m)  samples\n";
   for (int l = kLevelCount - 1; l >= 0; --l) {
     const LevelStats& v = r.levels[size_t(l)];

@@ -57,8 +57,11 @@ class WebTileSource final : public SourceRaster {
 
 }  // namespace
 
-Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding enc,
-                     std::unique_ptr<SourceRaster>& out) {
+namespace {
+
+// Opens an RGB(A) image of encoded heights through GDAL: the source, not yet placed.
+Status open_rgb(const std::string& path, TileEncoding enc, bool square_tile, std::unique_ptr<WebTileSource>& out,
+                std::string& driver) {
   init_gdal();
   CPLPushErrorHandler(CPLQuietErrorHandler);
   CPLErrorReset();
@@ -66,28 +69,68 @@ Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding
   const std::string msg = CPLGetLastErrorMsg();
   CPLPopErrorHandler();
   if (!ds)
-    return Status::failure(Error::io_open, fmt::format("{}: GDAL cannot open the web tile: {}", path,
+    return Status::failure(Error::io_open, fmt::format("{}: GDAL cannot open the {}: {}", path,
+                                                       square_tile ? "web tile" : "encoded heights image",
                                                        msg.empty() ? "no reason given" : msg));
   const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-  if (ds->GetRasterCount() < 3 || w != h || w < 2 || w > 4096)
+  const char* what = enc == TileEncoding::terrarium ? "terrarium" : "mapbox";
+  if (ds->GetRasterCount() < 3)
     return Status::failure(Error::unsupported_input,
-                           fmt::format("{}: {}x{} with {} band(s); a web elevation tile is square RGB(A)", path, w, h,
-                                       ds->GetRasterCount()));
-  const std::string driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "?";
-  auto src = std::make_unique<WebTileSource>(std::move(ds), enc);
-  SourceInfo& info = src->info_mut();
+                           fmt::format("{}: {} band(s); --tile-encoding {} reads heights encoded in red, green and blue "
+                                       "(an RGB or RGBA image): a grey image is a plain heightmap, cook it without "
+                                       "--tile-encoding", path, ds->GetRasterCount(), what));
+  for (int b = 1; b <= std::min(ds->GetRasterCount(), 4); ++b)
+    if (ds->GetRasterBand(b)->GetRasterDataType() != GDT_Byte)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{}: band {} is {}, not 8-bit; --tile-encoding {} reads 8-bit RGB(A)", path, b,
+                                         GDALGetDataTypeName(ds->GetRasterBand(b)->GetRasterDataType()), what));
+  if (square_tile ? (w != h || w < 2 || w > 4096) : (w < 2 || h < 2 || w > 200000 || h > 200000))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("{}: {}x{} with {} band(s); {}", path, w, h, ds->GetRasterCount(),
+                                       square_tile ? "a web elevation tile is square RGB(A)"
+                                                   : "an encoded heights image is 2 .. 200000 samples a side"));
+  driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "?";
+  out = std::make_unique<WebTileSource>(std::move(ds), enc);
+  SourceInfo& info = out->info_mut();
   info.path = path;
   info.width = w;
   info.height = h;
   info.sample_type = "RGB8";
+  return Status::success();
+}
+
+const char* encoding_name(TileEncoding enc) { return enc == TileEncoding::terrarium ? "terrarium" : "Mapbox terrain-RGB"; }
+
+}  // namespace
+
+Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding enc,
+                     std::unique_ptr<SourceRaster>& out) {
+  std::unique_ptr<WebTileSource> src;
+  std::string driver;
+  if (Status st = open_rgb(path, enc, true, src, driver); !st.ok()) return st;
+  SourceInfo& info = src->info_mut();
+  const int w = info.width, h = info.height;
   info.geo = web_tile_geo(t, w);
   info.crs = web_mercator_crs();
   // Where the tile is (for the gdalwarp hint while 3857 cannot be a frame).
   const double n = double(int64_t(1) << t.z);
   info.crs.center_lon = (t.x + 0.5) / n * 360.0 - 180.0;
   info.crs.center_lat = std::atan(std::sinh(M_PI * (1.0 - 2.0 * (t.y + 0.5) / n))) * 180.0 / M_PI;
-  info.description = fmt::format("{} web tile z{} x{} y{} {}x{} ({})", driver, t.z, t.x, t.y, w, h,
-                                 enc == TileEncoding::terrarium ? "terrarium" : "Mapbox terrain-RGB");
+  info.description = fmt::format("{} web tile z{} x{} y{} {}x{} ({})", driver, t.z, t.x, t.y, w, h, encoding_name(enc));
+  out = std::move(src);
+  return Status::success();
+}
+
+Status open_encoded_image(const std::string& path, TileEncoding enc, const SampleGeo& geo, const SourceCrs& crs,
+                          std::unique_ptr<SourceRaster>& out) {
+  std::unique_ptr<WebTileSource> src;
+  std::string driver;
+  if (Status st = open_rgb(path, enc, false, src, driver); !st.ok()) return st;
+  SourceInfo& info = src->info_mut();
+  info.geo = geo;
+  info.crs = crs;
+  info.description = fmt::format("{} image {}x{} of {} encoded heights", driver, info.width, info.height,
+                                 encoding_name(enc));
   out = std::move(src);
   return Status::success();
 }

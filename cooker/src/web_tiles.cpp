@@ -28,6 +28,11 @@ bool parse_int(const std::string& s, int& v) {
 
 }  // namespace
 
+bool is_encoded_image_name(const std::string& path) {
+  const std::string ext = lower(std::filesystem::path(path).extension().string());
+  return ext == ".png" || ext == ".webp" || ext == ".pngraw";
+}
+
 bool parse_tile_address(const std::string& path, TileAddress& out) {
   const std::filesystem::path p(path);
   const std::string ext = lower(p.extension().string());

@@ -30,6 +30,7 @@ bool parse_tile_address(const std::string& path, TileAddress& out);
 
 // The encoding: `flag` (--tile-encoding: "terrarium" / "mapbox", or "") wins, else a path naming
 // it ("terrarium", "mapbox", "terrain-rgb"); a tile with neither is an invalid_argument error.
+// A PNG / WebP not under a z/x/y path is an encoded heights image only when the flag says so.
 Status tile_encoding_of(const std::string& path, const std::string& flag, TileEncoding& out);
 
 // Sample centres of a size x size tile in EPSG:3857 metres (pixel areas: the tile's edges are the
@@ -42,5 +43,16 @@ SourceCrs web_mercator_crs();
 // Opens one tile through GDAL (bands 1-3, alpha 0 as nodata when there is a 4th band).
 Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding enc,
                      std::unique_ptr<SourceRaster>& out);
+
+// Opens an RGB(A) 8-bit image of encoded heights that is not addressed z/x/y (--tile-encoding on
+// a PNG or WebP of any size), decoded as open_web_tile decodes a tile and placed by `geo` and `crs`
+// (the file's own georeferencing as GDAL reads it, or invalid / none: the flags then place it). An
+// image with fewer than 3 bands or other than 8-bit samples is an unsupported_input error naming
+// --tile-encoding.
+Status open_encoded_image(const std::string& path, TileEncoding enc, const SampleGeo& geo, const SourceCrs& crs,
+                          std::unique_ptr<SourceRaster>& out);
+
+// True for the names --tile-encoding applies to: .png, .webp, .pngraw.
+bool is_encoded_image_name(const std::string& path);
 
 }  // namespace terrain::cook

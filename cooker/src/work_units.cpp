@@ -45,6 +45,17 @@ std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
 json rect_json(const SampleRect& r) { return json::array({r.c0, r.r0, r.c1, r.r1}); }
 SampleRect rect_of(const json& j) { return {j.at(0).get<int>(), j.at(1).get<int>(), j.at(2).get<int>(), j.at(3).get<int>()}; }
 bool meets(const SampleRect& a, const SampleRect& b) { return !a.empty() && !b.empty() && !intersect(a, b).empty(); }
+// The plan's record of what each input gave (CookReport::input_samples): [path, read, used] each.
+json input_samples_json(const std::vector<InputSamples>& v) {
+  json a = json::array();
+  for (const InputSamples& i : v) a.push_back(json::array({i.path, i.read, i.used}));
+  return a;
+}
+std::vector<InputSamples> input_samples_of(const json& a) {
+  std::vector<InputSamples> v;
+  for (const json& i : a) v.push_back(InputSamples{i.at(0).get<std::string>(), i.at(1).get<uint64_t>(), i.at(2).get<uint64_t>()});
+  return v;
+}
 
 // A unit's fingerprint: the plan's, its roots, its window and the fingerprints of the files whose
 // footprint meets the window (`files`: those, in the plan's order; format/SPEC.md section 18).
@@ -797,7 +808,8 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                  {"source_samples", report.source_samples},
                  {"source_spacing_m", report.source_spacing_m},
                  {"implausible_samples", report.implausible_samples},
-                 {"warnings", report.warnings}};
+                 {"warnings", report.warnings},
+                 {"input_samples", input_samples_json(report.input_samples)}};
   // Per input: the unit its heights declare and the factor applied (the merge's report and cook info).
   json height_units = json::array();
   for (const HeightUnit& u : report.input_height_units) height_units.push_back(height_unit_json(u));
@@ -967,6 +979,7 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
     rep.warnings = r.at("warnings").get<std::vector<std::string>>();
     if (r.contains("input_height_units"))  // absent in plans written before it
       for (const json& u : r.at("input_height_units")) rep.input_height_units.push_back(height_unit_of_json(u));
+    if (r.contains("input_samples")) rep.input_samples = input_samples_of(r.at("input_samples"));
     rep.frame = out.frame;
     rep.source_valid_samples = out.voids.valid_samples;
     rep.voids_filled_samples = out.voids.stats.filled_samples;

@@ -192,8 +192,9 @@ int run(int argc, char** argv) {
   app.add_option("--raw-type", o.raw_type, "Raw heightmaps: u16 (default for .r16/.raw), i16, f32 (.r32/.f32)")
       ->check(CLI::IsMember({"u16", "i16", "f32"}));
   app.add_option("--tile-encoding", o.tile_encoding,
-                 "Web elevation tiles given as z/x/y paths (.png, .webp) whose path does not say: terrarium "
-                 "(Mapzen / AWS Terrain Tiles) or mapbox (Mapbox / MapTiler terrain-RGB)")
+                 "RGB-encoded heights: terrarium (Mapzen / AWS Terrain Tiles) or mapbox (Mapbox / MapTiler "
+                 "terrain-RGB). Web tiles under z/x/y paths (.png, .webp) whose path does not say; any other "
+                 "PNG / WebP input is then decoded so too, placed by its own georeferencing or --spacing/--crs")
       ->check(CLI::IsMember({"terrarium", "mapbox"}));
   app.add_flag("--raw-big-endian", o.raw_big_endian, "Raw heightmaps are big-endian");
   app.add_option("--materials", o.materials_path, "Material rules JSON for the splat map (default: built-in)");

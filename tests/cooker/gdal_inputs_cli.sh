@@ -32,6 +32,24 @@ case $case_name in
   tile_without_encoding)
     mkdir -p t/12/654 && gdal_create -q -of PNG -outsize 256 256 -bands 3 -ot Byte -burn 128 t/12/654/1583.png
     expect_refused 2 "--tile-encoding" "$bin/terrain-cook" t/12/654/1583.png -q -o keep.terrain --heights-only ;;
+  terrarium_png)
+    # A terrarium PNG not under a z/x/y path: 131*256 + 74 + 128/256 - 32768 = 842.5 m everywhere (not
+    # the red channel's 131 "m" a grey heightmap reader gives), placed by --spacing / --crs.
+    gdal_create -q -of PNG -outsize 64 64 -bands 3 -ot Byte -burn 131 -burn 74 -burn 128 flat.png
+    "$bin/terrain-cook" flat.png -q -o flat.terrain --heights-only --tile-encoding terrarium --spacing 30,30 --crs local ||
+      { echo "FAIL: terrarium cook"; exit 1; }
+    h=$("$bin/terrain-inspect" flat.terrain --sample 900,900)
+    echo "$h" | grep -Eq '^842\.5' || { echo "FAIL: height $h, expected 842.5"; exit 1; }
+    echo "ok: terrarium PNG cooked at $h" ;;
+  tile_encoding_on_grey_png)
+    # --tile-encoding says the PNG holds RGB-encoded heights; a grey one is refused, not cooked as metres.
+    gdal_create -q -of PNG -outsize 64 64 -bands 1 -ot Byte -burn 128 grey.png
+    expect_refused 1 "grey\.png: 1 band\(s\); --tile-encoding terrarium reads heights encoded in red, green and blue" \
+      "$bin/terrain-cook" grey.png -q -o keep.terrain --heights-only --tile-encoding terrarium --spacing 30 --crs local ;;
+  tile_encoding_unused)
+    # A flag that applies to none of the inputs changes nothing: refused.
+    expect_refused 2 "--tile-encoding terrarium: names what a PNG or WebP input holds.*none of the inputs is one" \
+      "$bin/terrain-cook" tiles/a.tif -q -o keep.terrain --heights-only --tile-encoding terrarium ;;
   directory)
     out=$("$bin/terrain-cook" tiles -q -o dir.terrain --heights-only --json) || { echo "FAIL: directory cook"; exit 1; }
     # Both tiles are read, in path order; the mosaic is 128 samples wide.

@@ -189,6 +189,129 @@ TEST(WebTiles, GeneratedTilesDecodeToTheirHeights) {
   EXPECT_NE(r.description.find("Mapbox"), std::string::npos) << r.description;
 }
 
+// --tile-encoding on a PNG not under a z/x/y path (issue 48): a cut of the Oetztal SRTM DEM encoded
+// as terrarium RGB (h = R*256 + G + B/256 - 32768) decodes to the DEM's heights, placed by the PNG's
+// own georeferencing (.aux.xml) or by --spacing/--crs. Before, the PNG was read as a grey heightmap
+// and its red channel cooked as metres (129 .. 142 m here). A grey PNG with the flag, and the flag
+// with no PNG input, are refused.
+TEST(WebTiles, TerrariumImageOutsideZxyDecodesToTheDemsHeights) {
+  const fs::path dem_path = data_file("srtm_oetztal.tif");
+  TERRAIN_REQUIRE_DATA(dem_path);
+  const fs::path dir = scratch_dir("gdal_terrarium_image");
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> dem(GDALDataset::Open(dem_path.c_str(), GA_ReadOnly));
+  ASSERT_TRUE(dem);
+  const int w = 160, h = 120, x0 = 300, y0 = 200;  // the cut: columns 300..459, rows 200..319
+  std::vector<float> heights(size_t(w) * h);
+  ASSERT_EQ(dem->GetRasterBand(1)->RasterIO(GF_Read, x0, y0, w, h, heights.data(), w, h, GDT_Float32, 0, 0, nullptr),
+            CE_None);
+  double gt[6];
+  ASSERT_EQ(dem->GetGeoTransform(gt), CE_None);
+  const double cut_gt[6] = {gt[0] + x0 * gt[1], gt[1], 0, gt[3] + y0 * gt[5], 0, gt[5]};
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDriver* png = GetGDALDriverManager()->GetDriverByName("PNG");
+  ASSERT_TRUE(mem && png);
+  std::unique_ptr<GDALDataset> rgb(mem->Create("", w, h, 3, GDT_Byte, nullptr));
+  std::vector<std::vector<uint8_t>> band(3, std::vector<uint8_t>(heights.size()));
+  float lo = 1e9f, hi = -1e9f;
+  for (size_t i = 0; i < heights.size(); ++i) {
+    const double v = double(heights[i]) + 32768.0;
+    band[0][i] = uint8_t(int(std::floor(v)) / 256);
+    band[1][i] = uint8_t(int(std::floor(v)) % 256);
+    band[2][i] = uint8_t(std::lround((v - std::floor(v)) * 256.0));
+    lo = std::min(lo, heights[i]);
+    hi = std::max(hi, heights[i]);
+  }
+  ASSERT_GT(hi - lo, 500.0f);  // real relief: a red channel read as metres could not pass
+  for (int b = 0; b < 3; ++b)
+    ASSERT_EQ(rgb->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, w, h, band[size_t(b)].data(), w, h, GDT_Byte, 0, 0, nullptr),
+              CE_None);
+  // Without georeferencing, then with the DEM's (GDAL writes it to cut.png.aux.xml).
+  const std::string plain = (dir / "plain.png").string(), placed = (dir / "cut.png").string();
+  { std::unique_ptr<GDALDataset> out(png->CreateCopy(plain.c_str(), rgb.get(), FALSE, nullptr, nullptr, nullptr)); ASSERT_TRUE(out); }
+  rgb->SetGeoTransform(const_cast<double*>(cut_gt));
+  rgb->SetSpatialRef(dem->GetSpatialRef());
+  { std::unique_ptr<GDALDataset> out(png->CreateCopy(placed.c_str(), rgb.get(), FALSE, nullptr, nullptr, nullptr)); ASSERT_TRUE(out); }
+  ASSERT_TRUE(fs::exists(placed + ".aux.xml"));
+
+  cook::Raster reference;
+  {
+    std::vector<cook::Raster> r;
+    ASSERT_TRUE(cook::load_inputs(options_for({dem_path.string()}), r).ok());
+    reference = std::move(r[0]);
+  }
+  // Placed by its .aux.xml: the DEM's heights, sample positions and CRS.
+  {
+    cook::CookOptions o = options_for({placed});
+    o.tile_encoding = "terrarium";
+    std::vector<cook::Raster> r;
+    const Status st = cook::load_inputs(o, r);
+    ASSERT_TRUE(st.ok()) << st.message;
+    ASSERT_EQ(r[0].width, w);
+    ASSERT_EQ(r[0].height, h);
+    for (size_t i = 0; i < heights.size(); ++i) ASSERT_EQ(r[0].values[i], heights[i]) << i;
+    EXPECT_NEAR(r[0].geo.c[0], reference.geo.c[0] + x0 * reference.geo.c[1], 1e-9);
+    EXPECT_NEAR(r[0].geo.c[3], reference.geo.c[3] + y0 * reference.geo.c[5], 1e-9);
+    EXPECT_DOUBLE_EQ(r[0].geo.c[1], reference.geo.c[1]);
+    EXPECT_DOUBLE_EQ(r[0].geo.c[5], reference.geo.c[5]);
+    EXPECT_EQ(r[0].crs.kind, reference.crs.kind);
+    EXPECT_EQ(r[0].crs.epsg, reference.crs.epsg);
+    EXPECT_NE(r[0].description.find("terrarium"), std::string::npos) << r[0].description;
+  }
+  // No georeferencing: --spacing and --crs place it (a vertex grid, as heightmap images are).
+  {
+    cook::CookOptions o = options_for({plain});
+    o.tile_encoding = "terrarium";
+    o.spacing = std::array<double, 2>{90.0, 90.0};
+    o.crs = "local";
+    std::vector<cook::Raster> r;
+    const Status st = cook::load_inputs(o, r);
+    ASSERT_TRUE(st.ok()) << st.message;
+    for (size_t i = 0; i < heights.size(); ++i) ASSERT_EQ(r[0].values[i], heights[i]) << i;
+    EXPECT_EQ(r[0].geo.c[1], 90.0);
+    EXPECT_TRUE(r[0].geo.point_samples);
+    // Without --spacing it has no place: the usual message.
+    o.spacing.reset();
+    expect_refusal(cook::load_inputs(o, r), Error::invalid_argument, {"plain.png", "no georeferencing", "--spacing"});
+  }
+  // The same image cooked end to end: the archive's heights are the DEM's, not 129 .. 142 m.
+  {
+    cook::CookOptions o = options_for({placed});
+    o.tile_encoding = "terrarium";
+    o.output = (dir / "cut.terrain").string();
+    o.heights_only = true;
+    cook::CookReport report;
+    const Status st = cook::cook(o, {}, report);
+    ASSERT_TRUE(st.ok()) << st.message;
+    CookedArchive a;
+    ASSERT_TRUE(a.open(o.output).ok());
+    float amin = 1e9f, amax = -1e9f;
+    for (const terrain::NodeRecord& n : a.reader.nodes()) {
+      amin = std::min(amin, float(terrain::units_to_metres(n.min_height)));
+      amax = std::max(amax, float(terrain::units_to_metres(n.max_height)));
+    }
+    EXPECT_NEAR(amin, lo, 30.0);
+    EXPECT_NEAR(amax, hi, 30.0);
+  }
+  // A grey PNG with the flag is refused by name (not read as a heightmap).
+  const fs::path grey = dir / "grey.png";
+  {
+    std::unique_ptr<GDALDataset> g(mem->Create("", 16, 16, 1, GDT_Byte, nullptr));
+    std::unique_ptr<GDALDataset> out(png->CreateCopy(grey.c_str(), g.get(), FALSE, nullptr, nullptr, nullptr));
+    ASSERT_TRUE(out);
+  }
+  cook::CookOptions o = options_for({grey.string()});
+  o.tile_encoding = "terrarium";
+  o.spacing = std::array<double, 2>{1.0, 1.0};
+  o.crs = "local";
+  std::vector<cook::Raster> r;
+  expect_refusal(cook::load_inputs(o, r), Error::unsupported_input, {"grey.png", "1 band(s)", "--tile-encoding terrarium"});
+  // The flag with no PNG / WebP input would change nothing: refused.
+  o = options_for({dem_path.string()});
+  o.tile_encoding = "mapbox";
+  expect_refusal(cook::load_inputs(o, r), Error::invalid_argument, {"--tile-encoding mapbox", "none of the inputs"});
+}
+
 // A tile and a GeoTIFF in EPSG:3857 over the same pixels are the same input to the cooker; the
 // cook runs once a 3857 frame is possible (the "any CRS" part of issue 13).
 TEST(WebTiles, SameAsA3857GeoTiffAndCooksOnceTheFrameAllowsIt) {

@@ -92,6 +92,65 @@ void compare_cooked_back(const ArchiveReader& original, const ArchiveReader& aga
     }
 }
 
+// What cooking every tile of an export back found (cook_back_every_tile).
+struct RoundTrip {
+  size_t tiles = 0, all_hole_tiles = 0, samples = 0, holes = 0, hole_mismatches = 0;
+  double worst = 0, worst_excess = -1e9, max_node_error = 0;
+};
+
+// Cooks every tile of an export back with the flags its JSON gives (cook_back.tiles: the tile's own
+// origin, holes kept) at the export's level, and compares, at every sample of every tile, the
+// original archive's surface with the cooked-back one: both answer or neither (the hole masks), and
+// where both do, |difference| <= `rounding(height)` (the export's own: half the Unreal step, half
+// an ulp of Godot's float32) + the geometric error of the cooked-back node that answers.
+template <class Rounding>
+RoundTrip cook_back_every_tile(const ArchiveReader& original, const ex::Plan& p, const nlohmann::json& j, Rounding&& rounding) {
+  RoundTrip rt;
+  SurfaceSampler a(original);
+  const int T = p.tile_size;
+  for (const nlohmann::json& tile : j["cook_back"]["tiles"]) {
+    ++rt.tiles;
+    if (tile["hole_samples"].get<uint64_t>() == uint64_t(T) * uint64_t(T)) {  // nothing to cook back
+      ++rt.all_hole_tiles;
+      continue;
+    }
+    const std::string file = p.options.out_dir + "/" + tile["file"].get<std::string>();
+    const std::string back = file + ".back.terrain";
+    const std::string cmd = terrain::test::bin_dir().string() + "/terrain-cook " + file + " -o " + back + " " +
+                            tile["flags"].get<std::string>() + " --finest-level " + std::to_string(p.level) +
+                            " --tolerance 0.02 --heights-only -q";
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    ArchiveReader again;
+    EXPECT_TRUE(again.open(back).ok()) << back;
+    if (!again.is_open()) continue;
+    SurfaceSampler b(again);
+    const double ox = tile["origin"][0].get<double>(), oy = tile["origin"][1].get<double>();
+    for (int row = 0; row < T; ++row)
+      for (int col = 0; col < T; ++col) {
+        const double x = ox + col * p.spacing_m, y = oy + (T - 1 - row) * p.spacing_m;
+        std::optional<terrain::SurfaceSample> sa, sb;
+        EXPECT_TRUE(a.sample(x, y, sa).ok());
+        EXPECT_TRUE(b.sample(x, y, sb).ok());
+        ++rt.samples;
+        if (!sa) ++rt.holes;
+        if (bool(sa) != bool(sb)) {
+          if (++rt.hole_mismatches <= 5)
+            ADD_FAILURE() << tile["file"] << " sample (" << col << ", " << row << "): original "
+                          << (sa ? std::to_string(sa->height_m) : "hole") << ", cooked back "
+                          << (sb ? std::to_string(sb->height_m) : "hole");
+          continue;
+        }
+        if (!sa) continue;
+        const double d = std::fabs(sa->height_m - sb->height_m);
+        const double node_error = double(again.nodes()[size_t(again.find(sb->node))].geometric_error_m);
+        rt.worst = std::max(rt.worst, d);
+        rt.max_node_error = std::max(rt.max_node_error, node_error);
+        rt.worst_excess = std::max(rt.worst_excess, d - (rounding(sa->height_m) + node_error + 1e-6));
+      }
+  }
+  return rt;
+}
+
 // A Godot export of level 4 into `dir` in regions of `tile_size` samples.
 ex::Options godot_level4(const std::string& dir, int tile_size) {
   ex::Options o;
@@ -139,7 +198,8 @@ TEST(ExportRules, UnrealZScale100Spans256MetresEachWay) {
   EXPECT_DOUBLE_EQ(ex::unreal_decode(z, 32768), 0.0);
   EXPECT_NEAR(ex::unreal_decode(z, 65535), 256.0 - 256.0 / 32768.0, 1e-12);
   EXPECT_EQ(ex::unreal_encode(z, 0.0), 32768);
-  EXPECT_EQ(ex::unreal_encode(z, -1000.0), 0);      // clamped
+  EXPECT_EQ(ex::unreal_encode(z, -1000.0), 1);      // clamped to the lowest height: 0 is a hole
+  EXPECT_EQ(ex::unreal_encode(z, -256.0), 1);
   EXPECT_EQ(ex::unreal_encode(z, 1000.0), 65535);
 }
 
@@ -501,4 +561,109 @@ TEST_F(Jacksboro, GodotHeightsCookBackWithinTheStatedBound) {
   EXPECT_EQ(compared, size_t(201 * 201));
   EXPECT_LE(worst_excess, 0.0);
   EXPECT_LE(max_node_error, 0.02);  // the cook met its tolerance: the bound is float rounding + 0.02 m
+}
+
+// ---- Round trips (issue 48): every target and tile layout cooked back tile by tile -----------------
+// Each tile's printed command and JSON flags carry its own origin (a tiled export printed one for
+// all: tile x0_y0 cooked back 1008 m south here) and keep holes as holes (Unreal's 0 with
+// --nodata-value 0, Godot's NaN; the untiled Unreal cook-back made its padding a plain at the lowest
+// height with ringing into the data). The rectangles straddle the data's east edge, so every
+// layout has holes and tiles with data.
+
+TEST_F(Jacksboro, RoundTripGodotRegions) {
+  ex::Options o = godot_level4(kScratch + "/rt_godot", 128);
+  const double east = reader.world().extent_max_x_m;
+  o.rect = ex::Rect{east - 8.0 * 150, cy() - 8.0 * 60, east + 8.0 * 20, cy() + 8.0 * 100};
+  const ex::Plan p = plan_for(o);
+  ASSERT_EQ(p.tiles_x, 2);
+  ASSERT_EQ(p.tiles_y, 2);
+  const ex::Result r = run(p);
+  const nlohmann::json j = read_json(o.out_dir + "/terrain.json");
+  ASSERT_EQ(j["cook_back"]["tiles"].size(), 4u);
+  EXPECT_FALSE(j["cook_back"].contains("origin"));  // several tiles: no one origin for all
+  const std::string text = ex::import_instructions(p, r);
+  for (const nlohmann::json& t : j["cook_back"]["tiles"]) {
+    const ex::TileOrigin to = ex::tile_origin(p, t["tile"][0].get<int>(), t["tile"][1].get<int>());
+    EXPECT_EQ(t["origin"][0].get<double>(), to.x_m);
+    EXPECT_EQ(t["origin"][1].get<double>(), to.y_m);
+    EXPECT_NE(text.find(t["flags"].get<std::string>()), std::string::npos) << text;
+  }
+  // Region (0, 1) lies a whole region (128 samples of 8 m) south of region (0, 0).
+  EXPECT_EQ(j["cook_back"]["tiles"][0]["origin"][1].get<double>() - j["cook_back"]["tiles"][2]["origin"][1].get<double>(),
+            128 * 8.0);
+  const RoundTrip rt = cook_back_every_tile(reader, p, j, [](double h) { return std::fabs(h) * std::ldexp(1.0, -24); });
+  EXPECT_EQ(rt.tiles, 4u);
+  EXPECT_EQ(rt.samples + rt.all_hole_tiles * 128 * 128, r.samples);
+  EXPECT_GT(rt.holes, 0u);
+  EXPECT_EQ(rt.hole_mismatches, 0u);
+  EXPECT_LE(rt.worst_excess, 0.0);
+  EXPECT_LE(rt.max_node_error, 0.02);
+  std::printf("godot 2x2 regions: %zu samples, %zu holes, worst |original - cooked back| %.5f m, node error <= %.5f m\n",
+              rt.samples, rt.holes, rt.worst, rt.max_node_error);
+}
+
+TEST_F(Jacksboro, RoundTripUnrealOneHeightmap) {
+  ex::Options o;
+  o.out_dir = kScratch + "/rt_unreal";
+  o.level = 4;
+  const double east = reader.world().extent_max_x_m;
+  o.rect = ex::Rect{east - 8.0 * 150, cy(), east + 8.0 * 20, cy() + 8.0 * 100};
+  const ex::Plan p = plan_for(o);
+  ASSERT_FALSE(p.tiled);
+  ASSERT_EQ(p.tile_size, 253);
+  const ex::Result r = run(p);
+  ASSERT_GT(r.hole_samples, r.samples / 3);  // the padding to 253 x 253 and the data's edge: 41 %
+  const nlohmann::json j = read_json(o.out_dir + "/terrain.json");
+  ASSERT_EQ(j["cook_back"]["tiles"].size(), 1u);
+  EXPECT_EQ(j["cook_back"]["origin"], j["cook_back"]["tiles"][0]["origin"]);
+  EXPECT_EQ(j["cook_back"]["nodata_value"].get<int>(), 0);
+  EXPECT_NE(ex::import_instructions(p, r).find(j["cook_back"]["tiles"][0]["flags"].get<std::string>()), std::string::npos);
+  // No height is written as the hole value.
+  int w = 0, h = 0, ch = 0;
+  const auto px = read_image<uint16_t>(o.out_dir + "/terrain.png", OIIO::TypeDesc::UINT16, w, h, ch);
+  const auto vis = read_image<uint8_t>(o.out_dir + "/terrain_visibility.png", OIIO::TypeDesc::UINT8, w, h, ch);
+  ASSERT_EQ(px.size(), vis.size());
+  for (size_t k = 0; k < px.size(); ++k) ASSERT_EQ(px[k] == ex::kUnrealHoleValue, vis[k] == 255) << k;
+  const double half_step = r.unreal.step_m / 2;
+  const RoundTrip rt = cook_back_every_tile(reader, p, j, [&](double) { return half_step; });
+  EXPECT_EQ(rt.samples, r.samples);
+  EXPECT_EQ(rt.holes, r.hole_samples);
+  EXPECT_EQ(rt.hole_mismatches, 0u);
+  EXPECT_LE(rt.worst_excess, 0.0);
+  EXPECT_LE(rt.max_node_error, 0.02);
+  std::printf("unreal 253 x 253: %zu samples, %zu holes, worst |original - cooked back| %.5f m, bound step/2 %.5f + node "
+              "error <= %.5f m\n", rt.samples, rt.holes, rt.worst, half_step, rt.max_node_error);
+}
+
+TEST_F(Jacksboro, RoundTripUnrealTiles) {
+  ex::Options o;
+  o.out_dir = kScratch + "/rt_unreal_tiles";
+  o.level = 4;
+  o.tile_size = 127;
+  const double east = reader.world().extent_max_x_m;
+  o.rect = ex::Rect{east - 8.0 * 250, cy(), east + 8.0 * 20, cy() + 8.0 * 200};
+  const ex::Plan p = plan_for(o);
+  ASSERT_EQ(p.tiles_x, 3);
+  ASSERT_EQ(p.tiles_y, 2);
+  const ex::Result r = run(p);
+  const nlohmann::json j = read_json(o.out_dir + "/terrain.json");
+  ASSERT_EQ(j["cook_back"]["tiles"].size(), 6u);
+  EXPECT_FALSE(j["cook_back"].contains("origin"));
+  const std::string text = ex::import_instructions(p, r);
+  for (const nlohmann::json& t : j["cook_back"]["tiles"])  // a tile of holes only is said to be one
+    EXPECT_NE(text.find(t["hole_samples"].get<int>() == 127 * 127 ? t["file"].get<std::string>() + ": all holes"
+                                                                    : t["flags"].get<std::string>()),
+              std::string::npos) << text;
+  // Tiles share their edge rows: tile (0, 1) starts 126 samples south of tile (0, 0).
+  EXPECT_EQ(j["cook_back"]["tiles"][0]["origin"][1].get<double>() - j["cook_back"]["tiles"][3]["origin"][1].get<double>(),
+            126 * 8.0);
+  const double half_step = r.unreal.step_m / 2;
+  const RoundTrip rt = cook_back_every_tile(reader, p, j, [&](double) { return half_step; });
+  EXPECT_EQ(rt.tiles, 6u);
+  EXPECT_GT(rt.holes, 0u);
+  EXPECT_EQ(rt.hole_mismatches, 0u);
+  EXPECT_LE(rt.worst_excess, 0.0);
+  EXPECT_LE(rt.max_node_error, 0.02);
+  std::printf("unreal 3x2 tiles of 127: %zu samples (%zu all-hole tiles), %zu holes, worst %.5f m, step/2 %.5f m\n",
+              rt.samples, rt.all_hole_tiles, rt.holes, rt.worst, half_step);
 }

@@ -188,6 +188,16 @@ struct SurfaceTotals {
   double cone_encoded_mean_deg() const { return cone_patches ? cone_encoded_deg_sum / double(cone_patches) : 0.0; }
 };
 
+// What one input gave the cook, counted on the mosaic's grid (the first input's; a later input in
+// another CRS or at another spacing counts its samples resampled onto that grid): `read`, the grid
+// samples where it has a height; `used`, those of them the mosaic keeps (where inputs overlap, the
+// one listed first wins) and the archive is cooked from. The used counts of all inputs add up to
+// source_valid_samples.
+struct InputSamples {
+  std::string path;
+  uint64_t read = 0, used = 0;
+};
+
 struct CookReport {
   // Inputs
   std::vector<std::string> input_descriptions;
@@ -203,6 +213,9 @@ struct CookReport {
   double source_spacing_m = 0;       // finest source sample spacing, frame metres
   // Per input (same order as input_descriptions): the unit its heights declare and the factor applied.
   std::vector<HeightUnit> input_height_units;
+  // Per input (same order as input_descriptions): its samples read and used (InputSamples). An
+  // input that uses none, or under 1 % of what it read, also gets a warning.
+  std::vector<InputSamples> input_samples;
   // Frame and grid
   FrameCrs frame;
   std::string frame_reason;          // why this frame was chosen

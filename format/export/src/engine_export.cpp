@@ -49,7 +49,7 @@ UnrealZ unreal_z_for(double min_m, double max_m) {
 
 uint16_t unreal_encode(const UnrealZ& z, double height_m) {
   const double v = std::round(32768.0 + (height_m - z.location_z_cm / 100.0) / z.step_m);
-  return uint16_t(std::clamp(v, 0.0, 65535.0));
+  return uint16_t(std::clamp(v, 1.0, 65535.0));  // 0 is the hole value
 }
 
 double unreal_decode(const UnrealZ& z, uint16_t v) { return z.location_z_cm / 100.0 + (double(v) - 32768.0) * z.step_m; }
@@ -98,10 +98,26 @@ TileFiles tile_files(const Plan& p, const std::vector<std::string>& layers, int 
   return f;
 }
 std::string json_path(const Plan& p) { return path_in(p, p.options.name + ".json"); }
+
+// The terrain-cook flags that cook tile (tx, ty)'s heightmap back into frame metres: its own
+// south-west sample as the origin, holes (Unreal's 0, Godot's NaN) kept as holes.
+std::string cook_back_flags(const Plan& p, const UnrealZ& z, int tx, int ty) {
+  const TileOrigin o = tile_origin(p, tx, ty);
+  std::string f = fmt::format("--crs local --spacing {:.17g} --origin {:.17g},{:.17g}", p.spacing_m, o.x_m, o.y_m);
+  if (p.options.target == Target::unreal)
+    f += fmt::format(" --height-scale {:.17g} --height-offset {:.17g} --nodata-value {}", z.step_m,
+                     z.location_z_cm / 100.0 - 32768.0 * z.step_m, kUnrealHoleValue);
+  return f + " --nodata hole";
+}
 std::string collision_path(const Plan& p) { return path_in(p, p.options.name + "_collision.f32"); }
 std::string collision_holes_path(const Plan& p) { return path_in(p, p.options.name + "_collision_holes.u8"); }
 
 }  // namespace
+
+TileOrigin tile_origin(const Plan& p, int tx, int ty) {
+  return {p.west_x_m + double(tx) * p.tile_step * p.spacing_m,
+          p.north_y_m - (double(ty) * p.tile_step + (p.tile_size - 1)) * p.spacing_m};
+}
 
 Status plan_export(const ArchiveReader& reader, const Options& o, Plan& plan) {
   plan = Plan{};
@@ -391,6 +407,7 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
     for (int tx = 0; tx < p.tiles_x; ++tx) {
       const TileFiles files = tile_files(p, layers, tx, ty);
       const int T = p.tile_size, row0 = ty * p.tile_step, col0 = tx * p.tile_step;
+      result.tile_hole_samples.push_back(0);
       ImageFile height, mask;
       std::vector<ImageFile> weight(unreal ? n_layers : 0);
       if (Status s = height.open(files.height, T, 1, unreal ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::FLOAT); !s.ok()) return s;
@@ -415,6 +432,7 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
             ++result.samples;
             if (hole) {
               ++result.hole_samples;
+              ++result.tile_hole_samples.back();
             } else {
               lowest_sampled = std::min(lowest_sampled, h);
               highest_sampled = std::max(highest_sampled, h);
@@ -423,7 +441,7 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
             float wt[4];
             const int n = hole ? 0 : merged(band, k, id, wt);
             if (unreal) {
-              row16[size_t(c)] = hole ? uint16_t(0) : unreal_encode(result.unreal, h);
+              row16[size_t(c)] = hole ? kUnrealHoleValue : unreal_encode(result.unreal, h);
               row8[size_t(c)] = hole ? 255 : 0;  // Unreal's visibility layer: painted (255) = hole
               for (auto& rw : roww) rw[size_t(c)] = 0;
               // Rounded weights that sum to exactly 255 (Unreal's weight-blended layers): the
@@ -544,9 +562,9 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
                    {"weights", "8-bit per material: bilinear weight of the splat map's material ids"}};
     // terrain-cook flags that read a heightmap back (the frame metres of this export).
     j["cook_back"] = {{"spacing", p.spacing_m},
-                      {"origin", {p.west_x_m, south_y}},
                       {"height_scale", z.step_m},
-                      {"height_offset", z.location_z_cm / 100.0 - 32768.0 * z.step_m}};
+                      {"height_offset", z.location_z_cm / 100.0 - 32768.0 * z.step_m},
+                      {"nodata_value", kUnrealHoleValue}};
   } else {
     j["godot"] = {{"height", "EXR float32 metres, NaN = hole or no terrain"},
                   {"control", "RGBA8: R base material id, G overlay id, B overlay blend 0..255, A 0 = hole"},
@@ -557,8 +575,23 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
                                  {"layout", "float32 little-endian, row-major, row 0 = north, column 0 = west"},
                                  {"hole_height_m", range_lo},
                                  {"holes_layout", "uint8 per sample, same order, 1 = hole"}}}};
-    j["cook_back"] = {{"spacing", p.spacing_m}, {"origin", {p.west_x_m, south_y}}};
+    j["cook_back"] = {{"spacing", p.spacing_m}};
   }
+  // Each tile cooks back on its own, from its own south-west sample; one tile: also "origin".
+  nlohmann::json back_tiles = nlohmann::json::array();
+  for (int ty = 0; ty < p.tiles_y; ++ty)
+    for (int tx = 0; tx < p.tiles_x; ++tx) {
+      const TileOrigin o = tile_origin(p, tx, ty);
+      const uint64_t holes = result.tile_hole_samples[size_t(ty) * size_t(p.tiles_x) + size_t(tx)];
+      back_tiles.push_back({{"file", std::filesystem::path(tile_files(p, layers, tx, ty).height).filename().string()},
+                            {"tile", {tx, ty}},
+                            {"origin", {o.x_m, o.y_m}},
+                            {"hole_samples", holes},
+                            {"flags", cook_back_flags(p, result.unreal, tx, ty)}});
+    }
+  if (p.tiles_x * p.tiles_y == 1) j["cook_back"]["origin"] = back_tiles[0]["origin"];
+  j["cook_back"]["nodata"] = "hole";
+  j["cook_back"]["tiles"] = back_tiles;
   result.json = j.dump(2) + "\n";
   {
     FILE* f = std::fopen(json_path(p).c_str(), "wb");
@@ -589,14 +622,22 @@ std::string import_instructions(const Plan& p, const Result& r) {
     t += fmt::format("  16-bit step {:.6f} m: heights within {:.6f} m of the archive's surface\n", z.step_m, z.step_m / 2);
     t += fmt::format("  layers    {} (weight maps), visibility = holes\n",
                      r.layers.empty() ? std::string("none") : fmt::format("{}", fmt::join(r.layers, ", ")));
-    t += fmt::format("terrain-cook back: --crs local --spacing {:.17g} --origin {:.17g},{:.17g} --height-scale {:.17g} "
-                     "--height-offset {:.17g}\n",
-                     p.spacing_m, p.west_x_m, south_y, z.step_m, z.location_z_cm / 100.0 - 32768.0 * z.step_m);
   } else {
     t += "Godot / generic: EXR float heights (NaN = hole), RGBA control maps, collision float32 + uint8 hole mask\n";
-    t += fmt::format("terrain-cook back (EXR): --crs local --spacing {:.17g} --origin {:.17g},{:.17g}\n", p.spacing_m, p.west_x_m,
-                     south_y);
   }
+  // One command per tile: each has its own origin (holes stay holes).
+  t += p.tiles_x * p.tiles_y == 1 ? "terrain-cook back:\n" : "terrain-cook back (one archive per tile):\n";
+  const std::vector<std::string> no_layers;
+  for (int ty = 0; ty < p.tiles_y; ++ty)
+    for (int tx = 0; tx < p.tiles_x; ++tx) {
+      const std::string file = tile_files(p, no_layers, tx, ty).height;
+      const std::string stem = std::filesystem::path(file).stem().string();
+      const size_t k = size_t(ty) * size_t(p.tiles_x) + size_t(tx);
+      if (k < r.tile_hole_samples.size() && r.tile_hole_samples[k] == uint64_t(p.tile_size) * uint64_t(p.tile_size))
+        t += fmt::format("  {}: all holes, nothing to cook back\n", file);
+      else
+        t += fmt::format("  terrain-cook {} -o {}.terrain {}\n", file, stem, cook_back_flags(p, r.unreal, tx, ty));
+    }
   return t;
 }
 

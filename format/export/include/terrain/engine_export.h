@@ -38,6 +38,9 @@ struct UnrealZ {
   double step_m = 0;         // metres per 16-bit step = z_scale / 12800
 };
 UnrealZ unreal_z_for(double min_m, double max_m);
+// A hole (no terrain) in an Unreal heightmap: unreal_encode never gives it (its values are 1..65535;
+// the Z range reaches min_m at 1 or above), so cooking back with --nodata-value 0 restores the holes.
+inline constexpr uint16_t kUnrealHoleValue = 0;
 uint16_t unreal_encode(const UnrealZ& z, double height_m);
 double unreal_decode(const UnrealZ& z, uint16_t v);
 
@@ -79,6 +82,13 @@ struct Plan {
 };
 Status plan_export(const ArchiveReader& reader, const Options& options, Plan& plan);
 
+// The south-west sample of tile (tx, ty), frame metres: the --origin that cooks that tile's
+// heightmap back where it came from (the JSON's cook_back.tiles and the printed commands carry it).
+struct TileOrigin {
+  double x_m = 0, y_m = 0;
+};
+TileOrigin tile_origin(const Plan& plan, int tx, int ty);
+
 struct Result {
   std::vector<std::string> written;
   double min_height_m = 0, max_height_m = 0;  // over the sampled (non-hole) heights
@@ -86,12 +96,14 @@ struct Result {
   UnrealZ unreal;                             // unreal only
   std::vector<std::string> layers;            // materials with a weight map (present in the export)
   std::string json;                           // the <name>.json document also written
+  std::vector<uint64_t> tile_hole_samples;    // per tile, row by row from the north-west tile
 };
 // Samples the lattice and writes the files (creating out_dir). `progress` may be empty; false from
 // it cancels (Error::cancelled).
 Status run_export(const ArchiveReader& reader, const Plan& plan, const ProgressFn& progress, Result& result);
 
-// The text printed by terrain-export: what to type into the engine's import dialog.
+// The text printed by terrain-export: what to type into the engine's import dialog, and one
+// terrain-cook command per tile that cooks it back (its own origin; holes kept as holes).
 std::string import_instructions(const Plan& plan, const Result& result);
 
 }  // namespace terrain::engine_export
