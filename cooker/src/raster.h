@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "terrain/cook.h"
 #include "terrain/format.h"
+#include "terrain/height_unit.h"
 
 namespace terrain::cook {
 

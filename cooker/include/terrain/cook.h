@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "terrain/format.h"
+#include "terrain/height_unit.h"
 #include "terrain/output_paths.h"
 #include "terrain/progress.h"
 #include "terrain/status.h"
@@ -29,18 +30,6 @@ enum class SurfaceQuality : uint8_t { fast, balanced, best };
 // every node either way.
 enum class ErrorChecks : uint8_t { sample, all };
 enum class OverviewMode : uint8_t { automatic, on, off };
-
-// The unit an input declares for its heights and the factor the cook applies to its values
-// (metres = value * scale + height_offset). Declared: the vertical CRS's linear unit (a compound
-// CRS such as EPSG:32611+6360, NAVD88 height in US survey feet), else the band's unit type ("ft",
-// "US survey foot", "m"). An input that declares none is in metres (HGT, PNG, most GeoTIFFs).
-struct HeightUnit {
-  std::string declared;     // the unit as the file names it; empty: none declared
-  std::string declared_by;  // "vertical CRS" or "band unit type"; empty when none is declared
-  double declared_m = 1.0;  // metres per declared unit; NaN for a unit the cooker does not know
-  double scale = 1.0;       // the factor applied: CookOptions::height_scale when given (it replaces declared_m), else declared_m
-  bool scale_from_flag = false;  // scale is CookOptions::height_scale's
-};
 
 struct CookOptions {
   std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
