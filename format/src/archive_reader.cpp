@@ -5,6 +5,7 @@
 #include "terrain/archive_reader.h"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 
 #include "bytes.h"
@@ -164,11 +165,17 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
 Status ArchiveReader::section_bytes(SectionBytes& out) const {
   out = {};
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
-  std::vector<uint8_t> bytes;
+  std::array<uint8_t, layout::kPayloadHeaderSize> head;
   for (size_t i = 0; i < impl_->nodes.size(); ++i) {
+    const NodeRecord& r = impl_->nodes[i];
     detail::PayloadTable table;
-    if (Status s = impl_->read_payload(i, bytes, false); !s.ok()) return s;  // tables only, as documented
-    if (Status s = detail::parse_payload_table(bytes, table); !s.ok()) {
+    // The section table only: the first 64 bytes of each payload (a shorter payload fails the parse).
+    const auto want = std::span<uint8_t>(head).first(std::min<size_t>(head.size(), r.payload_size));
+    if (Status s = impl_->source->read(r.payload_offset, want); !s.ok()) {
+      s.message = impl_->where(r) + s.message;
+      return s;
+    }
+    if (Status s = detail::parse_payload_table(want, r.payload_size, table); !s.ok()) {
       s.message = "node " + node_name(impl_->nodes[i].key) + ": " + s.message;
       return s;
     }

@@ -19,10 +19,16 @@ namespace terrain {
 namespace detail {
 
 Status parse_payload_table(std::span<const uint8_t> payload, PayloadTable& out) {
+  return parse_payload_table(payload.first(std::min<size_t>(payload.size(), layout::kPayloadHeaderSize)), payload.size(), out);
+}
+
+Status parse_payload_table(std::span<const uint8_t> table, uint64_t payload_size, PayloadTable& out) {
   auto bad = [](std::string msg) { return Status::failure(Error::payload_invalid, std::move(msg)); };
-  if (payload.size() < layout::kPayloadHeaderSize)
-    return bad("payload is " + std::to_string(payload.size()) + " bytes, shorter than its 64-byte section table");
-  const uint8_t* p = payload.data();
+  if (payload_size < layout::kPayloadHeaderSize)
+    return bad("payload is " + std::to_string(payload_size) + " bytes, shorter than its 64-byte section table");
+  if (table.size() < layout::kPayloadHeaderSize)
+    return bad("section table is " + std::to_string(table.size()) + " bytes, expected 64");
+  const uint8_t* p = table.data();
   if (p[0] != layout::kSectionCount) return bad("section_count is " + std::to_string(p[0]) + ", expected 5");
   if (p[1] != 0 || p[2] != 0 || p[3] != 0) return bad("reserved payload header bytes are not zero");
   uint64_t at = layout::kPayloadHeaderSize;
@@ -51,14 +57,14 @@ Status parse_payload_table(std::span<const uint8_t> payload, PayloadTable& out) 
     if (sec.codec == layout::Codec::height_constant && sec.stored_size != 2)
       return bad(name + " section is constant but stored_size is " + std::to_string(sec.stored_size) + ", expected 2");
     if (sec.stored_size == 0) return bad(name + " section is empty");
-    if (sec.stored_size > payload.size() - at)
+    if (sec.stored_size > payload_size - at)
       return bad(name + " section (" + std::to_string(sec.stored_size) + " bytes at " + std::to_string(at) + ") runs past the payload end (" +
-                 std::to_string(payload.size()) + ")");
+                 std::to_string(payload_size) + ")");
     sec.data_offset = uint32_t(at);
     at += sec.stored_size;
   }
-  if (at != payload.size())
-    return bad(std::to_string(payload.size() - at) + " trailing bytes after the last section");
+  if (at != payload_size)
+    return bad(std::to_string(payload_size - at) + " trailing bytes after the last section");
   return Status::success();
 }
 
