@@ -73,8 +73,8 @@ class ArchiveReader {
   // `progress` (may be null) gets a fraction 0..1.
   Status verify(void (*progress)(double fraction, void* user) = nullptr, void* user = nullptr) const;
 
-  // Per-section byte totals (reads every payload and parses its section table; no checksum, no
-  // decompression).
+  // Per-section byte totals (reads the 64-byte section table of every payload and parses it; no
+  // checksum, no decompression).
   Status section_bytes(SectionBytes& out) const;
 
  private:
