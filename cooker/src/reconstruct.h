@@ -3,8 +3,9 @@
 // Inside the data: Catmull-Rom bicubic (Keys a = -0.5, the kernel of gdalwarp -r cubic) over the
 // 4x4 source samples around the point, in source sample space; it passes through every source
 // sample and reproduces planes exactly. Taps beyond the raster's edge continue its two outermost
-// samples linearly. Where any tap is nodata, it falls back to bilinear over the valid taps of the
-// surrounding 2x2 cell (weights renormalised). A point is a hole when its NEAREST source sample is nodata or outside the raster,
+// samples linearly, the slope limited where the outermost step is a cliff beside the one inside it
+// (continued_difference()). Where any tap is nodata, it falls back to bilinear over the valid taps
+// of the surrounding 2x2 cell (weights renormalised). A point is a hole when its NEAREST source sample is nodata or outside the raster,
 // so the covered area is the union of the valid samples' pixels (half a sample beyond the outer
 // samples, also for point-sampled rasters: the data's own edge samples stay fully drawn; the
 // archive's footprint and grid origin still follow their hull, frame.h). Beyond the raster's
@@ -26,6 +27,21 @@ namespace terrain::cook {
 inline double fast_floor(double x) {
   const double t = double(int64_t(x));
   return t > x ? t - 1.0 : t;
+}
+
+// The per-sample difference the linear continuation beyond the raster's edge uses: `outer`, the
+// difference of the two outermost samples of a row or column, limited to kContinuationRatio times
+// `inner` (the next difference inwards, the same way round) plus kContinuationSlackM metres, so that
+// a cliff between the two outermost samples (a fill value beside terrain, say) is not continued as
+// a slope of the cliff's height per sample: each continued sample lies within
+// (kContinuationRatio |inner| + kContinuationSlackM) per sample of the outermost one. Where the
+// limit does not bind (planes, and edges whose outermost step is within it: terrain, trees, coastal
+// bluffs) the result is `outer` itself, bit for bit; a NaN `inner` (nodata) leaves `outer` as it is.
+constexpr double kContinuationRatio = 16.0;
+constexpr double kContinuationSlackM = 256.0;
+inline double continued_difference(double outer, double inner) {
+  const double limit = kContinuationRatio * std::fabs(inner) + kContinuationSlackM;
+  return outer > limit ? limit : outer < -limit ? -limit : outer;  // NaN limit: both false
 }
 
 class Surface {
@@ -154,15 +170,29 @@ class Surface {
   const float* at(int c, int r) const { return z_ + ptrdiff_t(r - r0_) * stride_ + ptrdiff_t(c - c0_); }
 
   // Sample (c, r), with samples up to two beyond the raster extrapolated linearly from the two
-  // outermost ones (NaN when those are nodata). Needs a raster of at least 2x2 samples.
+  // outermost ones (NaN when those are nodata), the difference limited by continued_difference().
+  // Needs a raster of at least 2x2 samples.
   double extended(int c, int r) const {
-    if (r < 0) return row_extended(c, 0) + r * (row_extended(c, 1) - row_extended(c, 0));
-    if (r >= h_) return row_extended(c, h_ - 1) + (r - h_ + 1) * (row_extended(c, h_ - 1) - row_extended(c, h_ - 2));
+    if (r < 0) {
+      const double d = row_extended(c, 1) - row_extended(c, 0);
+      return row_extended(c, 0) + r * (h_ > 2 ? continued_difference(d, row_extended(c, 2) - row_extended(c, 1)) : d);
+    }
+    if (r >= h_) {
+      const double d = row_extended(c, h_ - 1) - row_extended(c, h_ - 2);
+      return row_extended(c, h_ - 1) +
+             (r - h_ + 1) * (h_ > 2 ? continued_difference(d, row_extended(c, h_ - 2) - row_extended(c, h_ - 3)) : d);
+    }
     return row_extended(c, r);
   }
   double row_extended(int c, int r) const {
-    if (c < 0) return *at(0, r) + c * (double(*at(1, r)) - *at(0, r));
-    if (c >= w_) return *at(w_ - 1, r) + (c - w_ + 1) * (double(*at(w_ - 1, r)) - *at(w_ - 2, r));
+    if (c < 0) {
+      const double d = double(*at(1, r)) - *at(0, r);
+      return *at(0, r) + c * (w_ > 2 ? continued_difference(d, double(*at(2, r)) - *at(1, r)) : d);
+    }
+    if (c >= w_) {
+      const double d = double(*at(w_ - 1, r)) - *at(w_ - 2, r);
+      return *at(w_ - 1, r) + (c - w_ + 1) * (w_ > 2 ? continued_difference(d, double(*at(w_ - 2, r)) - *at(w_ - 3, r)) : d);
+    }
     return *at(c, r);
   }
   bool valid(int c, int r) const {

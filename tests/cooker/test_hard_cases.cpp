@@ -229,6 +229,45 @@ TEST(HardCase, VerticalStepOf1000m) {
   EXPECT_NEAR(j["output"]["bytes_per_source_sample"].get<double>(), double(c.report.archive_bytes) / (600.0 * 120.0), 1e-9);
 }
 
+// A 2.5 km cliff reaching the raster's edge, as gdalwarp makes it when it reprojects a lidar tile
+// without nodata (the rotated footprint's corners filled with 0 m beside 2500 m terrain): slivers
+// of 0 m, 3 .. 0 samples wide, along the west and south edges and a staircase triangle in the
+// north-east, at 0.5 m spacing (the outer apron widens to one sample). The two outermost samples
+// of some rows are 0 m and 2500 m, and the surface's linear continuation beyond the edge used to
+// carry that difference on as a slope of -2500 m per sample, 2 km below the lowest sample (the
+// cook then failed: the range bound behind the steps does not foresee it). Bounds: the cook
+// succeeds; every node within the data's range widened by Catmull-Rom's 2-D overshoot bound
+// (0.28125 of the range, range_summary.h) and the limited continuation (continued_difference():
+// 16 times the inner difference, below 0.2 m on the terrain here, plus 256 m per sample, over at
+// most two samples: 2 x 259.2 m), far from the 2.5 km below 0 m of the unlimited continuation;
+// every sample within tolerance + half step + 1 mm.
+TEST(HardCase, CliffOf2500mAtTheRasterEdge) {
+  SyntheticDem d = utm_dem(400, 400, 0.5, 511000.0, 5020199.5);
+  d.point = true;  // samples on the 0.5 m lattice: refinement reproduces them beside the cliff
+  double lo = INFINITY, hi = -INFINITY;
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col) {
+      const int west = 3 - 4 * row / d.height, south = 3 - 4 * col / d.width;  // sliver widths 3 .. 0
+      const bool fill = col < west || row >= d.height - south || col - row > 300;
+      const double z = fill ? 0.0 : 2500.0 + 0.01 * col + 0.005 * row + 2.0 * std::sin(col * 0.05) * std::cos(row * 0.04);
+      d.at(col, row) = z;
+      lo = std::min(lo, z);
+      hi = std::max(hi, z);
+    }
+  ASSERT_EQ(d.at(0, 250), 0.0);  // a row whose two outermost samples are the cliff
+  ASSERT_GT(d.at(1, 250), 2490.0);
+  cook::CookOptions o;
+  o.threads = 1;
+  Cooked c;
+  ASSERT_NO_FATAL_FAILURE(cook_dem("cliff_edge", d, o, c));
+  const double overshoot = 0.28125 * (hi - lo) + 2 * (16 * 0.2 + 256) + c.archive.max_half_step() + kMm;
+  for (const NodeRecord& n : c.archive.reader.nodes()) {
+    EXPECT_GE(units_to_metres(n.min_height), lo - overshoot) << n.key.level << "/" << n.key.x << "/" << n.key.y;
+    EXPECT_LE(units_to_metres(n.max_height), hi + overshoot) << n.key.level << "/" << n.key.x << "/" << n.key.y;
+  }
+  expect_samples_within_bound(d, c, o.tolerance_m);
+}
+
 // Isolated one-sample spikes of +50 m on flat ground. Bounds: tolerance + half step + 1 mm at
 // every sample, and each spike's own sample exactly (half a step + 1 mm).
 TEST(HardCase, OneSampleSpikes) {
