@@ -95,7 +95,7 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
                       const std::vector<std::pair<std::string, std::string>>& descriptions) {
   nlohmann::ordered_json j;
   j["tool"] = "terrain-cook";
-  j["version"] = "0.1.0";
+  j["version"] = TERRAIN_VERSION;  // the project version (CMakeLists.txt), defined by cooker/CMakeLists.txt
   nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
   for (size_t i = 0; i < descriptions.size(); ++i) {
     inputs.push_back({{"path", descriptions[i].first}, {"description", descriptions[i].second}});
