@@ -32,16 +32,16 @@ add_library(terrain_geotiff INTERFACE)
 target_include_directories(terrain_geotiff SYSTEM INTERFACE ${GEOTIFF_INCLUDE_DIR} ${GEOTIFF_INCLUDE_DIR}/geotiff)
 target_link_libraries(terrain_geotiff INTERFACE ${GEOTIFF_LIBRARY} TIFF::TIFF)
 
-# GDAL (libgdal-dev): every raster input it reads (cooker/src/input_gdal.cpp, web_tiles.cpp).
+# GDAL (libgdal-dev): every raster input it reads (cooker/src/inputs/gdal/input_gdal.cpp, web_tile_source.cpp).
 find_package(GDAL CONFIG REQUIRED)
 
-# expat (libexpat1-dev): a VRT's XML read one source at a time (cooker/src/vrt_stream.cpp).
+# expat (libexpat1-dev): a VRT's XML read one source at a time (cooker/src/inputs/gdal/vrt_stream.cpp).
 find_package(EXPAT REQUIRED)
 
 # PROJ (libproj-dev): terrain-inspect's lon/lat datum conversion (format/tools/inspect_lonlat.cpp).
 pkg_check_modules(proj REQUIRED IMPORTED_TARGET proj)
 pkg_check_modules(libzip REQUIRED IMPORTED_TARGET libzip)
-# libdeflate (libdeflate-dev): deflate-compressed GeoTIFF blocks (cooker/src/tiff_blocks.cpp), as GDAL inflates them.
+# libdeflate (libdeflate-dev): deflate-compressed GeoTIFF blocks (cooker/src/inputs/tiff_blocks.cpp), as GDAL inflates them.
 pkg_check_modules(libdeflate REQUIRED IMPORTED_TARGET libdeflate)
 pkg_check_modules(squish REQUIRED IMPORTED_TARGET libsquish)
 # Debian 12's libsquish.pc has an empty prefix, so the target carries "-I/include", which CMake

@@ -1,5 +1,5 @@
 // terrain-read-bench: decoding a GeoTIFF source as the cook reads it, by the cooker's own block
-// reader (cooker/src/tiff_blocks.h) against GDAL (the baseline it replaces; TERRAIN_TIFF_DIRECT=0)
+// reader (cooker/src/inputs/tiff_blocks.h) against GDAL (the baseline it replaces; TERRAIN_TIFF_DIRECT=0)
 // and against inflating the same blocks alone (libzstd / libdeflate / the LZW decoder on bytes
 // already in memory: the floor any reader pays). Two read patterns: the first pass's (rows of 64 samples across the
 // whole width) and the blocks' (2048 x 2048 windows). One decoding thread, so CPU seconds compare
@@ -19,9 +19,9 @@
 #include <fstream>
 #include <vector>
 
-#include "inputs.h"
-#include "source_raster.h"
-#include "tiff_blocks.h"
+#include "inputs/inputs.h"
+#include "inputs/source_raster.h"
+#include "inputs/tiff_blocks.h"
 
 using namespace terrain;
 

@@ -10,8 +10,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "inputs.h"
-#include "memory_budget.h"
+#include "inputs/inputs.h"
+#include "base/memory_budget.h"
 #include "terrain/cook.h"
 
 namespace terrain::fuzz {

@@ -1,5 +1,5 @@
 // libFuzzer target (CMake option TERRAIN_FUZZ, clang): arbitrary bytes as a GeoTIFF for the
-// cooker's own block reader (cooker/src/tiff_blocks.h), without GDAL. Whatever the layout and the
+// cooker's own block reader (cooker/src/inputs/tiff_blocks.h), without GDAL. Whatever the layout and the
 // blocks say, open() either refuses or gives a reader whose windows decode or return false: no
 // read outside the file or a block, no crash, and where libtiff decodes every block too, its
 // samples (GDAL reads GeoTIFFs through libtiff). The first corpus directory, when empty, is filled
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "tiff_blocks.h"
+#include "inputs/tiff_blocks.h"
 
 namespace {
 

@@ -1,5 +1,5 @@
 // libFuzzer target (CMake option TERRAIN_FUZZ, clang): arbitrary bytes as a VRT for the cooker's
-// streamed XML reading (cooker/src/vrt_stream.h). Whatever the bytes, the read ends with a result,
+// streamed XML reading (cooker/src/inputs/gdal/vrt_stream.h). Whatever the bytes, the read ends with a result,
 // every source lies inside the file and in a band the header lists, and the same bytes read in
 // chunks of 1 to 256 bytes give exactly what one 1 MB chunk gives (sources, bands, byte ranges,
 // header, band positions). The first corpus directory, when empty, gets a gdalbuildvrt-like seed.
@@ -13,7 +13,7 @@
 #include <tuple>
 #include <vector>
 
-#include "vrt_stream.h"
+#include "inputs/gdal/vrt_stream.h"
 
 namespace {
 

@@ -11,12 +11,12 @@
 #include <map>
 #include <fmt/format.h>
 
-#include "cook_session.h"
-#include "node_spool.h"
-#include "overview_levels.h"
+#include "session/cook_session.h"
+#include "pyramid/node_spool.h"
+#include "pyramid/overview_levels.h"
 #include "terrain/cook.h"
 #include "terrain/output_paths.h"
-#include "work_units.h"
+#include "units/work_units.h"
 
 namespace terrain::cook {
 namespace {

@@ -4,8 +4,8 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "crs.h"
-#include "height_units.h"
+#include "frame/crs.h"
+#include "inputs/height_units.h"
 #include "surface/surface_layers.h"
 #include "terrain/cook.h"
 

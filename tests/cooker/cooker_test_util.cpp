@@ -14,7 +14,7 @@
 #include <map>
 #include <mutex>
 
-#include "raster.h"
+#include "inputs/raster.h"
 #include "terrain/bc_decode.h"
 
 namespace terrain::test {

@@ -7,7 +7,7 @@
 #include <fstream>
 
 #include "fuzz_cooker_inputs_body.h"
-#include "inputs.h"
+#include "inputs/inputs.h"
 #include "test_data.h"
 
 namespace {

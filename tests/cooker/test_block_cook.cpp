@@ -13,7 +13,7 @@
 #include <fstream>
 #include <iterator>
 
-#include "cook_session.h"
+#include "session/cook_session.h"
 #include "cooker_test_util.h"
 #include "test_data.h"
 

@@ -13,12 +13,12 @@
 #include <fmt/format.h>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "source_raster.h"
+#include "inputs/inputs.h"
+#include "inputs/source_raster.h"
 #include "test_data.h"
-#include "vrt_stream.h"
-#include "vrt_xml.h"
-#include "web_tiles.h"
+#include "inputs/gdal/vrt_stream.h"
+#include "inputs/gdal/vrt_xml.h"
+#include "inputs/web_tiles.h"
 
 using namespace terrain;
 using namespace terrain::test;

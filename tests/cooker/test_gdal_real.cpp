@@ -7,8 +7,8 @@
 #include <fmt/format.h>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "source_raster.h"
+#include "inputs/inputs.h"
+#include "inputs/source_raster.h"
 #include "test_data.h"
 
 using namespace terrain;

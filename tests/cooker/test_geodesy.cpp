@@ -10,10 +10,10 @@
 #include <sys/wait.h>
 
 #include "cooker_test_util.h"
-#include "frame.h"
-#include "crs.h"
-#include "mosaic.h"
-#include "raster.h"
+#include "frame/frame.h"
+#include "frame/crs.h"
+#include "mosaic/mosaic.h"
+#include "inputs/raster.h"
 #include "test_data.h"
 
 using namespace terrain;

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cooker_test_util.h"
-#include "node_cook.h"
+#include "pyramid/node_cook.h"
 #include "test_data.h"
 
 using namespace terrain;

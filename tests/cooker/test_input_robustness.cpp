@@ -7,9 +7,9 @@
 #include <filesystem>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "memory_budget.h"
-#include "void_fill.h"
+#include "inputs/inputs.h"
+#include "base/memory_budget.h"
+#include "voids/void_fill.h"
 #include "test_data.h"
 
 using namespace terrain;

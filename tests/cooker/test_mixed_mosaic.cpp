@@ -1,5 +1,5 @@
 // Inputs in different CRSs and at different spacings in one cook (issue 13): every input after the
-// first is resampled onto the first input's grid (cooker/src/resample_inputs.h), then mosaicked
+// first is resampled onto the first input's grid (cooker/src/mosaic/resample_inputs.h), then mosaicked
 // with first-listed-wins.
 #include <gtest/gtest.h>
 
@@ -14,7 +14,7 @@
 #include <ogr_srs_api.h>
 
 #include "cooker_test_util.h"
-#include "mosaic_source.h"
+#include "mosaic/mosaic_source.h"
 #include "test_data.h"
 
 using namespace terrain;

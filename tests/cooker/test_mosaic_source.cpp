@@ -1,4 +1,4 @@
-// The windowed mosaic reader (cooker/src/mosaic_source.h, issue 13): any window of the mosaic,
+// The windowed mosaic reader (cooker/src/mosaic/mosaic_source.h, issue 13): any window of the mosaic,
 // inside, across the edges or outside it, is bit-identical to the same rectangle of the whole read,
 // and the whole read is bit-identical to what load_inputs + mosaic gave before MosaicSource existed
 // (hashes recorded from that code, commit 91de528, on the shared DEMs).
@@ -16,11 +16,11 @@
 #include <random>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "mosaic.h"
-#include "mosaic_source.h"
-#include "raster.h"
-#include "source_raster.h"
+#include "inputs/inputs.h"
+#include "mosaic/mosaic.h"
+#include "mosaic/mosaic_source.h"
+#include "inputs/raster.h"
+#include "inputs/source_raster.h"
 #include "test_data.h"
 
 using namespace terrain;

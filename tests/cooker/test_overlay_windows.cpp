@@ -14,9 +14,9 @@
 #include <fmt/format.h>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "overlays.h"
-#include "raster.h"
+#include "inputs/inputs.h"
+#include "overlays/overlays.h"
+#include "inputs/raster.h"
 #include "test_data.h"
 
 using namespace terrain;

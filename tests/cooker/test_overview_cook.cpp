@@ -14,7 +14,7 @@
 
 #include "cooker_test_util.h"
 #include "heap_in_use.h"
-#include "overview_levels.h"
+#include "pyramid/overview_levels.h"
 #include "terrain/bc_decode.h"
 #include "terrain/streamer.h"
 #include "test_data.h"

@@ -14,7 +14,7 @@
 #include <string_view>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
+#include "inputs/inputs.h"
 #include "test_data.h"
 
 using namespace terrain;

@@ -1,4 +1,4 @@
-// The cooker's own decoding of plain GeoTIFF blocks (cooker/src/tiff_blocks.h): the predictors'
+// The cooker's own decoding of plain GeoTIFF blocks (cooker/src/inputs/tiff_blocks.h): the predictors'
 // undo against the TIFF rules written out here, every window of every supported layout bit for bit
 // GDAL's, what it leaves to GDAL (and that the source then reads the same samples), and archives
 // equal with the reader on and off.
@@ -22,12 +22,12 @@
 #include <thread>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "slab_pool.h"
-#include "source_raster.h"
+#include "inputs/inputs.h"
+#include "base/slab_pool.h"
+#include "inputs/source_raster.h"
 #include "test_data.h"
-#include "tiff_blocks.h"
-#include "vrt_tiles.h"
+#include "inputs/tiff_blocks.h"
+#include "inputs/gdal/vrt_tiles.h"
 
 using namespace terrain;
 using namespace terrain::test;
@@ -307,7 +307,7 @@ TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
   EXPECT_NE(st.message.find("damaged.tif"), std::string::npos) << st.message;
 }
 
-// --- VRT mosaics read through their tiles (cooker/src/vrt_tiles.h) ---
+// --- VRT mosaics read through their tiles (cooker/src/inputs/gdal/vrt_tiles.h) ---
 
 // A w x h Float32 tile whose samples come from f(c, r) (NaN allowed), zstd with predictor 3.
 template <class F>
@@ -553,7 +553,7 @@ TEST(TiffBlocks, ArchivesAreTheSameWithGdalDecoding) {
   EXPECT_TRUE(bytes[0] == bytes[1]) << "archives differ";
 }
 
-// The decoded blocks' slab pool (cooker/src/slab_pool.h): slots never overlap and keep what is
+// The decoded blocks' slab pool (cooker/src/base/slab_pool.h): slots never overlap and keep what is
 // written into them, come back for reuse, and return their slabs to the system once free. Sizes:
 // 1 MB + 16 is a 512 x 512 Float32 tile with the LZW decoder's slack; a slab holds 16 slots of 64-byte
 // aligned size within 2-16 MB, so 15 such tiles per 16 MB slab, and small slots share one of 2 MB.

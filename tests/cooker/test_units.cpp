@@ -6,13 +6,13 @@
 #include <limits>
 #include <random>
 
-#include "crs.h"
-#include "frame.h"
-#include "quantize.h"
-#include "raster.h"
-#include "reconstruct.h"
-#include "sample_window.h"
-#include "void_fill.h"
+#include "frame/crs.h"
+#include "frame/frame.h"
+#include "pyramid/quantize.h"
+#include "inputs/raster.h"
+#include "pyramid/reconstruct.h"
+#include "base/sample_window.h"
+#include "voids/void_fill.h"
 
 using namespace terrain;
 using namespace terrain::cook;

@@ -10,12 +10,12 @@
 #include <random>
 
 #include "cooker_test_util.h"
-#include "inputs.h"
-#include "range_summary.h"
-#include "raster.h"
+#include "inputs/inputs.h"
+#include "voids/range_summary.h"
+#include "inputs/raster.h"
 #include "test_data.h"
-#include "void_fill.h"
-#include "void_plan.h"
+#include "voids/void_fill.h"
+#include "voids/void_plan.h"
 
 using namespace terrain;
 using namespace terrain::cook;

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "bc_blocks.h"
-#include "inputs.h"
+#include "inputs/inputs.h"
 #include "normals.h"
 #include "splat.h"
 #include "surface_test_support.h"

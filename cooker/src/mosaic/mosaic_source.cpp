@@ -1,0 +1,268 @@
+#include "mosaic/mosaic_source.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fmt/format.h>
+
+#include "frame/crs.h"
+#include "base/memory_budget.h"
+#include "mosaic/resample_inputs.h"
+#include "inputs/source_raster.h"
+#include "inputs/tiff_blocks.h"
+
+namespace terrain::cook {
+
+MosaicSource::MosaicSource() = default;
+MosaicSource::~MosaicSource() = default;
+MosaicSource::MosaicSource(MosaicSource&&) noexcept = default;
+MosaicSource& MosaicSource::operator=(MosaicSource&&) noexcept = default;
+
+Status MosaicSource::assemble(std::vector<Layer> layers, std::vector<InputStat> stats, uint64_t held_bytes,
+                              uint64_t memory_limit_bytes, MosaicSource& out) {
+  out = MosaicSource{};
+  if (layers.empty()) return Status::failure(Error::invalid_argument, "no inputs to mosaic");
+  const Raster& ref = layers[0].input.raster;
+  const AffineMap ref_map = AffineMap::from(ref.geo);
+  int64_t c0 = 0, r0 = 0, c1 = ref.width, r1 = ref.height;
+  double ref_lon = 0, ref_lat = 0;
+  ref_map.to_model(0.5 * (ref.width - 1), 0.5 * (ref.height - 1), ref_lon, ref_lat);
+  for (size_t i = 0; i < layers.size(); ++i) {
+    InputLayer& in = layers[i].input;
+    Raster& r = in.raster;
+    if (i > 0 && needs_resampling(ref, r)) {
+      // Another CRS or spacing: seen on the first input's grid, read by windows (resample_inputs.h).
+      const Raster header = [&] {
+        Raster h;
+        h.path = r.path;
+        h.description = r.description;
+        h.crs = r.crs;
+        h.geo = r.geo;
+        h.width = r.width;
+        h.height = r.height;
+        h.nodata_declared = r.nodata_declared;
+        return h;
+      }();
+      const bool windowed = in.source != nullptr;
+      held_bytes -= uint64_t(r.values.size()) * sizeof(float);  // counted again below when held whole
+      std::unique_ptr<ResampledInput> resampled;
+      if (Status st = ResampledInput::open(ref, std::move(in), resampled); !st.ok()) return st;
+      held_bytes += uint64_t(resampled->input().values.size()) * sizeof(float) + resampled->resident_bytes();
+      if (Status st = check_memory(held_bytes, memory_limit_bytes, header.path,
+                                   "its anchors and the inputs held whole",
+                                   "raise --memory-limit, or reproject the inputs to one grid with gdalwarp first");
+          !st.ok())
+        return st;
+      stats[i].implausible = resampled->implausible();
+      stats[i].bytes_read = resampled->bytes_read();
+      stats[i].windowed = windowed;
+      in = InputLayer{};
+      Raster& placed = in.raster;
+      placed.path = header.path;
+      placed.width = resampled->width();
+      placed.height = resampled->height();
+      placed.crs = ref.crs;
+      placed.geo = ref.geo;
+      ref_map.to_model(double(resampled->col()), double(resampled->row()), placed.geo.c[0], placed.geo.c[3]);
+      placed.nodata_declared = header.nodata_declared;
+      placed.implausible = resampled->implausible();
+      placed.description = fmt::format("{}, resampled from {} onto the first input's grid as {}x{} (tent filter of "
+                                        "radius {:.3g} input samples)",
+                                        header.description, describe_crs(header.crs), placed.width, placed.height,
+                                        resampled->radius());
+      layers[i].resampled = std::move(resampled);
+    }
+    if (r.crs.kind == CrsKind::geographic) {
+      // Tiles either side of the antimeridian (N19E179 and N19W180) are neighbours: move each
+      // input by whole turns to within half a turn of the first one, so they share one grid.
+      double lon = 0, lat = 0;
+      AffineMap::from(r.geo).to_model(0.5 * (r.width - 1), 0.5 * (r.height - 1), lon, lat);
+      r.geo.c[0] += std::remainder(lon - ref_lon, 360.0) - (lon - ref_lon);
+    }
+    if (!same_crs(r.crs, ref.crs))
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{} and {} are in different CRSs ({} vs {}); mosaicked inputs must share one "
+                                         "(reproject with gdalwarp first)", ref.path, r.path, describe_crs(ref.crs),
+                                         describe_crs(r.crs)));
+    for (int k : {1, 2, 4, 5})
+      if (std::fabs(r.geo.c[k] - ref.geo.c[k]) > 1e-9 * (std::fabs(ref.geo.c[1]) + std::fabs(ref.geo.c[5])))
+        return Status::failure(Error::unsupported_input,
+                               fmt::format("{} and {} have different sample spacings; mosaicked inputs must share one "
+                                           "pixel grid (resample with gdalwarp -tr first)", ref.path, r.path));
+    double col = 0, row = 0;
+    ref_map.to_sample(r.geo.c[0], r.geo.c[3], col, row);
+    const double rc = std::round(col), rr = std::round(row);
+    if (std::fabs(col - rc) > 1e-3 || std::fabs(row - rr) > 1e-3)
+      return Status::failure(Error::unsupported_input,
+                             fmt::format("{} is offset by a fraction of a sample ({:.4f}, {:.4f}) from {}; mosaicked "
+                                         "inputs must share one pixel grid", r.path, col - rc, row - rr, ref.path));
+    layers[i].col = int64_t(rc);
+    layers[i].row = int64_t(rr);
+    c0 = std::min(c0, layers[i].col);
+    r0 = std::min(r0, layers[i].row);
+    c1 = std::max(c1, layers[i].col + r.width);
+    r1 = std::max(r1, layers[i].row + r.height);
+  }
+  const int64_t w = c1 - c0, h = r1 - r0;
+  if (w * h > (int64_t(1) << 32))
+    return Status::failure(Error::unsupported_input, fmt::format("the mosaic would be {}x{} samples: too large", w, h));
+  Raster m;
+  if (layers.size() == 1) {
+    // A single input is the mosaic as it is.
+    m.path = ref.path;
+    m.description = ref.description;
+    m.width = ref.width;
+    m.height = ref.height;
+    m.geo = ref.geo;
+    m.crs = ref.crs;
+    m.nodata_declared = ref.nodata_declared;
+  } else {
+    m.path = ref.path;
+    m.width = int(w);
+    m.height = int(h);
+    m.crs = ref.crs;
+    m.geo = ref.geo;
+    ref_map.to_model(double(c0), double(r0), m.geo.c[0], m.geo.c[3]);
+    m.description = fmt::format("mosaic {}x{} of {} inputs:", w, h, layers.size());
+    for (const Layer& l : layers) m.description += fmt::format(" [{}: {}]", l.input.raster.path, l.input.raster.description);
+  }
+  for (Layer& l : layers) {
+    l.col -= c0;
+    l.row -= r0;
+  }
+  out.header_ = std::move(m);
+  out.layers_ = std::move(layers);
+  out.stats_ = std::move(stats);
+  return Status::success();
+}
+
+Status MosaicSource::read(int c0, int r0, int w, int h, float* out) {
+  if (w < 0 || h < 0)
+    return Status::failure(Error::invalid_argument, fmt::format("mosaic window {}x{}: negative size", w, h));
+  const int64_t wc0 = c0, wr0 = r0, wc1 = wc0 + w, wr1 = wr0 + h;
+  // One input holding the whole window (the common case): read straight into `out`.
+  if (layers_.size() == 1 && layers_[0].input.source) {
+    Layer& l = layers_[0];
+    const Raster& r = l.input.raster;
+    if (wc0 >= l.col && wr0 >= l.row && wc1 <= l.col + r.width && wr1 <= l.row + r.height && w > 0 && h > 0) {
+      if (Status st = read_layer_window(l.input, int(wc0 - l.col), int(wr0 - l.row), w, h, out, scratch_,
+                                        count_implausible_ ? &stats_[0].implausible : nullptr);
+          !st.ok())
+        return st;
+      stats_[0].bytes_read = l.input.source->info().bytes_read;
+      if (count_implausible_) {
+        uint64_t valid = 0;
+        for (size_t k = 0, n = size_t(w) * size_t(h); k < n; ++k) valid += std::isnan(out[k]) ? 0 : 1;
+        stats_[0].samples_read += valid;
+        stats_[0].samples_used += valid;
+      }
+      return Status::success();
+    }
+  }
+  std::fill_n(out, size_t(w) * size_t(h), NAN);
+  for (size_t i = 0; i < layers_.size(); ++i) {
+    Layer& l = layers_[i];
+    const Raster& r = l.input.raster;
+    const int64_t x0 = std::max(wc0, l.col), x1 = std::min(wc1, l.col + r.width);
+    const int64_t y0 = std::max(wr0, l.row), y1 = std::min(wr1, l.row + r.height);
+    if (x0 >= x1 || y0 >= y1) continue;
+    const int iw = int(x1 - x0), ih = int(y1 - y0);
+    const float* src = nullptr;
+    size_t src_stride = 0;
+    if (l.resampled) {
+      window_.resize(size_t(iw) * size_t(ih));
+      if (Status st = l.resampled->read(int(x0 - l.col), int(y0 - l.row), iw, ih, window_.data()); !st.ok()) return st;
+      stats_[i].bytes_read = l.resampled->bytes_read();
+      src = window_.data();
+      src_stride = size_t(iw);
+    } else if (l.input.source) {
+      window_.resize(size_t(iw) * size_t(ih));
+      if (Status st = read_layer_window(l.input, int(x0 - l.col), int(y0 - l.row), iw, ih, window_.data(), scratch_,
+                                        count_implausible_ ? &stats_[i].implausible : nullptr);
+          !st.ok())
+        return st;
+      stats_[i].bytes_read = l.input.source->info().bytes_read;
+      src = window_.data();
+      src_stride = size_t(iw);
+    } else {
+      // Held whole (heights finished): straight from its values.
+      src = &r.values[size_t(y0 - l.row) * size_t(r.width) + size_t(x0 - l.col)];
+      src_stride = size_t(r.width);
+    }
+    uint64_t read = 0, used = 0;
+    for (int row = 0; row < ih; ++row) {
+      float* dst = out + size_t(y0 - wr0 + row) * size_t(w) + size_t(x0 - wc0);
+      const float* s = src + size_t(row) * src_stride;
+      if (count_implausible_)
+        for (int col = 0; col < iw; ++col) {
+          const bool has = !std::isnan(s[col]);
+          read += has ? 1 : 0;
+          used += has && std::isnan(dst[col]) ? 1 : 0;
+        }
+      for (int col = 0; col < iw; ++col)
+        if (std::isnan(dst[col])) dst[col] = s[col];  // first listed input wins
+    }
+    stats_[i].samples_read += read;
+    stats_[i].samples_used += used;
+  }
+  return Status::success();
+}
+
+uint64_t MosaicSource::held_input_bytes() const {
+  uint64_t n = 0;
+  for (const Layer& l : layers_) {
+    n += uint64_t(l.input.raster.values.size()) * sizeof(float);
+    if (l.resampled) n += uint64_t(l.resampled->input().values.size()) * sizeof(float);
+  }
+  return n;
+}
+
+uint64_t MosaicSource::resident_bytes() const {
+  uint64_t n = 0;
+  bool windowed = false;
+  for (const Layer& l : layers_) {
+    n += uint64_t(l.input.raster.values.capacity()) * sizeof(float);
+    if (l.resampled) n += uint64_t(l.resampled->input().values.capacity()) * sizeof(float) + l.resampled->resident_bytes();
+    windowed = windowed || l.input.source || (l.resampled && l.resampled->bytes_read() > 0);
+  }
+  n += uint64_t(window_.capacity() + scratch_.capacity()) * sizeof(float);
+  return n + (windowed ? gdal_cache_used_bytes() + tiff_block_cache_used_bytes() : 0);
+}
+
+Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
+                          bool files_checked) {
+  out = MosaicSource{};
+  ReadOptions ro;
+  if (Status st = input_read_options(options, ro); !st.ok()) return st;
+  ro.files_checked = files_checked;
+  ro.bytes_per_sample = sizeof(float);  // what this source holds of an input read whole
+  std::vector<std::string> paths;
+  if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
+  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
+  std::vector<MosaicSource::Layer> layers;
+  std::vector<MosaicSource::InputStat> stats;
+  uint64_t held = 0;
+  for (const std::string& path : paths) {
+    ro.memory_limit_bytes = memory_limit_bytes > held ? memory_limit_bytes - held : 0;
+    MosaicSource::Layer l;
+    if (Status st = open_input_layer(path, options, ro, l.input); !st.ok()) return st;
+    // A VRT's missing tile would only show when a window first reaches it: name it now.
+    if (l.input.source && !files_checked)
+      if (Status st = check_vrt_tiles(path); !st.ok()) return st;
+    const Raster& r = l.input.raster;
+    MosaicSource::InputStat s;
+    s.path = r.path;
+    s.description = r.description;
+    s.crs = r.crs;
+    s.windowed = l.input.source != nullptr;
+    s.height_unit = r.height_unit;
+    if (s.windowed) s.decoder = l.input.source->info().decoder;
+    if (!s.windowed) s.implausible = r.implausible;
+    held += uint64_t(r.values.size()) * sizeof(float);
+    stats.push_back(std::move(s));
+    layers.push_back(std::move(l));
+  }
+  return MosaicSource::assemble(std::move(layers), std::move(stats), held, memory_limit_bytes, out);
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,543 @@
+#include "session/cook_session.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "frame/crs.h"
+#include "inputs/height_units.h"
+#include "inputs/inputs.h"
+#include "overlays/overlays.h"
+#include "pyramid/overview_levels.h"
+#include "base/parallel.h"
+#include "pyramid/quantize.h"
+#include "inputs/source_raster.h"
+#include "terrain/archive_reader.h"
+#include "inputs/tiff_blocks.h"
+
+namespace terrain::cook {
+namespace {
+
+constexpr double kRootSizeM = node_size_m(kRootLevel);
+
+// Finest level allowed by default: vertex spacing at least 1/32 of the source sample spacing.
+// Refinement is error-driven, so this only bounds it: bilinear vertices must come within the
+// tolerance of a Catmull-Rom surface through coarse samples, and on the shared 21-90 m DEMs the
+// tolerance of 0.5 m was met at 2-4 m spacing (1/10 to 1/32 of the source) where the relief is
+// steep; flat areas stop at the roots.
+int finest_level_for(double source_spacing_m) {
+  for (int level = 0; level < kRootLevel; ++level)
+    if (vertex_spacing_m(level) >= source_spacing_m / 32.0) return level;
+  return kRootLevel;
+}
+
+// Nodes stop refining at the finest level allowed, even where the error still exceeds the
+// tolerance (coarse sources: Catmull-Rom between 30-100 m samples is not met by bilinear vertices).
+std::string unmet_tolerance_warning(const CookReport& r) {
+  const int l = r.finest_level;
+  std::string why = fmt::format("level {} ({} m vertex spacing) is the finest level allowed", l, vertex_spacing_m(l));
+  if (l > 0)
+    why += fmt::format(" (from the source spacing {:.3g} m: 1/32 of it, or --finest-level); --finest-level {} lets "
+                       "nodes refine further (at the cost of more nodes)", r.source_spacing_m, l - 1);
+  else
+    why += " and the finest the format has";
+  return fmt::format("--tolerance {} m is not met everywhere: the full-detail error reaches {:.3f} m because {}",
+                     r.tolerance_m, r.leaf_error_max_m, why);
+}
+
+// The root grid and the data footprint, which the report states as the archive's metadata holds
+// them (WorldInfo and CookReport name these members the same): grid_of(report) = grid_of(world).
+template <class T>
+auto grid_of(T& t) {
+  return std::tie(t.origin_x_m, t.origin_y_m, t.roots_x, t.roots_y, t.extent_min_x_m, t.extent_min_y_m,
+                  t.extent_max_x_m, t.extent_max_y_m);
+}
+
+// Blocks of side x side roots: the largest side whose cook window (the roots, their windows'
+// margin, the void plan's tile rounding) fits the window budget at kWindowBytesPerSample.
+uint32_t block_roots_for(uint64_t window_bytes, int margin_vertices, double sx, double sy, uint32_t roots_x,
+                         uint32_t roots_y) {
+  const uint32_t most = std::max(roots_x, roots_y);
+  uint32_t side = 1;
+  while (side < most) {
+    const uint32_t next = side + 1;
+    const double margin_m = 2.0 * margin_vertices * vertex_spacing_m(kRootLevel);
+    const double cols = (next * kRootSizeM + margin_m) / std::max(sx, 1e-3) + 2 * kVoidPlanTile + 16;
+    const double rows = (next * kRootSizeM + margin_m) / std::max(sy, 1e-3) + 2 * kVoidPlanTile + 16;
+    if (cols * rows * double(kWindowBytesPerSample) > double(window_bytes)) break;
+    side = next;
+  }
+  return side;
+}
+
+uint64_t peak_rss_bytes() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return uint64_t(u.ru_maxrss) * 1024;
+}
+
+}  // namespace
+
+const char* policy_name(NodataPolicy p) {
+  switch (p) {
+    case NodataPolicy::automatic: return "auto";
+    case NodataPolicy::hole: return "hole";
+    case NodataPolicy::fill: return "fill";
+  }
+  return "?";
+}
+
+// `inputs`: (path, description) of every raster read (a directory input stands for several).
+std::string cook_info(const CookOptions& o, const CookReport& r,
+                      const std::vector<std::pair<std::string, std::string>>& descriptions) {
+  nlohmann::ordered_json j;
+  j["tool"] = "terrain-cook";
+  j["version"] = TERRAIN_VERSION;  // the project version (CMakeLists.txt), defined by cooker/CMakeLists.txt
+  nlohmann::ordered_json inputs = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < descriptions.size(); ++i) {
+    inputs.push_back({{"path", descriptions[i].first}, {"description", descriptions[i].second}});
+    // The unit of its heights and the factor applied (terrain-inspect shows them).
+    if (i < r.input_height_units.size()) inputs.back()["heights"] = height_unit_json(r.input_height_units[i]);
+  }
+  j["inputs"] = inputs;
+  j["options"] = {{"tolerance_m", o.tolerance_m},
+                  {"finest_level", o.finest_level},
+                  {"crs", o.crs},
+                  {"frame", o.frame},
+                  {"height_scale", o.height_scale},
+                  {"height_offset", o.height_offset},
+                  {"nodata", policy_name(o.nodata)},
+                  {"fill_max_samples", o.fill_max_samples},
+                  {"materials", o.materials_path},
+                  {"albedo", o.albedo_path},
+                  {"holes", o.holes_path},
+                  {"landcover", o.landcover_path},
+                  {"landcover_table", o.landcover_table_path},
+                  {"heights_only", o.heights_only},
+                  {"zstd_level", o.zstd_level},
+                  {"surface_zstd_level", o.surface_zstd_level}};
+  if (o.bc_rdo > 0) j["options"]["bc_rdo"] = o.bc_rdo;  // absent: off (earlier bytes kept)
+  if (o.origin) j["options"]["origin"] = *o.origin;
+  if (o.spacing) j["options"]["spacing"] = *o.spacing;
+  if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
+  j["frame_reason"] = r.frame_reason;
+  j["reconstruction"] = "Catmull-Rom bicubic in source sample space; bilinear over valid taps next to nodata";
+  j["finest_level"] = r.finest_level;
+  j["voids_filled_samples"] = r.voids_filled_samples;
+  j["hole_samples"] = r.hole_samples;
+  // Lets terrain-inspect give bytes per source sample as the cook report does.
+  j["source_valid_samples"] = r.source_valid_samples;
+  if (r.overview_levels > 0) j["overview_levels"] = r.overview_levels;  // absent: none (version-1 bytes kept)
+  return j.dump();
+}
+
+void set_tiff_block_cache(const CookSession& s, uint64_t most) {
+  // Blocks the cooker decodes itself (tiff_blocks.h) are cheap to decode again, and a cache larger
+  // than the blocks a pass reuses only adds fresh pages: two rows of blocks across the source, at
+  // least 16 MB, at most `most`. The 1 m lidar-like 8 km square (512-row tiles: 32 MB), CPU s:
+  // `plan` 0.72 with 24 MB, 0.85 with 64, 1.06 with 128; its unit 2.26 / 2.39 / 2.37 and 2.54 with
+  // the whole source (300 MB).
+  const uint64_t rows = tiff_block_rows_bytes(s.source.header().width);
+  set_tiff_block_cache_bytes(std::min(most, std::max<uint64_t>(rows, uint64_t(16) << 20)));
+}
+
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report, bool files_checked) {
+  if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
+    return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
+  if (options.finest_level < -1 || options.finest_level > kRootLevel)
+    return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
+  s.options = options;
+  s.threads = resolve_threads(options.threads);
+  report.threads = s.threads;
+  report.tolerance_m = options.tolerance_m;
+  report.memory_limit_bytes = memory_limit_of(options);
+  s.shares = memory_shares(report.memory_limit_bytes);
+  set_gdal_cache_bytes(s.shares.gdal_cache);
+  set_gdal_decode_threads(s.threads);
+  if (Status st = open_mosaic_source(options, s.shares.inputs, s.source, files_checked); !st.ok()) return st;
+  const Raster& header = s.source.header();
+  report.source_samples = uint64_t(header.width) * uint64_t(header.height);
+  // GDAL's cache: the whole decoded source when it fits the share and the process reads it again
+  // (the cook then decodes nothing twice), else enough for a row of GDAL blocks across a wide input
+  // (the first pass reads tile rows shorter than a block row) and a block's window: 128 MB. A
+  // larger cache buys nothing on a source read once, in order, and costs a fresh page for every
+  // decoded tile: `plan` alone on the 1 m lidar-like 8 km square took 2.75-2.79 CPU s with the
+  // whole source cached, 1.57-1.70 with 32 MB (GDAL_CACHEMAX; 96 000 against 16 500 page faults).
+  {
+    const uint64_t decoded = report.source_samples * sizeof(float);
+    const uint64_t want = decoded + decoded / 8;
+    const uint64_t bounded = std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20);
+    set_gdal_cache_bytes(s.reads_source_again && want <= s.shares.gdal_cache ? want : bounded);
+    set_tiff_block_cache(s, bounded);
+  }
+  s.descriptions.clear();
+  report.input_descriptions.clear();
+  report.input_height_units.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    s.descriptions.emplace_back(in.path, in.description);
+    report.input_height_units.push_back(in.height_unit);
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}{}{}", in.path, in.description, describe_crs(in.crs),
+                                                    in.decoder.empty() ? "" : "; ", in.decoder));
+  }
+  return Status::success();
+}
+
+Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
+  const Raster& header = s.source.header();
+  s.source.set_count_implausible(true);
+  // Read ahead on a second thread (2+ threads), in reads wide enough for GDAL to decode several
+  // compressed blocks at once on every thread (open_session): on a cluster the plan's pass is the
+  // serial part, and decoding is most of it.
+  const bool ahead = s.threads > 1;
+  const ReadSamples read = [&](int c0, int r0, int w, int h, float* out) { return s.source.read(c0, r0, w, h, out); };
+  s.ranges.start(header.width, header.height);
+  if (Status st = plan_voids(header.width, header.height, read, s.options.nodata, s.options.fill_max_samples,
+                             kVoidPlanTile, s.voids, progress, &s.ranges, ahead);
+      !st.ok())
+    return st;
+  s.ranges.finish();
+  s.source.set_count_implausible(false);
+  s.voids.source_name = header.path;
+  for (const MosaicSource::InputStat& in : s.source.inputs())
+    if (const uint64_t n = in.implausible.out_of_range + in.implausible.sentinel; n) {
+      report.implausible_samples += n;
+      Raster named;
+      named.path = in.path;
+      named.implausible = in.implausible;
+      report.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
+    }
+  // What each input gave (InputSamples, cook.h): one that the inputs before it cover is named.
+  report.input_samples.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    report.input_samples.push_back(InputSamples{in.path, in.samples_read, in.samples_used});
+    if (in.samples_used > 0 && in.samples_used * 100 >= in.samples_read) continue;
+    if (in.samples_read == 0)
+      report.warnings.push_back(fmt::format("{}: contributes nothing to the archive: it has no height on the mosaic's "
+                                            "grid (every sample nodata or implausible)", in.path));
+    else if (in.samples_used == 0)
+      report.warnings.push_back(fmt::format(
+          "{}: contributes nothing to the archive: inputs listed before it have a height at each of its {} samples on "
+          "the mosaic's grid (the first input's; where inputs overlap, the one listed first wins: list it first to "
+          "prefer it)", in.path, in.samples_read));
+    else
+      report.warnings.push_back(fmt::format(
+          "{}: contributes only {} of its {} samples on the mosaic's grid ({:.2f} %) to the archive: inputs listed "
+          "before it have heights at the others (where inputs overlap, the one listed first wins: list it first to "
+          "prefer it)", in.path, in.samples_used, in.samples_read, 100.0 * double(in.samples_used) / double(in.samples_read)));
+  }
+  if (s.voids.valid_samples == 0)
+    return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
+  report.source_valid_samples = s.voids.valid_samples;
+  report.voids_filled_samples = s.voids.stats.filled_samples;
+  report.voids_filled_regions = s.voids.stats.filled_regions;
+  report.hole_samples = s.voids.stats.hole_samples;
+  report.hole_regions = s.voids.stats.hole_regions;
+  return Status::success();
+}
+
+Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report) {
+  const Raster& header = s.source.header();
+  const CookOptions& options = s.options;
+  // Filling every void (--nodata fill) leaves no nodata: the data then reach the raster's edges.
+  const SampleRect data = options.nodata == NodataPolicy::fill ? SampleRect{0, 0, header.width - 1, header.height - 1}
+                                                               : s.voids.valid_bounds;
+  if (planned) {
+    s.frame = *planned;
+  } else if (Status st = choose_frame(header, options.frame, s.frame, report.frame_reason, &data); !st.ok()) {
+    return st;
+  }
+  report.frame = s.frame;
+  if (Status st = s.mapping.init(header, s.frame, s.threads); !st.ok()) return st;
+  double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
+  // The footprint: pixel areas, or for point samples the samples' hull.
+  s.mapping.frame_bounds(data.c0, data.r0, data.c1, data.r1, header.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
+  CookContext& ctx = s.ctx;
+  ctx.source_width = header.width;
+  ctx.source_height = header.height;
+  ctx.mapping = &s.mapping;
+  ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
+  ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
+  const double roots_x = std::ceil((fx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((fy1 - ctx.origin_y) / kRootSizeM);
+  if (roots_x * roots_y > 1e7)
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
+                                       (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
+  if (!options.force && (roots_x * roots_y > double(kMaxPlannedRoots) || roots_x > kStreamerMaxRootsPerSide ||
+                         roots_y > kStreamerMaxRootsPerSide))
+    return Status::failure(Error::unsupported_input,
+                           fmt::format("the plan needs {:.0f} x {:.0f} root nodes (the data spans {:.0f} x {:.0f} km): "
+                                       "beyond {} roots or {} per side (terrain-view's limit); check --spacing and "
+                                       "the CRS, or give --force", roots_x, roots_y, (fx1 - fx0) / 1000,
+                                       (fy1 - fy0) / 1000, kMaxPlannedRoots, kStreamerMaxRootsPerSide));
+  s.world = WorldInfo{.crs = s.frame,
+                      .origin_x_m = ctx.origin_x,
+                      .origin_y_m = ctx.origin_y,
+                      .roots_x = uint32_t(std::max(1.0, roots_x)),
+                      .roots_y = uint32_t(std::max(1.0, roots_y)),
+                      .extent_min_x_m = fx0,
+                      .extent_min_y_m = fy0,
+                      .extent_max_x_m = fx1,
+                      .extent_max_y_m = fy1};
+  grid_of(report) = grid_of(s.world);
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
+  s.mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin,
+                             ctx.origin_x + report.roots_x * kRootSizeM + margin,
+                             ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads);
+  double sx = 0, sy = 0;
+  s.mapping.spacing_m(sx, sy);
+  report.source_spacing_m = std::min(sx, sy);
+  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(report.source_spacing_m);
+  report.finest_level = ctx.finest_level;
+  ctx.tolerance_m = options.tolerance_m;
+  ctx.source_spacing_m = report.source_spacing_m;
+  ctx.heights_only = options.heights_only;
+  ctx.payload.zstd_level = options.zstd_level;
+  ctx.payload.surface_zstd_level = options.surface_zstd_level;
+  // Where even the finest level's vertices are further apart than half a source sample, widen the
+  // covered band beyond the raster's outer samples to one vertex spacing (reconstruct.h), so the
+  // triangles holding the outer samples are drawn. A function of position only, as hole flags
+  // must be; 0.5 (no change) for sources of 1 m and coarser.
+  {
+    const double sp = vertex_spacing_m(ctx.finest_level);
+    ctx.surface.set_outer_apron(sx > 0 ? sp / sx : 0.5, sy > 0 ? sp / sy : 0.5);
+  }
+  // Blocks of roots, each reading only its window of the source; work units of whole blocks.
+  uint32_t side = options.block_roots ? options.block_roots
+                                      : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy, report.roots_x,
+                                                        report.roots_y);
+  const uint32_t unit_side = options.unit_roots ? options.unit_roots
+                                                : default_unit_roots(side, sx, sy, ctx.finest_level, report.roots_x,
+                                                                     report.roots_y);
+  side = std::min(side, unit_side);  // a unit smaller than a block is cooked as one block
+  s.grid = BlockGrid{report.roots_x, report.roots_y, side};
+  s.units = BlockGrid{report.roots_x, report.roots_y, unit_side};
+  report.block_roots = s.grid.side;
+  report.blocks = s.grid.count();
+  return Status::success();
+}
+
+uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,
+                            uint32_t roots_x, uint32_t roots_y) {
+  const uint32_t most = std::max(roots_x, roots_y);
+  if (block_side >= most) return block_side;
+  const double samples_per_root =
+      (kRootSizeM / std::max(spacing_x_m, 1e-3)) * (kRootSizeM / std::max(spacing_y_m, 1e-3));
+  double nodes_per_root = 0;  // a full pyramid from the finest level up
+  for (int l = std::clamp(finest_level, 0, kRootLevel); l <= kRootLevel; ++l)
+    nodes_per_root += double(1u << (2 * (kRootLevel - l)));
+  uint32_t k = 1;
+  while (k * block_side < most) {
+    const double roots = double((k + 1) * block_side) * double((k + 1) * block_side);
+    if (roots * samples_per_root > kUnitSamples || roots * nodes_per_root > kUnitNodes) break;
+    ++k;
+  }
+  return k * block_side;
+}
+
+Status surface_setup(CookSession& s, CookReport& report) {
+  const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
+  SurfaceOptions so;
+  so.materials_path = s.options.materials_path;
+  so.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
+  s.ctx.bc_quality = so.bc_quality;
+  s.ctx.bc_rdo = s.options.bc_rdo;
+  // A grid of at most 4 roots (a few hundred nodes at most) is measured whole: a sample of a few
+  // nodes would say little there, and the time is small.
+  s.ctx.check_all_errors =
+      s.options.error_checks == ErrorChecks::all || uint64_t(report.roots_x) * uint64_t(report.roots_y) <= 4;
+  if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
+  s.ctx.rules = s.rules.get();
+  report.surface_layers = !s.options.heights_only;
+  const CookContext& ctx = s.ctx;
+  if (Status st = load_overlays(s.options, s.frame, palette_of(*s.rules), ctx.origin_x - margin, ctx.origin_y - margin,
+                                ctx.origin_x + report.roots_x * kRootSizeM + margin,
+                                ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads, s.overlays);
+      !st.ok())
+    return st;
+  s.ctx.overlays = s.overlays.get();
+  return Status::success();
+}
+
+namespace {
+
+// A block's window: the samples it needs, grown so that every void reaching into them is filled
+// exactly as over the whole raster (void_plan.h), read from the inputs and filled.
+Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
+  // The window read last already holds these samples exactly.
+  if (!s.window.values.empty() && s.window_need.contains(need)) return Status::success();
+  const SampleRect rect = fill_read_rect(s.voids, need);
+  if (!s.read_bounds.empty() && !s.read_bounds.contains(rect))
+    return Status::failure(Error::internal,
+                           fmt::format("a window read (samples {}..{} x {}..{}) outside the unit's planned window "
+                                       "({}..{} x {}..{})",
+                                       rect.c0, rect.c1, rect.r0, rect.r1, s.read_bounds.c0, s.read_bounds.c1,
+                                       s.read_bounds.r0, s.read_bounds.r1));
+  s.window_need = SampleRect{};
+  SampleWindow& w = s.window;
+  // Room for the largest window of the grid, reserved once: growing block by block reallocated
+  // and copied the window (and faulted in each new buffer), ~0.3 s of CPU on 9 blocks of 8 km of
+  // 1 m lidar. Reserving touches no page; only the samples read are faulted in.
+  if (w.values.capacity() < size_t(rect.samples())) {
+    uint64_t most = uint64_t(rect.samples());
+    for (uint32_t i = 0; i < s.grid.count(); ++i) {
+      const SampleRect r = block_cook_rect(s.ctx, s.grid.block(i));
+      if (!r.empty()) most = std::max(most, uint64_t(fill_read_rect(s.voids, r).samples()));
+    }
+    w.values = LargeVector<float>();
+    w.filled = LargeVector<uint8_t>();
+    w.values.reserve(size_t(most));
+    w.filled.reserve(size_t(most));
+  }
+  w.rect = rect;
+  w.source_width = s.ctx.source_width;
+  w.source_height = s.ctx.source_height;
+  w.values.resize(size_t(rect.samples()));
+  w.filled.resize(size_t(rect.samples()));
+  if (Status st = s.source.read(rect.c0, rect.r0, rect.width(), rect.height(), w.values.data()); !st.ok()) return st;
+  double residual = 0;
+  if (Status st = fill_voids_window(s.voids, rect, w.values.data(), w.filled.data(), residual, report.memory_limit_bytes);
+      !st.ok())
+    return st;
+  report.void_fill_residual_m = std::max(report.void_fill_residual_m, residual);
+  report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
+  s.window_need = need;
+  return Status::success();
+}
+
+}  // namespace
+
+void choose_session_steps(CookSession& s, CookReport& report) {
+  std::array<double, kLevelCount> worst{};
+  level_range_bounds(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, s.threads, worst);
+  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].range_bound_m = worst[size_t(l)];
+  choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
+  // Overview levels (SPEC 19): one step for all of them, from the bound over their nodes, at least
+  // the roots'. Where it is coarser, the roots' even vertices are rounded to it as they are cooked
+  // (compute_window), so no node is re-rounded afterwards; every level's range then widens by up to
+  // half of it, and the steps are chosen again with that rounding.
+  const int k = overview_levels_for(s.options.overview_levels, s.grid.roots_x, s.grid.roots_y);
+  s.world.overview_step_log2.clear();
+  s.ctx.overview_step_log2 = -1;
+  if (k > 0) {
+    const double bound = overview_range_bound(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, k);
+    int step = std::max(required_step(bound, -1), int(s.ctx.step_log2[kRootLevel]));
+    if (step > s.ctx.step_log2[kRootLevel]) {
+      choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2, step);
+      step = std::max(step, int(s.ctx.step_log2[kRootLevel]));
+      s.ctx.overview_step_log2 = step;
+    }
+    s.world.overview_step_log2.assign(size_t(k), uint8_t(step));
+    report.overview_range_bound_m = bound;
+  }
+  report.overview_levels = k;
+  report.overview_step_log2 = k > 0 ? s.world.overview_step_log2[0] : 0;
+  s.ranges = RangeSummary{};
+}
+
+void restore_overview_steps(const std::vector<uint8_t>& steps, CookSession& s) {
+  s.world.overview_step_log2 = steps;
+  s.ctx.overview_step_log2 = !steps.empty() && steps[0] > s.ctx.step_log2[kRootLevel] ? int(steps[0]) : -1;
+}
+
+OverviewSettings overview_settings(const CookSession& s) {
+  OverviewSettings o;
+  o.world = s.world;
+  o.world.step_log2 = s.ctx.step_log2;
+  o.rules = s.rules.get();
+  o.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
+  o.bc_rdo = s.options.bc_rdo;
+  o.check_all_errors = s.ctx.check_all_errors;  // surface_setup()
+  o.payload.zstd_level = s.options.zstd_level;
+  o.payload.surface_zstd_level = s.options.surface_zstd_level;
+  o.heights_only = s.options.heights_only;
+  o.threads = s.threads;
+  return o;
+}
+
+int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y) {
+  if (mode == OverviewMode::off) return 0;
+  if (mode == OverviewMode::automatic && uint64_t(roots_x) * roots_y <= kOverviewAutoRoots) return 0;
+  return std::max(1, overview_levels_needed(roots_x, roots_y));
+}
+
+namespace {
+
+// Reads and fills the window of the roots `b` and cooks their nodes into `sink`.
+Status cook_roots(CookSession& s, const RootBlock& b, const NodeSink& sink, PyramidTotals& totals, CookReport& report) {
+  const SampleRect rect = block_cook_rect(s.ctx, b);
+  if (rect.empty()) return Status::success();
+  if (Status st = read_window(s, rect, report); !st.ok()) return st;
+  s.ctx.set_window(s.window);
+  if (s.overlays) {
+    double bx0 = 0, by0 = 0, bx1 = 0, by1 = 0;
+    block_frame_rect(s.ctx, b, bx0, by0, bx1, by1);
+    if (Status st = prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1); !st.ok()) return st;
+  }
+  return cook_block(s.ctx, b, s.threads, sink, totals, report);
+}
+
+}  // namespace
+
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                             CookReport& report) {
+  return cook_roots(s, s.grid.block(index), sink, totals, report);
+}
+
+Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                            CookReport& report) {
+  const RootBlock u = s.units.block(index);
+  const uint32_t side = std::max(1u, s.grid.side);
+  for (uint32_t y = u.y0; y < u.y1; y += side)
+    for (uint32_t x = u.x0; x < u.x1; x += side)
+      if (Status st = cook_roots(s, RootBlock{x, y, std::min(u.x1, x + side), std::min(u.y1, y + side)}, sink, totals,
+                                 report);
+          !st.ok())
+        return st;
+  return Status::success();
+}
+
+void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report) {
+  finish_pyramid_report(s.ctx, totals, report);
+  // Levels finer than the finest level cooked hold no node; they record its step (as the steps of
+  // a level-by-level cook did).
+  int f = 0;
+  while (f < kRootLevel && report.levels[size_t(f)].nodes == 0) ++f;
+  for (int l = f - 1; l >= 0; --l) {
+    s.ctx.step_log2[size_t(l)] = s.ctx.step_log2[size_t(f)];
+    report.levels[size_t(l)].step_log2 = s.ctx.step_log2[size_t(f)];
+  }
+}
+
+Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report) {
+  if (report.nodes == 0) {
+    writer.abort();
+    return Status::failure(Error::no_data, "no node holds terrain (is the data smaller than a vertex?)");
+  }
+  s.world.step_log2 = s.ctx.step_log2;
+  if (s.rules) s.world.palette = palette_of(*s.rules);
+  s.world.cook_info_json = cook_info(s.options, report, s.descriptions);
+  if (Status st = writer.finish(s.world); !st.ok()) return st;
+  report.archive_bytes = writer.bytes_written();
+  // From the payload tables the writer parsed (reading the archive back would keep its directory
+  // in memory: the merge must not grow with the archive).
+  const SectionBytes sb = writer.section_bytes();
+  for (int k = 0; k < 5; ++k) {
+    report.section_stored_bytes[size_t(k)] = sb.stored[k];
+    report.section_raw_bytes[size_t(k)] = sb.raw[k];
+    for (int l = 0; l < kMaxLevels; ++l) report.level_section_stored_bytes[size_t(l)][size_t(k)] = sb.stored_by_level[l][k];
+  }
+  for (int l = 0; l < kMaxLevels; ++l) report.level_nodes[size_t(l)] = sb.nodes_by_level[l];
+  report.input_bytes_read.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) report.input_bytes_read.push_back(in.bytes_read);
+  report.output_vertices = report.nodes * uint64_t(kHeightCount);
+  report.height_samples_per_cpu_second =
+      report.cpu_heights > 0 ? double(report.output_vertices) / report.cpu_heights : 0;
+  report.peak_rss_bytes = peak_rss_bytes();
+  if (report.leaf_error_max_m > s.options.tolerance_m) report.warnings.push_back(unmet_tolerance_warning(report));
+  return Status::success();
+}
+
+}  // namespace terrain::cook

@@ -1,0 +1,115 @@
+// The state of a cook while it runs, and its stages, shared by the one-process cook, `plan`,
+// `unit` and `merge` (issue 14): each of them runs the same stages, so a plan + units + merge
+// gives the bytes of the one-process cook.
+//
+//   open_inputs -> first_pass (voids, valid bounds, implausible heights, range summary) ->
+//   frame_and_grid -> surface_setup -> choose_session_steps -> per block: cook_block_of_session ->
+//   finish_archive
+//
+// The source is read twice: by the first pass, and by the blocks' windows. A unit restores what
+// the plan decided (restore_plan in work_units.h) instead of running the first pass.
+#pragma once
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "frame/frame.h"
+#include "base/memory_budget.h"
+#include "mosaic/mosaic_source.h"
+#include "pyramid/node_cook.h"
+#include "pyramid/pyramid.h"
+#include "voids/range_summary.h"
+#include "base/sample_window.h"
+#include "surface/surface_layers.h"
+#include "terrain/archive_writer.h"
+#include "terrain/cook.h"
+#include "voids/void_plan.h"
+
+namespace terrain::cook {
+
+// Tile side (samples) of the void plan's first pass; a block's window grows by up to one tile per
+// side to whole tiles (void_plan.h).
+inline constexpr int kVoidPlanTile = 64;
+
+struct CookSession {
+  CookOptions options;
+  int threads = 1;
+  MemoryShares shares;
+  MosaicSource source;
+  VoidPlan voids;
+  std::vector<std::pair<std::string, std::string>> descriptions;  // (path, description) per input
+  FrameCrs frame;
+  SourceMapping mapping;
+  CookContext ctx;
+  WorldInfo world;  // frame, grid and footprint (steps, palette and cook info at the end)
+  std::shared_ptr<const MaterialRules> rules;
+  std::unique_ptr<SurfaceOverlays> overlays;
+  BlockGrid grid;   // memory blocks: the window of one fits the budget (the one-process cook's order)
+  BlockGrid units;  // work units (plan.json): each cooked as memory blocks of at most grid.side roots
+  SampleWindow window;  // the block being read or cooked
+  RangeSummary ranges;   // the first pass's, for the steps (freed once they are chosen)
+  SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
+  // When not empty, every window read must lie inside it: a unit reading a VRT cut to its planned
+  // window (work_units.h), where samples outside would silently differ from the whole VRT's.
+  SampleRect read_bounds{0, 0, -1, -1};
+  // Whether this process reads the source again after the first pass (the blocks of a one-process
+  // cook): GDAL's cache then holds the whole decoded source where it fits. `plan` reads it once.
+  bool reads_source_again = true;
+};
+
+// Sizes the cache of the blocks the cooker decodes itself (tiff_blocks.h) for this session's
+// source, at most `most` bytes (open_inputs calls it; a unit again with its own GDAL share).
+void set_tiff_block_cache(const CookSession& s, uint64_t most);
+// Checks the options, opens every input (GDAL inputs stay open, read by windows), sets GDAL's cache.
+// files_checked: the inputs' files were stat'ed against a plan (ReadOptions::files_checked).
+Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report, bool files_checked = false);
+// Reads every sample once: the void plan, the valid samples, the implausible heights, the range
+// summary (range_summary.h) and the inputs' descriptions into the report.
+Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
+// The frame (choose_frame, or `planned` when given), the mapping, the root grid and the footprint,
+// the context's constants, the block grid (block_roots, else from the budget) and the unit grid
+// (unit_roots, else default_unit_roots).
+Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report);
+// Material rules and the overlays (opened; read per block).
+Status surface_setup(CookSession& s, CookReport& report);
+// Every level's step from the range bounds of every node that could exist (s.ctx.step_log2), from
+// the first pass's summary: reads nothing. Also the overview levels (s.world.overview_step_log2,
+// s.ctx.overview_step_log2).
+// The levels' worst bounds go to the report.
+void choose_session_steps(CookSession& s, CookReport& report);
+// Reads and fills block `index`'s window and cooks its nodes into `sink` (key order in the block).
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                             CookReport& report);
+// Cooks unit `index` of s.units as memory blocks of at most s.grid.side roots, row by row from the
+// unit's corner (block bounds never change a byte: only the windows' sizes).
+Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
+                            CookReport& report);
+// A unit's side in roots when --unit-roots is not given: the most memory blocks (`block_side`
+// roots each) whose samples and possible nodes stay within kUnitSamples and kUnitNodes, so that a
+// unit's fixed costs (process start, opening the inputs, fresh memory) are a few per cent of it.
+// 1 m lidar: 6 x 6 roots (9 blocks, 151 M samples, at most 49 140 nodes, about 10 s of CPU).
+inline constexpr double kUnitSamples = double(uint64_t(1) << 28);
+inline constexpr double kUnitNodes = double(1 << 16);
+uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,
+                            uint32_t roots_x, uint32_t roots_y);
+// Restores the overview steps a plan decided (world and context).
+void restore_overview_steps(const std::vector<uint8_t>& steps, CookSession& s);
+// The settings of write_overview_levels (overview_levels.h) for this session.
+struct OverviewSettings;
+OverviewSettings overview_settings(const CookSession& s);
+// Overview levels a cook writes (SPEC 19): 0 (off; auto at most kOverviewAutoRoots root cells), else
+// overview_levels_needed(roots), at least 1.
+int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y);
+// After every block: levels finer than the finest cooked get its step; the pyramid's report.
+void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report);
+// Writes the metadata (steps, palette, cook info) and renames the archive into place; section
+// bytes, input bytes read, timing totals and warnings into the report.
+Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report);
+
+// The cook's provenance JSON stored in the archive (options, inputs, frame reason, voids).
+std::string cook_info(const CookOptions& o, const CookReport& r,
+                      const std::vector<std::pair<std::string, std::string>>& descriptions);
+const char* policy_name(NodataPolicy p);
+
+}  // namespace terrain::cook
