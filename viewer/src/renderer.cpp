@@ -452,7 +452,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
       return Status::failure(Error::invalid_argument, "renderer: upload into slot " + std::to_string(n.slot) +
                                                           " outside the atlas (" + std::to_string(config_.slot_count) + ")");
   // Each node's staged bytes, one 16-aligned part after the other: the atlas layers, then the
-  // patch bounds and errors the viewer derives (prepare_slot).
+  // patch bounds and errors the viewer derives (node_prep.h prepare_slot).
   const bool decode = config_.decode_bc || config_.prelit_far;
   constexpr size_t kLayer = size_t(kTexels) * kTexels * 4;
   struct Part {
