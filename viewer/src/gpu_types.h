@@ -19,7 +19,7 @@ static_assert(TV_PATCHES_PER_SIDE * TV_QUADS_PER_PATCH == TV_QUADS_PER_NODE);
 static_assert((1 << TV_QUADS_PER_PATCH_LOG2) == TV_QUADS_PER_PATCH);
 static_assert(TV_SECTORS_PER_ROOT == (1 << TV_ROOT_LEVEL));
 // The GLSL mirror of terrain/surface_contract.h.
-static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode);
+static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode && TV_TREE_START == kIndexTreeStart);
 static_assert(TV_NORMAL_CENTRE == kNormalCentre && TV_NORMAL_SCALE == kNormalScale);
 static_assert(TV_CONE_R_CENTRE == cone::kConeRCentre && TV_CONE_R_SCALE == cone::kConeRScale);
 static_assert(TV_CONE_G_CENTRE == cone::kConeGCentre && TV_CONE_G_SCALE == cone::kConeGScale);
