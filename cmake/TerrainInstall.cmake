@@ -11,8 +11,9 @@ configure_package_config_file(${CMAKE_CURRENT_LIST_DIR}/terrainConfig.cmake.in
                               ${CMAKE_BINARY_DIR}/package/terrainConfig.cmake
                               INSTALL_DESTINATION ${TERRAIN_CMAKE_DIR} NO_SET_AND_CHECK_MACRO)
 # 0.x: every minor version may change the API (0.2: ArchiveReader::payload() gave way to
-# read_payload() and byte sources, issue 48), so a program asking for 0.1 does not get 0.2. The
-# format itself is versioned in the archive header.
+# read_payload() and byte sources, issue 48; 0.3: the streamer's residency index replaced its dense
+# index grids, issue 49), so a program asking for 0.2 does not get 0.3. The format itself is
+# versioned in the archive header.
 write_basic_package_version_file(${CMAKE_BINARY_DIR}/package/terrainConfigVersion.cmake
                                  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
 install(FILES ${CMAKE_BINARY_DIR}/package/terrainConfig.cmake ${CMAKE_BINARY_DIR}/package/terrainConfigVersion.cmake

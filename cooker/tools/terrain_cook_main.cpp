@@ -235,8 +235,8 @@ int run(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--heights-only", o.heights_only, "Skip normals, albedo, splat and cones (they stay zero)");
   app.add_flag("--force", o.force,
-               fmt::format("Cook even when the plan needs more than {} root nodes or more than {} roots per side "
-                           "(terrain-view's limit); let --report replace a file that is not a cook report",
+               fmt::format("Cook even when the plan needs more than {} root nodes (never more than {} roots per "
+                           "side, the format's limit); let --report replace a file that is not a cook report",
                            terrain::cook::kMaxPlannedRoots, terrain::kStreamerMaxRootsPerSide));
   app.add_option("--report", report_path, "Write the cook report (JSON) to this file");
   app.add_flag("--json", json, "Print the report as JSON on stdout instead of the summary");

@@ -29,9 +29,10 @@ done
 config=$(find "$prefix" -name terrainConfig.cmake -print -quit)
 pcfile=$(find "$prefix" -name terrain-streamer.pc -print -quit)
 [ -n "$config" ] && [ -n "$pcfile" ] || fail "terrainConfig.cmake or terrain-streamer.pc not installed"
-# 0.2 changed the reader's API (issue 48): the version file says so and refuses a request for 0.1.
-grep -q 'PACKAGE_VERSION "0.2.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
-  fail "terrainConfigVersion.cmake does not say 0.2.0"
+# 0.3 changed the streamer's API (issue 49: the residency index): the version file says so and
+# refuses a request for 0.2 (SameMinorVersion).
+grep -q 'PACKAGE_VERSION "0.3.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
+  fail "terrainConfigVersion.cmake does not say 0.3.0"
 [ ! -e "$prefix/include/terrain/cli_checks.h" ] || fail "cli_checks.h (tools only, needs CLI11) was installed"
 # Public headers: standard library and our own headers only.
 if grep -n '#include <' "$prefix"/include/terrain/*.h | grep -v -E '#include <[a-z_]+>$'; then

@@ -1,9 +1,11 @@
 // A stand-in for a game engine that uses the installed terrain package (find_package(terrain)):
 // it opens an archive, drives terrain::Streamer along a camera path, "uploads" every delivery into
-// a CPU copy of the GPU atlas (one NodeData per slot), mirrors the index grids and the slot table
-// from the dirty regions the way a renderer would, and checks every frame that what it holds is
-// consistent: every index cell that names a slot names a slot this program filled with that very
-// node, the mirrors equal the streamer's state, and no slot is reused before its fence passed.
+// a CPU copy of the GPU atlas (one NodeData per slot), mirrors the residency index (root grid and
+// tree words, terrain/surface_contract.h) and the slot table from the dirty lists the way a renderer
+// would, and checks every frame that what it holds is consistent: walking the mirrored index from
+// its start list the way a GPU traversal does reaches exactly the slots this program filled, each
+// with that very node, the mirrors equal the streamer's state, and no slot is reused before its
+// fence passed.
 // Any violation prints what and where and exits 1. Per frame it prints one summary line.
 //
 // Usage: terrain-engine-sample <archive.terrain> <camera_path.txt> [--frames-per-segment N]
@@ -49,15 +51,15 @@ std::vector<Waypoint> read_path(const std::string& file) {
   return path;
 }
 
-// The engine's copy of what the GPU holds: atlas layers, the slot table and the index grids.
+// The engine's copy of what the GPU holds: atlas layers, the slot table and the residency index.
 struct CpuAtlas {
   std::vector<terrain::NodeData> layers;         // slot -> uploaded node data
   std::vector<bool> filled;                      // slot holds a node (delivered, not evicted)
   std::vector<terrain::NodeKey> holder;          // the node in a filled slot
   std::vector<uint64_t> evicted_in;              // update() number that last freed the slot (0 = never)
   std::vector<terrain::SlotDescriptor> descriptors;
-  std::array<std::vector<uint16_t>, terrain::kLevelCount> grids;
-  std::array<terrain::GridSize, terrain::kLevelCount> grid_size{};
+  std::vector<uint16_t> roots;                   // the index's root grid (an R16_UINT image on a GPU)
+  std::vector<uint32_t> tree;                    // the index's tree words (a storage buffer)
 };
 
 CpuAtlas make_atlas(const terrain::Streamer& s) {
@@ -68,11 +70,9 @@ CpuAtlas make_atlas(const terrain::Streamer& s) {
   a.holder.resize(n);
   a.evicted_in.assign(n, 0);
   a.descriptors.resize(n);
-  for (int level = 0; level < terrain::kLevelCount; ++level) {
-    a.grid_size[size_t(level)] = s.index_grid_size(level);
-    // Garbage until the first update() uploads every grid in full.
-    a.grids[size_t(level)].assign(size_t(a.grid_size[size_t(level)].width) * a.grid_size[size_t(level)].height, 0x7777);
-  }
+  // Garbage until the first update() uploads the whole index.
+  a.roots.assign(size_t(s.world().roots_x) * s.world().roots_y, 0x7777);
+  a.tree.assign(terrain::index_tree_words(n), 0x77777777u);
   return a;
 }
 
@@ -88,7 +88,7 @@ struct Checks {
 std::string name(const terrain::NodeKey& k) { return terrain::node_name(k); }
 
 // What a renderer does with one FrameUpdate: free evicted slots, copy deliveries into their slots,
-// then upload dirty descriptors and dirty index rectangles.
+// then upload dirty descriptors and the dirty parts of the residency index.
 void upload(const terrain::FrameUpdate& u, const terrain::Streamer& s, CpuAtlas& a, Checks& checks) {
   for (const terrain::NodeEviction& e : u.evicted) {
     if (e.slot >= a.filled.size() || !a.filled[e.slot] || !(a.holder[e.slot] == e.key)) {
@@ -116,83 +116,122 @@ void upload(const terrain::FrameUpdate& u, const terrain::Streamer& s, CpuAtlas&
   }
   const auto table = s.slots();
   for (const uint16_t slot : u.dirty_slots) a.descriptors[slot] = table[slot];
-  for (int level = 0; level < terrain::kLevelCount; ++level) {
-    const terrain::DirtyRect& r = u.dirty_index[size_t(level)];
-    if (r.empty()) continue;
-    const auto src = s.index_grid(level);
-    const uint32_t width = a.grid_size[size_t(level)].width;
-    for (uint32_t y = r.y0; y < r.y1; ++y)
-      for (uint32_t x = r.x0; x < r.x1; ++x) a.grids[size_t(level)][size_t(y) * width + x] = src[size_t(y) * width + x];
-  }
+  // The residency index: the dirty root cells, the start list when it changed, the dirty slots'
+  // child words (a renderer merges contiguous slots into one copy).
+  const terrain::ResidencyIndex& index = s.residency();
+  const uint32_t width = s.world().roots_x, n = s.slot_count();
+  const terrain::DirtyRect& r = u.dirty_roots;
+  for (uint32_t y = r.y0; y < r.y1 && !r.empty(); ++y)
+    for (uint32_t x = r.x0; x < r.x1; ++x) a.roots[size_t(y) * width + x] = index.root_grid()[size_t(y) * width + x];
+  if (u.dirty_starts)
+    std::copy_n(index.tree().begin(), terrain::kIndexTreeStart + n, a.tree.begin());
+  for (const uint16_t slot : u.dirty_children)
+    std::copy_n(index.tree().begin() + ptrdiff_t(terrain::index_child_word(n, slot)), 2,
+                a.tree.begin() + ptrdiff_t(terrain::index_child_word(n, slot)));
 }
 
-// Every frame: the engine's mirrors point only at slots it filled, with the right node in them.
-// Returns the number of index cells that name a slot (the resident nodes as the GPU sees them).
+// Child c of the node in `slot` as the mirrored tree words say (a slot, kIndexNotResident or kIndexNoNode).
+uint16_t child_word(const CpuAtlas& a, uint32_t slot, int c) {
+  const uint32_t w = a.tree[terrain::index_child_word(uint32_t(a.filled.size()), slot) + size_t(c >> 1)];
+  return uint16_t(w >> (16 * (c & 1)));
+}
+
+// Every frame: the mirrors equal the streamer's index, and walking them from the start list the way
+// a GPU traversal does reaches only slots this program filled, each with the right node in it.
+// Returns the number of slots reached (the resident nodes as the GPU sees them).
 uint32_t check_atlas(const terrain::Streamer& s, const CpuAtlas& a, Checks& checks) {
-  uint32_t resident_cells = 0;
-  for (int level = 0; level < terrain::kLevelCount; ++level) {
-    const auto truth = s.index_grid(level);
-    const auto& mirror = a.grids[size_t(level)];
-    const terrain::GridSize g = a.grid_size[size_t(level)];
-    for (uint32_t y = 0; y < g.height; ++y) {
-      for (uint32_t x = 0; x < g.width; ++x) {
-        const size_t i = size_t(y) * g.width + x;
-        const uint16_t v = mirror[i];
-        const terrain::NodeKey key{uint32_t(level), x, y};
-        if (v != truth[i]) {
-          checks.fail("index cell " + name(key) + ": uploaded " + std::to_string(v) + ", streamer has " +
-                      std::to_string(truth[i]) + " (a dirty rectangle missed it)");
-          continue;
-        }
-        if (v == terrain::kIndexNotResident || v == terrain::kIndexNoNode) continue;
-        ++resident_cells;
-        if (v >= a.filled.size() || !a.filled[v]) {
-          checks.fail("index cell " + name(key) + " points at slot " + std::to_string(v) + ", which holds nothing");
-          continue;
-        }
-        if (!(a.holder[v] == key)) {
-          checks.fail("index cell " + name(key) + " points at slot " + std::to_string(v) + ", which holds " +
-                      name(a.holder[v]));
-          continue;
-        }
-        const terrain::SlotDescriptor& d = a.descriptors[v];
-        if (d.level != level || d.x != x || d.y != y)
-          checks.fail("slot " + std::to_string(v) + " descriptor names node " + std::to_string(d.level) + "/" +
-                      std::to_string(d.x) + "/" + std::to_string(d.y) + ", index cell says " + name(key));
-        if (level < terrain::kRootLevel) {  // a resident node's parent is resident (coverage)
-          const terrain::NodeKey p = terrain::parent_of(key);
-          const uint16_t pv = a.grids[size_t(p.level)][size_t(p.y) * a.grid_size[size_t(p.level)].width + p.x];
-          if (pv >= a.filled.size()) checks.fail("node " + name(key) + " resident, its parent " + name(p) + " is not");
-        }
-        // The uploaded copy is the streamer's data for that node, byte for byte.
-        const terrain::NodeData* data = s.resident_data(key);
-        const terrain::NodeData& layer = a.layers[v];
-        if (data == nullptr || layer.heights != data->heights || layer.normals_bc3 != data->normals_bc3 ||
-            layer.albedo_bc1 != data->albedo_bc1 || layer.splat != data->splat || layer.cones_bc3 != data->cones_bc3)
-          checks.fail("slot " + std::to_string(v) + " does not hold the resident data of " + name(key));
-      }
+  const terrain::ResidencyIndex& index = s.residency();
+  for (size_t i = 0; i < a.roots.size(); ++i)
+    if (a.roots[i] != index.root_grid()[i]) {
+      checks.fail("root cell " + std::to_string(i) + ": uploaded " + std::to_string(a.roots[i]) + ", streamer has " +
+                  std::to_string(index.root_grid()[i]) + " (dirty_roots missed it)");
+      return 0;
+    }
+  for (size_t i = 0; i < a.tree.size(); ++i)
+    if (a.tree[i] != index.tree()[i]) {
+      checks.fail("index tree word " + std::to_string(i) + ": uploaded " + std::to_string(a.tree[i]) +
+                  ", streamer has " + std::to_string(index.tree()[i]) + " (a dirty list missed it)");
+      return 0;
+    }
+  // The traversal: from the start list down every resident child.
+  std::vector<std::pair<uint32_t, terrain::NodeKey>> stack;  // slot, the node the index says is there
+  std::vector<bool> reached(a.filled.size(), false);
+  const uint32_t starts = a.tree[0];
+  for (uint32_t i = 0; i < starts; ++i) {
+    const uint32_t slot = a.tree[terrain::kIndexTreeStart + i];
+    const terrain::SlotDescriptor& d = a.descriptors[slot < a.descriptors.size() ? slot : 0];
+    stack.push_back({slot, terrain::NodeKey{d.level, d.x, d.y}});
+    if (int(d.level) != s.archive().top_level()) checks.fail("start slot " + std::to_string(slot) + " holds a node below the top");
+  }
+  uint32_t count = 0;
+  while (!stack.empty()) {
+    const auto [v, key] = stack.back();
+    stack.pop_back();
+    if (v >= a.filled.size() || !a.filled[v]) {
+      checks.fail("the index reaches " + name(key) + " in slot " + std::to_string(v) + ", which holds nothing");
+      continue;
+    }
+    if (!(a.holder[v] == key)) {
+      checks.fail("the index reaches " + name(key) + " in slot " + std::to_string(v) + ", which holds " + name(a.holder[v]));
+      continue;
+    }
+    if (reached[v]) {
+      checks.fail("slot " + std::to_string(v) + " reached twice");
+      continue;
+    }
+    reached[v] = true;
+    ++count;
+    const terrain::SlotDescriptor& d = a.descriptors[v];
+    if (d.level != key.level || d.x != key.x || d.y != key.y)
+      checks.fail("slot " + std::to_string(v) + " descriptor names node " + std::to_string(d.level) + "/" +
+                  std::to_string(d.x) + "/" + std::to_string(d.y) + ", the index says " + name(key));
+    if (key.level == uint32_t(terrain::kRootLevel) && a.roots[size_t(key.y) * s.world().roots_x + key.x] != v)
+      checks.fail("root " + name(key) + " is resident in slot " + std::to_string(v) + ", its root cell says otherwise");
+    // The uploaded copy is the streamer's data for that node, byte for byte.
+    const terrain::NodeData* data = s.resident_data(key);
+    const terrain::NodeData& layer = a.layers[v];
+    if (data == nullptr || layer.heights != data->heights || layer.normals_bc3 != data->normals_bc3 ||
+        layer.albedo_bc1 != data->albedo_bc1 || layer.splat != data->splat || layer.cones_bc3 != data->cones_bc3)
+      checks.fail("slot " + std::to_string(v) + " does not hold the resident data of " + name(key));
+    for (int c = 0; c < 4; ++c) {
+      const uint16_t w = child_word(a, v, c);
+      const bool exists = key.level > 0 && (d.child_mask & (1u << c));
+      if (!exists && w != terrain::kIndexNoNode)
+        checks.fail("child " + std::to_string(c) + " of " + name(key) + " does not exist, its word says " + std::to_string(w));
+      if (w < terrain::kIndexNoNode) stack.push_back({w, terrain::child_of(key, c)});
     }
   }
   uint32_t filled = 0;
   for (const bool f : a.filled) filled += f ? 1 : 0;
   const terrain::StreamerStats st = s.stats();
-  if (filled != resident_cells || filled != st.resident)
-    checks.fail("slots filled " + std::to_string(filled) + ", index cells resident " + std::to_string(resident_cells) +
+  if (filled != count || filled != st.resident)
+    checks.fail("slots filled " + std::to_string(filled) + ", reached through the index " + std::to_string(count) +
                 ", streamer resident " + std::to_string(st.resident));
-  return resident_cells;
+  return count;
 }
 
-// The finest level whose node under (x, y) is in the atlas, read from the mirrored index grids the
-// way a shader would; -1 outside the archive.
+// The finest level whose node under (x, y) is in the atlas, found in the mirrored index the way a
+// shader would: the start node holding the point, then down the resident child holding it; -1
+// outside the resident top nodes.
 int finest_resident_level(const terrain::Streamer& s, const CpuAtlas& a, double x, double y) {
   const terrain::WorldInfo& w = s.world();
-  for (int level = 0; level < terrain::kLevelCount; ++level) {
-    const double size = terrain::kLevel0NodeSizeM * double(1u << level);
-    const double fx = std::floor((x - w.origin_x_m) / size), fy = std::floor((y - w.origin_y_m) / size);
-    const terrain::GridSize g = a.grid_size[size_t(level)];
-    if (fx < 0 || fy < 0 || fx >= double(g.width) || fy >= double(g.height)) return -1;
-    const uint16_t v = a.grids[size_t(level)][size_t(fy) * g.width + size_t(fx)];
-    if (v < a.filled.size()) return level;
+  auto cell = [&](int level, double v, double origin) {
+    return std::floor((v - origin) / (terrain::kLevel0NodeSizeM * double(uint64_t(1) << level)));
+  };
+  for (uint32_t i = 0; i < a.tree[0]; ++i) {
+    uint32_t slot = a.tree[terrain::kIndexTreeStart + i];
+    const terrain::SlotDescriptor& top = a.descriptors[slot];
+    if (cell(top.level, x, w.origin_x_m) != double(top.x) || cell(top.level, y, w.origin_y_m) != double(top.y)) continue;
+    int level = top.level;
+    while (level > 0) {
+      const double fx = cell(level - 1, x, w.origin_x_m), fy = cell(level - 1, y, w.origin_y_m);
+      const int c = (int(fx) & 1) | (int(fy) & 1) << 1;
+      const uint16_t child = child_word(a, slot, c);
+      if (child >= terrain::kIndexNoNode) break;
+      slot = child;
+      --level;
+    }
+    return level;
   }
   return -1;
 }

@@ -1,7 +1,7 @@
 // terrain-bigworld-bench: the streamer on synthetic worlds of growing root count with overview
 // levels (format/SPEC.md section 19, issue 15). Per world: generation and open time, the streamer's
-// own memory besides the resident payloads (bytes per archive node, with and without the dense
-// index grids), update() CPU (thread CPU time) median and max during a paced 300 m/s flight and
+// own memory besides the resident payloads (bytes per archive node, the residency index
+// included), update() CPU (thread CPU time) median and max during a paced 300 m/s flight and
 // after teleports, settle time of each teleport, gap frames, and the invariants every frame.
 #include <malloc.h>
 #include <time.h>
@@ -70,7 +70,7 @@ struct Row {
   int top_level = 0;
   size_t top_nodes = 0;
   double generate_s = 0, file_mb = 0, open_ms = 0;
-  double own_bytes_per_node = 0, grid_bytes_per_node = 0, reader_bytes_per_node = 0;
+  double own_bytes_per_node = 0, reader_bytes_per_node = 0;
   double flight_median_ms = 0, flight_max_ms = 0, teleport_median_ms = 0, teleport_max_ms = 0;
   double settle_median_ms = 0, settle_max_ms = 0;
   int frames = 0, gap_frames = 0;
@@ -103,9 +103,8 @@ Row run(uint32_t side, const std::string& dir, double seconds, int teleports) {
     if (!r.open(path).ok()) std::exit(1);
     reader_bytes = heap_in_use() - h0;
   }
-  auto own_bytes = [&](bool grids, double* open_ms, size_t* nodes) {
-    StreamerConfig c = config;
-    c.index_grids = grids;
+  auto own_bytes = [&](double* open_ms, size_t* nodes) {
+    const StreamerConfig& c = config;
     const uint64_t h0 = heap_in_use();
     Streamer s;
     const auto t0 = Clock::now();
@@ -120,15 +119,12 @@ Row run(uint32_t side, const std::string& dir, double seconds, int teleports) {
     return double(heap_in_use() - h0) - double(s.stats().buffer_bytes) - double(reader_bytes);
   };
   double open_ms = 0;
-  const double with_grids = own_bytes(true, nullptr, nullptr);
-  const double without = own_bytes(false, &open_ms, &row.nodes);
+  const double own = own_bytes(&open_ms, &row.nodes);
   row.open_ms = open_ms;
-  row.own_bytes_per_node = without / double(row.nodes);
-  row.grid_bytes_per_node = (with_grids - without) / double(row.nodes);
+  row.own_bytes_per_node = own / double(row.nodes);
   row.reader_bytes_per_node = double(reader_bytes) / double(row.nodes);
 
-  // The flight and teleports: without index grids (the part a windowed GPU index replaces).
-  config.index_grids = false;
+  // The flight and teleports.
   Streamer s;
   if (!s.open(path, config).ok()) std::exit(1);
   row.roots = 0;
@@ -212,14 +208,14 @@ int main(int argc, char** argv) {
   app.add_option("--teleports", teleports, "number of teleports")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   std::filesystem::create_directories(dir);
-  std::printf("| roots | nodes | top level (nodes) | file MB | generate s | open ms | streamer B/node | + index grids B/node | reader B/node |"
+  std::printf("| roots | nodes | top level (nodes) | file MB | generate s | open ms | streamer B/node | reader B/node |"
               " update() ms flight median / max | update() ms teleports median / max | settle ms median / max | gap frames (flight) | invariants |\n"
-              "|---:|---:|---|---:|---:|---:|---:|---:|---:|---|---|---|---:|---|\n");
+              "|---:|---:|---|---:|---:|---:|---:|---:|---|---|---|---:|---|\n");
   for (uint32_t side : sides) {
     const Row r = run(side, dir, seconds, teleports);
-    std::printf("| %u | %zu | %d (%zu) | %.1f | %.1f | %.1f | %.1f | %.0f | %.1f | %.3f / %.3f | %.3f / %.3f | %.0f / %.0f | %d of %d | %s |\n",
+    std::printf("| %u | %zu | %d (%zu) | %.1f | %.1f | %.1f | %.1f | %.1f | %.3f / %.3f | %.3f / %.3f | %.0f / %.0f | %d of %d | %s |\n",
                 r.roots, r.nodes, r.top_level, r.top_nodes, r.file_mb, r.generate_s, r.open_ms, r.own_bytes_per_node,
-                r.grid_bytes_per_node, r.reader_bytes_per_node, r.flight_median_ms, r.flight_max_ms, r.teleport_median_ms,
+                r.reader_bytes_per_node, r.flight_median_ms, r.flight_max_ms, r.teleport_median_ms,
                 r.teleport_max_ms, r.settle_median_ms, r.settle_max_ms, r.gap_frames, int(seconds * 60), r.invariants ? "held" : "BROKEN");
     std::fflush(stdout);
   }

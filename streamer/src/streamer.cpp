@@ -38,17 +38,6 @@ uint64_t raw_section_bytes(unsigned sections) {
   return bytes;
 }
 
-void grow(DirtyRect& r, uint32_t x, uint32_t y) {
-  if (r.empty()) {
-    r = {x, y, x + 1, y + 1};
-    return;
-  }
-  r.x0 = std::min(r.x0, x);
-  r.y0 = std::min(r.y0, y);
-  r.x1 = std::max(r.x1, x + 1);
-  r.y1 = std::max(r.y1, y + 1);
-}
-
 }  // namespace
 
 namespace detail {
@@ -82,10 +71,8 @@ struct Streamer::Impl {
   static constexpr uint8_t kWanted = 1, kRequired = 2;
 
   // GPU-side state.
-  // Index grids of the six FC5 levels only (overview nodes have slots but no cells); empty when
-  // config.index_grids is false.
-  std::array<GridSize, kLevelCount> grid_size{};
-  std::array<std::vector<uint16_t>, kLevelCount> grids;
+  ResidencyIndex index;
+  ResidencyChanges index_changes;  // the last update()'s, behind FrameUpdate::dirty_children
   std::vector<SlotDescriptor> slot_table;
   std::vector<int32_t> slot_owner;  // node index or -1
   std::priority_queue<uint16_t, std::vector<uint16_t>, std::greater<>> free_slots;  // lowest first
@@ -128,13 +115,6 @@ struct Streamer::Impl {
     loader.reset();  // joins workers before buffers and the reader go away
   }
 
-  void set_cell(const NodeKey& k, uint16_t value) {
-    if (!config.index_grids || k.level >= uint32_t(kLevelCount)) return;
-    const GridSize& g = grid_size[k.level];
-    grids[k.level][size_t(k.y) * g.width + k.x] = value;
-    grow(update.dirty_index[k.level], k.x, k.y);
-  }
-
   Status validate_config(uint32_t tops, int top) {
     StreamerConfig& c = config;
     auto bad = [](const std::string& what) { return Status::failure(Error::invalid_argument, "streamer config: " + what); };
@@ -174,13 +154,13 @@ struct Streamer::Impl {
     if (Status s = reader.open(path); !s.ok()) return s;
     records = reader.nodes();
     const WorldInfo& world = reader.world();
-    if (world.roots_x == 0 || world.roots_y == 0 ||
-        (config.index_grids && (world.roots_x > kStreamerMaxRootsPerSide || world.roots_y > kStreamerMaxRootsPerSide)))
+    if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||
+        world.roots_y > kStreamerMaxRootsPerSide)
       return Status::failure(Error::unsupported_input,
                              "streamer: " + path + ": root grid " + std::to_string(world.roots_x) + "x" +
                                  std::to_string(world.roots_y) + " is outside the streamer's 1.." +
                                  std::to_string(kStreamerMaxRootsPerSide) +
-                                 " roots per side (16-bit index grids; format/SPEC.md section 12)");
+                                 " roots per side (format/SPEC.md section 12)");
     tree = detail::build_node_tree(reader);
     top_count = uint32_t(tree.tops.size());
     if (top_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
@@ -195,20 +175,9 @@ struct Streamer::Impl {
     order.assign(n, 0);
     failed.assign(n, 0);
 
-    for (int level = 0; level < kLevelCount && config.index_grids; ++level) {
-      const int shift = kRootLevel - level;
-      grid_size[size_t(level)] = {world.roots_x << shift, world.roots_y << shift};
-      grids[size_t(level)].assign(size_t(grid_size[size_t(level)].width) * grid_size[size_t(level)].height, kIndexNoNode);
-    }
-    for (const NodeRecord& r : records) {
-      if (!config.index_grids || r.key.level >= uint32_t(kLevelCount)) continue;
-      const GridSize& g = grid_size[r.key.level];
-      if (r.key.x >= g.width || r.key.y >= g.height)
-        return Status::failure(Error::directory_invalid, "streamer: node " + node_name(r.key) +
-                                                             " lies outside the " + std::to_string(world.roots_x) + "x" +
-                                                             std::to_string(world.roots_y) + " root grid");
-      grids[r.key.level][size_t(r.key.y) * g.width + r.key.x] = kIndexNotResident;
-    }
+    index.init(world, config.slot_count);
+    for (const NodeRecord& r : records)
+      if (r.key.level == uint32_t(kRootLevel)) index.set_node(r.key, kIndexNotResident);
     slot_table.assign(config.slot_count, SlotDescriptor{});
     slot_owner.assign(config.slot_count, -1);
     for (uint32_t s = 0; s < config.slot_count; ++s) free_slots.push(uint16_t(s));
@@ -266,7 +235,7 @@ struct Streamer::Impl {
         phase[r.node] = Phase::failed;
         failed[r.node] = 1;
         ++failed_count;
-        set_cell(records[r.node].key, kIndexNoNode);
+        index.set_node(records[r.node].key, kIndexNoNode);
         failures.push_back({records[r.node].key, std::move(r.status)});
         continue;
       }
@@ -322,7 +291,7 @@ struct Streamer::Impl {
     std::sort(resident.begin(), resident.end());
     resident = keep_wanted(resident, [&](uint32_t node) {
       const uint16_t slot = slot_of[node];
-      set_cell(records[node].key, kIndexNotResident);
+      index.set_node(records[node].key, kIndexNotResident);
       slot_owner[slot] = -1;
       fenced.push_back({slot, frame + config.fence_frames});
       release_data(node);
@@ -357,7 +326,7 @@ struct Streamer::Impl {
       slot_of[node] = slot;
       phase[node] = Phase::resident;
       resident.push_back(node);
-      set_cell(r.key, slot);
+      index.set_node(r.key, slot, r.child_mask);
       dirty_slots.push_back(slot);
       deliveries.push_back({r.key, slot, &records[node], data[node]});
       if (config.sections & kSectionHeights) {
@@ -428,9 +397,6 @@ struct Streamer::Impl {
     dirty_slots.clear();
     update = FrameUpdate{};
     update.frame = frame;
-    if (frame == 1 && config.index_grids)  // the caller's first upload: every grid in full
-      for (int level = 0; level < kLevelCount; ++level)
-        update.dirty_index[size_t(level)] = {0, 0, grid_size[size_t(level)].width, grid_size[size_t(level)].height};
 
     release_fenced();
     collect_results();
@@ -453,6 +419,11 @@ struct Streamer::Impl {
     update.evicted = evictions;
     update.failed = failures;
     update.dirty_slots = dirty_slots;
+    // The index's changes since the previous update(): on the first, all of it (init()).
+    index.take_changes(index_changes);
+    update.dirty_roots = index_changes.roots;
+    update.dirty_starts = index_changes.starts;
+    update.dirty_children = index_changes.children;
     return update;
   }
 };
@@ -477,6 +448,7 @@ const FrameUpdate kNoUpdate{};
 const ArchiveReader kNoArchive{};
 const WorldInfo kNoWorld{};
 const StreamerConfig kNoConfig{};
+const ResidencyIndex kNoIndex{};
 }  // namespace
 
 const FrameUpdate& Streamer::update(std::span<const View> views) { return impl_ ? impl_->run_update(views) : kNoUpdate; }
@@ -486,15 +458,7 @@ const WorldInfo& Streamer::world() const { return impl_ ? impl_->reader.world() 
 const StreamerConfig& Streamer::config() const { return impl_ ? impl_->config : kNoConfig; }
 uint32_t Streamer::slot_count() const { return impl_ ? impl_->config.slot_count : 0; }
 
-GridSize Streamer::index_grid_size(int level) const {
-  if (!impl_ || level < 0 || level >= kLevelCount) return {};
-  return impl_->grid_size[size_t(level)];
-}
-
-std::span<const uint16_t> Streamer::index_grid(int level) const {
-  if (!impl_ || level < 0 || level >= kLevelCount) return {};
-  return impl_->grids[size_t(level)];
-}
+const ResidencyIndex& Streamer::residency() const { return impl_ ? impl_->index : kNoIndex; }
 
 std::span<const SlotDescriptor> Streamer::slots() const {
   if (!impl_) return {};

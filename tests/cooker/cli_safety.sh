@@ -107,6 +107,11 @@ case $case_name in
   work_bound)  # 64 x 64 samples at 100 km: 9.5 M roots, refused in well under a second
     head -c 8192 /dev/zero > coarse.r16; before=$(snapshot)
     expect 1 "3077 x 3077 root nodes.*--force" "$bin/terrain-cook" coarse.r16 --raw-size 64x64 --spacing 100000 --crs local -q -o x.terrain ;;
+  side_bound)  # 17 x 2 samples spanning 65536 roots of 2048 m and 16 m: one root past the 65536 per side
+    # of format and streamer, refused with --force too (the plan-size test checks the bound itself)
+    head -c 68 /dev/zero > strip.r16; before=$(snapshot)
+    expect 1 "65537 x 1 root nodes.*beyond 65536 per side" "$bin/terrain-cook" strip.r16 --raw-size 17x2 \
+      --spacing 8388609,1000 --crs local --force -q -o x.terrain ;;
   *) echo "unknown case $case_name"; exit 1 ;;
 esac
 cd .. && rm -rf "$work"

@@ -99,6 +99,31 @@ SyntheticDem blocky_dem() {
   return d;
 }
 
+// The plan-size refusal (cook_session.h check_plan_size) at its bounds, without cooking anything:
+// 65536 roots per side (kStreamerMaxRootsPerSide, the format's and the streamer's limit) is the
+// widest plan, with --force or without; kMaxPlannedRoots roots in all needs --force beyond it.
+TEST(PlanSize, RefusedJustPastEachBoundAndAcceptedAtIt) {
+  ASSERT_EQ(kStreamerMaxRootsPerSide, 65536u);
+  const double side = kStreamerMaxRootsPerSide;
+  EXPECT_TRUE(cook::check_plan_size(side, 1, false, 1, 1).ok());
+  EXPECT_TRUE(cook::check_plan_size(1, side, false, 1, 1).ok());
+  EXPECT_TRUE(cook::check_plan_size(side, 15, false, 1, 1).ok());  // 983 040 roots: under 10^6
+  for (const bool force : {false, true}) {
+    const Status wide = cook::check_plan_size(side + 1, 1, force, 134219, 2);
+    EXPECT_EQ(wide.code, Error::unsupported_input);
+    EXPECT_NE(wide.message.find("65537 x 1 root nodes"), std::string::npos) << wide.message;
+    EXPECT_NE(wide.message.find("beyond 65536 per side"), std::string::npos) << wide.message;
+    EXPECT_EQ(wide.message.find("--force"), std::string::npos) << "--force cannot help: " << wide.message;
+    EXPECT_FALSE(cook::check_plan_size(1, side + 1, force, 2, 134219).ok());
+  }
+  EXPECT_TRUE(cook::check_plan_size(1000, 1000, false, 1, 1).ok());  // 10^6 = kMaxPlannedRoots
+  const Status many = cook::check_plan_size(1000, 1001, false, 1, 1);
+  EXPECT_EQ(many.code, Error::unsupported_input);
+  EXPECT_NE(many.message.find("beyond 1000000 roots"), std::string::npos) << many.message;
+  EXPECT_NE(many.message.find("--force"), std::string::npos) << many.message;
+  EXPECT_TRUE(cook::check_plan_size(1000, 1001, true, 1, 1).ok());
+}
+
 TEST(BlockCook, BlockSizeAndOrderDoNotChangeAByteOnSyntheticVoidsAndCliffs) {
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-synthetic"), "blocky", blocky_dem(), true, o));

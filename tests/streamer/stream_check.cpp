@@ -172,17 +172,15 @@ std::set<Key> reference_wanted(const ArchiveReader& reader, const StreamerConfig
 
 StreamChecker::StreamChecker(const Streamer& streamer, bool check_markers)
     : streamer_(streamer), reader_(streamer.archive()), check_markers_(check_markers) {
-  for (int level = 0; level < kLevelCount; ++level) {
-    const GridSize g = streamer.index_grid_size(level);
-    grids_[size_t(level)].assign(size_t(g.width) * g.height, 0x1234);  // garbage until the first upload
-    exists_[size_t(level)].assign(size_t(g.width) * g.height, 0);
-  }
-  grids_checked_ = streamer.config().index_grids;
+  // Garbage until the first upload.
+  roots_mirror_.assign(size_t(streamer.world().roots_x) * streamer.world().roots_y, 0x1234);
+  tree_mirror_.assign(index_tree_words(streamer.slot_count()), 0xDEADBEEF);
   top_ = uint32_t(reader_.top_level());
+  root_cells_.assign(roots_mirror_.size(), kIndexNoNode);
   for (const NodeRecord& r : reader_.nodes()) {
-    if (grids_checked_ && r.key.level < uint32_t(kLevelCount))  // overview nodes have no index cells
-      exists_[r.key.level][size_t(r.key.y) * streamer.index_grid_size(int(r.key.level)).width + r.key.x] = 1;
     if (r.key.level == top_) roots_.push_back(key_of(r.key));
+    if (r.key.level == uint32_t(kRootLevel))
+      root_cells_[size_t(r.key.y) * streamer.world().roots_x + r.key.x] = kIndexNotResident;
   }
   slots_.assign(streamer.slot_count(), SlotDescriptor{});
   slot_evicted_frame_.assign(streamer.slot_count(), 0);
@@ -199,6 +197,86 @@ std::set<Key> StreamChecker::resident_set() const {
   std::set<Key> out;
   for (const auto& [k, s] : resident_) out.insert(k);
   return out;
+}
+
+std::string StreamChecker::check_index(const FrameUpdate& u) {
+  // Apply the dirty lists as a GPU upload would.
+  const ResidencyIndex& index = streamer_.residency();
+  const WorldInfo& w = streamer_.world();
+  const uint32_t cap = streamer_.slot_count();
+  const DirtyRect& r = u.dirty_roots;
+  if (!r.empty()) {
+    if (r.x1 > w.roots_x || r.y1 > w.roots_y) return "dirty root rectangle outside the root grid";
+    for (uint32_t y = r.y0; y < r.y1; ++y)
+      for (uint32_t x = r.x0; x < r.x1; ++x)
+        roots_mirror_[size_t(y) * w.roots_x + x] = index.root_grid()[size_t(y) * w.roots_x + x];
+  }
+  const std::span<const uint32_t> tree = index.tree();
+  if (tree.size() != tree_mirror_.size()) return "index tree of " + std::to_string(tree.size()) + " words";
+  if (u.dirty_starts) std::copy(tree.begin(), tree.begin() + kIndexTreeStart + cap, tree_mirror_.begin());
+  for (size_t i = 0; i < u.dirty_children.size(); ++i) {
+    const uint16_t s = u.dirty_children[i];
+    if (i > 0 && s <= u.dirty_children[i - 1]) return "dirty child slots not ascending";
+    if (s >= cap) return "dirty child slot " + std::to_string(s) + " out of range";
+    for (size_t k = 0; k < 2; ++k) tree_mirror_[index_child_word(cap, s) + k] = tree[index_child_word(cap, s) + k];
+  }
+  // After the first update the lists name only what the events touched: a node's own slot and its
+  // parent's per event, the roots' cells only for root events, the start list never (top nodes stay).
+  if (u.frame > 1) {
+    const size_t events = u.delivered.size() + u.evicted.size() + u.failed.size();
+    if (u.dirty_children.size() > 2 * events)
+      return std::to_string(u.dirty_children.size()) + " dirty child slots for " + std::to_string(events) + " events";
+    if (u.dirty_starts) return "start list marked dirty after the first update";
+    bool root_event = false;
+    for (const NodeDelivery& d : u.delivered) root_event |= d.key.level == uint32_t(kRootLevel);
+    for (const NodeEviction& e : u.evicted) root_event |= e.key.level == uint32_t(kRootLevel);
+    for (const NodeFailure& f : u.failed) root_event |= f.key.level == uint32_t(kRootLevel);
+    if (!root_event && !u.dirty_roots.empty()) return "root cells marked dirty without a root event";
+  }
+
+  // The index recomputed by brute force from node_state() and the directory (surface_contract.h):
+  // the roots' cells, then the start list and child words of every resident node.
+  auto value_of = [&](const NodeKey& k) -> uint16_t {
+    switch (streamer_.node_state(k)) {
+      case NodeState::resident: return uint16_t(streamer_.slot_of(k));
+      case NodeState::absent:
+      case NodeState::failed: return kIndexNoNode;
+      default: return kIndexNotResident;
+    }
+  };
+  std::vector<uint16_t> roots = root_cells_;  // kIndexNotResident where a root exists
+  for (const Key& k : failed_set())
+    if (std::get<0>(k) == uint32_t(kRootLevel)) roots[size_t(std::get<2>(k)) * w.roots_x + std::get<1>(k)] = value_of(node_key(k));
+  std::vector<uint32_t> want(tree.size(), kIndexNoChildren);
+  want[0] = 0;
+  want[1] = cap;
+  want[2] = want[3] = 0;
+  std::fill(want.begin() + kIndexTreeStart, want.begin() + kIndexTreeStart + cap, 0u);
+  for (const NodeKey& key : streamer_.resident_nodes()) {  // directory order: key order within a level
+    const NodeRecord& rec = reader_.nodes()[size_t(reader_.find(key))];
+    const uint16_t v = value_of(rec.key);
+    if (v >= kIndexNoNode) return "resident node " + key_name(key_of(key)) + " has no slot";
+    if (rec.key.level == uint32_t(kRootLevel)) roots[size_t(rec.key.y) * w.roots_x + rec.key.x] = v;
+    if (rec.key.level == top_) want[kIndexTreeStart + want[0]++] = v;
+    uint16_t child[4];
+    for (int c = 0; c < 4; ++c)
+      child[c] = rec.key.level > 0 && (rec.child_mask & (1 << c)) ? value_of(child_of(rec.key, c)) : kIndexNoNode;
+    want[index_child_word(cap, v)] = uint32_t(child[0]) | uint32_t(child[1]) << 16;
+    want[index_child_word(cap, v) + 1] = uint32_t(child[2]) | uint32_t(child[3]) << 16;
+  }
+  for (size_t i = 0; i < roots.size(); ++i) {
+    if (index.root_grid()[i] != roots[i])
+      return "root cell " + std::to_string(i) + " is " + std::to_string(index.root_grid()[i]) + ", expected " +
+             std::to_string(roots[i]);
+    if (roots_mirror_[i] != roots[i])
+      return "root cell " + std::to_string(i) + " changed without a dirty rectangle covering it";
+  }
+  for (size_t i = 0; i < want.size(); ++i) {
+    if (tree[i] != want[i])
+      return "index tree word " + std::to_string(i) + " is " + std::to_string(tree[i]) + ", expected " + std::to_string(want[i]);
+    if (tree_mirror_[i] != want[i]) return "index tree word " + std::to_string(i) + " changed without being listed dirty";
+  }
+  return "";
 }
 
 std::string StreamChecker::check(const FrameUpdate& u) {
@@ -263,16 +341,6 @@ std::string StreamChecker::check(const FrameUpdate& u) {
     if (resident_.count(k)) return fail("failed node " + key_name(k) + " is resident");
   }
 
-  // Apply the dirty regions, then the mirror must equal the streamer's state exactly.
-  for (int level = 0; level < kLevelCount; ++level) {
-    const DirtyRect& r = u.dirty_index[size_t(level)];
-    const GridSize g = streamer_.index_grid_size(level);
-    if (r.empty()) continue;
-    if (r.x1 > g.width || r.y1 > g.height) return fail("dirty rectangle outside level " + std::to_string(level));
-    std::span<const uint16_t> src = streamer_.index_grid(level);
-    for (uint32_t y = r.y0; y < r.y1; ++y)
-      for (uint32_t x = r.x0; x < r.x1; ++x) grids_[size_t(level)][size_t(y) * g.width + x] = src[size_t(y) * g.width + x];
-  }
   for (size_t i = 0; i < u.dirty_slots.size(); ++i) {
     if (i > 0 && u.dirty_slots[i] <= u.dirty_slots[i - 1]) return fail("dirty slots not ascending");
     slots_[u.dirty_slots[i]] = streamer_.slots()[u.dirty_slots[i]];
@@ -280,34 +348,7 @@ std::string StreamChecker::check(const FrameUpdate& u) {
   for (const NodeDelivery& d : u.delivered)
     if (!std::binary_search(u.dirty_slots.begin(), u.dirty_slots.end(), d.slot))
       return fail("slot " + std::to_string(d.slot) + " delivered but not marked dirty");
-
-  // Expected index grids from the resident model.
-  std::array<std::vector<uint16_t>, kLevelCount> expected;
-  for (int level = 0; level < kLevelCount; ++level) {
-    auto& e = expected[size_t(level)];
-    e.resize(exists_[size_t(level)].size());
-    for (size_t i = 0; i < e.size(); ++i) e[i] = exists_[size_t(level)][i] ? kIndexNotResident : kIndexNoNode;
-  }
-  for (const auto& [k, n] : failure_count_)
-    if (grids_checked_ && std::get<0>(k) < uint32_t(kLevelCount))
-    expected[std::get<0>(k)][size_t(std::get<2>(k)) * streamer_.index_grid_size(int(std::get<0>(k))).width + std::get<1>(k)] =
-        kIndexNoNode;
-  for (const auto& [k, slot] : resident_)
-    if (grids_checked_ && std::get<0>(k) < uint32_t(kLevelCount))
-    expected[std::get<0>(k)][size_t(std::get<2>(k)) * streamer_.index_grid_size(int(std::get<0>(k))).width + std::get<1>(k)] = slot;
-  for (int level = 0; level < kLevelCount && grids_checked_; ++level) {
-    std::span<const uint16_t> actual = streamer_.index_grid(level);
-    const auto& mirror = grids_[size_t(level)];
-    const auto& want = expected[size_t(level)];
-    for (size_t i = 0; i < want.size(); ++i) {
-      if (actual[i] != want[i])
-        return fail("index grid level " + std::to_string(level) + " cell " + std::to_string(i) + " is " + std::to_string(actual[i]) +
-                    ", expected " + std::to_string(want[i]));
-      if (mirror[i] != actual[i])
-        return fail("index grid level " + std::to_string(level) + " cell " + std::to_string(i) +
-                    " changed without a dirty rectangle covering it");
-    }
-  }
+  if (std::string problem = check_index(u); !problem.empty()) return fail(problem);
 
   // Resident set, roots, parents, budget, descriptors, data lifetime.
   const std::vector<NodeKey> listed = streamer_.resident_nodes();

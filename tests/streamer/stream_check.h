@@ -1,6 +1,7 @@
 // Test helpers for the streamer: cached synthetic archives, an independent reference of the
 // wanted set, and a checker that mirrors the GPU state from FrameUpdates and checks every
-// invariant of streamer.h after each update().
+// invariant of streamer.h after each update(), the residency index against a brute-force
+// recomputation from node_state() and the archive's directory.
 #pragma once
 #include <map>
 #include <set>
@@ -75,12 +76,15 @@ class StreamChecker {
   uint64_t slot_reuses() const { return slot_reuses_; }
 
  private:
+  std::string check_index(const FrameUpdate& u);  // "" or the problem
+
   const Streamer& streamer_;
   const ArchiveReader& reader_;
   bool check_markers_;
   uint64_t last_frame_ = 0;
-  std::array<std::vector<uint16_t>, kLevelCount> grids_;
-  std::array<std::vector<uint8_t>, kLevelCount> exists_;
+  std::vector<uint16_t> roots_mirror_;  // the residency index as a GPU holds it, from the dirty lists
+  std::vector<uint32_t> tree_mirror_;
+  std::vector<uint16_t> root_cells_;  // kIndexNotResident where the archive has a root, else kIndexNoNode
   std::vector<SlotDescriptor> slots_;
   std::vector<uint64_t> slot_evicted_frame_;
   std::vector<int> slot_busy_;
@@ -90,7 +94,6 @@ class StreamChecker {
   std::vector<NodeFailure> failure_statuses_;
   std::vector<Key> roots_;  // the top nodes (roots without overview levels): always resident
   uint32_t top_ = kRootLevel;
-  bool grids_checked_ = true;  // config.index_grids
   uint64_t deliveries_ = 0, evictions_ = 0, slot_reuses_ = 0;
 };
 

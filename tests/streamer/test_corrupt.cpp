@@ -90,8 +90,7 @@ TEST(StreamerCorrupt, CorruptPayloadIsReportedOnceAndTheParentCovers) {
   for (const NodeKey& v : victims) {
     EXPECT_EQ(streamer.node_state(v), NodeState::failed) << key_name(key_of(v));
     EXPECT_EQ(streamer.node_state(parent_of(v)), NodeState::resident) << "parent of " << key_name(key_of(v));
-    const GridSize g = streamer.index_grid_size(int(v.level));
-    EXPECT_EQ(streamer.index_grid(int(v.level))[size_t(v.y) * g.width + v.x], kIndexNoNode);
+    EXPECT_EQ(streamer.residency().slot_of(v), kIndexNoNode);
   }
   // Each failure names the node and the problem.
   // Away and back: never retried, never reported again (the checker fails on a second report).

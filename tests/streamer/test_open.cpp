@@ -98,7 +98,7 @@ TEST(StreamerOpen, TruncatedArchiveIsAnErrorAtEveryLength) {
   std::filesystem::remove_all(dir);
 }
 
-TEST(StreamerOpen, FirstUpdateDeliversEveryRootAndFullGrids) {
+TEST(StreamerOpen, FirstUpdateDeliversEveryRootAndTheWholeIndex) {
   const std::string path = synthetic_archive(many_roots_spec());
   Streamer streamer;
   StreamerConfig config = with_workers(2);
@@ -113,14 +113,19 @@ TEST(StreamerOpen, FirstUpdateDeliversEveryRootAndFullGrids) {
   EXPECT_EQ(u.frame, 1u);
   EXPECT_EQ(u.delivered.size(), 36u);
   for (const NodeDelivery& d : u.delivered) EXPECT_EQ(d.key.level, uint32_t(kRootLevel));
-  for (int level = 0; level < kLevelCount; ++level) {
-    const GridSize g = streamer.index_grid_size(level);
-    EXPECT_EQ(g.width, 6u << (kRootLevel - level));
-    EXPECT_EQ(g.height, 6u << (kRootLevel - level));
-    EXPECT_EQ(u.dirty_index[size_t(level)].x0, 0u);
-    EXPECT_EQ(u.dirty_index[size_t(level)].x1, g.width);
-    EXPECT_EQ(u.dirty_index[size_t(level)].y1, g.height);
-  }
+  // The first update marks the whole residency index dirty: every root cell, the start list and
+  // every slot's child words.
+  const ResidencyIndex& index = streamer.residency();
+  EXPECT_EQ(index.root_grid().size(), 36u);
+  EXPECT_EQ(index.tree().size(), index_tree_words(streamer.slot_count()));
+  EXPECT_EQ(u.dirty_roots.x0, 0u);
+  EXPECT_EQ(u.dirty_roots.y0, 0u);
+  EXPECT_EQ(u.dirty_roots.x1, 6u);
+  EXPECT_EQ(u.dirty_roots.y1, 6u);
+  EXPECT_TRUE(u.dirty_starts);
+  ASSERT_EQ(u.dirty_children.size(), size_t(streamer.slot_count()));
+  for (size_t s = 0; s < u.dirty_children.size(); ++s) EXPECT_EQ(u.dirty_children[s], s);
+  EXPECT_EQ(index.start_slots().size(), 36u);  // no overview levels: the roots are the top
   ASSERT_EQ(checker.check(u), "");
   EXPECT_EQ(streamer.stats().resident, 36u);
 }
@@ -133,7 +138,8 @@ TEST(StreamerOpen, AClosedStreamerAnswersWithEmptyState) {
   EXPECT_EQ(u.frame, 0u);
   EXPECT_TRUE(u.delivered.empty());
   EXPECT_EQ(streamer.slot_count(), 0u);
-  EXPECT_TRUE(streamer.index_grid(0).empty());
+  EXPECT_TRUE(streamer.residency().root_grid().empty());
+  EXPECT_TRUE(streamer.residency().tree().empty());
   EXPECT_TRUE(streamer.slots().empty());
   EXPECT_TRUE(streamer.resident_nodes().empty());
   EXPECT_EQ(streamer.node_state({5, 0, 0}), NodeState::absent);

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <set>
 
+#include "reference.h"
 #include "session.h"
 #include "test_data.h"
 

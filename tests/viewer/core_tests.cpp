@@ -449,6 +449,106 @@ TEST(ViewerReference, PatchesWithHolesDecimateWithinTheTargetOverWhatTheyDraw) {
   std::printf("decimated patches with holes: %zu, %zu of them to 128 m quads\n", checked, deep);
 }
 
+// What the renderer's upload prepares per slot (node_prep.h prepare_slot), recomputed here by brute
+// force from the node's heights and hole mask, without node_prep's helpers: per-patch bounds over
+// the 17 x 17 vertices, and for roots every coarsening and patch decimation error as the largest
+// vertical distance between a vertex and the coarse SW->NE triangle over it (holes: only vertices
+// the coarse mesh draws; kNeverDecimate beyond a root's coarsening), plus the geometric error.
+TEST(ViewerNodePrep, PreparedSlotsMatchABruteForceRecomputation) {
+  synthetic::Spec o = synthetic::analytic_surface();
+  o.roots_x = 2;
+  o.roots_y = 2;
+  o.relief_m = 120;
+  o.flat_from_x_m = 2600;
+  o.hole_x_m = o.origin_x_m + 1900;
+  o.hole_y_m = o.origin_y_m + 1900;
+  o.hole_radius_m = 250;
+  o.keep = [](const NodeKey& k) { return k.level >= 4; };
+  const auto scene = resident_scene(o);
+  ASSERT_TRUE(scene);
+  const auto& [sw, st, cpu, table] = *scene;
+  size_t roots = 0, hole_patches = 0, compared = 0;
+  for (uint32_t slot = 0; slot < st.slot_count(); ++slot) {
+    const SlotDescriptor& d = st.descriptor(slot);
+    const synthetic::Node* node = nullptr;
+    for (const auto& n : sw.nodes)
+      if (n.record.key == NodeKey{d.level, d.x, d.y} && st.slot_of(n.record.key) == slot) node = &n;
+    if (!node) continue;
+    const SlotCpuData& got = cpu[slot];
+    std::vector<uint8_t> holes(kHeightCount);
+    decode_hole_mask(node->data, holes.data());
+    auto units = [&](int i, int j) {
+      return int32_t(d.height_offset) + (int32_t(node->data.heights[size_t(j) * kHeightSamples + size_t(i)]) << d.step_log2);
+    };
+    auto metres = [&](int i, int j) { return double(units(i, j)) / 1024.0; };
+    auto hole = [&](int i, int j) { return holes[size_t(j) * kHeightSamples + size_t(i)] != 0; };
+    for (int q = 0; q < 8; ++q)
+      for (int p = 0; p < 8; ++p) {
+        int32_t lo = INT32_MAX, hi = INT32_MIN;
+        for (int j = 16 * q; j <= 16 * q + 16; ++j)
+          for (int i = 16 * p; i <= 16 * p + 16; ++i) {
+            lo = std::min(lo, units(i, j));
+            hi = std::max(hi, units(i, j));
+          }
+        ASSERT_EQ(got.bounds[size_t(q * 8 + p)].min_units, lo) << "slot " << slot << " patch " << p << "," << q;
+        ASSERT_EQ(got.bounds[size_t(q * 8 + p)].max_units, hi) << "slot " << slot << " patch " << p << "," << q;
+      }
+    if (d.level != kRootLevel) {  // errors are the roots' only
+      for (float e : got.coarse_error) EXPECT_EQ(e, 0.0f);
+      for (const auto& pe : got.patch_error)
+        for (float e : pe) EXPECT_EQ(e, 0.0f);
+      continue;
+    }
+    ++roots;
+    // Largest |vertex - coarse surface| over [i0, i0 + span]^2 at stride s; `whole_triangle`: skip
+    // vertices of coarse triangles with a hole corner (else only hole vertices themselves).
+    auto worst = [&](int i0, int j0, int span, int s, bool whole_triangle) {
+      double w = 0;
+      for (int j = 0; j <= span; ++j)
+        for (int i = 0; i <= span; ++i) {
+          const int ci = std::min(i / s, span / s - 1) * s, cj = std::min(j / s, span / s - 1) * s;
+          const double a = double(i - ci) / s, b = double(j - cj) / s;
+          const bool upper = a < b;  // (00, 11, 01) above the diagonal, (00, 10, 11) on and below it
+          const int I = i0 + i, J = j0 + j, CI = i0 + ci, CJ = j0 + cj;
+          if (hole(I, J)) continue;
+          if (whole_triangle && (hole(CI, CJ) || hole(CI + s, CJ + s) || (upper ? hole(CI, CJ + s) : hole(CI + s, CJ))))
+            continue;
+          const double h00 = metres(CI, CJ), h10 = metres(CI + s, CJ), h01 = metres(CI, CJ + s), h11 = metres(CI + s, CJ + s);
+          const double drawn = upper ? h00 + a * (h11 - h01) + b * (h01 - h00) : h00 + a * (h10 - h00) + b * (h11 - h10);
+          w = std::max(w, std::abs(drawn - metres(I, J)));
+        }
+      return w;
+    };
+    const double g = d.geometric_error_m;
+    auto near = [&](float actual, double expected) { return std::abs(double(actual) - expected) <= 1e-4 + 1e-6 * expected; };
+    for (int c = 1; c <= 3; ++c)
+      EXPECT_TRUE(near(got.coarse_error[size_t(c)], g + worst(0, 0, 128, 1 << c, false)))
+          << "slot " << slot << " coarsening " << c << ": " << got.coarse_error[size_t(c)];
+    for (int c = 0; c <= 3; ++c)
+      for (int q = 0; q < (8 >> c); ++q)
+        for (int p = 0; p < (8 >> c); ++p) {
+          const int span = 16 << c, i0 = p * span, j0 = q * span;
+          bool any_hole = false;
+          for (int j = j0; j <= j0 + span; ++j)
+            for (int i = i0; i <= i0 + span; ++i) any_hole = any_hole || hole(i, j);
+          hole_patches += any_hole && c == 0;
+          for (int e = 1; e <= 4; ++e) {
+            const float actual = got.patch_error[patch_error_index(uint32_t(c), uint32_t(p), uint32_t(q))][size_t(e - 1)];
+            if (any_hole && c + e > 3) {
+              EXPECT_GE(actual, 1e29f) << "a patch with holes never decimates beyond a root's coarsening";
+              continue;
+            }
+            EXPECT_TRUE(near(actual, g + worst(i0, j0, span, 1 << (c + e), any_hole)))
+                << "slot " << slot << " c " << c << " patch " << p << "," << q << " e " << e << ": " << actual;
+            ++compared;
+          }
+        }
+  }
+  EXPECT_EQ(roots, 4u);
+  EXPECT_GT(hole_patches, 0u) << "some root patches must hold holes";
+  EXPECT_GT(compared, 4u * 4 * 64) << "every root patch of every coarsening compared";
+}
+
 TEST(ViewerReference, LodMapMatchesCoverage) {
   synthetic::Spec o = synthetic::analytic_surface();
   o.roots_x = 3;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "device.h"
+#include "reference.h"
 #include "renderer.h"
 #include "residency.h"
 #include "synthetic_nodes.h"

@@ -794,7 +794,7 @@ void check_near_far_band(bool prelit_far) {
 TEST(ViewerGpu, NearShadingMatchesTheBakedAlbedoInMeanColour) { check_near_far_band(false); }
 TEST(ViewerGpu, NearShadingMatchesTheFarColourLitPerTexel) { check_near_far_band(true); }
 
-// The index is sparse (terrain_state.h): the tree buffer below the roots and a texel per root. A
+// The index is the streamer's sparse residency index: the tree buffer below the roots and a texel per root. A
 // world wider than the device's largest 2D image in roots is refused by init with the numbers (no
 // vkCreateImage beyond the limits), and a world exactly that wide opens.
 TEST(ViewerGpu, AWorldWiderThanTheRootImageIsRefusedWithItsNumbers) {

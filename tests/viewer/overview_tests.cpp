@@ -16,6 +16,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include "reference.h"
 #include "session.h"
 #include "synthetic_archive.h"
 

@@ -23,6 +23,7 @@
 #include <unordered_map>
 
 #include "bench_chart.h"
+#include "reference.h"
 #include "session.h"
 #include "terrain/bc_decode.h"
 

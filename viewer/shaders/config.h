@@ -1,7 +1,11 @@
 // Constants shared by the C++ viewer and its GLSL shaders (included by both; keep it plain #defines).
 // One home per constant: change a value here and both sides follow. Each knob says what it trades.
+// The residency index layout is the streamer's, defined in terrain/surface_contract.h (whose
+// #define block GLSL reads as it is: glslc -I format/include); the names below take it from there.
 #ifndef TERRAIN_VIEW_CONFIG_H
 #define TERRAIN_VIEW_CONFIG_H
+
+#include "terrain/surface_contract.h"
 
 // ---- Quadtree geometry (mirrors terrain/format.h; static_asserts in src/gpu_types.h check it) ----
 #define TV_LEVELS 6
@@ -29,9 +33,9 @@
 // (south-west corner of root 0,0), so shared vertices convert to bit-identical floats.
 #define TV_HALF_METRE 0.5
 
-// ---- Index texture / slot table (terrain/surface_contract.h; static_asserts in src/gpu_types.h) ----
-#define TV_SLOT_EMPTY 0xFFFFu     // node exists, not resident (kIndexNotResident)
-#define TV_SLOT_INVALID 0xFFFEu   // no node in the archive here (kIndexNoNode)
+// ---- Residency index (terrain/surface_contract.h "Residency index: GPU layout") ----
+#define TV_SLOT_EMPTY TERRAIN_INDEX_NOT_RESIDENT   // node exists, not resident (kIndexNotResident)
+#define TV_SLOT_INVALID TERRAIN_INDEX_NO_NODE      // no node in the archive here (kIndexNoNode)
 
 // ---- Surface texels (terrain/surface_contract.h; static_asserts in src/gpu_types.h) ----
 // Normal component c = (v8 - TV_NORMAL_CENTRE) / TV_NORMAL_SCALE; cone axis x = (R - TV_CONE_R_CENTRE)
@@ -54,14 +58,11 @@
 // two ping-pong lists in a storage buffer of 2 x slot_count uints. A list holds distinct resident
 // slots, so it cannot overflow: the bound is the atlas, not the world (TV_NL_OVERFLOW counts
 // entries that did not fit anyway and the viewer warns when it is ever non-zero).
-// Tree buffer (uints): [0] start count, [1] slot count, then the start slots from
-// TV_TREE_START, then per slot 2 words of child slots (4 x u16, child c in word c >> 1, half
-// c & 1) from TV_TREE_START + slot count, filled for every resident node. With the root grid (an
-// R16_UINT image of a texel per root: slot, TV_SLOT_EMPTY or TV_SLOT_INVALID, for the roots'
-// neighbours and the root under a sector) it is the whole index: sparse, so its memory is 12
-// bytes per slot plus 2 per root whatever the world's area (FC5's dense per-level grids cost 2730
-// bytes per root: 273 MB at 10^5 roots, and an image wider than the device allows past 512 roots).
-#define TV_TREE_START 4
+// The index is the streamer's residency index (terrain/surface_contract.h): the tree buffer (start
+// list, then 2 words of child slots per slot) and the root grid, an R16_UINT image of a texel per
+// root (for the roots' neighbours and the root under a sector). Sparse: 12 bytes per slot plus 2
+// per root whatever the world's area.
+#define TV_TREE_START TERRAIN_INDEX_TREE_START
 
 // Node-list entry: slot in bits 0..15, quadrant mask (bit c = child c's quarter is drawn by this
 // node, c as terrain::child_of: bit 0 east, bit 1 north) in bits 16..19, coarsening in bits 20..21.

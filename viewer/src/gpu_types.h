@@ -1,7 +1,9 @@
 // C++ mirrors of the GPU-side layouts (std140 uniforms, std430 buffers) and the bit packings of
 // shaders/config.h. Plain structs; static_asserts pin sizes and the agreement with terrain/format.h.
 #pragma once
+#include <array>
 #include <cstdint>
+#include <vector>
 
 #include "terrain/format.h"
 #include "terrain/surface_contract.h"
@@ -17,7 +19,7 @@ static_assert(TV_PATCHES_PER_SIDE * TV_QUADS_PER_PATCH == TV_QUADS_PER_NODE);
 static_assert((1 << TV_QUADS_PER_PATCH_LOG2) == TV_QUADS_PER_PATCH);
 static_assert(TV_SECTORS_PER_ROOT == (1 << TV_ROOT_LEVEL));
 // The GLSL mirror of terrain/surface_contract.h.
-static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode);
+static_assert(TV_SLOT_EMPTY == kIndexNotResident && TV_SLOT_INVALID == kIndexNoNode && TV_TREE_START == kIndexTreeStart);
 static_assert(TV_NORMAL_CENTRE == kNormalCentre && TV_NORMAL_SCALE == kNormalScale);
 static_assert(TV_CONE_R_CENTRE == cone::kConeRCentre && TV_CONE_R_SCALE == cone::kConeRScale);
 static_assert(TV_CONE_G_CENTRE == cone::kConeGCentre && TV_CONE_G_SCALE == cone::kConeGScale);
@@ -26,6 +28,13 @@ static_assert(TV_CONE_G_CENTRE == cone::kConeGCentre && TV_CONE_G_SCALE == cone:
 // (std430, 32 bytes; NodeDesc in shaders/common.glsl). Heights in units of 2^-10 m.
 using GpuNodeDesc = SlotDescriptor;
 static_assert(sizeof(GpuNodeDesc) == 32);
+
+// The traversal's output as read back (config.h "Node-list entry"; the CPU reference's too).
+struct NodeList {
+  std::vector<uint32_t> entries;  // slot | quadrant mask << 16 | coarsening << 20 (unordered on the GPU)
+  std::array<uint32_t, kMaxLevels> level_counts{};
+  uint32_t overflow = 0;
+};
 
 // Per-patch bounds (std430 ivec2), 64 per slot: min and max height units over the patch's
 // 17x17 vertices (hole vertices included: conservative).

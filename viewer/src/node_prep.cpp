@@ -117,6 +117,20 @@ PatchErrorArray patch_decimation_errors(const NodeData& data, int32_t height_off
   return out;
 }
 
+SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc) {
+  SlotCpuData cpu;
+  cpu.bounds = compute_patch_bounds(data, desc.height_offset, desc.step_log2);
+  cpu.cones = decode_cones(data);
+  if (desc.level == kRootLevel) {
+    const auto dec = coarsening_errors(data, desc.height_offset, desc.step_log2);
+    for (int c = 1; c <= TV_MAX_COARSEN; ++c) cpu.coarse_error[size_t(c)] = desc.geometric_error_m + dec[size_t(c)];
+    cpu.patch_error = patch_decimation_errors(data, desc.height_offset, desc.step_log2);
+    for (auto& p : cpu.patch_error)
+      for (float& e : p) e = desc.geometric_error_m + e;
+  }
+  return cpu;
+}
+
 void cone_sin2_table(double margin_deg, float out[256]) {
   for (int a = 0; a < 256; ++a) {
     const double angle = a / 255.0 * 90.0 + margin_deg;

@@ -1,5 +1,7 @@
-// Per-node data the viewer derives on the CPU when a node arrives (cheap: one pass over 129x129):
-// per-patch height bounds for culling and the decoded patch cones for the CPU reference.
+// Per-node data the viewer derives on the CPU when a node arrives (one pass over 129x129 per
+// quantity): per-patch height bounds for culling, the root coarsening and patch decimation errors,
+// and the decoded patch cones for the CPU reference. The renderer's upload calls prepare_slot();
+// tests/viewer/core_tests.cpp (ViewerNodePrep) recomputes its results by brute force.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -58,5 +60,22 @@ Cone decode_cone(const std::array<uint8_t, 4>& texel, const float* sin2_table);
 void cone_sin2_table(double margin_deg, float out[256]);
 // Largest edge LOD delta whose stitched triangles the cooked cones include.
 inline constexpr uint32_t kConeMaxStitchDelta = uint32_t(terrain::kMaxConeStitchDelta);
+
+// Per-slot CPU data derived at upload (the GPU gets the same values in buffers).
+struct SlotCpuData {
+  PatchBoundsArray bounds{};
+  ConeTexels cones{};
+  // Total error (metres) of the node drawn with coarsening c = 1..3 (roots only; see config.h):
+  // its geometric error plus the decimation error. Index 0 unused.
+  std::array<float, 4> coarse_error{};
+  // Total error (metres) of each patch of each coarsening drawn with decimation e = 1..4 in
+  // component e - 1 (roots only; index patch_error_index(c, px, py); config.h "Patch
+  // decimation"): geometric error plus the patch's decimation error.
+  PatchErrorArray patch_error{};
+};
+
+// What the renderer derives from a node payload at upload (bounds, cones, coarsening errors), with
+// the quantization and geometric error of the slot's descriptor.
+SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc);
 
 }  // namespace terrain::view

@@ -66,20 +66,6 @@ void coarse_patch_bounds(const PatchBoundsArray& b, uint32_t c, uint32_t px, uin
 
 }  // namespace
 
-SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc) {
-  SlotCpuData cpu;
-  cpu.bounds = compute_patch_bounds(data, desc.height_offset, desc.step_log2);
-  cpu.cones = decode_cones(data);
-  if (desc.level == kRootLevel) {
-    const auto dec = coarsening_errors(data, desc.height_offset, desc.step_log2);
-    for (int c = 1; c <= TV_MAX_COARSEN; ++c) cpu.coarse_error[size_t(c)] = desc.geometric_error_m + dec[size_t(c)];
-    cpu.patch_error = patch_decimation_errors(data, desc.height_offset, desc.step_log2);
-    for (auto& p : cpu.patch_error)
-      for (float& e : p) e = desc.geometric_error_m + e;
-  }
-  return cpu;
-}
-
 bool wants_split(const GpuNodeDesc& n, float error_m, const FrameUniforms& u) {
   const int level = n.level;
   const float mnx = rel_x(vertex_half_metres(n.x, level, 0), u);

@@ -1,6 +1,8 @@
 // CPU reference of the GPU pipeline (FC5 sections 4-6): traversal, LOD map, patch list (frustum and
 // cone culling, per-edge LOD deltas) and vertex stitching. Every float decision uses the operations,
 // in the order, that the shaders use (precise, no contraction), so the GPU lists must equal these.
+// The tests' oracle and the benchmark's: the renderer itself never includes it. It takes the slots'
+// CPU data as the renderer prepared it (node_prep.h prepare_slot).
 #pragma once
 #include <algorithm>
 #include <array>
@@ -12,28 +14,6 @@
 #include "terrain_state.h"
 
 namespace terrain::view {
-
-struct NodeList {
-  std::vector<uint32_t> entries;  // slot | quadrant mask << 16 | coarsening << 20 (unordered on the GPU)
-  std::array<uint32_t, kMaxLevels> level_counts{};
-  uint32_t overflow = 0;
-};
-
-// Per-slot CPU data derived at upload (the GPU gets the same values in buffers).
-struct SlotCpuData {
-  PatchBoundsArray bounds{};
-  ConeTexels cones{};
-  // Total error (metres) of the node drawn with coarsening c = 1..3 (roots only; see config.h):
-  // its geometric error plus the decimation error. Index 0 unused.
-  std::array<float, 4> coarse_error{};
-  // Total error (metres) of each patch of each coarsening drawn with decimation e = 1..4 in
-  // component e - 1 (roots only; index patch_error_index(c, px, py); config.h "Patch
-  // decimation"): geometric error plus the patch's decimation error.
-  PatchErrorArray patch_error{};
-};
-
-// What the renderer derives from a node payload at upload (bounds, cones, coarsening errors).
-SlotCpuData prepare_slot(const NodeData& data, const SlotDescriptor& desc);
 
 // Screen-space error test of one node (the traversal's "LOD criterion"): `error_m` seen from the
 // camera at the distance of the node's box is larger than the target.

@@ -73,9 +73,10 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   top_level_ = uint32_t(top_level(world));
   sectors_x_ = level_grid_width(world.roots_x, 0);
   sectors_y_ = level_grid_width(world.roots_y, 0);
-  // The root grid is an image of a texel per root (the sparse index below the roots is the tree
-  // buffer, terrain_state.h): a world wider than the device's largest 2D image (16384 roots, 33 550 km
-  // on lavapipe; the cooker writes at most 2047) cannot be drawn. Said before any allocation.
+  // The root grid is an image of a texel per root (the residency index below the roots is the tree
+  // buffer, terrain/surface_contract.h): a world wider than the device's largest 2D image cannot be
+  // drawn (archives reach kStreamerMaxRootsPerSide roots per side; Vulkan guarantees 4096 texels).
+  // Said before any allocation.
   const uint32_t max_side = ctx.properties.limits.maxImageDimension2D;
   if (world.roots_x > max_side || world.roots_y > max_side)
     return Status::failure(Error::unsupported_input,
@@ -136,7 +137,7 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(lod_map_uints_) * 4, storage, lod_map_));
   TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 2 * 4, storage, lists_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_TREE_START + 3 * size_t(slots)) * 4, storage, tree_));
+  TV_TRY(create_device_buffer(ctx, VkDeviceSize(index_tree_words(slots)) * 4, storage, tree_));
   TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
   // Patch range r (shading group x decimation) from instance r * capacity (config.h, shading groups).
   const VkDeviceSize patch_list_bytes = TV_PATCH_RANGES * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
@@ -452,7 +453,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
       return Status::failure(Error::invalid_argument, "renderer: upload into slot " + std::to_string(n.slot) +
                                                           " outside the atlas (" + std::to_string(config_.slot_count) + ")");
   // Each node's staged bytes, one 16-aligned part after the other: the atlas layers, then the
-  // patch bounds and errors the viewer derives (prepare_slot).
+  // patch bounds and errors the viewer derives (node_prep.h prepare_slot).
   const bool decode = config_.decode_bc || config_.prelit_far;
   constexpr size_t kLayer = size_t(kTexels) * kTexels * 4;
   struct Part {
@@ -534,12 +535,25 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     }
   }
   TerrainState::Dirty dirty = state.take_dirty();
-  // The traversal's start list and every resident node's children (small: 12 bytes per slot).
+  // The residency index's tree words (terrain/surface_contract.h): the header and start list when
+  // they changed, and the child words of the slots that changed, contiguous slots in one copy.
   {
-    const std::vector<uint32_t> tree = state.tree_buffer();
-    VkDeviceSize off;
-    TV_TRY(stage_bytes(tree.data(), tree.size() * 4, 16, off));
-    pending_buffers_.push_back({tree_.buffer, {off, 0, tree.size() * 4}});
+    const std::span<const uint32_t> tree = state.index().tree();
+    const uint32_t cap = state.slot_count();
+    auto copy_words = [&](size_t first, size_t count) -> Status {
+      VkDeviceSize off;
+      TV_TRY(stage_bytes(&tree[first], count * 4, 16, off));
+      pending_buffers_.push_back({tree_.buffer, {off, VkDeviceSize(first) * 4, VkDeviceSize(count) * 4}});
+      return Status::success();
+    };
+    if (dirty.index.starts) TV_TRY(copy_words(0, kIndexTreeStart + size_t(cap)));
+    const std::vector<uint16_t>& kids = dirty.index.children;
+    for (size_t i = 0; i < kids.size();) {
+      size_t j = i + 1;
+      while (j < kids.size() && kids[j] == kids[j - 1] + 1) ++j;
+      TV_TRY(copy_words(index_child_word(cap, kids[i]), 2 * (j - i)));
+      i = j;
+    }
     top_level_ = uint32_t(state.top_level());
   }
   // Descriptors: contiguous runs of dirty slots become one copy each.
@@ -553,11 +567,11 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
         {node_desc_.buffer, {off, VkDeviceSize(first) * sizeof(GpuNodeDesc), VkDeviceSize(count) * sizeof(GpuNodeDesc)}});
     i = j;
   }
-  if (const Rect& r = dirty.roots; !r.empty()) {
+  if (const DirtyRect& r = dirty.index.roots; !r.empty()) {
     const uint32_t w = r.x1 - r.x0, h = r.y1 - r.y0;
     scratch_.resize(size_t(w) * h * 2);
     for (uint32_t y = 0; y < h; ++y)
-      std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.root_grid()[size_t(r.y0 + y) * state.roots_x() + r.x0],
+      std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.index().root_grid()[size_t(r.y0 + y) * state.roots_x() + r.x0],
                   size_t(w) * 2);
     VkDeviceSize off;
     TV_TRY(stage_bytes(scratch_.data(), scratch_.size(), 16, off));

@@ -11,7 +11,7 @@
 
 #include "camera.h"
 #include "far_light.h"
-#include "reference.h"
+#include "node_prep.h"
 #include "resources.h"
 #include "target.h"
 #include "terrain_state.h"

@@ -34,8 +34,6 @@ class StreamSource final : public NodeSource {
                                    std::to_string(roots) + " roots, which stay resident (it has no overview levels, "
                                    "format/SPEC.md section 19): use --budget " + std::to_string(roots) + " or more, or 0");
     }
-    // The viewer keeps its own sparse index (terrain_state.h), not the streamer's dense grids.
-    config.index_grids = false;
     return streamer_.open(path, config);
   }
   const WorldInfo& world() const override { return streamer_.world(); }
@@ -74,7 +72,9 @@ class StreamSource final : public NodeSource {
     // Descriptors first (the upload computes patch bounds with the slot's quantization).
     for (uint16_t s : fu.dirty_slots) state.set_slot(s, streamer_.slots()[s]);
     for (const NodeDelivery& d : fu.delivered) uploads.push_back({d.slot, d.data});
-    // The sparse index (terrain_state.h): children out before parents, parents in before children.
+    // The residency index: the streamer's class, filled here from the same events as the streamer's
+    // own (the state also serves the load-everything source and the tests, which have no streamer):
+    // children out before parents, parents in before children.
     for (const NodeEviction& e : fu.evicted) state.set_node(e.key, uint16_t(TV_SLOT_EMPTY));
     for (const NodeFailure& f : fu.failed) state.set_node(f.key, uint16_t(TV_SLOT_INVALID));
     for (const NodeDelivery& d : fu.delivered) state.set_node(d.key, d.slot);

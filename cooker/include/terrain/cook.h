@@ -99,7 +99,7 @@ struct CookOptions {
   std::string landcover_path;
   std::string landcover_table_path;
   bool heights_only = false;        // skip the surface layers (benchmarks; sections stay zero)
-  bool force = false;               // cook plans beyond kMaxPlannedRoots / kStreamerMaxRootsPerSide
+  bool force = false;               // cook plans beyond kMaxPlannedRoots (never wider than kStreamerMaxRootsPerSide)
   // Overview levels above the roots (format/SPEC.md section 19, format version 2): automatic writes
   // them when the root grid has more than kOverviewAutoRoots cells, on always (at least one level),
   // off never. K = overview_levels_needed(roots_x, roots_y) (at least 1 with `on`).

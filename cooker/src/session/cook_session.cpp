@@ -238,6 +238,20 @@ Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report
   return Status::success();
 }
 
+Status check_plan_size(double roots_x, double roots_y, bool force, double span_x_km, double span_y_km) {
+  const bool too_wide = roots_x > kStreamerMaxRootsPerSide || roots_y > kStreamerMaxRootsPerSide;
+  if (too_wide || (!force && roots_x * roots_y > double(kMaxPlannedRoots)))
+    return Status::failure(
+        Error::unsupported_input,
+        fmt::format("the plan needs {:.0f} x {:.0f} root nodes (the data spans {:.0f} x {:.0f} km): beyond {}; check "
+                    "--spacing and the CRS{}", roots_x, roots_y, span_x_km, span_y_km,
+                    too_wide ? fmt::format("{} per side (the format's limit, which is the streamer's)",
+                                           kStreamerMaxRootsPerSide)
+                             : fmt::format("{} roots", kMaxPlannedRoots),
+                    too_wide ? "" : ", or give --force"));
+  return Status::success();
+}
+
 Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report) {
   const Raster& header = s.source.header();
   const CookOptions& options = s.options;
@@ -265,13 +279,8 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
     return Status::failure(Error::unsupported_input,
                            fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
                                        (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
-  if (!options.force && (roots_x * roots_y > double(kMaxPlannedRoots) || roots_x > kStreamerMaxRootsPerSide ||
-                         roots_y > kStreamerMaxRootsPerSide))
-    return Status::failure(Error::unsupported_input,
-                           fmt::format("the plan needs {:.0f} x {:.0f} root nodes (the data spans {:.0f} x {:.0f} km): "
-                                       "beyond {} roots or {} per side (terrain-view's limit); check --spacing and "
-                                       "the CRS, or give --force", roots_x, roots_y, (fx1 - fx0) / 1000,
-                                       (fy1 - fy0) / 1000, kMaxPlannedRoots, kStreamerMaxRootsPerSide));
+  if (Status st = check_plan_size(roots_x, roots_y, options.force, (fx1 - fx0) / 1000, (fy1 - fy0) / 1000); !st.ok())
+    return st;
   s.world = WorldInfo{.crs = s.frame,
                       .origin_x_m = ctx.origin_x,
                       .origin_y_m = ctx.origin_y,

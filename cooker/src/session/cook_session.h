@@ -67,6 +67,9 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
 // Reads every sample once: the void plan, the valid samples, the implausible heights, the range
 // summary (range_summary.h) and the inputs' descriptions into the report.
 Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report);
+// Refuses a root grid wider than kStreamerMaxRootsPerSide on a side (always: no archive holds more)
+// or, unless `force`, of more than kMaxPlannedRoots roots; the spans (km) go into the message.
+Status check_plan_size(double roots_x, double roots_y, bool force, double span_x_km, double span_y_km);
 // The frame (choose_frame, or `planned` when given), the mapping, the root grid and the footprint,
 // the context's constants, the block grid (block_roots, else from the budget) and the unit grid
 // (unit_roots, else default_unit_roots).

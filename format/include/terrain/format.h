@@ -19,9 +19,13 @@ inline constexpr int kRootLevel = kLevelCount - 1;
 inline constexpr int kMaxOverviewLevels = 14;  // 2^14 roots per overview node side: 65536 roots -> 4 x 4
 inline constexpr int kMaxLevels = kLevelCount + kMaxOverviewLevels;
 inline constexpr uint32_t kMaxTopNodes = 16;   // directory entries at the top level of an archive with overview levels
-// The reference streamer (terrain-view) holds level-0 node indices in 16-bit grids: at most 2047
-// roots per side, below the format's 65536 (SPEC section 12); terrain-cook refuses more unless --force.
-inline constexpr uint32_t kStreamerMaxRootsPerSide = 0xFFFFu >> kRootLevel;
+// Roots per side the reference streamer (terrain-view) opens, and so the widest plan terrain-cook
+// writes (SPEC section 12). The streamer's residency index stores slots, never node coordinates:
+// a root cell and a child half hold a 16-bit slot (the budget bounds them, not the world), the
+// start list holds the top level's nodes (at most 16 with overview levels, which reach 65536 roots
+// per side with 14 levels), and node coordinates travel as 32-bit words (level-0 coordinates below
+// 2^21). So nothing in it is narrower than the format's own bound (SPEC section 4: 1..65536).
+inline constexpr uint32_t kStreamerMaxRootsPerSide = 1u << 16;
 inline constexpr double kLevel0NodeSizeM = 64.0;
 inline constexpr int kQuadsPerSide = 128;      // 8 patches x 16 quads
 inline constexpr int kHeightSamples = 129;     // vertices per node side (shared edge rows with neighbours)

@@ -1,9 +1,33 @@
 // The rules cooker and runtime must agree on beyond the byte layout of format.h: how surface
-// texels encode normals and patch cones, the runtime's back-face test, the slot table and index
-// grid the streamer hands to the GPU, and how a node is named in messages. One definition here;
-// the viewer's GLSL (viewer/shaders/config.h) mirrors the constants and viewer/src/gpu_types.h
-// static_asserts that the two agree. Also the patch triangulation and LOD stitching. BC block decoding is terrain/bc_decode.h.
-#pragma once
+// texels encode normals and patch cones, the runtime's back-face test, the slot table and the
+// residency index the streamer hands to the GPU, and how a node is named in messages. One
+// definition here; the viewer's GLSL reads the residency index layout below from this file
+// (viewer/shaders/config.h includes it) and mirrors the other constants, which
+// viewer/src/gpu_types.h static_asserts. Also the patch triangulation and LOD stitching. BC block
+// decoding is terrain/bc_decode.h.
+#ifndef TERRAIN_SURFACE_CONTRACT_H
+#define TERRAIN_SURFACE_CONTRACT_H
+
+// ---- Residency index: GPU layout (format/SPEC.md section 12; terrain/residency_index.h) ----------
+// Plain #defines, so GLSL includes this block as it is (everything after it is C++ behind
+// __cplusplus). The index is two arrays an engine uploads as they are:
+//  - the root grid: roots_x * roots_y uint16, row-major, row 0 = south: per root cell the root's
+//    slot, TERRAIN_INDEX_NOT_RESIDENT or TERRAIN_INDEX_NO_NODE;
+//  - the tree: uint32 words. [0] start count, [1] slot count, [2] and [3] zero; from
+//    TERRAIN_INDEX_TREE_START, slot count words: the start list (the top level's resident nodes'
+//    slots in key order, then unused words); from TERRAIN_INDEX_TREE_START + slot count, two
+//    words per slot s: child c of the node in s in word 2 s + (c >> 1), low half when c & 1 is 0,
+//    high half otherwise (c as terrain::child_of: bit 0 east, bit 1 north). A child half holds the
+//    child's slot, TERRAIN_INDEX_NOT_RESIDENT (it exists, not resident) or TERRAIN_INDEX_NO_NODE (no
+//    such child, or its payload failed); both words of a slot without a resident node hold
+//    TERRAIN_INDEX_NO_NODE in both halves.
+// A traversal starts at the start list and follows resident children: nodes are never looked up
+// by coordinates below the roots, so no value in the index grows with the world's extent.
+#define TERRAIN_INDEX_NOT_RESIDENT 0xFFFFu  // the node exists but is not resident
+#define TERRAIN_INDEX_NO_NODE 0xFFFEu       // no node here, or its payload failed to load
+#define TERRAIN_INDEX_TREE_START 4          // tree words before the start list
+
+#ifdef __cplusplus
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -43,10 +67,18 @@ inline int nodes_holding_point(int level, double fx, double fy, double grid_x, d
   return n;
 }
 
-// ---- Slot table and index grids (streamer -> GPU) ---------------------------------------------
-inline constexpr uint16_t kIndexNotResident = 0xFFFF;  // the node exists but is not resident
-inline constexpr uint16_t kIndexNoNode = 0xFFFE;       // no node here, or its payload failed to load
-inline constexpr uint32_t kMaxSlots = 0xFFFE;          // slot ids are 0 .. 0xFFFD
+// ---- Slot table and residency index (streamer -> GPU) ----------------------------------------
+inline constexpr uint16_t kIndexNotResident = TERRAIN_INDEX_NOT_RESIDENT;
+inline constexpr uint16_t kIndexNoNode = TERRAIN_INDEX_NO_NODE;
+inline constexpr uint32_t kMaxSlots = 0xFFFE;  // slot ids are 0 .. 0xFFFD (below both markers)
+inline constexpr uint32_t kIndexTreeStart = TERRAIN_INDEX_TREE_START;
+// Words of the index tree of `slot_count` slots; the first of slot s's two child words.
+inline constexpr size_t index_tree_words(uint32_t slot_count) { return kIndexTreeStart + 3 * size_t(slot_count); }
+inline constexpr size_t index_child_word(uint32_t slot_count, uint32_t s) {
+  return kIndexTreeStart + slot_count + 2 * size_t(s);
+}
+// Both halves of a child word that names no node.
+inline constexpr uint32_t kIndexNoChildren = uint32_t(kIndexNoNode) << 16 | kIndexNoNode;
 
 // One entry of the node descriptor table (the FC5 "node description buffer"), indexed by slot.
 // 32 bytes, std430/scalar compatible: in GLSL declare it as
@@ -56,7 +88,7 @@ inline constexpr uint32_t kMaxSlots = 0xFFFE;          // slot ids are 0 .. 0xFF
 // child_mask = packed >> 24 (little endian).
 // Heights: vertex units = height_offset + (r16 << step_log2); metres = units * 2^-10.
 // A slot's descriptor is written when a node is delivered into it and left untouched when the
-// node is evicted (the index grids stop pointing at it at once; the fence protects the rest).
+// node is evicted (the index stops pointing at it at once; the fence protects the rest).
 struct SlotDescriptor {
   int32_t min_height = 0;       // height units, over the node's non-hole vertices
   int32_t max_height = 0;
@@ -220,3 +252,6 @@ inline bool cone_patch_backfacing(const DecodedCone& c, const double eye[3], con
 }
 
 }  // namespace terrain::cone
+
+#endif  // __cplusplus
+#endif  // TERRAIN_SURFACE_CONTRACT_H

@@ -2,24 +2,33 @@
 //
 // The FC5 scheme (Far Cry 5 terrain talk, GDC 2018, sections 2-4): top nodes always resident, about 500 nodes
 // chosen by screen-space error, loaded by background threads, handed to the caller one bounded
-// batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (per-level
-// uint16 index grids + node descriptor table) maintained incrementally with dirty regions.
+// batch per frame for upload into a GPU atlas slot, and the GPU-side quadtree state (the node
+// descriptor table and the sparse residency index, terrain/residency_index.h) maintained
+// incrementally with dirty lists.
 //
 // Use:
 //   terrain::Streamer streamer;
 //   if (auto s = streamer.open("world.terrain", config); !s.ok()) { report(s.to_string()); }
+//   GPU side, once: an atlas of slot_count() layers, a descriptor buffer of slot_count() x 32 bytes,
+//   the index's root grid (roots_x x roots_y uint16, e.g. an R16_UINT image) and its tree buffer
+//   (index_tree_words(slot_count()) uint32); layout: terrain/surface_contract.h.
 //   each frame:
 //     const terrain::FrameUpdate& u = streamer.update(views);
+//     const terrain::ResidencyIndex& index = streamer.residency();
 //     for (auto& d : u.delivered) upload(*d.data, d.slot);          // into atlas layer d.slot
 //     for (auto slot : u.dirty_slots) upload(streamer.slots()[slot], slot);
-//     for (int L = 0; L < kLevelCount; ++L) upload(streamer.index_grid(L), u.dirty_index[L]);
+//     upload_rect(index.root_grid(), u.dirty_roots);               // root-grid cells
+//     if (u.dirty_starts) upload_words(index.tree(), 0, kIndexTreeStart + slot_count());
+//     for (auto s : u.dirty_children) upload_words(index.tree(), index_child_word(slot_count(), s), 2);
+// (Contiguous slots of dirty_slots and dirty_children merge into one copy each.) The traversal
+// starts at the tree's start list and follows resident children: see format/SPEC.md section 12.
 //
 // Memory (besides the resident payloads, budget + max_in_flight NodeData buffers): per archive
 // node 54 bytes of the streamer's own (tree links 20, state 1+1+1, slot 2, data pointer 8, rank 4,
 // load queue 5, the snapshot's key list 12: update() touches only the wanted nodes' entries, so its
 // CPU does not grow with the archive), plus the ArchiveReader's decoded directory (sizeof(NodeRecord)
-// = 56 bytes per node) and, with config.index_grids, the dense uint16 index grids: 2 * 1365 bytes
-// per root (levels 0..5), the one cost that grows with the root grid rather than the node count.
+// = 56 bytes per node) and the residency index: 2 bytes per root, 12 per slot and a hash entry per
+// resident or failed node.
 //
 // Units: positions in frame metres (the archive's projected frame: x east, y north, z up, the
 // same vertical datum as the heights), always double on the CPU. Heights in the slot table are
@@ -75,6 +84,7 @@
 
 #include "terrain/archive_reader.h"
 #include "terrain/format.h"
+#include "terrain/residency_index.h"
 #include "terrain/status.h"
 #include "terrain/surface_contract.h"
 
@@ -129,12 +139,6 @@ struct StreamerConfig {
   uint32_t max_in_flight = 0;
   // Payload sections decoded for the caller (terrain::Section bits); others stay untouched.
   unsigned sections = kSectionAll;
-  // Maintain the dense per-level uint16 index grids of levels 0..5 (index_grid(), dirty_index):
-  // 2730 bytes per root, 273 MB at 10^5 roots. Callers that do not upload them (queries, CPU
-  // consumers, the benchmarks of huge worlds) set false: index_grid() is then empty, dirty_index
-  // stays empty and the 2047-roots-per-side limit of the 16-bit grids does not apply. Overview
-  // nodes (levels 6..) never have index cells: their slots and descriptors are all a GPU gets.
-  bool index_grids = true;
 };
 
 // ---- Views ------------------------------------------------------------------------------------
@@ -158,18 +162,9 @@ double pixels_per_radian(double viewport_px, double fov_rad);
 
 // ---- GPU-side state ---------------------------------------------------------------------------
 
-// kIndexNotResident, kIndexNoNode, kMaxSlots, SlotDescriptor and slot_descriptor_of: the format
-// library's terrain/surface_contract.h (the viewer's shaders read them as they are).
-
-// Half-open rectangle of index-grid cells [x0, x1) x [y0, y1); empty when x0 >= x1.
-struct DirtyRect {
-  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x0 >= x1 || y0 >= y1; }
-};
-
-struct GridSize {
-  uint32_t width = 0, height = 0;  // cells; level L: roots_x << (kRootLevel - L), roots_y << ...
-};
+// kIndexNotResident, kIndexNoNode, kMaxSlots, SlotDescriptor, slot_descriptor_of and the
+// residency index's layout: the format library's terrain/surface_contract.h (the viewer's shaders
+// read them as they are). The index itself (root grid, tree words, DirtyRect): residency_index.h.
 
 // ---- Per-frame results ------------------------------------------------------------------------
 
@@ -193,17 +188,21 @@ struct NodeFailure {
 };
 
 // Everything one update() changed. Owned by the streamer; valid until the next update(), close
-// or destruction. The caller must apply every FrameUpdate (dirty regions are per update, not
-// accumulated): upload delivered data and dirty descriptors, then the dirty index rectangles.
-// The first update() marks every index grid dirty in full (the initial upload) and delivers the
+// or destruction. The caller must apply every FrameUpdate (dirty lists are per update, not
+// accumulated): upload delivered data and dirty descriptors, then the dirty parts of the
+// residency index (Streamer::residency()). The first update() marks the whole index dirty (the
+// initial upload: every root cell, the start list and every slot's child words) and delivers the
 // top nodes; before it nothing is resident.
 struct FrameUpdate {
   uint64_t frame = 0;                            // 1 for the first update()
   std::span<const NodeDelivery> delivered;       // parents before children
   std::span<const NodeEviction> evicted;         // children before parents
   std::span<const NodeFailure> failed;           // each failed node appears exactly once
-  std::array<DirtyRect, kLevelCount> dirty_index{};  // per level, cells changed this update
   std::span<const uint16_t> dirty_slots;         // slots whose descriptor changed (ascending)
+  // The residency index (terrain/surface_contract.h "Residency index: GPU layout"):
+  DirtyRect dirty_roots;                         // root-grid cells changed
+  bool dirty_starts = false;                     // tree words [0, kIndexTreeStart + slot count) changed
+  std::span<const uint16_t> dirty_children;      // slots whose two child words changed (ascending)
 };
 
 struct StreamerStats {
@@ -270,10 +269,11 @@ class Streamer {
   const WorldInfo& world() const;
   const StreamerConfig& config() const;  // with automatic values resolved
   uint32_t slot_count() const;
-  GridSize index_grid_size(int level) const;
-  // Row-major, row 0 = south (node y = 0), width index_grid_size(level).width.
-  std::span<const uint16_t> index_grid(int level) const;
   std::span<const SlotDescriptor> slots() const;  // slot_count() entries
+  // The residency index of the resident nodes (an empty one when not open): root cells of roots
+  // kIndexNotResident until delivered, kIndexNoNode where the archive has no root or a payload
+  // failed; overview nodes appear in the tree words (and the start list) like any other.
+  const ResidencyIndex& residency() const;
   StreamerStats stats() const;
 
   NodeState node_state(const NodeKey& key) const;
