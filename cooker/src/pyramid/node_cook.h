@@ -53,8 +53,10 @@ struct CookContext {
   double lattice_y(int64_t gy) const { return origin_y + double(gy) * 0.5; }
 };
 
-// Canonical heights of a node's 137x137 window (its 129x129 vertices plus 4 neighbour vertices on
-// each side), row-major from the south-west; window (i + 4, j + 4) is vertex (i, j).
+// Canonical heights of a node's kWindowSize x kWindowSize window (its 129x129 vertices plus
+// kWindowMargin neighbour vertices on each side, surface_layers.h), row-major from the south-west;
+// window (i + kWindowMargin, j + kWindowMargin) is vertex (i, j). compute_window evaluates the
+// ctx.window_margin() vertices around the node; the rest of the window is holes.
 struct NodeWindow {
   std::array<int32_t, kWindowCount> units;
   std::array<uint8_t, kWindowCount> hole;
