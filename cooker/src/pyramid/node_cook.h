@@ -46,7 +46,7 @@ struct CookContext {
   }
   // Vertices beyond the node's edge that compute_window evaluates (and a block's window must
   // hold): the surface layers' filters need kWindowMargin; a heights-only node needs only the
-  // hole albedo's apron, so its blocks read ~27 % fewer samples (2 x 2 roots of 1 m data).
+  // hole albedo's kApron, so its blocks read fewer samples (cooker/README.md, "Figures behind the code").
   int window_margin() const { return heights_only ? kApron : kWindowMargin; }
   // Frame position of level-0 lattice index (gx, gy): exact in double.
   double lattice_x(int64_t gx) const { return origin_x + double(gx) * 0.5; }

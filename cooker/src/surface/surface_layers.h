@@ -122,8 +122,8 @@ struct SurfaceStats {  // summed over nodes by the caller
 
 // The nodes whose errors a sampled cook measures (ErrorChecks::sample): one in 8 at every level, by
 // a hash of the key, so the same nodes at any thread count, block or unit split (always checking
-// the roots would bias the figures toward the coarsest level: +5 % mean normal error on Kilauea). Decoding and comparing every
-// node costs 0.2 ms of its 2-3 ms (lidar and SRTM, 2026-12-04).
+// the roots would bias the figures toward the coarsest level). What checking every node costs is
+// in cooker/README.md ("Figures behind the code").
 bool error_check_sampled(const NodeKey& key);
 
 // Fills out.normals_bc3, out.albedo_bc1, out.splat and out.cones_bc3 (heights untouched).
