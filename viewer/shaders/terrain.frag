@@ -172,7 +172,7 @@ void main() {
   } else if (debug_view == TV_DEBUG_CONES) {
     uint px = (v_patch.x >> TV_PATCH_PX_SHIFT) & 7u, py = (v_patch.x >> TV_PATCH_PY_SHIFT) & 7u;
     vec4 c = texelFetch(cones_tex, ivec3(int(px), int(py), int(slot)), 0);
-    float angle = c.a * 90.0;  // degrees (cone_cull.h); alpha 255 = never cull
+    float angle = c.a * 90.0;  // degrees (terrain/surface_contract.h); alpha 255 = never cull
     albedo = c.a > 0.998 ? vec3(0.8, 0.1, 0.1) : mix(vec3(0.1, 0.8, 0.2), vec3(0.9, 0.9, 0.1), angle / 90.0);
   } else if (debug_view == TV_DEBUG_HOLES) {
     albedo = v_hole < 0.0 ? vec3(1.0, 0.0, 0.0) : vec3(0.6);

@@ -58,12 +58,12 @@ struct CookOptions {
   // is checked against it first. The block-wise cook splits it (memory_budget.h): GDAL's cache, the
   // inputs held whole, and one block's source window, whose size follows from it.
   uint64_t memory_limit_bytes = 0;
-  // The block-wise cook (issue 13): blocks of block_roots x block_roots root nodes (0: the largest
+  // The block-wise cook: blocks of block_roots x block_roots root nodes (0: the largest
   // whose source window fits the budget). block_order 0 cooks blocks row by row; any other value
   // is the seed of a shuffled order (tests: neither changes a byte of the archive).
   uint32_t block_roots = 0;
   uint64_t block_order = 0;
-  // Work units (issue 14; cooker/src/units/work_units.h): with work_dir set, cook() writes the plan and
+  // Work units (cooker/src/units/work_units.h): with work_dir set, cook() writes the plan and
   // one file per unit into it and merges them; run again after a kill it cooks only the units that
   // are missing or stale. unit_roots: units of N x N roots (0: default_unit_roots, whole blocks).
   std::string work_dir;
@@ -106,18 +106,15 @@ struct CookOptions {
   OverviewMode overview_levels = OverviewMode::automatic;
 
   // zstd levels: heights at 9 (a quick parse of the predictor residuals, and a lazy one as well
-  // where they compress below a quarter, see format/src/payload.cpp; 10-18 parse optimally, up to
-  // 2 % fewer height bytes at 2-3x the encode time); the surface
-  // sections at 6. Measured on the 2532 nodes of the Oetztal
-  // archive (one thread): level 9 on normals + albedo + splat cost 0.58 ms per node for 0.16 %
-  // fewer bytes of the whole archive than level 6 (0.29 ms); level 4 would save another 0.12 ms
-  // but cost 1.1 % more bytes (splat +10 %).
+  // where they compress below a quarter, see format/src/payload.cpp; 10-18 parse optimally, a few
+  // per cent fewer bytes for a multiple of the encode time); the surface sections at 6. What the
+  // levels cost and save is in cooker/README.md ("Figures behind the code").
   int zstd_level = 9;
   int surface_zstd_level = 6;
 };
 
-// Work bound: every root of the plan is cooked (at least 129 x 129 vertices each, about 50 us of
-// CPU for flat ones), so a coarse raster spread over a huge area (64 x 64 samples at 100 km: 9.8 M
+// Work bound: every root of the plan is cooked (at least 129 x 129 vertices each, flat ones too),
+// so a coarse raster spread over a huge area (64 x 64 samples at 100 km: 9.8 M
 // roots) is refused with a named error unless CookOptions::force.
 inline constexpr uint64_t kMaxPlannedRoots = 1000000;
 
@@ -125,9 +122,8 @@ inline constexpr uint64_t kMaxPlannedRoots = 1000000;
 // before any node is cooked) has more cells than this: half the streamer's default budget of 512
 // nodes. Keeping every root resident would then leave less than half of the budget for the
 // refinement near the camera (and above 512 the world cannot be opened at all). Smaller worlds keep
-// their version-1 bytes: the Kilauea benchmark area (13 x 12 roots) and every test world of the
-// viewer stay below it; a 1 x 1 degree SRTM tile (~55 x 55), Oetztal (19 x 21) and Puget Sound
-// (80 x 80) are above.
+// their version-1 bytes; every test world of the viewer stays below it (the benchmark DEMs on
+// either side: cooker/README.md, "Figures behind the code").
 inline constexpr uint64_t kOverviewAutoRoots = 256;
 
 struct LevelStats {
@@ -272,7 +268,7 @@ using ProgressFn = terrain::ProgressFn;
 // With options.work_dir: plan_cook + every unit not already valid + merge_units (a resume).
 Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report);
 
-// ---- Work units (issue 14): the commands a scheduler calls ----
+// ---- Work units: the commands a scheduler calls ----
 struct PlanSummary {
   std::string plan_path;
   uint32_t unit_count = 0;

@@ -2,7 +2,7 @@
 // flags). Two things the plain std::vector does at a cost that dominated a work unit's set-up:
 //  - resize() zero-fills what the caller overwrites anyway;
 //  - every fresh 4 KB page costs a fault, and page faults are expensive under virtualisation
-//    (138 MB touched: 0.41 s of CPU with 4 KB pages, 0.01-0.17 s with 2 MB ones on this VM).
+//    (cooker/README.md, "Figures behind the code").
 // LargeAllocator leaves elements default-initialised (uninitialised for arithmetic types) and,
 // from 4 MB up, allocates 2 MB-aligned memory and asks for transparent huge pages (madvise; a
 // no-op where the kernel has them off). The contents never depend on it.

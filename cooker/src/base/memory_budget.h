@@ -23,7 +23,7 @@ inline constexpr uint64_t kCookBytesPerSample = 16;
 inline constexpr uint64_t kFillBytesPerVoidSample = 64;
 
 // How a cook spends its budget: a fixed reserve (the process itself: libraries, PROJ's database, the
-// node batches in flight, the spool's records; ~150 MB measured on small cooks), GDAL's block cache,
+// node batches in flight, the spool's records; memory_budget.cpp sizes it), GDAL's block cache,
 // the inputs held whole (own readers, resampled inputs), and one block's source window (384 MB at
 // the default 2 GB, plus half of any budget above 2 GB; memory_budget.cpp).
 struct MemoryShares {

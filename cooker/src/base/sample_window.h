@@ -1,4 +1,4 @@
-// A rectangle of the source's samples held in memory: the unit of the block-wise cook (issue 13).
+// A rectangle of the source's samples held in memory: the unit of the block-wise cook.
 // Coordinates are always the whole source's (the mosaic's) sample indices, so every block maps a
 // frame position to the same sample and reads the same bits, whatever block it belongs to.
 #pragma once

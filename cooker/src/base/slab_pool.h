@@ -2,8 +2,8 @@
 // transparent huge pages.
 // For buffers of about a megabyte that come and go by the dozen (the GeoTIFF reader's decoded
 // blocks, tiff_blocks.cpp): operator new gives each its own mapping, so every process that fills
-// such a cache faults 256 fresh 4 KB pages per MB, and a fault costs ~12 us under virtualisation
-// (large_buffer.h). A work unit is a fresh process that fills its cache again: those faults were
+// such a cache faults 256 fresh 4 KB pages per MB, and faults are expensive under virtualisation
+// (large_buffer.h; cooker/README.md, "Compressed GeoTIFFs"). A work unit is a fresh process that fills its cache again: those faults were
 // the largest part of what units cost over one process. Slots go back to the pool, not to the
 // system; a slab is returned once all its slots are free.
 // Contents are never touched here (a slot is not zeroed): nothing written depends on the pool.

@@ -1,8 +1,9 @@
 // The image (PNG/EXR) reader's C interface. OpenImageIO drags some 150 shared libraries into a
-// process (ffmpeg, OpenCV, OpenVDB, ...): their dynamic linking costs ~0.4 s of CPU per start,
-// more than a small work unit cooks. terrain-cook therefore loads it only when an image input is
-// given: image_oiio.cpp is built both into terrain_cooker (linked) and as the module
-// terrain-image-oiio.so, which image_api_dlopen.cpp opens on first use. No OIIO type crosses it.
+// process (ffmpeg, OpenCV, OpenVDB, ...), whose dynamic linking costs more than a small work unit
+// cooks (cooker/README.md, "Figures behind the code"). terrain-cook therefore loads it only when an
+// image input is given, so a process without image inputs never maps OpenImageIO: image_oiio.cpp
+// is built both into terrain_cooker (linked) and as the module terrain-image-oiio.so, which
+// image_api_dlopen.cpp opens on first use. No OIIO type crosses it.
 #pragma once
 #include <cstddef>
 

@@ -1,4 +1,4 @@
-// The mosaic of every input, read by windows (issue 13: bounded memory). A block-wise cook reads
+// The mosaic of every input, read by windows (bounded memory). A block-wise cook reads
 // only the rectangle of mosaic samples each block needs; GDAL-readable inputs stay open and are read
 // window by window, never whole. Any window is bit-identical to the same rectangle of the whole
 // mosaic (load_inputs + mosaic, which are themselves this reader over one window covering all).

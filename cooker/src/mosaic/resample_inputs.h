@@ -1,5 +1,5 @@
 // An input in another CRS or at another sample spacing, seen on the first input's pixel grid so
-// that the mosaic can place it like a tile (issue 13: mixed CRSs and resolutions in one cook). It
+// that the mosaic can place it like a tile (mixed CRSs and resolutions in one cook). It
 // is read by windows like any other input: nothing here is sized by the whole input.
 #pragma once
 #include <cstdint>

@@ -46,15 +46,17 @@ struct CookContext {
   }
   // Vertices beyond the node's edge that compute_window evaluates (and a block's window must
   // hold): the surface layers' filters need kWindowMargin; a heights-only node needs only the
-  // hole albedo's apron, so its blocks read ~27 % fewer samples (2 x 2 roots of 1 m data).
+  // hole albedo's kApron, so its blocks read fewer samples (cooker/README.md, "Figures behind the code").
   int window_margin() const { return heights_only ? kApron : kWindowMargin; }
   // Frame position of level-0 lattice index (gx, gy): exact in double.
   double lattice_x(int64_t gx) const { return origin_x + double(gx) * 0.5; }
   double lattice_y(int64_t gy) const { return origin_y + double(gy) * 0.5; }
 };
 
-// Canonical heights of a node's 137x137 window (its 129x129 vertices plus 4 neighbour vertices on
-// each side), row-major from the south-west; window (i + 4, j + 4) is vertex (i, j).
+// Canonical heights of a node's kWindowSize x kWindowSize window (its 129x129 vertices plus
+// kWindowMargin neighbour vertices on each side, surface_layers.h), row-major from the south-west;
+// window (i + kWindowMargin, j + kWindowMargin) is vertex (i, j). compute_window evaluates the
+// ctx.window_margin() vertices around the node; the rest of the window is holes.
 struct NodeWindow {
   std::array<int32_t, kWindowCount> units;
   std::array<uint8_t, kWindowCount> hole;

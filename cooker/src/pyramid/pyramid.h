@@ -1,4 +1,4 @@
-// The block-wise pyramid (issue 13). The root grid is cut into square blocks of roots; a block's
+// The block-wise pyramid. The root grid is cut into square blocks of roots; a block's
 // nodes (its roots and all their descendants) read only a window of source samples around it, so
 // memory follows the block, never the input.
 //

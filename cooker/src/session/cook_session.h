@@ -1,5 +1,5 @@
 // The state of a cook while it runs, and its stages, shared by the one-process cook, `plan`,
-// `unit` and `merge` (issue 14): each of them runs the same stages, so a plan + units + merge
+// `unit` and `merge`: each of them runs the same stages, so a plan + units + merge
 // gives the bytes of the one-process cook.
 //
 //   open_inputs -> first_pass (voids, valid bounds, implausible heights, range summary) ->
@@ -91,7 +91,7 @@ Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink
 // A unit's side in roots when --unit-roots is not given: the most memory blocks (`block_side`
 // roots each) whose samples and possible nodes stay within kUnitSamples and kUnitNodes, so that a
 // unit's fixed costs (process start, opening the inputs, fresh memory) are a few per cent of it.
-// 1 m lidar: 6 x 6 roots (9 blocks, 151 M samples, at most 49 140 nodes, about 10 s of CPU).
+// 1 m lidar: 6 x 6 roots (9 blocks, 151 M samples, at most 49 140 nodes; cooker/README.md times it).
 inline constexpr double kUnitSamples = double(uint64_t(1) << 28);
 inline constexpr double kUnitNodes = double(1 << 16);
 uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,

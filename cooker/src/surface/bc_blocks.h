@@ -29,8 +29,8 @@ enum class Bc1Method : uint8_t {
   best_of_axis_fit_and_squish,  // per block the better of (two refits, hard-block refits, 3-colour try) and
                                 // libsquish cluster fit
   ordering_search,   // `axis_fit_hard` plus two sweeps of our ordering search (a cheap cluster fit) on every
-                     // block with error: >= libsquish cluster-fit PSNR on every bench set at 1/18 of its time
-                     // on Oetztal splat (0.60 vs 10.6 us/block), but ~3x `axis_fit_hard`'s time (not a default)
+                     // block with error: >= libsquish cluster-fit PSNR on every bench set in a fraction of
+                     // its time, but slower than `axis_fit_hard` (not a default; cooker/README.md)
 };
 const char* bc1_method_name(Bc1Method m);
 

@@ -1,4 +1,4 @@
-// Rate-distortion pass over a node's encoded BC blocks (issue 17): where the error allows it, a
+// Rate-distortion pass over a node's encoded BC blocks: where the error allows it, a
 // block half is replaced by one an earlier block already holds, or takes an earlier block's index
 // bits, so that zstd stores it as a short match instead of literals (the idea of Binomial's
 // bc7enc_rdo, on our normals and albedo). It only chooses among valid blocks: any decoder reads

@@ -1,4 +1,4 @@
-// Contract between the height pyramid (cooker/src) and the surface layers (cooker/src/surface):
+// Contract between the height pyramid (cooker/src/pyramid) and the surface layers (cooker/src/surface):
 // everything of a node's payload except its heights, cooked from the canonical quantized heights.
 #pragma once
 #include <array>
@@ -27,7 +27,7 @@ struct SurfaceOptions {
   std::string materials_path;   // JSON rules file; empty = built-in default rules and palette
   BcQuality bc_quality = BcQuality::balanced;
   // Orthophoto, hole-mask and class rasters (--albedo, --holes, --landcover) are mapped to the frame
-  // by the cooker (cook.cpp) and sampled per node through SurfaceInput::overlays.
+  // by the cooker (cooker/src/overlays/overlays.cpp) and sampled per node through SurfaceInput::overlays.
 };
 
 // Material rules and palette, loaded once per cook (owned by the surface side).
@@ -36,7 +36,7 @@ Status load_material_rules(const SurfaceOptions& options, std::shared_ptr<const 
 const std::vector<Material>& palette_of(const MaterialRules& rules);
 
 // Optional rasters of a cook (--albedo orthophoto, --holes mask) resampled to a node's window
-// vertices. The cooker implements it (cook.cpp: it owns the CRS mapping to the frame); the
+// vertices. The cooker implements it (overlays/overlays.cpp: it owns the CRS mapping to the frame); the
 // surface side only samples. Must be thread-safe and a pure function of the window position.
 class SurfaceOverlays {
  public:
@@ -44,7 +44,7 @@ class SurfaceOverlays {
   virtual bool has_albedo() const = 0;
   virtual bool has_holes() const = 0;
   virtual bool has_classes() const { return false; }
-  // Window vertex (i, j) (0..136, element j * kWindowSize + i) sits at frame
+  // Window vertex (i, j) (0..kWindowSize-1, element j * kWindowSize + i) sits at frame
   // (x0 + (i - kWindowMargin) * spacing, y0 + (j - kWindowMargin) * spacing). Fills kWindowCount
   // entries of each non-null output: rgb (3 bytes, sRGB) with rgb_valid 0 where the orthophoto
   // has no data; holes 1 where the mask marks a hole (0 outside the mask); class_materials the
@@ -61,7 +61,8 @@ struct SurfaceInput {
   // multiple of the spacing, e.g. integer metres).
   double x0_m = 0, y0_m = 0;
   double spacing_m = 0;         // vertex_spacing_m(key.level)
-  // kWindowCount, metres, row-major south to north: element (i + 4, j + 4) is vertex (i, j).
+  // kWindowCount, metres, row-major south to north: element (i + kWindowMargin, j + kWindowMargin)
+  // is vertex (i, j).
   // NaN where there is no data (a hole vertex may also carry its height: both work).
   const float* heights_m = nullptr;
   const uint8_t* holes = nullptr;    // kWindowCount, 1 = hole vertex (also outside the data); may be null
@@ -121,8 +122,8 @@ struct SurfaceStats {  // summed over nodes by the caller
 
 // The nodes whose errors a sampled cook measures (ErrorChecks::sample): one in 8 at every level, by
 // a hash of the key, so the same nodes at any thread count, block or unit split (always checking
-// the roots would bias the figures toward the coarsest level: +5 % mean normal error on Kilauea). Decoding and comparing every
-// node costs 0.2 ms of its 2-3 ms (lidar and SRTM, 2026-12-04).
+// the roots would bias the figures toward the coarsest level). What checking every node costs is
+// in cooker/README.md ("Figures behind the code").
 bool error_check_sampled(const NodeKey& key);
 
 // Fills out.normals_bc3, out.albedo_bc1, out.splat and out.cones_bc3 (heights untouched).

@@ -1,4 +1,4 @@
-// Void filling by windows (issue 13: bounded memory). A first pass over the source, tile by tile,
+// Void filling by windows (bounded memory). A first pass over the source, tile by tile,
 // finds which voids will be filled and records the bounding box of every filled void that spans
 // more than one tile; a block of the cook then reads only fill_read_rect() of its samples and
 // fills them with fill_voids_window(), which gives every sample of the block exactly the value

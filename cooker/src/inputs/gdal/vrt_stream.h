@@ -1,5 +1,5 @@
 // A GDAL VRT read as a stream (expat), one source at a time. CPLParseXMLFile holds the whole file
-// as a tree: 211 MB for the 25 MB VRT of 62 500 tiles, so a national mosaic of a million tiles
+// as a tree, several times the file's size (cooker/README.md, "Mosaics of thousands of tiles"), so a national mosaic of a million tiles
 // would need gigabytes in every process that reads its XML. Here the memory is one source's
 // tree and the dataset's XML without its sources.
 #pragma once

@@ -1,7 +1,7 @@
 // A GDAL VRT that mosaics plain GeoTIFF tiles (what `gdalbuildvrt` writes over a national lidar
 // grid) read by windows through each tile's own block reader (tiff_blocks.h) and composed by the
-// VRT's rules, so that a .vrt input decodes as fast as its tiles given one by one (through GDAL's
-// VRT and GeoTIFF drivers, a zstd Float32 1 m tile decodes about four times slower).
+// VRT's rules, so that a .vrt input decodes as fast as its tiles given one by one (GDAL's VRT and
+// GeoTIFF drivers decode them several times slower (cooker/README.md, "Figures behind the code")).
 //
 // Only the plain case, whose result GDAL defines without any arithmetic: one band of 16- or 32-bit
 // samples; sources SimpleSource or ComplexSource whose only option is <NODATA>; SrcRect and DstRect

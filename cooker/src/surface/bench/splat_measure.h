@@ -1,4 +1,4 @@
-// Coherence figures of an archive's splat maps (issue 18): isolated samples, neighbour id changes,
+// Coherence figures of an archive's splat maps: isolated samples, neighbour id changes,
 // material shares and agreement between a node and its children. Reads archives with the format
 // reader only, so it measures what a viewer gets.
 #pragma once

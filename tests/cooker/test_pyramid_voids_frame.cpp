@@ -1,4 +1,5 @@
-// Unit tests of the cooker's modules: quantization, reconstruction, projection anchors, voids, CRSs.
+// Tests of the functions of three stage folders of cooker/src: pyramid/ (quantization, the
+// continuous surface of reconstruct.h), voids/ (void fill) and frame/ (CRSs, projection anchors).
 #include <gtest/gtest.h>
 
 #include <cmath>
