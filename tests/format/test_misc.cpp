@@ -171,20 +171,20 @@ class Verify : public test::ScratchArchiveTest {
     WorldInfo w = test::make_world(1, 1);
     const auto keys = test::close_tree({{0, 4, 3}});
     ArchiveWriter writer;
-    if (Status s = writer.open(path_); !s.ok()) return s;
+    TERRAIN_TRY(writer.open(path_));
     std::vector<uint8_t> payload;
     for (const NodeKey& k : keys) {
       test::BuiltNode n = test::make_seed_node(w, k);
       n.record.child_mask = test::child_mask_of(keys, k);
       if (k == victim) mutate(n);
-      if (Status s = encode_node_payload(*n.data, {}, payload); !s.ok()) return s;
-      if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
+      TERRAIN_TRY(encode_node_payload(*n.data, {}, payload));
+      TERRAIN_TRY(writer.add_node(n.record, payload));
     }
     return writer.finish(w);
   }
   Status verify_result() {
     ArchiveReader reader;
-    if (Status s = reader.open(path_); !s.ok()) return s;
+    TERRAIN_TRY(reader.open(path_));
     return reader.verify();
   }
 };

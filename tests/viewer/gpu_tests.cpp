@@ -127,7 +127,7 @@ struct GpuLists {
 };
 // Renders a view with its lists kept (consuming `uploads`) and reads the lists back.
 Status render_view(Gpu& gpu, std::vector<NodeUpload>& uploads, const Camera& camera, const FrameSettings& s, GpuLists& out) {
-  if (Status st = render_frame(gpu, uploads, camera, s, true); !st.ok()) return st;
+  TERRAIN_TRY(render_frame(gpu, uploads, camera, s, true));
   uploads.clear();
   gpu.renderer.read_lists(out.nodes, out.lod, out.patches);
   return Status::success();
