@@ -17,7 +17,7 @@
 
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
-#include "terrain/cli_checks.h"
+#include "cli_checks.h"
 #include "terrain/sample.h"
 
 namespace terrain::inspect {

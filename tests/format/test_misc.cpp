@@ -98,16 +98,6 @@ TEST(Progress, ScaledProgressMapsAndCancels) {
   EXPECT_TRUE(scaled_progress(nullptr, 0, 1)(0.5, "x"));
 }
 
-TEST(Progress, TerminalBarIsSilentWhenStderrIsNotATerminal) {
-  if (stderr_is_terminal()) GTEST_SKIP() << "stderr is a terminal here";
-  TerminalProgress bar(true);
-  EXPECT_FALSE(bar.active());
-  EXPECT_TRUE(bar.update(0.5, "stage"));
-  EXPECT_TRUE(bar.callback()(1.0, "stage"));
-  TerminalProgress off(false);
-  EXPECT_FALSE(off.active());
-}
-
 TEST(Status, NamesAreStableAndMessagesCarryThem) {
   EXPECT_STREQ(error_name(Error::payload_checksum), "payload_checksum");
   EXPECT_STREQ(error_name(Error::unsupported_version), "unsupported_version");
