@@ -72,8 +72,11 @@ double read_source(const std::string& path, bool direct, int pattern, std::vecto
 // Inflating every block from memory (no predictor, no copy): CPU seconds, or -1 when the file is
 // not one the direct reader takes.
 double inflate_only(const std::string& path, int w, int h, int bps, std::string& why) {
-  auto reader = cook::TiffBlockReader::open(path, w, h, bps, &why);
-  if (!reader) return -1;
+  std::unique_ptr<cook::TiffBlockReader> reader;
+  if (Status st = cook::TiffBlockReader::open(path, w, h, bps, reader); !st.ok()) {
+    why = st.message;
+    return -1;
+  }
   const cook::TiffBlockLayout& l = reader->layout();
   std::ifstream f(path, std::ios::binary);
   std::vector<std::vector<uint8_t>> raw(l.offsets.size());

@@ -120,8 +120,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     TIFFClose(tif);
   }
   if (w == 0 || h == 0 || w > 4096 || h > 4096) return 0;
-  auto reader = terrain::cook::TiffBlockReader::open(g_file, int(w), int(h), bits / 8);
-  if (!reader) return 0;
+  std::unique_ptr<terrain::cook::TiffBlockReader> reader;
+  if (!terrain::cook::TiffBlockReader::open(g_file, int(w), int(h), bits / 8, reader).ok()) return 0;
   terrain::cook::set_tiff_block_cache_bytes(uint64_t(1) << 20);
   std::vector<uint8_t> slots(size_t(w) * size_t(h) * 4);
   const bool ours = reader->read_window(0, 0, int(w), int(h), slots.data(), 2);

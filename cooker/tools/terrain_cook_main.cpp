@@ -21,10 +21,10 @@
 #include <cstring>
 #include <optional>
 
-#include "terrain/cli_checks.h"
+#include "cli_checks.h"
+#include "terminal_progress.h"
 #include "terrain/cook.h"
 #include "terrain/output_paths.h"
-#include "terrain/progress.h"
 
 namespace {
 

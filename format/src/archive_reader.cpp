@@ -32,19 +32,19 @@ struct ArchiveReader::Impl {
 
   Status parse() {
     std::vector<uint8_t> head(size_t(std::min<uint64_t>(size, layout::kHeaderSize)));
-    if (Status s = source->read(0, head); !s.ok()) return s;
-    if (Status s = detail::decode_header(head, size, header); !s.ok()) return s;
+    TERRAIN_TRY(source->read(0, head));
+    TERRAIN_TRY(detail::decode_header(head, size, header));
     std::vector<uint8_t> metadata, directory;
-    if (Status s = read_section(header.metadata_offset, header.metadata_size, metadata); !s.ok()) return s;
+    TERRAIN_TRY(read_section(header.metadata_offset, header.metadata_size, metadata));
     if (detail::crc32_of(metadata) != header.metadata_crc32)
       return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
                                                            std::to_string(header.metadata_offset) + ")");
-    if (Status s = detail::decode_metadata(metadata, header.format_version, world); !s.ok()) return s;
-    if (Status s = read_section(header.directory_offset, header.directory_size, directory); !s.ok()) return s;
+    TERRAIN_TRY(detail::decode_metadata(metadata, header.format_version, world));
+    TERRAIN_TRY(read_section(header.directory_offset, header.directory_size, directory));
     if (detail::crc32_of(directory) != header.directory_crc32)
       return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +
                                                             std::to_string(header.directory_offset) + ")");
-    if (Status s = detail::decode_directory(directory, header.node_count, world, header, nodes); !s.ok()) return s;
+    TERRAIN_TRY(detail::decode_directory(directory, header.node_count, world, header, nodes));
     per_level.fill(0);
     for (const NodeRecord& r : nodes) ++per_level[r.key.level];
     level_begin[0] = 0;
@@ -95,7 +95,7 @@ Status ArchiveReader::open(std::unique_ptr<ByteSource> source) {
 Status ArchiveReader::open(const std::string& path) {
   impl_.reset();
   std::unique_ptr<ByteSource> source;
-  if (Status s = open_file_source(path, source); !s.ok()) return s;
+  TERRAIN_TRY(open_file_source(path, source));
   return open(std::move(source));
 }
 
@@ -154,7 +154,7 @@ Status ArchiveReader::read_payload(size_t index, std::vector<uint8_t>& out) cons
 Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections) const {
   // One payload buffer per thread, reused: the largest payload is 1 MiB (SPEC 12).
   thread_local std::vector<uint8_t> bytes;
-  if (Status s = read_payload(index, bytes); !s.ok()) return s;
+  TERRAIN_TRY(read_payload(index, bytes));
   if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
     s.message = impl_->where(impl_->nodes[index]) + s.message;
     return s;
@@ -201,7 +201,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
   auto node_data = std::make_unique<NodeData>();
   auto load = [&](size_t index, Grid& g, unsigned sections) -> Status {
     NodeData& d = *node_data;
-    if (Status s = decode_node(index, d, sections); !s.ok()) return s;
+    TERRAIN_TRY(decode_node(index, d, sections));
     const NodeRecord& r = nodes[index];
     const int step = level_step_log2(world, int(r.key.level));
     for (size_t k = 0; k < size_t(kHeightCount); ++k) g.units[k] = vertex_units(r.height_offset, d.heights[k], step);
@@ -213,7 +213,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
     if (progress) progress(double(i) / double(nodes.size()), user);
     const NodeRecord& r = nodes[i];
     const std::string where = "node " + node_name(r.key) + ": ";
-    if (Status s = load(i, self, kSectionAll); !s.ok()) return s;
+    TERRAIN_TRY(load(i, self, kSectionAll));
     // Section contents the directory promises.
     int holes = 0;
     for (size_t k = 0; k < size_t(kHeightCount); ++k) {
@@ -240,7 +240,7 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
     auto compare = [&](const NodeKey& key, auto&& map_vertex, const char* what) -> Status {
       const int64_t j = find(key);
       if (j < 0) return Status::success();
-      if (Status s = load(size_t(j), other, kSectionHeights | kSectionAlbedo); !s.ok()) return s;
+      TERRAIN_TRY(load(size_t(j), other, kSectionHeights | kSectionAlbedo));
       for (int v = 0; v < kHeightSamples; ++v)
         for (int u = 0; u < kHeightSamples; ++u) {
           int ou = 0, ov = 0;
@@ -256,26 +256,20 @@ Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void
       return Status::success();
     };
     if (r.key.x > 0)
-      if (Status s = compare({r.key.level, r.key.x - 1, r.key.y},
-                             [](int u, int v, int& ou, int& ov) { ou = kQuadsPerSide; ov = v; return u == 0; }, "west neighbour");
-          !s.ok())
-        return s;
+      TERRAIN_TRY(compare({r.key.level, r.key.x - 1, r.key.y},
+                          [](int u, int v, int& ou, int& ov) { ou = kQuadsPerSide; ov = v; return u == 0; }, "west neighbour"));
     if (r.key.y > 0)
-      if (Status s = compare({r.key.level, r.key.x, r.key.y - 1},
-                             [](int u, int v, int& ou, int& ov) { ou = u; ov = kQuadsPerSide; return v == 0; }, "south neighbour");
-          !s.ok())
-        return s;
+      TERRAIN_TRY(compare({r.key.level, r.key.x, r.key.y - 1},
+                          [](int u, int v, int& ou, int& ov) { ou = u; ov = kQuadsPerSide; return v == 0; }, "south neighbour"));
     if (r.key.level < uint32_t(terrain::top_level(world))) {  // overview levels too (SPEC 19)
       const int cx = int(r.key.x & 1) * 64, cy = int(r.key.y & 1) * 64;
-      if (Status s = compare(parent_of(r.key),
-                             [cx, cy](int u, int v, int& ou, int& ov) {
-                               ou = cx + u / 2;
-                               ov = cy + v / 2;
-                               return (u % 2) == 0 && (v % 2) == 0;
-                             },
-                             "parent");
-          !s.ok())
-        return s;
+      TERRAIN_TRY(compare(parent_of(r.key),
+                          [cx, cy](int u, int v, int& ou, int& ov) {
+                            ou = cx + u / 2;
+                            ov = cy + v / 2;
+                            return (u % 2) == 0 && (v % 2) == 0;
+                          },
+                          "parent"));
     }
   }
   if (progress) progress(1.0, user);

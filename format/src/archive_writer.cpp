@@ -187,7 +187,7 @@ struct ArchiveWriter::Impl {
   }
   Status append_payload(std::span<const uint8_t> payload) {
     if (out.size() + payload.size() > kOutBuffer)
-      if (Status s = flush_out(); !s.ok()) return s;
+      TERRAIN_TRY(flush_out());
     if (payload.size() >= kOutBuffer) {  // never with payloads of at most 1 MiB; kept general
       Status s = write_all(fd, payload.data(), payload.size(), out_offset, temp_path);
       out_offset += payload.size();
@@ -217,7 +217,7 @@ struct ArchiveWriter::Impl {
   // Ordered mode: level `lvl`'s nodes announce no children (the level below is empty).
   Status check_no_children(int lvl) {
     if (lvl <= 0) return Status::success();  // level 0 has no child masks (validate_record)
-    if (Status s = flush_dir(); !s.ok()) return s;
+    TERRAIN_TRY(flush_dir());
     ChildStream stream;
     stream.reset(fd, dir_start[size_t(lvl)], shape.level_nodes[size_t(lvl)], uint32_t(lvl));
     NodeKey missing;
@@ -250,11 +250,11 @@ struct ArchiveWriter::Impl {
         return Status::failure(Error::invalid_argument, "node " + node_name(r.key) + " comes after level " + std::to_string(level) +
                                                             " (an ordered writer takes level 5 first, then towards 0, then "
                                                             "the overview levels from 6 upward)");
-      if (Status s = check_level_complete(); !s.ok()) return s;
+      TERRAIN_TRY(check_level_complete());
       if (level > 0 && level <= kRootLevel && int(r.key.level) != level - 1)
-        if (Status s = check_no_children(level); !s.ok()) return s;
-      if (Status s = shape_says_empty(level < 0 ? 0 : rank(level) + 1, rank(int(r.key.level))); !s.ok()) return s;
-      if (Status s = flush_dir(); !s.ok()) return s;  // the level above is read back from the file
+        TERRAIN_TRY(check_no_children(level));
+      TERRAIN_TRY(shape_says_empty(level < 0 ? 0 : rank(level) + 1, rank(int(r.key.level))));
+      TERRAIN_TRY(flush_dir());  // the level above is read back from the file
       level = int(r.key.level);
       dir_offset = dir_start[l];
       if (level < kRootLevel) children.reset(fd, dir_start[l + 1], shape.level_nodes[l + 1], r.key.level + 1);
@@ -328,16 +328,16 @@ struct ArchiveWriter::Impl {
       if (w.shape.level_nodes[size_t(l)] != 0)
         return Status::failure(Error::invalid_argument, "the shape has nodes at level " + std::to_string(l) +
                                                             ", above the world's top level " + std::to_string(top));
-    if (Status s = w.check_level_complete(); !s.ok()) return s;
+    TERRAIN_TRY(w.check_level_complete());
     if (w.level <= kRootLevel)
-      if (Status s = w.check_no_children(w.level); !s.ok()) return s;
-    if (Status s = w.shape_says_empty(w.level < 0 ? 0 : rank(w.level) + 1, rank(top) + 1); !s.ok()) return s;
+      TERRAIN_TRY(w.check_no_children(w.level));
+    TERRAIN_TRY(w.shape_says_empty(w.level < 0 ? 0 : rank(w.level) + 1, rank(top) + 1));
     if (w.offset - layout::kHeaderSize != w.shape.payload_bytes)
       return Status::failure(Error::invalid_argument, "the payloads are " + std::to_string(w.offset - layout::kHeaderSize) +
                                                           " bytes, the shape says " + std::to_string(w.shape.payload_bytes));
-    if (Status s = w.flush_dir(); !s.ok()) return s;
+    TERRAIN_TRY(w.flush_dir());
     for (int l = kRootLevel + 1; l <= top; ++l)
-      if (Status s = w.check_children_of(l); !s.ok()) return s;
+      TERRAIN_TRY(w.check_children_of(l));
     if (top > kRootLevel && w.shape.level_nodes[size_t(top)] > kMaxTopNodes)
       return Status::failure(Error::directory_invalid, "the top level " + std::to_string(top) + " has " +
                                                            std::to_string(w.shape.level_nodes[size_t(top)]) + " nodes, more than " +
@@ -406,7 +406,7 @@ Status ArchiveWriter::open_ordered(const std::string& path, const ArchiveShape& 
   uint64_t nodes = 0;
   for (uint64_t n : shape.level_nodes) nodes += n;
   if (nodes > layout::kMaxNodeCount) return Status::failure(Error::invalid_argument, "too many nodes");
-  if (Status s = open(path); !s.ok()) return s;
+  TERRAIN_TRY(open(path));
   Impl& w = *impl_;
   w.ordered = true;
   w.shape = shape;

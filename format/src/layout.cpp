@@ -374,7 +374,7 @@ Status decode_metadata(std::span<const uint8_t> bytes, uint32_t format_version, 
   }
   w.cook_info_json.assign(reinterpret_cast<const char*>(p + at), cook_size);
   at += cook_size;
-  if (Status st = decode_extensions(bytes.subspan(at, ext_size), w); !st.ok()) return st;
+  TERRAIN_TRY(decode_extensions(bytes.subspan(at, ext_size), w));
   if (w.crs.kind == ProjectionKind::proj && !v2) return bad("projection_kind 2 (proj) in a version 1 file");
   return validate_world(w);
 }
@@ -425,7 +425,7 @@ Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, con
     entry_fields(r, loader(e));
     if (e[f::reserved0] != 0 || load_u32(e + f::reserved1) != 0)
       return fail(Error::directory_invalid, "entry " + std::to_string(n) + " (node " + node_name(r.key) + "): reserved bytes are not zero");
-    if (Status s = validate_record(r, &world); !s.ok()) return s;
+    TERRAIN_TRY(validate_record(r, &world));
     if (r.payload_offset < header.payload_offset || r.payload_offset - header.payload_offset > header.payload_size ||
         r.payload_size > header.payload_size - (r.payload_offset - header.payload_offset))
       return fail(Error::payload_out_of_bounds, "node " + node_name(r.key) + ": payload [" + std::to_string(r.payload_offset) +

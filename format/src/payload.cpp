@@ -278,7 +278,7 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
 Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, NodeData& out) {
   using namespace detail;
   PayloadTable table;
-  if (Status s = parse_payload_table(bytes, table); !s.ok()) return s;
+  TERRAIN_TRY(parse_payload_table(bytes, table));
   uint8_t* dst[layout::kSectionCount] = {nullptr, out.normals_bc3.data(), out.albedo_bc1.data(), out.splat.data(),
                                          out.cones_bc3.data()};
   for (uint32_t s = 0; s < layout::kSectionCount; ++s) {
@@ -294,18 +294,18 @@ Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, No
       alignas(64) uint8_t buffer[2 * kHeightCount];
       if (sec.codec == layout::Codec::stored) {
         std::memcpy(buffer, src.data(), sizeof(buffer));
-      } else if (Status st = decompress_into(src, buffer, sizeof(buffer), name); !st.ok()) {
-        return st;
+      } else {
+        TERRAIN_TRY(decompress_into(src, buffer, sizeof(buffer), name));
       }
       if (sec.codec == layout::Codec::height_predictor) {
-        if (Status st = residuals_to_heights(buffer, sec.height_shift, out.heights); !st.ok()) return st;
+        TERRAIN_TRY(residuals_to_heights(buffer, sec.height_shift, out.heights));
       } else {
         for (int i = 0; i < kHeightCount; ++i) out.heights[size_t(i)] = load_u16(buffer + 2 * i);
       }
     } else if (sec.codec == layout::Codec::stored) {
       std::memcpy(dst[s], src.data(), sec.raw_size);
-    } else if (Status st = decompress_into(src, dst[s], sec.raw_size, name); !st.ok()) {
-      return st;
+    } else {
+      TERRAIN_TRY(decompress_into(src, dst[s], sec.raw_size, name));
     }
   }
   return Status::success();

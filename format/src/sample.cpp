@@ -32,7 +32,7 @@ struct SurfaceSampler::Impl {
         out = &cache.front();
         return Status::success();
       }
-    if (Status s = reader.decode_node(index, *scratch, kSectionHeights | kSectionAlbedo); !s.ok()) return s;
+    TERRAIN_TRY(reader.decode_node(index, *scratch, kSectionHeights | kSectionAlbedo));
     Cached c{index, std::vector<int32_t>(size_t(kHeightCount)), std::vector<uint8_t>(size_t(kHeightCount))};
     const NodeRecord& r = reader.nodes()[index];
     const int step = reader.world().step_log2[r.key.level];
@@ -75,7 +75,7 @@ Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<Surf
       if (index < 0) continue;
       any_node = true;
       const Impl::Cached* node = nullptr;
-      if (Status s = impl_->get(size_t(index), node); !s.ok()) return s;
+      TERRAIN_TRY(impl_->get(size_t(index), node));
       const double s = vertex_spacing_m(level);
       const double u = (rx - cx * size) / s, v = (ry - cy * size) / s;  // 0..128
       const int i0 = std::clamp(int(std::floor(u)), 0, kQuadsPerSide - 1);

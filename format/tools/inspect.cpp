@@ -17,7 +17,7 @@
 
 #include "terrain/archive_layout.h"
 #include "terrain/bc_decode.h"
-#include "terrain/cli_checks.h"
+#include "cli_checks.h"
 #include "terrain/sample.h"
 
 namespace terrain::inspect {
@@ -79,7 +79,7 @@ struct Facts {
 };
 
 Status gather(const ArchiveReader& reader, Facts& f) {
-  if (Status s = reader.section_bytes(f.sections); !s.ok()) return s;
+  TERRAIN_TRY(reader.section_bytes(f.sections));
   f.per_level = reader.nodes_per_level();
   for (const NodeRecord& r : reader.nodes()) {
     f.max_error[r.key.level] = std::max(f.max_error[r.key.level], r.geometric_error_m);
@@ -94,7 +94,7 @@ Status gather(const ArchiveReader& reader, Facts& f) {
 
 Status summary_text(const ArchiveReader& reader, const std::string& path, std::string& out) {
   Facts f;
-  if (Status s = gather(reader, f); !s.ok()) return s;
+  TERRAIN_TRY(gather(reader, f));
   const WorldInfo& w = reader.world();
   std::ostringstream o;
   o << fmt::format("{}: terrain archive v{}, {} bytes, {} nodes\n", path, reader.format_version(), reader.file_size(),
@@ -153,7 +153,7 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
 
 Status summary_json(const ArchiveReader& reader, const std::string& path, std::string& out) {
   Facts f;
-  if (Status s = gather(reader, f); !s.ok()) return s;
+  TERRAIN_TRY(gather(reader, f));
   const WorldInfo& w = reader.world();
   using nlohmann::json;
   json j;
@@ -275,13 +275,13 @@ Status sample(const ArchiveReader& reader, const std::vector<SamplePoint>& point
     a.frame_x = p.x;
     a.frame_y = p.y;
     if (p.lonlat && !to_frame_ready) {
-      if (Status s = to_frame.init(reader.world().crs, lonlat_crs); !s.ok()) return s;
+      TERRAIN_TRY(to_frame.init(reader.world().crs, lonlat_crs));
       to_frame_ready = true;
     }
     if (p.lonlat)
-      if (Status s = to_frame.convert(p.x, p.y, a.frame_x, a.frame_y); !s.ok()) return s;
+      TERRAIN_TRY(to_frame.convert(p.x, p.y, a.frame_x, a.frame_y));
     std::optional<SurfaceSample> got;
-    if (Status s = sampler.sample(a.frame_x, a.frame_y, got); !s.ok()) return s;
+    TERRAIN_TRY(sampler.sample(a.frame_x, a.frame_y, got));
     if (got) {
       a.height_m = got->height_m;
       a.node = got->node;
@@ -297,7 +297,7 @@ namespace {
 Status write_image(const std::string& path, int w, int h, int channels, TerrainPixelType type, const void* south_up_rows,
                    size_t pixel_bytes) {
   ImageWriteFn write = nullptr;
-  if (Status s = image_writer(write); !s.ok()) return s;
+  TERRAIN_TRY(image_writer(write));
   const auto* base = static_cast<const uint8_t*>(south_up_rows);
   const size_t row_bytes = size_t(w) * pixel_bytes;
   char error[512] = {};
@@ -313,7 +313,7 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
   const int64_t index = reader.find(key);
   if (index < 0) return Status::failure(Error::node_not_found, "no node " + key_text(key) + " in the archive");
   auto d = std::make_unique<NodeData>();
-  if (Status s = reader.decode_node(size_t(index), *d); !s.ok()) return s;
+  TERRAIN_TRY(reader.decode_node(size_t(index), *d));
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::failure(Error::io_write, dir + ": cannot create: " + ec.message());
@@ -329,19 +329,16 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
   std::vector<float> metres(static_cast<size_t>(kHeightCount));
   for (size_t k = 0; k < metres.size(); ++k)
     metres[k] = holes[k] ? NAN : units_to_metres_f32(vertex_units(r.height_offset, d->heights[k], step));
-  if (Status s = write_image(file("heights.exr"), kHeightSamples, kHeightSamples, 1, terrain_pixel_f32, metres.data(), 4); !s.ok())
-    return s;
-  if (Status s = write_image(file("heights.png"), kHeightSamples, kHeightSamples, 1, terrain_pixel_u16, d->heights.data(), 2);
-      !s.ok())
-    return s;
+  TERRAIN_TRY(write_image(file("heights.exr"), kHeightSamples, kHeightSamples, 1, terrain_pixel_f32, metres.data(), 4));
+  TERRAIN_TRY(write_image(file("heights.png"), kHeightSamples, kHeightSamples, 1, terrain_pixel_u16, d->heights.data(), 2));
   std::vector<uint8_t> rgba(size_t(kTexels) * kTexels * 4);
   decode_bc3_image(d->normals_bc3.data(), kTexelBlocks, kTexelBlocks, rgba.data());
-  if (Status s = write_image(file("normals.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4); !s.ok()) return s;
+  TERRAIN_TRY(write_image(file("normals.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4));
   decode_bc1_image(d->albedo_bc1.data(), kTexelBlocks, kTexelBlocks, rgba.data());
-  if (Status s = write_image(file("albedo.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4); !s.ok()) return s;
+  TERRAIN_TRY(write_image(file("albedo.png"), kTexels, kTexels, 4, terrain_pixel_u8, rgba.data(), 4));
   std::vector<uint8_t> cones(8 * 8 * 4);
   decode_bc3_image(d->cones_bc3.data(), 2, 2, cones.data());
-  if (Status s = write_image(file("cones.png"), 8, 8, 4, terrain_pixel_u8, cones.data(), 4); !s.ok()) return s;
+  TERRAIN_TRY(write_image(file("cones.png"), 8, 8, 4, terrain_pixel_u8, cones.data(), 4));
   {  // raw ids as binary PGM, north up
     std::ofstream pgm(file("splat.pgm"), std::ios::binary);
     pgm << "P5\n" << kSplatSamples << " " << kSplatSamples << "\n255\n";
@@ -360,8 +357,7 @@ Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::s
     }
     std::copy(c.begin(), c.end(), colours.begin() + std::ptrdiff_t(k * 3));
   }
-  if (Status s = write_image(file("splat.png"), kSplatSamples, kSplatSamples, 3, terrain_pixel_u8, colours.data(), 3); !s.ok())
-    return s;
+  TERRAIN_TRY(write_image(file("splat.png"), kSplatSamples, kSplatSamples, 3, terrain_pixel_u8, colours.data(), 3));
   nlohmann::json j;
   const double size = node_size_m(int(key.level)), s = vertex_spacing_m(int(key.level));
   const double x0 = w.origin_x_m + key.x * size, y0 = w.origin_y_m + key.y * size;

@@ -6,8 +6,9 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "cli_checks.h"
 #include "inspect.h"
-#include "terrain/cli_checks.h"
+#include "terminal_progress.h"
 #include "terrain/output_paths.h"
 
 namespace {

@@ -9,8 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "cli_checks.h"
 #include "inspect_lonlat.h"
-#include "terrain/cli_checks.h"
+#include "terminal_progress.h"
 #include "terrain/engine_export.h"
 #include "terrain/output_paths.h"
 

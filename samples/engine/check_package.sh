@@ -33,7 +33,10 @@ pcfile=$(find "$prefix" -name terrain-streamer.pc -print -quit)
 # refuses a request for 0.2 (SameMinorVersion).
 grep -q 'PACKAGE_VERSION "0.3.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
   fail "terrainConfigVersion.cmake does not say 0.3.0"
-[ ! -e "$prefix/include/terrain/cli_checks.h" ] || fail "cli_checks.h (tools only, needs CLI11) was installed"
+# The tools' shared helpers (tools/common: CLI11 flag checks, progress bar, charts) stay out of the package.
+for f in cli_checks.h terminal_progress.h bench_chart.h bench_paths.h tool_module.h; do
+  [ -z "$(find "$prefix" -name "$f" -print -quit)" ] || fail "$f (tools only) was installed"
+done
 # Public headers: standard library and our own headers only.
 if grep -n '#include <' "$prefix"/include/terrain/*.h | grep -v -E '#include <[a-z_]+>$'; then
   fail "an installed header includes a third-party header (above)"
@@ -58,7 +61,7 @@ if [ -z "$archive" ]; then
   archive="$work/jacksboro.terrain"
   "$prefix/bin/terrain-cook" "$dem" -o "$archive" --crs EPSG:4326 --quiet
 fi
-# The installed terrain-inspect finds its image writer module in lib/terrain (format/tools/tool_module.h).
+# The installed terrain-inspect finds its image writer module in lib/terrain (tools/common/tool_module.h).
 "$prefix/bin/terrain-inspect" "$archive" --export 5/0/0 "$work/export" -q >/dev/null ||
   fail "the installed terrain-inspect could not export a node"
 [ -s "$work/export/heights.exr" ] && [ -s "$work/export/albedo.png" ] || fail "the installed terrain-inspect wrote no images"

@@ -205,7 +205,7 @@ Status sample_levels(double rx, double ry, uint32_t roots_x, uint32_t roots_y, i
     for (int k = 0; k < holding_count; ++k) {
       const double cx = holding[k].x, cy = holding[k].y;
       const NodeSurface* n = nullptr;
-      if (Status s = lookup(holding[k], n); !s.ok()) return s;
+      TERRAIN_TRY(lookup(holding[k], n));
       if (!n) continue;
       if (!any_node) out.node = n->key;
       any_node = true;
@@ -490,7 +490,7 @@ struct ArchiveSurface::Impl {
         out = cache.front().surface.get();
         return Status::success();
       }
-    if (Status s = reader.decode_node(size_t(index), *scratch, kSectionHeights | kSectionAlbedo); !s.ok()) return s;
+    TERRAIN_TRY(reader.decode_node(size_t(index), *scratch, kSectionHeights | kSectionAlbedo));
     cache.push_front({size_t(index), detail::make_node_surface(reader, size_t(index), *scratch, true)});
     if (cache.size() > kCacheNodes) cache.pop_back();
     out = cache.front().surface.get();
@@ -513,7 +513,7 @@ Status ArchiveSurface::height_at(double x, double y, SurfacePoint& out) {
 Status ArchiveSurface::heights_at(std::span<const std::array<double, 2>> points, std::span<SurfacePoint> out) {
   const size_t n = std::min(points.size(), out.size());
   for (size_t i = 0; i < n; ++i)
-    if (Status s = height_at(points[i][0], points[i][1], out[i]); !s.ok()) return s;
+    TERRAIN_TRY(height_at(points[i][0], points[i][1], out[i]));
   return Status::success();
 }
 

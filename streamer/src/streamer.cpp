@@ -151,7 +151,7 @@ struct Streamer::Impl {
 
   Status open(const std::string& path, const StreamerConfig& cfg) {
     config = cfg;
-    if (Status s = reader.open(path); !s.ok()) return s;
+    TERRAIN_TRY(reader.open(path));
     records = reader.nodes();
     const WorldInfo& world = reader.world();
     if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||
@@ -164,7 +164,7 @@ struct Streamer::Impl {
     tree = detail::build_node_tree(reader);
     top_count = uint32_t(tree.tops.size());
     if (top_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
-    if (Status s = validate_config(top_count, reader.top_level()); !s.ok()) return s;
+    TERRAIN_TRY(validate_config(top_count, reader.top_level()));
     wanted_params = detail::make_wanted_params(config, top_count);
 
     const size_t n = records.size();
@@ -434,7 +434,7 @@ Streamer::~Streamer() = default;
 Status Streamer::open(const std::string& archive_path, const StreamerConfig& config) {
   close();
   auto impl = std::make_unique<Impl>();
-  if (Status s = impl->open(archive_path, config); !s.ok()) return s;
+  TERRAIN_TRY(impl->open(archive_path, config));
   impl_ = std::move(impl);
   return Status::success();
 }

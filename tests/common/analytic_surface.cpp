@@ -337,7 +337,7 @@ Status generate_analytic_surface(const Spec& o, const NodeSink& sink) {
       for (int ch = 0; ch < 4; ++ch)
         if (std::binary_search(sorted.begin(), sorted.end(), child_of(key, ch), key_less))
           node->record.child_mask |= uint8_t(1u << ch);
-    if (Status s = sink(node->record, node->data); !s.ok()) return s;
+    TERRAIN_TRY(sink(node->record, node->data));
   }
   return Status::success();
 }

@@ -303,7 +303,7 @@ Status generate_sparse_tree(const Spec& spec, const WorldInfo& world, const Node
       data->albedo_bc1.fill(0x11);  // constant sections of fast payloads (normals, splat, cones stay 0)
       gen.make_payload(r, *data);
     }
-    if (Status s = sink(r, *data); !s.ok()) return s;
+    TERRAIN_TRY(sink(r, *data));
   }
   return Status::success();
 }

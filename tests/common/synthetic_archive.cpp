@@ -75,21 +75,21 @@ World make_world(const Spec& spec) {
 Status write_archive(const std::string& path, const Spec& spec, Summary* summary) {
   const WorldInfo world = world_info(spec);
   ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
+  TERRAIN_TRY(writer.open(path));
   PayloadOptions options;
   options.zstd_level = spec.zstd_level;
   std::vector<uint8_t> payload;
   Summary sum;
   const Status s = generate(spec, world, [&](const NodeRecord& r, const NodeData& data) {
-    if (Status e = encode_node_payload(data, options, payload); !e.ok()) return e;
-    if (Status e = writer.add_node(r, payload); !e.ok()) return e;
+    TERRAIN_TRY(encode_node_payload(data, options, payload));
+    TERRAIN_TRY(writer.add_node(r, payload));
     ++sum.nodes;
     sum.roots += r.key.level == uint32_t(kRootLevel);
     sum.payload_bytes += payload.size();
     return Status::success();
   });
   if (!s.ok()) return s;
-  if (Status e = writer.finish(world); !e.ok()) return e;
+  TERRAIN_TRY(writer.finish(world));
   if (summary) *summary = sum;
   return Status::success();
 }

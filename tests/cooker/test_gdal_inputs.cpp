@@ -53,7 +53,7 @@ cook::CookOptions options_for(const std::vector<std::string>& inputs) {
 Status read_through_gdal(const std::string& path, cook::Raster& r) {
   std::unique_ptr<cook::SourceRaster> src;
   cook::ReadOptions ro;
-  if (Status st = cook::open_gdal_source(path, ro, src); !st.ok()) return st;
+  TERRAIN_TRY(cook::open_gdal_source(path, ro, src));
   return cook::read_whole_source(*src, ro, r);
 }
 
@@ -62,9 +62,9 @@ Status read_tile(const std::string& path, const std::string& flag, cook::Raster&
   cook::TileAddress t;
   if (!cook::parse_tile_address(path, t)) return Status::failure(Error::invalid_argument, "not a z/x/y path");
   cook::TileEncoding enc = cook::TileEncoding::none;
-  if (Status st = cook::tile_encoding_of(path, flag, enc); !st.ok()) return st;
+  TERRAIN_TRY(cook::tile_encoding_of(path, flag, enc));
   std::unique_ptr<cook::SourceRaster> src;
-  if (Status st = cook::open_web_tile(path, t, enc, src); !st.ok()) return st;
+  TERRAIN_TRY(cook::open_web_tile(path, t, enc, src));
   return cook::read_whole_source(*src, {}, r);
 }
 

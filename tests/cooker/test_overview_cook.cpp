@@ -37,7 +37,7 @@ struct Vertices {
 
 Status node_vertices(const ArchiveReader& r, size_t index, Vertices& out) {
   auto data = std::make_unique<NodeData>();
-  if (Status st = r.decode_node(index, *data, kSectionHeights | kSectionAlbedo); !st.ok()) return st;
+  TERRAIN_TRY(r.decode_node(index, *data, kSectionHeights | kSectionAlbedo));
   const NodeRecord& rec = r.nodes()[index];
   const int step = level_step_log2(r.world(), int(rec.key.level));
   std::vector<uint8_t> rgba(size_t(kTexels) * kTexels * 4);

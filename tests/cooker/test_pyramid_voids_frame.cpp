@@ -434,7 +434,7 @@ TEST(VoidFill, SmallEnclosedVoidsAreFilledHarmonicallyAndBorderVoidsStayHoles) {
   for (int row = 0; row < 30; ++row) r.values[size_t(row) * 40] = NAN;
   std::vector<uint8_t> filled;
   VoidStats st;
-  fill_voids(r, NodataPolicy::automatic, 4096, filled, st);
+  ASSERT_TRUE(fill_voids(r, NodataPolicy::automatic, 4096, filled, st).ok());
   EXPECT_EQ(st.filled_regions, 1u);
   EXPECT_EQ(st.filled_samples, 9u);
   EXPECT_EQ(st.hole_regions, 1u);
@@ -455,13 +455,13 @@ TEST(VoidFill, PolicyAndSizeLimitDecide) {
   std::vector<uint8_t> filled;
   VoidStats st;
   Raster a = base;
-  fill_voids(a, NodataPolicy::automatic, 99, filled, st);  // too large to fill
+  ASSERT_TRUE(fill_voids(a, NodataPolicy::automatic, 99, filled, st).ok());  // too large to fill
   EXPECT_EQ(st.hole_samples, 100u);
   Raster b = base;
-  fill_voids(b, NodataPolicy::hole, 4096, filled, st);
+  ASSERT_TRUE(fill_voids(b, NodataPolicy::hole, 4096, filled, st).ok());
   EXPECT_EQ(st.hole_samples, 100u);
   Raster c = base;
-  fill_voids(c, NodataPolicy::fill, 0, filled, st);
+  ASSERT_TRUE(fill_voids(c, NodataPolicy::fill, 0, filled, st).ok());
   EXPECT_EQ(st.filled_samples, 100u);
   for (float v : c.values) EXPECT_FALSE(std::isnan(v));
 }

@@ -170,9 +170,9 @@ TEST(TiffBlocks, EveryWindowIsGdalsBitForBit) {
     SCOPED_TRACE(name);
     const fs::path path = write_tiff(dir, name, w, h, layout);
     const int bps = GDALGetDataTypeSizeBytes(layout.type);
-    std::string why;
-    auto reader = cook::TiffBlockReader::open(path.string(), w, h, bps, &why);
-    ASSERT_TRUE(reader) << why;
+    std::unique_ptr<cook::TiffBlockReader> reader;
+    const Status opened = cook::TiffBlockReader::open(path.string(), w, h, bps, reader);
+    ASSERT_TRUE(opened.ok() && reader) << opened.to_string();
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     ASSERT_TRUE(ds);
     // Whole, one sample, the corners, and random windows; a cache of one block for half of them.
@@ -209,19 +209,26 @@ TEST(TiffBlocks, LeavesOtherLayoutsToGdal) {
   };
   for (const Case& c : cases) {
     const fs::path path = write_tiff(dir, c.name, 300, 200, c.layout);
-    std::string why;
-    EXPECT_FALSE(cook::TiffBlockReader::open(path.string(), 300, 200, GDALGetDataTypeSizeBytes(c.layout.type), &why));
-    EXPECT_NE(why.find(c.why), std::string::npos) << c.name << ": " << why;
+    std::unique_ptr<cook::TiffBlockReader> reader;
+    const Status st = cook::TiffBlockReader::open(path.string(), 300, 200, GDALGetDataTypeSizeBytes(c.layout.type), reader);
+    EXPECT_EQ(st.code, Error::unsupported_input) << c.name;
+    EXPECT_FALSE(reader) << c.name;
+    EXPECT_NE(st.message.find(c.why), std::string::npos) << c.name << ": " << st.message;
   }
   const fs::path plain = write_tiff(dir, "plain", 300, 200, {GDT_Float32, {"COMPRESS=ZSTD", "PREDICTOR=3"}});
-  std::string why;
-  EXPECT_FALSE(cook::TiffBlockReader::open(plain.string(), 301, 200, 4, &why)) << "another size than GDAL's";
+  std::unique_ptr<cook::TiffBlockReader> reader;
+  EXPECT_EQ(cook::TiffBlockReader::open(plain.string(), 301, 200, 4, reader).message,
+            "its first image is not the one GDAL reads") << "another size than GDAL's";
+  EXPECT_FALSE(reader);
   {
     DirectSwitch off(false);
-    EXPECT_FALSE(cook::TiffBlockReader::open(plain.string(), 300, 200, 4, &why));
-    EXPECT_EQ(why, "TERRAIN_TIFF_DIRECT=0");
+    const Status st = cook::TiffBlockReader::open(plain.string(), 300, 200, 4, reader);
+    EXPECT_EQ(st.code, Error::unsupported_input);
+    EXPECT_EQ(st.message, "TERRAIN_TIFF_DIRECT=0");
+    EXPECT_FALSE(reader);
   }
-  EXPECT_TRUE(cook::TiffBlockReader::open(plain.string(), 300, 200, 4, &why)) << why;
+  const Status st = cook::TiffBlockReader::open(plain.string(), 300, 200, 4, reader);
+  EXPECT_TRUE(st.ok() && reader) << st.to_string();
 }
 
 // A source's window read through the cooker's GDAL source, with the direct reader on or off.
@@ -271,8 +278,8 @@ TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
                                              nullptr),
               CE_None);
   }
-  auto reader = cook::TiffBlockReader::open(sparse.string(), 256, 256, 4);
-  ASSERT_TRUE(reader);
+  std::unique_ptr<cook::TiffBlockReader> reader;
+  ASSERT_TRUE(cook::TiffBlockReader::open(sparse.string(), 256, 256, 4, reader).ok());
   std::vector<uint8_t> slots(256 * 256 * 4);
   EXPECT_TRUE(reader->read_window(0, 0, 128, 128, slots.data(), 1)) << "a written tile";
   EXPECT_FALSE(reader->read_window(0, 0, 256, 256, slots.data(), 1)) << "a window over an absent tile";
@@ -283,8 +290,8 @@ TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
   // Damaged: tile 1's zstd frame header overwritten. Neither reader makes up samples: the window
   // fails with GDAL's message naming the file.
   const fs::path damaged = write_tiff(dir, "damaged", 600, 400, {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3"}});
-  auto good = cook::TiffBlockReader::open(damaged.string(), 600, 400, 4);
-  ASSERT_TRUE(good);
+  std::unique_ptr<cook::TiffBlockReader> good;
+  ASSERT_TRUE(cook::TiffBlockReader::open(damaged.string(), 600, 400, 4, good).ok());
   {
     std::fstream f(damaged, std::ios::in | std::ios::out | std::ios::binary);
     f.seekp(std::streamoff(good->layout().offsets[1]));
@@ -296,8 +303,8 @@ TEST(TiffBlocks, SparseAndDamagedBlocksAreReadByGdal) {
   fs::last_write_time(damaged, fs::last_write_time(damaged) + std::chrono::seconds(2));
   std::vector<uint8_t> corner(256 * 256 * 4);
   EXPECT_FALSE(good->read_window(0, 0, 256, 256, corner.data(), 1)) << "the file changed since its layout was read";
-  auto reopened = cook::TiffBlockReader::open(damaged.string(), 600, 400, 4);
-  ASSERT_TRUE(reopened);
+  std::unique_ptr<cook::TiffBlockReader> reopened;
+  ASSERT_TRUE(cook::TiffBlockReader::open(damaged.string(), 600, 400, 4, reopened).ok());
   std::vector<uint8_t> wide(600 * 400 * 4);
   EXPECT_TRUE(reopened->read_window(0, 0, 256, 256, wide.data(), 1)) << "tile 0 is intact";
   EXPECT_FALSE(reopened->read_window(0, 0, 600, 400, wide.data(), 2)) << "tile 1 is not";
@@ -369,9 +376,9 @@ void expect_windows_are_gdals(const fs::path& vrt, int bps, int* composed_reads 
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrt.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   ASSERT_TRUE(ds);
   const int W = ds->GetRasterXSize(), H = ds->GetRasterYSize();
-  std::string why;
-  auto reader = cook::VrtTileReader::open(vrt.string(), W, H, &why);
-  ASSERT_TRUE(reader) << why;
+  std::unique_ptr<cook::VrtTileReader> reader;
+  const Status opened = cook::VrtTileReader::open(vrt.string(), W, H, reader);
+  ASSERT_TRUE(opened.ok() && reader) << opened.to_string();
   std::mt19937 rng(11);
   int checked = 0;
   for (int k = 0; k < 41; ++k) {
@@ -484,9 +491,12 @@ TEST(TiffBlocks, VrtsBeyondThePlainCaseAreReadByGdal) {
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
     const fs::path vrt = write_vrt(dir, c.name, 600, 200, "Float32", "-9999", c.places);
-    std::string why;
-    auto reader = cook::VrtTileReader::open(vrt.string(), 600, 200, &why);
+    std::unique_ptr<cook::VrtTileReader> reader;
+    const Status opened = cook::VrtTileReader::open(vrt.string(), 600, 200, reader);
+    const std::string& why = opened.message;
+    EXPECT_EQ(!opened.ok(), c.refused) << why;
     EXPECT_EQ(!reader, c.refused) << why;
+    EXPECT_EQ(opened.code, c.refused ? Error::unsupported_input : Error::ok) << why;
     {  // The report says who decodes, and why not the cooker.
       std::unique_ptr<cook::SourceRaster> src;
       ASSERT_TRUE(cook::open_gdal_source(vrt.string(), cook::ReadOptions{}, src).ok());
@@ -525,12 +535,13 @@ TEST(TiffBlocks, ArchivesAreTheSameWithGdalDecoding) {
     input = write_tiff(dir, "synthetic", 1500, 1300,
                        {GDT_Float32, {"TILED=YES", "COMPRESS=ZSTD", "PREDICTOR=3", "BLOCKXSIZE=256", "BLOCKYSIZE=256"}});
   }
-  std::string why;
   {
     GDALAllRegister();
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(input.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     ASSERT_TRUE(ds) << input;
-    ASSERT_TRUE(cook::TiffBlockReader::open(input.string(), ds->GetRasterXSize(), ds->GetRasterYSize(), 4, &why)) << why;
+    std::unique_ptr<cook::TiffBlockReader> reader;
+    const Status st = cook::TiffBlockReader::open(input.string(), ds->GetRasterXSize(), ds->GetRasterYSize(), 4, reader);
+    ASSERT_TRUE(st.ok()) << st.to_string();
   }
   std::vector<std::vector<uint8_t>> bytes;
   for (bool direct : {true, false}) {

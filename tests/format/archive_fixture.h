@@ -159,13 +159,13 @@ template <class Build>
 Status write_archive_of(const std::string& path, const WorldInfo& w, const std::vector<NodeKey>& keys,
                         const PayloadOptions& options, Build&& build) {
   ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
+  TERRAIN_TRY(writer.open(path));
   std::vector<uint8_t> payload;
   for (const NodeKey& k : keys) {
     BuiltNode n = build(k);
     n.record.child_mask = child_mask_of(keys, k);
-    if (Status s = encode_node_payload(*n.data, options, payload); !s.ok()) return s;
-    if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
+    TERRAIN_TRY(encode_node_payload(*n.data, options, payload));
+    TERRAIN_TRY(writer.add_node(n.record, payload));
   }
   return writer.finish(w);
 }
@@ -246,7 +246,7 @@ inline Status write_seed_archive(const std::string& path, int kind) {
   PayloadOptions options;
   if (kind == 2) options = PayloadOptions{1, false};
   ArchiveWriter writer;
-  if (Status s = writer.open(path); !s.ok()) return s;
+  TERRAIN_TRY(writer.open(path));
   std::vector<uint8_t> payload;
   for (const NodeKey& k : keys) {
     BuiltNode n = make_seed_node(w, k);
@@ -257,8 +257,8 @@ inline Status write_seed_archive(const std::string& path, int kind) {
       n.data->heights.fill(0);
       n.record.min_height = n.record.max_height = n.record.height_offset;
     }
-    if (Status s = encode_node_payload(*n.data, options, payload); !s.ok()) return s;
-    if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
+    TERRAIN_TRY(encode_node_payload(*n.data, options, payload));
+    TERRAIN_TRY(writer.add_node(n.record, payload));
   }
   return writer.finish(w);
 }

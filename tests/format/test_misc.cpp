@@ -1,4 +1,5 @@
-// BC1/BC3 block decoders, the progress helper, error names, and verify() naming the first bad node.
+// BC1/BC3 block decoders, the progress callback, error names and TERRAIN_TRY, and verify() naming the
+// first bad node.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -97,22 +98,59 @@ TEST(Progress, ScaledProgressMapsAndCancels) {
   EXPECT_TRUE(scaled_progress(nullptr, 0, 1)(0.5, "x"));
 }
 
-TEST(Progress, TerminalBarIsSilentWhenStderrIsNotATerminal) {
-  if (stderr_is_terminal()) GTEST_SKIP() << "stderr is a terminal here";
-  TerminalProgress bar(true);
-  EXPECT_FALSE(bar.active());
-  EXPECT_TRUE(bar.update(0.5, "stage"));
-  EXPECT_TRUE(bar.callback()(1.0, "stage"));
-  TerminalProgress off(false);
-  EXPECT_FALSE(off.active());
-}
-
 TEST(Status, NamesAreStableAndMessagesCarryThem) {
   EXPECT_STREQ(error_name(Error::payload_checksum), "payload_checksum");
   EXPECT_STREQ(error_name(Error::unsupported_version), "unsupported_version");
   EXPECT_EQ(int(Error::directory_invalid), 304);
   EXPECT_EQ(Status::failure(Error::truncated, "x.terrain: short").to_string(), "truncated: x.terrain: short");
   EXPECT_EQ(Status::success().to_string(), "ok");
+}
+
+// TERRAIN_TRY evaluates its expression once, returns a failure unchanged and goes on after success.
+TEST(Status, TryReturnsTheFirstFailureAndGoesOnWhenOk) {
+  int calls = 0;
+  const auto step = [&](Status s) {
+    ++calls;
+    return s;
+  };
+  bool finished = false;
+  const auto run = [&](Status first, Status second) -> Status {
+    finished = false;
+    TERRAIN_TRY(step(first));
+    TERRAIN_TRY(step(second));
+    finished = true;
+    return Status::success();
+  };
+  EXPECT_TRUE(run({}, {}).ok());
+  EXPECT_EQ(calls, 2);
+  EXPECT_TRUE(finished);
+
+  calls = 0;
+  Status st = run(Status::failure(Error::io_read, "a.terrain: short read"), {});
+  EXPECT_EQ(st.code, Error::io_read);
+  EXPECT_EQ(st.message, "a.terrain: short read");
+  EXPECT_EQ(calls, 1) << "the second step is not run";
+  EXPECT_FALSE(finished);
+
+  calls = 0;
+  st = run({}, Status::failure(Error::payload_checksum, "node 3/1/2"));
+  EXPECT_EQ(st.to_string(), "payload_checksum: node 3/1/2");
+  EXPECT_EQ(calls, 2);
+  EXPECT_FALSE(finished);
+
+  // One statement: an if without braces and its else keep their meaning.
+  const auto branch = [&](bool check, Status s) -> Status {
+    if (check)
+      TERRAIN_TRY(step(s));
+    else
+      return Status::failure(Error::internal, "else");
+    return Status::success();
+  };
+  calls = 0;
+  EXPECT_EQ(branch(true, Status::failure(Error::no_data, "x")).code, Error::no_data);
+  EXPECT_TRUE(branch(true, {}).ok());
+  EXPECT_EQ(branch(false, {}).message, "else");
+  EXPECT_EQ(calls, 2);
 }
 
 // verify() reads everything and names the first node that breaks a promise of the directory.
@@ -123,20 +161,20 @@ class Verify : public test::ScratchArchiveTest {
     WorldInfo w = test::make_world(1, 1);
     const auto keys = test::close_tree({{0, 4, 3}});
     ArchiveWriter writer;
-    if (Status s = writer.open(path_); !s.ok()) return s;
+    TERRAIN_TRY(writer.open(path_));
     std::vector<uint8_t> payload;
     for (const NodeKey& k : keys) {
       test::BuiltNode n = test::make_seed_node(w, k);
       n.record.child_mask = test::child_mask_of(keys, k);
       if (k == victim) mutate(n);
-      if (Status s = encode_node_payload(*n.data, {}, payload); !s.ok()) return s;
-      if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
+      TERRAIN_TRY(encode_node_payload(*n.data, {}, payload));
+      TERRAIN_TRY(writer.add_node(n.record, payload));
     }
     return writer.finish(w);
   }
   Status verify_result() {
     ArchiveReader reader;
-    if (Status s = reader.open(path_); !s.ok()) return s;
+    TERRAIN_TRY(reader.open(path_));
     return reader.verify();
   }
 };

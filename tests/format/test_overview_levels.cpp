@@ -47,17 +47,17 @@ Status write_nodes(const std::string& path, const WorldInfo& world, std::vector<
     });
     ArchiveShape shape;
     for (const synthetic::Node& n : nodes) {
-      if (Status s = encode_node_payload(n.data, options, payload); !s.ok()) return s;
+      TERRAIN_TRY(encode_node_payload(n.data, options, payload));
       ++shape.level_nodes[n.record.key.level];
       shape.payload_bytes += payload.size();
     }
-    if (Status s = writer.open_ordered(path, shape); !s.ok()) return s;
-  } else if (Status s = writer.open(path); !s.ok()) {
-    return s;
+    TERRAIN_TRY(writer.open_ordered(path, shape));
+  } else {
+    TERRAIN_TRY(writer.open(path));
   }
   for (const synthetic::Node& n : nodes) {
-    if (Status s = encode_node_payload(n.data, options, payload); !s.ok()) return s;
-    if (Status s = writer.add_node(n.record, payload); !s.ok()) return s;
+    TERRAIN_TRY(encode_node_payload(n.data, options, payload));
+    TERRAIN_TRY(writer.add_node(n.record, payload));
   }
   return writer.finish(world);
 }

@@ -34,9 +34,9 @@ std::unique_ptr<Gpu> make_gpu(const WorldInfo& world, uint32_t slot_count, uint3
 
 Status render_frame(Gpu& gpu, const std::vector<NodeUpload>& uploads, const Camera& camera,
                     const FrameSettings& settings, bool capture_lists) {
-  TV_TRY(gpu.renderer.upload(uploads, gpu.state));
+  TERRAIN_TRY(gpu.renderer.upload(uploads, gpu.state));
   gpu.renderer.set_frame(camera, settings, gpu.target.width, gpu.target.height);
-  TV_TRY(submit_and_wait(gpu.ctx, gpu.one_shot, [&](VkCommandBuffer cmd) {
+  TERRAIN_TRY(submit_and_wait(gpu.ctx, gpu.one_shot, [&](VkCommandBuffer cmd) {
     gpu.renderer.record_frame(cmd, gpu.target, capture_lists);
     record_readback(cmd, gpu.target);
   }));

@@ -127,7 +127,7 @@ struct GpuLists {
 };
 // Renders a view with its lists kept (consuming `uploads`) and reads the lists back.
 Status render_view(Gpu& gpu, std::vector<NodeUpload>& uploads, const Camera& camera, const FrameSettings& s, GpuLists& out) {
-  if (Status st = render_frame(gpu, uploads, camera, s, true); !st.ok()) return st;
+  TERRAIN_TRY(render_frame(gpu, uploads, camera, s, true));
   uploads.clear();
   gpu.renderer.read_lists(out.nodes, out.lod, out.patches);
   return Status::success();
@@ -523,10 +523,10 @@ Status run_stitch_probe(const Context& ctx, const std::vector<uint32_t>& queries
       destroy_buffer(c, b);
     }
   } cleanup{ctx, in, out, os, dsl, layout, module, pipeline, pool};
-  TV_TRY(create_host_buffer(ctx, queries.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, in));
-  TV_TRY(create_host_buffer(ctx, VkDeviceSize(count) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, out));
+  TERRAIN_TRY(create_host_buffer(ctx, queries.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, in));
+  TERRAIN_TRY(create_host_buffer(ctx, VkDeviceSize(count) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, out));
   std::memcpy(in.mapped, queries.data(), queries.size() * 4);
-  TV_TRY(create_one_shot(ctx, os));
+  TERRAIN_TRY(create_one_shot(ctx, os));
   VkDescriptorSetLayoutBinding b[2] = {};
   for (uint32_t k = 0; k < 2; ++k) {
     b[k].binding = k;
@@ -579,7 +579,7 @@ Status run_stitch_probe(const Context& ctx, const std::vector<uint32_t>& queries
     w[k].pBufferInfo = &infos[k];
   }
   vkUpdateDescriptorSets(ctx.device, 2, w, 0, nullptr);
-  TV_TRY(submit_and_wait(ctx, os, [&](VkCommandBuffer cmd) {
+  TERRAIN_TRY(submit_and_wait(ctx, os, [&](VkCommandBuffer cmd) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
     vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, 4, &count);

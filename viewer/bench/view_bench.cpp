@@ -136,8 +136,7 @@ terrain::Status median_draw(Session& s, const Camera& cam, FrameSettings::DrawPr
   std::vector<double> dr;
   FrameRecord rec;
   for (int f = 0; f < warmup + frames; ++f) {
-    terrain::Status st = render_frame(s, cam, false, rec);
-    if (!st.ok()) return st;
+    TERRAIN_TRY(render_frame(s, cam, false, rec));
     if (f >= warmup) dr.push_back(rec.gpu.gpu_draw_ms);
   }
   s.options.settings.profile = saved;

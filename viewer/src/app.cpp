@@ -5,8 +5,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "cli_checks.h"
 #include "session.h"
-#include "terrain/cli_checks.h"
 #include "window.h"
 
 namespace terrain::view {

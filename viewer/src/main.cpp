@@ -2,7 +2,7 @@
 #include "app.h"
 #include "image_io.h"
 
-#include "terrain/cli_checks.h"
+#include "cli_checks.h"
 
 int main(int argc, char** argv) {
   return terrain::cli::guarded_main("terrain-view", [&] {

@@ -4,7 +4,7 @@
 #include <sstream>
 
 #include "app.h"
-#include "terrain/cli_checks.h"
+#include "cli_checks.h"
 #include "terrain/output_paths.h"
 
 namespace terrain::view {

@@ -92,22 +92,22 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
 
   // Atlases.
   const VkImageUsageFlags tex_usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
-  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, kHeightSamples, kHeightSamples, slots, 1, tex_usage,
+  TERRAIN_TRY(create_image(ctx, VK_FORMAT_R16_UINT, kHeightSamples, kHeightSamples, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kHeights]));
   const bool decode = config.decode_bc || config.prelit_far;
-  TV_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC3_UNORM_BLOCK, kTexels, kTexels,
+  TERRAIN_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC3_UNORM_BLOCK, kTexels, kTexels,
                       slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kNormals]));
   // Albedo is sRGB-encoded; the shader linearises it after filtering (cheaper than sRGB sampling).
-  TV_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC1_RGBA_UNORM_BLOCK, kTexels, kTexels,
+  TERRAIN_TRY(create_image(ctx, decode ? VK_FORMAT_R8G8B8A8_UNORM : VK_FORMAT_BC1_RGBA_UNORM_BLOCK, kTexels, kTexels,
                       slots, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kAlbedo]));
-  TV_TRY(create_image(ctx, VK_FORMAT_R8_UINT, kSplatSamples, kSplatSamples, slots, 1, tex_usage,
+  TERRAIN_TRY(create_image(ctx, VK_FORMAT_R8_UINT, kSplatSamples, kSplatSamples, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kSplat]));
-  TV_TRY(create_image(ctx, VK_FORMAT_BC3_UNORM_BLOCK, kPatchesPerSide, kPatchesPerSide, slots, 1, tex_usage,
+  TERRAIN_TRY(create_image(ctx, VK_FORMAT_BC3_UNORM_BLOCK, kPatchesPerSide, kPatchesPerSide, slots, 1, tex_usage,
                       VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kCones]));
-  TV_TRY(create_image(ctx, VK_FORMAT_R16_UINT, world.roots_x, world.roots_y, 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT,
+  TERRAIN_TRY(create_image(ctx, VK_FORMAT_R16_UINT, world.roots_x, world.roots_y, 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT,
                       false, images_[kRoots]));
   // The lit far atlas (far_light.h), or a one-texel stand-in that keeps its binding valid.
-  TV_TRY(create_image(ctx, VK_FORMAT_R8G8B8A8_UNORM, config.prelit_far ? kTexels : 1, config.prelit_far ? kTexels : 1,
+  TERRAIN_TRY(create_image(ctx, VK_FORMAT_R8G8B8A8_UNORM, config.prelit_far ? kTexels : 1, config.prelit_far ? kTexels : 1,
                       config.prelit_far ? slots : 1, 1, tex_usage, VK_IMAGE_ASPECT_COLOR_BIT, true, images_[kLit]));
   const char* names[7] = {"atlas.heights", "atlas.normals", "atlas.albedo", "atlas.splat", "atlas.cones", "roots", "atlas.lit"};
   for (int i = 0; i < 7; ++i) set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(images_[size_t(i)].image), names[i]);
@@ -125,31 +125,31 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
   // Buffers.
   const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                                      VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
-  TV_TRY(create_host_buffer(ctx, sizeof(FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, uniforms_buf_));
-  TV_TRY(create_host_buffer(ctx, sizeof(PaletteBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, palette_buf_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * sizeof(GpuNodeDesc), storage, node_desc_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatchBounds), storage,
+  TERRAIN_TRY(create_host_buffer(ctx, sizeof(FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, uniforms_buf_));
+  TERRAIN_TRY(create_host_buffer(ctx, sizeof(PaletteBlock), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, palette_buf_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * sizeof(GpuNodeDesc), storage, node_desc_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatchBounds), storage,
                               patch_bounds_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 16, storage, coarse_errors_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCH_ERRORS_PER_NODE * 16, storage, patch_errors_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 16, storage, coarse_errors_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCH_ERRORS_PER_NODE * 16, storage, patch_errors_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * TV_PATCHES_PER_NODE * 4, storage, patch_work_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(TV_NL_HEADER + slots) * 4,
                               storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, node_list_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(lod_map_uints_) * 4, storage, lod_map_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 2 * 4, storage, lists_));
-  TV_TRY(create_device_buffer(ctx, VkDeviceSize(index_tree_words(slots)) * 4, storage, tree_));
-  TV_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(lod_map_uints_) * 4, storage, lod_map_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(slots) * 2 * 4, storage, lists_));
+  TERRAIN_TRY(create_device_buffer(ctx, VkDeviceSize(index_tree_words(slots)) * 4, storage, tree_));
+  TERRAIN_TRY(create_device_buffer(ctx, TV_DRAW_UINTS * 4, storage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, draw_));
   // Patch range r (shading group x decimation) from instance r * capacity (config.h, shading groups).
   const VkDeviceSize patch_list_bytes = TV_PATCH_RANGES * VkDeviceSize(slots) * TV_PATCHES_PER_NODE * sizeof(GpuPatch);
-  TV_TRY(create_device_buffer(ctx, patch_list_bytes, storage, patches_));
-  TV_TRY(create_device_buffer(ctx, kMeshIndices * 2, VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+  TERRAIN_TRY(create_device_buffer(ctx, patch_list_bytes, storage, patches_));
+  TERRAIN_TRY(create_device_buffer(ctx, kMeshIndices * 2, VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                               index_buffer_));
-  TV_TRY(create_host_buffer(ctx, (TV_NL_HEADER + TV_DRAW_UINTS) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, stats_readback_));
-  TV_TRY(create_host_buffer(ctx,
+  TERRAIN_TRY(create_host_buffer(ctx, (TV_NL_HEADER + TV_DRAW_UINTS) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, stats_readback_));
+  TERRAIN_TRY(create_host_buffer(ctx,
                             VkDeviceSize(TV_NL_HEADER + slots) * 4 + VkDeviceSize(lod_map_uints_) * 4 +
                                 patch_list_bytes,
                             VK_BUFFER_USAGE_TRANSFER_DST_BIT, lists_readback_));
-  TV_TRY(create_host_buffer(ctx, 8u << 20, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, staging_));
+  TERRAIN_TRY(create_host_buffer(ctx, 8u << 20, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, staging_));
 
   // Palette (sRGB -> linear) and the cone table are written at set_frame(); the grid indices now.
   PaletteBlock* pb = new (palette_buf_.mapped) PaletteBlock{};
@@ -186,10 +186,10 @@ Status TerrainRenderer::init(const Context& ctx, const WorldInfo& world, const R
       }
   }
   VkDeviceSize off = 0;
-  TV_TRY(stage_bytes(indices.data(), indices.size() * 2, 16, off));
+  TERRAIN_TRY(stage_bytes(indices.data(), indices.size() * 2, 16, off));
   pending_buffers_.push_back({index_buffer_.buffer, {off, 0, indices.size() * 2}});
 
-  TV_TRY(create_pipelines());
+  TERRAIN_TRY(create_pipelines());
 
   timestamps_ = ctx.properties.limits.timestampComputeAndGraphics && ctx.properties.limits.timestampPeriod > 0;
   if (timestamps_) {
@@ -284,7 +284,7 @@ Status TerrainRenderer::create_pipelines() {
 
   auto compute = [&](ShaderId id, VkPipeline& out) -> Status {
     VkShaderModule module;
-    TV_TRY(create_shader_module(ctx.device, id, module));
+    TERRAIN_TRY(create_shader_module(ctx.device, id, module));
     VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
     ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
     ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
@@ -296,12 +296,12 @@ Status TerrainRenderer::create_pipelines() {
     VK_TRY(r);
     return Status::success();
   };
-  TV_TRY(compute(ShaderId::traverse, traverse_));
-  TV_TRY(compute(ShaderId::lodmap, lodmap_));
-  TV_TRY(compute(ShaderId::patches, patches_pipe_));
+  TERRAIN_TRY(compute(ShaderId::traverse, traverse_));
+  TERRAIN_TRY(compute(ShaderId::lodmap, lodmap_));
+  TERRAIN_TRY(compute(ShaderId::patches, patches_pipe_));
 
-  TV_TRY(create_shader_module(ctx.device, ShaderId::terrain_vert, vs_));
-  TV_TRY(create_shader_module(ctx.device, ShaderId::terrain_frag, fs_));
+  TERRAIN_TRY(create_shader_module(ctx.device, ShaderId::terrain_vert, vs_));
+  TERRAIN_TRY(create_shader_module(ctx.device, ShaderId::terrain_frag, fs_));
   return Status::success();
 }
 
@@ -425,7 +425,7 @@ void TerrainRenderer::destroy() {
 }
 
 Status TerrainRenderer::stage_bytes(const void* data, size_t size, size_t align, VkDeviceSize& offset) {
-  TV_TRY(stage_reserve(size, align, offset));
+  TERRAIN_TRY(stage_reserve(size, align, offset));
   std::memcpy(static_cast<uint8_t*>(staging_.mapped) + offset, data, size);
   return Status::success();
 }
@@ -436,7 +436,7 @@ Status TerrainRenderer::stage_reserve(size_t size, size_t align, VkDeviceSize& o
     // Grow: the previous frame has finished (one frame in flight), so only this frame's staged
     // bytes need to move to the new buffer; pending copies refer to offsets, not the buffer.
     Buffer bigger;
-    TV_TRY(create_host_buffer(*ctx_, std::max<VkDeviceSize>(staging_.size * 2, at + size + (1u << 20)),
+    TERRAIN_TRY(create_host_buffer(*ctx_, std::max<VkDeviceSize>(staging_.size * 2, at + size + (1u << 20)),
                               VK_BUFFER_USAGE_TRANSFER_SRC_BIT, bigger));
     std::memcpy(bigger.mapped, staging_.mapped, size_t(staging_used_));
     destroy_buffer(*ctx_, staging_);
@@ -478,7 +478,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     node_bytes += (parts[k].size + 15) / 16 * 16;
   }
   VkDeviceSize base = 0;
-  TV_TRY(stage_reserve(node_bytes * nodes.size(), 16, base));
+  TERRAIN_TRY(stage_reserve(node_bytes * nodes.size(), 16, base));
   uint8_t* const staged = static_cast<uint8_t*>(staging_.mapped) + base;
 
   // The CPU work of each node (BC decoding, lighting, bounds and errors) on every core: nodes are
@@ -542,16 +542,16 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     const uint32_t cap = state.slot_count();
     auto copy_words = [&](size_t first, size_t count) -> Status {
       VkDeviceSize off;
-      TV_TRY(stage_bytes(&tree[first], count * 4, 16, off));
+      TERRAIN_TRY(stage_bytes(&tree[first], count * 4, 16, off));
       pending_buffers_.push_back({tree_.buffer, {off, VkDeviceSize(first) * 4, VkDeviceSize(count) * 4}});
       return Status::success();
     };
-    if (dirty.index.starts) TV_TRY(copy_words(0, kIndexTreeStart + size_t(cap)));
+    if (dirty.index.starts) TERRAIN_TRY(copy_words(0, kIndexTreeStart + size_t(cap)));
     const std::vector<uint16_t>& kids = dirty.index.children;
     for (size_t i = 0; i < kids.size();) {
       size_t j = i + 1;
       while (j < kids.size() && kids[j] == kids[j - 1] + 1) ++j;
-      TV_TRY(copy_words(index_child_word(cap, kids[i]), 2 * (j - i)));
+      TERRAIN_TRY(copy_words(index_child_word(cap, kids[i]), 2 * (j - i)));
       i = j;
     }
     top_level_ = uint32_t(state.top_level());
@@ -562,7 +562,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
     while (j < dirty.slots.size() && dirty.slots[j] == dirty.slots[j - 1] + 1) ++j;
     const uint32_t first = dirty.slots[i], count = uint32_t(j - i);
     VkDeviceSize off;
-    TV_TRY(stage_bytes(&state.descriptors()[first], size_t(count) * sizeof(GpuNodeDesc), 16, off));
+    TERRAIN_TRY(stage_bytes(&state.descriptors()[first], size_t(count) * sizeof(GpuNodeDesc), 16, off));
     pending_buffers_.push_back(
         {node_desc_.buffer, {off, VkDeviceSize(first) * sizeof(GpuNodeDesc), VkDeviceSize(count) * sizeof(GpuNodeDesc)}});
     i = j;
@@ -574,7 +574,7 @@ Status TerrainRenderer::upload(std::span<const NodeUpload> nodes, TerrainState& 
       std::memcpy(scratch_.data() + size_t(y) * w * 2, &state.index().root_grid()[size_t(r.y0 + y) * state.roots_x() + r.x0],
                   size_t(w) * 2);
     VkDeviceSize off;
-    TV_TRY(stage_bytes(scratch_.data(), scratch_.size(), 16, off));
+    TERRAIN_TRY(stage_bytes(scratch_.data(), scratch_.size(), 16, off));
     VkBufferImageCopy c{};
     c.bufferOffset = off;
     c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};

@@ -21,7 +21,7 @@ Status allocate_memory(const Context& ctx, const VkMemoryRequirements& req, VkMe
                        VkMemoryPropertyFlags fallback, VkDeviceMemory& out) {
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   ai.allocationSize = req.size;
-  TV_TRY(find_memory(ctx, req.memoryTypeBits, want, fallback, ai.memoryTypeIndex));
+  TERRAIN_TRY(find_memory(ctx, req.memoryTypeBits, want, fallback, ai.memoryTypeIndex));
   VK_TRY(vkAllocateMemory(ctx.device, &ai, nullptr, &out));
   return Status::success();
 }
@@ -34,7 +34,7 @@ Status create_buffer(const Context& ctx, VkDeviceSize size, VkBufferUsageFlags u
   VK_TRY(vkCreateBuffer(ctx.device, &bci, nullptr, &out.buffer));
   VkMemoryRequirements req;
   vkGetBufferMemoryRequirements(ctx.device, out.buffer, &req);
-  TV_TRY(allocate_memory(ctx, req, want, fallback, out.memory));
+  TERRAIN_TRY(allocate_memory(ctx, req, want, fallback, out.memory));
   VK_TRY(vkBindBufferMemory(ctx.device, out.buffer, out.memory, 0));
   out.size = size;
   if (map) VK_TRY(vkMapMemory(ctx.device, out.memory, 0, VK_WHOLE_SIZE, 0, &out.mapped));
@@ -73,7 +73,7 @@ Status create_image(const Context& ctx, VkFormat format, uint32_t width, uint32_
   VK_TRY(vkCreateImage(ctx.device, &ici, nullptr, &out.image));
   VkMemoryRequirements req;
   vkGetImageMemoryRequirements(ctx.device, out.image, &req);
-  TV_TRY(allocate_memory(ctx, req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, out.memory));
+  TERRAIN_TRY(allocate_memory(ctx, req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0, out.memory));
   VK_TRY(vkBindImageMemory(ctx.device, out.image, out.memory, 0));
   VkImageViewCreateInfo vci{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vci.image = out.image;

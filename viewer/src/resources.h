@@ -60,14 +60,13 @@ void set_debug_name(const Context& ctx, VkObjectType type, uint64_t handle, cons
 template <class F>
 Status submit_and_wait(const Context& ctx, const OneShot& os, F&& record) {
   VkCommandBuffer cmd;
-  Status s = allocate_command_buffer(ctx, os.pool, cmd);
-  if (!s.ok()) return s;
+  TERRAIN_TRY(allocate_command_buffer(ctx, os.pool, cmd));
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   vkBeginCommandBuffer(cmd, &bi);
   record(cmd);
   vkEndCommandBuffer(cmd);
-  s = submit_and_wait_cmd(ctx, cmd);
+  const Status s = submit_and_wait_cmd(ctx, cmd);
   vkFreeCommandBuffers(ctx.device, os.pool, 1, &cmd);
   return s;
 }

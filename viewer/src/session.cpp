@@ -40,7 +40,7 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
   d.instance_extensions = instance_extensions;
   d.swapchain = swapchain;
   d.quiet = o.quiet;
-  TV_TRY(create_context(d, s->ctx));
+  TERRAIN_TRY(create_context(d, s->ctx));
   if (s->ctx.properties.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU) {
     // lavapipe allocates and frees tens of MB of vertex and bin memory per frame; with glibc's
     // defaults that memory goes back to the kernel each time and every frame pays page faults
@@ -49,14 +49,14 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
   }
   if (o.load_all) {
-    TV_TRY(open_load_all_source(o.archive, 8192, s->source));
+    TERRAIN_TRY(open_load_all_source(o.archive, 8192, s->source));
   } else {
     StreamSourceOptions so;
     so.budget_nodes = o.budget_nodes;
     so.error_target_px = o.settings.error_target_px;
     so.worker_threads = o.worker_threads;
     so.max_deliveries_per_frame = o.max_deliveries;
-    TV_TRY(open_stream_source(o.archive, so, s->source));
+    TERRAIN_TRY(open_stream_source(o.archive, so, s->source));
   }
   // Hole method: the NaN clip position where it is known to work (lavapipe: ViewerGpu tests).
   s->options.settings.hole_nan =
@@ -69,13 +69,13 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
   rc.upload_threads = o.upload_threads;
   rc.lit_sun_azimuth_deg = o.settings.sun_azimuth_deg;
   rc.lit_sun_elevation_deg = o.settings.sun_elevation_deg;
-  TV_TRY(s->renderer.init(s->ctx, s->source->world(), rc));
-  TV_TRY(create_target(s->ctx, o.width, o.height, s->target));
+  TERRAIN_TRY(s->renderer.init(s->ctx, s->source->world(), rc));
+  TERRAIN_TRY(create_target(s->ctx, o.width, o.height, s->target));
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
   pci.queueFamilyIndex = s->ctx.queue_family;
   VK_TRY(vkCreateCommandPool(s->ctx.device, &pci, nullptr, &s->pool));
-  TV_TRY(allocate_command_buffer(s->ctx, s->pool, s->cmd));
+  TERRAIN_TRY(allocate_command_buffer(s->ctx, s->pool, s->cmd));
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   VK_TRY(vkCreateFence(s->ctx.device, &fci, nullptr, &s->fence));
   out = std::move(s);
@@ -118,9 +118,9 @@ Status begin_frame(Session& s, const Camera& camera, FrameRecord& rec, double& s
   rec.camera = camera;
   s.renderer.set_frame(camera, s.options.settings, s.target.width, s.target.height);
   std::vector<NodeUpload> uploads;
-  TV_TRY(s.source->update(camera, s.renderer.uniforms(), s.state, uploads));
+  TERRAIN_TRY(s.source->update(camera, s.renderer.uniforms(), s.state, uploads));
   const double upload = now_ms();
-  TV_TRY(s.renderer.upload(uploads, s.state));
+  TERRAIN_TRY(s.renderer.upload(uploads, s.state));
   rec.upload_ms = now_ms() - upload;
   rec.source = s.source->stats();
   return Status::success();
@@ -176,7 +176,7 @@ Status end_frame(Session& s, bool readback, FrameRecord& rec, double start, void
 
 Status render_frame(Session& s, const Camera& camera, bool readback, FrameRecord& record) {
   double start = 0;
-  TV_TRY(begin_frame(s, camera, record, start));
+  TERRAIN_TRY(begin_frame(s, camera, record, start));
   return end_frame(s, readback, record, start, nullptr, nullptr);
 }
 

@@ -65,8 +65,7 @@ Status end_frame(Session& s, bool readback, FrameRecord& record, double cpu_star
 template <class Extra>
 Status render_frame(Session& s, const Camera& camera, bool readback, Extra&& extra, FrameRecord& record) {
   double start = 0;
-  Status st = begin_frame(s, camera, record, start);
-  if (!st.ok()) return st;
+  TERRAIN_TRY(begin_frame(s, camera, record, start));
   auto thunk = [](void* user, VkCommandBuffer cmd) { (*static_cast<std::remove_reference_t<Extra>*>(user))(cmd); };
   return end_frame(s, readback, record, start, thunk, &extra);
 }

@@ -20,7 +20,7 @@ class StreamSource final : public NodeSource {
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
     {
       ArchiveReader reader;
-      if (Status st = reader.open(path); !st.ok()) return st;
+      TERRAIN_TRY(reader.open(path));
       // The streamer keeps the top level resident: at most 16 overview nodes (format/SPEC.md
       // section 19), or every root of an archive without overview levels. Budget 0 (the default)
       // = 512, raised for such an archive to its roots + 512 so that it opens too.
@@ -105,8 +105,7 @@ class StreamSource final : public NodeSource {
 class LoadAllSource final : public NodeSource {
  public:
   Status open(const std::string& path, uint32_t max_nodes) {
-    Status s = reader_.open(path);
-    if (!s.ok()) return s;
+    TERRAIN_TRY(reader_.open(path));
     const auto nodes = reader_.nodes();
     if (nodes.size() > max_nodes)
       return Status::failure(Error::invalid_argument,
@@ -115,8 +114,7 @@ class LoadAllSource final : public NodeSource {
     data_.resize(nodes.size());
     std::vector<MemoryNode> memory;
     for (size_t i = 0; i < nodes.size(); ++i) {
-      s = reader_.decode_node(i, data_[i]);
-      if (!s.ok()) return s;
+      TERRAIN_TRY(reader_.decode_node(i, data_[i]));
       memory.push_back({nodes[i], &data_[i]});
     }
     memory_ = std::move(memory);
@@ -166,16 +164,14 @@ class LoadAllSource final : public NodeSource {
 
 Status open_stream_source(const std::string& archive, const StreamSourceOptions& options, std::unique_ptr<NodeSource>& out) {
   auto s = std::make_unique<StreamSource>();
-  Status st = s->open(archive, options);
-  if (!st.ok()) return st;
+  TERRAIN_TRY(s->open(archive, options));
   out = std::move(s);
   return Status::success();
 }
 
 Status open_load_all_source(const std::string& archive, uint32_t max_nodes, std::unique_ptr<NodeSource>& out) {
   auto s = std::make_unique<LoadAllSource>();
-  Status st = s->open(archive, max_nodes);
-  if (!st.ok()) return st;
+  TERRAIN_TRY(s->open(archive, max_nodes));
   out = std::move(s);
   return Status::success();
 }

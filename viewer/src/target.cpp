@@ -9,13 +9,13 @@ namespace terrain::view {
 Status create_target(const Context& ctx, uint32_t width, uint32_t height, RenderTarget& out) {
   out.width = width;
   out.height = height;
-  TV_TRY(create_image(ctx, kColorFormat, width, height, 1, 1,
+  TERRAIN_TRY(create_image(ctx, kColorFormat, width, height, 1, 1,
                       VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
                       false, out.color));
-  TV_TRY(create_image(ctx, kDepthFormat, width, height, 1, 1,
+  TERRAIN_TRY(create_image(ctx, kDepthFormat, width, height, 1, 1,
                       VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                       VK_IMAGE_ASPECT_DEPTH_BIT, false, out.depth));
-  TV_TRY(create_host_buffer(ctx, VkDeviceSize(width) * height * 8, VK_BUFFER_USAGE_TRANSFER_DST_BIT, out.readback));
+  TERRAIN_TRY(create_host_buffer(ctx, VkDeviceSize(width) * height * 8, VK_BUFFER_USAGE_TRANSFER_DST_BIT, out.readback));
   set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(out.color.image), "target.color");
   set_debug_name(ctx, VK_OBJECT_TYPE_IMAGE, uint64_t(out.depth.image), "target.depth");
   return Status::success();

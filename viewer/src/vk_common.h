@@ -31,10 +31,3 @@ Status vk_status(VkResult r, const char* call, const char* file, int line);
     if (vk_check_result_ != VK_SUCCESS)                                               \
       ::terrain::view::vk_fatal(vk_check_result_, #call, __FILE__, __LINE__);         \
   } while (0)
-
-// Propagates a failed Status.
-#define TV_TRY(expr)                       \
-  do {                                     \
-    ::terrain::Status tv_try_status_ = (expr); \
-    if (!tv_try_status_.ok()) return tv_try_status_; \
-  } while (0)

@@ -46,34 +46,34 @@ struct NpyArray {
 };
 
 // Parses the .npy header: {'descr': '<i2', 'fortran_order': False, 'shape': (344, 403), }
-bool parse_npy(const std::vector<uint8_t>& bytes, NpyArray& out, std::string& why) {
-  if (bytes.size() < 10 || std::memcmp(bytes.data(), "\x93NUMPY", 6) != 0) { why = "not an .npy array"; return false; }
+// Error::unsupported_input says what is wrong with the array (the caller names the file).
+Status parse_npy(const std::vector<uint8_t>& bytes, NpyArray& out) {
+  auto refuse = [](std::string why) { return Status::failure(Error::unsupported_input, std::move(why)); };
+  if (bytes.size() < 10 || std::memcmp(bytes.data(), "\x93NUMPY", 6) != 0) return refuse("not an .npy array");
   const int major = bytes[6];
   size_t header_len = 0, header_at = 0;
   if (major == 1) { header_len = size_t(bytes[8]) | size_t(bytes[9]) << 8; header_at = 10; }
   else if (major >= 2 && bytes.size() >= 12) {
     header_len = size_t(bytes[8]) | size_t(bytes[9]) << 8 | size_t(bytes[10]) << 16 | size_t(bytes[11]) << 24;
     header_at = 12;
-  } else { why = "unknown .npy version"; return false; }
-  if (header_at + header_len > bytes.size()) { why = "truncated .npy header"; return false; }
+  } else return refuse("unknown .npy version");
+  if (header_at + header_len > bytes.size()) return refuse("truncated .npy header");
   const std::string h(reinterpret_cast<const char*>(bytes.data() + header_at), header_len);
   const size_t d = h.find("'descr'");
   const size_t q1 = d == std::string::npos ? d : h.find('\'', d + 7);
   const size_t q2 = q1 == std::string::npos ? q1 : h.find('\'', q1 + 1);
-  if (q2 == std::string::npos || q2 - q1 < 3) { why = "no dtype in .npy header"; return false; }
+  if (q2 == std::string::npos || q2 - q1 < 3) return refuse("no dtype in .npy header");
   const std::string descr = h.substr(q1 + 1, q2 - q1 - 1);
   out.big_endian = descr[0] == '>';
   out.kind = descr[1];
   out.item_bytes = std::atoi(descr.c_str() + 2);
-  if (std::strchr("iuf", out.kind) == nullptr || (out.item_bytes != 1 && out.item_bytes != 2 && out.item_bytes != 4 && out.item_bytes != 8)) {
-    why = "dtype " + descr + " not supported";
-    return false;
-  }
-  if (h.find("'fortran_order': True") != std::string::npos) { why = "Fortran-ordered arrays are not supported"; return false; }
+  if (std::strchr("iuf", out.kind) == nullptr || (out.item_bytes != 1 && out.item_bytes != 2 && out.item_bytes != 4 && out.item_bytes != 8))
+    return refuse("dtype " + descr + " not supported");
+  if (h.find("'fortran_order': True") != std::string::npos) return refuse("Fortran-ordered arrays are not supported");
   const size_t s = h.find("'shape'");
   const size_t p1 = s == std::string::npos ? s : h.find('(', s);
   const size_t p2 = p1 == std::string::npos ? p1 : h.find(')', p1);
-  if (p2 == std::string::npos) { why = "no shape in .npy header"; return false; }
+  if (p2 == std::string::npos) return refuse("no shape in .npy header");
   out.shape.clear();
   out.count = 1;
   for (size_t i = p1 + 1; i < p2;) {
@@ -82,21 +82,17 @@ bool parse_npy(const std::vector<uint8_t>& bytes, NpyArray& out, std::string& wh
     int64_t v = 0;
     auto [e, ec] = std::from_chars(h.data() + i, h.data() + p2, v);
     // Each side below 2^31 and the product at most 2^32 (checked before multiplying: no wrap).
-    if (ec != std::errc() || v < 0 || v >= (int64_t(1) << 31) || (v > 0 && out.count > (size_t(1) << 32) / size_t(v))) {
-      why = "bad shape";
-      return false;
-    }
+    if (ec != std::errc() || v < 0 || v >= (int64_t(1) << 31) || (v > 0 && out.count > (size_t(1) << 32) / size_t(v)))
+      return refuse("bad shape");
     out.shape.push_back(v);
     out.count *= size_t(v);
     i = size_t(e - h.data());
   }
   const size_t data_at = header_at + header_len;
-  if (out.count > (size_t(1) << 32) || bytes.size() - data_at < out.count * size_t(out.item_bytes)) {
-    why = "array data truncated";
-    return false;
-  }
+  if (out.count > (size_t(1) << 32) || bytes.size() - data_at < out.count * size_t(out.item_bytes))
+    return refuse("array data truncated");
   out.data = bytes.data() + data_at;
-  return true;
+  return Status::success();
 }
 
 }  // namespace
@@ -126,9 +122,8 @@ Status read_npz(const std::string& path, const ReadOptions& options, Raster& out
                    : st;
   }
   NpyArray elev;
-  std::string why;
-  if (!parse_npy(entries["elevation"], elev, why))
-    return Status::failure(Error::unsupported_input, fmt::format("{}: elevation.npy: {}", path, why));
+  if (Status st = parse_npy(entries["elevation"], elev); !st.ok())
+    return Status::failure(st.code, fmt::format("{}: elevation.npy: {}", path, st.message));
   if (elev.shape.size() != 2 || elev.shape[0] < 2 || elev.shape[1] < 2)
     return Status::failure(Error::unsupported_input, fmt::format("{}: elevation must be a 2-D array", path));
   if (Status st = check_raster_memory(path, uint64_t(elev.shape[1]), uint64_t(elev.shape[0]),
@@ -149,7 +144,8 @@ Status read_npz(const std::string& path, const ReadOptions& options, Raster& out
   std::map<std::string, double> scalar;
   for (const char* name : {"xmin", "xmax", "ymin", "ymax", "dx", "dy"}) {
     NpyArray a;
-    if (entries.count(name) && parse_npy(entries[name], a, why) && a.count == 1) scalar[name] = a.at(0);
+    // A scalar that does not parse is left out, as a missing one (the extent then stays unknown).
+    if (entries.count(name) && parse_npy(entries[name], a).ok() && a.count == 1) scalar[name] = a.at(0);
   }
   if (scalar.count("xmin") && scalar.count("xmax") && scalar.count("ymin") && scalar.count("ymax")) {
     const double west = std::min(scalar["xmin"], scalar["xmax"]), east = std::max(scalar["xmin"], scalar["xmax"]);

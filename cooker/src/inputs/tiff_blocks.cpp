@@ -440,12 +440,10 @@ TiffBlockBytes::~TiffBlockBytes() { block_pool().give(bytes); }
 
 TiffBlockReader::~TiffBlockReader() { BlockCache::get().forget(id_); }
 
-std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, int width, int height,
-                                                       int bytes_per_sample, std::string* why_not) {
-  auto refuse = [&](std::string why) {
-    if (why_not) *why_not = std::move(why);
-    return std::unique_ptr<TiffBlockReader>();
-  };
+Status TiffBlockReader::open(const std::string& path, int width, int height, int bytes_per_sample,
+                             std::unique_ptr<TiffBlockReader>& out) {
+  out.reset();
+  auto refuse = [](std::string why) { return Status::failure(Error::unsupported_input, std::move(why)); };
   if (!tiff_direct_enabled()) return refuse("TERRAIN_TIFF_DIRECT=0");
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return refuse("not a plain file");
@@ -461,7 +459,8 @@ std::unique_ptr<TiffBlockReader> TiffBlockReader::open(const std::string& path, 
   r->file_mtime_ns_ = int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
   r->id_ = g_next_reader_id.fetch_add(1);
   note_tiff_block_column(uint64_t(l.block_h) * uint64_t(l.bytes_per_sample));
-  return r;
+  out = std::move(r);
+  return Status::success();
 }
 
 bool TiffBlockReader::decode(int fd, uint32_t index, TiffBlockBytes& block) const {

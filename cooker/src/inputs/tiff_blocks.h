@@ -22,6 +22,8 @@
 #include <string>
 #include <vector>
 
+#include "terrain/status.h"
+
 namespace terrain::cook {
 
 struct TiffBlockLayout {
@@ -51,10 +53,12 @@ class TiffBlockReader {
   TiffBlockReader(const TiffBlockReader&) = delete;
   TiffBlockReader& operator=(const TiffBlockReader&) = delete;
 
-  // The reader of `path` when its first image is the layout above with width x height samples of
-  // `bytes_per_sample` bytes; else nullptr and `why_not` says what it is instead.
-  static std::unique_ptr<TiffBlockReader> open(const std::string& path, int width, int height, int bytes_per_sample,
-                                               std::string* why_not = nullptr);
+  // The reader of `path` into `out` when its first image is the layout above with width x height
+  // samples of `bytes_per_sample` bytes. Otherwise Error::unsupported_input whose message says what
+  // the file is instead (a decision, not a failure: the caller reads the file through GDAL), and
+  // `out` is null.
+  static Status open(const std::string& path, int width, int height, int bytes_per_sample,
+                     std::unique_ptr<TiffBlockReader>& out);
 
   // Columns x0 .. x0+w-1 of rows y0 .. y0+h-1 into `slots` (row-major, 4 bytes per sample, each
   // sample's native bytes at the start of its slot: what GDAL's RasterIO writes with a pixel

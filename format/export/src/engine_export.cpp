@@ -222,7 +222,7 @@ struct SplatReader {
     if (index < 0) return Status::failure(Error::internal, "sampler answered with a node that is not in the directory");
     auto it = cache.find(index);
     if (it == cache.end()) {
-      if (Status s = reader.decode_node(size_t(index), *scratch, kSectionSplat); !s.ok()) return s;
+      TERRAIN_TRY(reader.decode_node(size_t(index), *scratch, kSectionSplat));
       auto copy = std::make_unique<uint8_t[]>(kSplatCount);
       std::copy(scratch->splat.begin(), scratch->splat.end(), copy.get());
       it = cache.emplace(index, std::move(copy)).first;
@@ -317,13 +317,13 @@ Status sample_band(SurfaceSampler& sampler, SplatReader& splat, const Plan& p, i
         const double x = p.west_x_m + double(col0 + c) * p.spacing_m;
         const double y = p.north_y_m - double(row0 + r) * p.spacing_m;
         std::optional<SurfaceSample> h;
-        if (Status s = sampler.sample(x, y, h); !s.ok()) return s;
+        TERRAIN_TRY(sampler.sample(x, y, h));
         if (!h) continue;
         const size_t k = size_t(r) * cols + c;
         b.height[k] = h->height_m;
         if (!want_splat) continue;
         SplatReader::Weights sw;
-        if (Status s = splat.at(h->node, x, y, sw); !s.ok()) return s;
+        TERRAIN_TRY(splat.at(h->node, x, y, sw));
         for (int q = 0; q < 4; ++q) {
           b.ids[k * 4 + q] = sw.id[q];
           b.weights[k * 4 + q] = float(sw.w[q]);
@@ -410,10 +410,10 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
       result.tile_hole_samples.push_back(0);
       ImageFile height, mask;
       std::vector<ImageFile> weight(unreal ? n_layers : 0);
-      if (Status s = height.open(files.height, T, 1, unreal ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::FLOAT); !s.ok()) return s;
-      if (Status s = mask.open(files.holes_or_control, T, unreal ? 1 : 4, OIIO::TypeDesc::UINT8); !s.ok()) return s;
+      TERRAIN_TRY(height.open(files.height, T, 1, unreal ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::FLOAT));
+      TERRAIN_TRY(mask.open(files.holes_or_control, T, unreal ? 1 : 4, OIIO::TypeDesc::UINT8));
       for (size_t m = 0; m < weight.size(); ++m)
-        if (Status s = weight[m].open(files.weights[m], T, 1, OIIO::TypeDesc::UINT8); !s.ok()) return s;
+        TERRAIN_TRY(weight[m].open(files.weights[m], T, 1, OIIO::TypeDesc::UINT8));
       SplatReader splat{reader, {}};
       Band band;
       std::vector<uint16_t> row16(static_cast<size_t>(T));
@@ -422,7 +422,7 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
       std::vector<std::vector<uint8_t>> roww(weight.size(), std::vector<uint8_t>(size_t(T)));
       for (int r0 = 0; r0 < T; r0 += kBand) {
         const int rows = std::min(kBand, T - r0);
-        if (Status s = sample_band(sampler, splat, p, row0 + r0, col0, rows, T, true, band); !s.ok()) return s;
+        TERRAIN_TRY(sample_band(sampler, splat, p, row0 + r0, col0, rows, T, true, band));
         for (int r = 0; r < rows; ++r) {
           const int grow = row0 + r0 + r;
           for (int c = 0; c < T; ++c) {
@@ -470,10 +470,10 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
               }
             }
           }
-          if (Status s = height.row(r0 + r, unreal ? static_cast<const void*>(row16.data()) : rowf.data()); !s.ok()) return s;
-          if (Status s = mask.row(r0 + r, row8.data()); !s.ok()) return s;
+          TERRAIN_TRY(height.row(r0 + r, unreal ? static_cast<const void*>(row16.data()) : rowf.data()));
+          TERRAIN_TRY(mask.row(r0 + r, row8.data()));
           for (size_t m = 0; m < weight.size(); ++m)
-            if (Status s = weight[m].row(r0 + r, roww[m].data()); !s.ok()) return s;
+            TERRAIN_TRY(weight[m].row(r0 + r, roww[m].data()));
           if (!unreal && grow < p.height && col0 < p.width) {  // collision rows inside the rectangle
             const int cols = std::min(T, p.width - col0);
             std::vector<float> cf(static_cast<size_t>(cols));
@@ -484,8 +484,8 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
               ch[size_t(c)] = hole ? 1 : 0;
             }
             const off_t at = off_t(grow) * p.width + col0;
-            if (Status s = pwrite_all(coll.fd, cf.data(), cf.size() * 4, at * 4, collision_path(p)); !s.ok()) return s;
-            if (Status s = pwrite_all(coll_holes.fd, ch.data(), ch.size(), at, collision_holes_path(p)); !s.ok()) return s;
+            TERRAIN_TRY(pwrite_all(coll.fd, cf.data(), cf.size() * 4, at * 4, collision_path(p)));
+            TERRAIN_TRY(pwrite_all(coll_holes.fd, ch.data(), ch.size(), at, collision_holes_path(p)));
           }
         }
         done += double(rows) * T;
@@ -493,11 +493,11 @@ Status run_export(const ArchiveReader& reader, const Plan& p, const ProgressFn& 
           return Status::failure(Error::cancelled, "export cancelled");
       }
       for (ImageFile* f : {&height, &mask})
-        if (Status s = f->close(); !s.ok()) return s;
+        TERRAIN_TRY(f->close());
       result.written.push_back(files.height);
       result.written.push_back(files.holes_or_control);
       for (size_t m = 0; m < weight.size(); ++m) {
-        if (Status s = weight[m].close(); !s.ok()) return s;
+        TERRAIN_TRY(weight[m].close());
         result.written.push_back(files.weights[m]);
       }
     }

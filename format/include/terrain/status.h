@@ -42,7 +42,9 @@ enum class Error : uint16_t {
 // Stable lower_snake name of a code, e.g. "payload_checksum".
 const char* error_name(Error code);
 
-struct Status {
+// [[nodiscard]]: a call whose Status is dropped does not compile cleanly. A call that may fail and
+// whose failure changes nothing says so: `(void)call();  // why`.
+struct [[nodiscard]] Status {
   Error code = Error::ok;
   std::string message;  // says what is wrong and where (file, offset, node L/X/Y); empty when ok
 
@@ -54,3 +56,15 @@ struct Status {
 };
 
 }  // namespace terrain
+
+// TERRAIN_TRY(expr): evaluates the Status expression `expr` once; when it is not ok, returns it
+// unchanged from the enclosing function, otherwise goes on. For functions that return Status:
+// in a function returning void, bool or a number it does not compile (Status converts to none of
+// them); a return type constructible from Status would get the error through that constructor, so
+// do not use it there. A caller that adds context to the message before returning writes that
+// by hand: `if (Status s = f(); !s.ok()) { s.message = "where: " + s.message; return s; }`.
+#define TERRAIN_TRY(expr)                                                          \
+  do {                                                                             \
+    if (::terrain::Status terrain_try_status_ = (expr); !terrain_try_status_.ok()) \
+      return terrain_try_status_;                                                  \
+  } while (0)

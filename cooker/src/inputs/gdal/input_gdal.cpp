@@ -635,12 +635,13 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   // (GdalSource::gdal_band).
   std::unique_ptr<GDALDataset> ds;
   std::unique_ptr<VrtTileReader> vrt;
-  std::string vrt_why_not, reads_from;
+  Status vrt_refused;  // why the VRT reader left the VRT to GDAL
+  std::string reads_from;
   bool vrt_tried = false;  // the reader has already read this VRT's XML (and refused it, if null)
   if (const std::string header = ends_with(path, ".vrt") ? vrt_without_sources(path) : std::string(); !header.empty()) {
     std::unique_ptr<GDALDataset> h(GDALDataset::Open(header.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     if (h && h->GetRasterCount() >= 1 && h->GetDriver() && std::strcmp(h->GetDriver()->GetDescription(), "VRT") == 0) {
-      vrt = VrtTileReader::open(path, h->GetRasterXSize(), h->GetRasterYSize(), &vrt_why_not);
+      vrt_refused = VrtTileReader::open(path, h->GetRasterXSize(), h->GetRasterYSize(), vrt);
       vrt_tried = true;
     }
     if (vrt) {
@@ -746,17 +747,16 @@ Status open_gdal_source(const std::string& path, const ReadOptions& options, std
   }
   // A plain GeoTIFF of 1-, 2- or 4-byte samples: its blocks decoded by tiff_blocks.cpp.
   std::unique_ptr<TiffBlockReader> tiff;
-  std::string why_not;
   if (driver == "GTiff" && GDALDataTypeIsComplex(type) == 0 && GDALGetDataTypeSizeBytes(type) <= 4) {
-    tiff = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type), &why_not);
-    info.decoder = tiff ? "blocks decoded by the cooker" : fmt::format("blocks decoded by GDAL ({})", why_not);
+    const Status direct = TiffBlockReader::open(path, width, height, GDALGetDataTypeSizeBytes(type), tiff);
+    info.decoder = direct.ok() ? "blocks decoded by the cooker" : fmt::format("blocks decoded by GDAL ({})", direct.message);
   }
   // A VRT mosaic of such tiles (gdalbuildvrt's): composed here from the tiles' blocks (vrt_tiles.h).
   if (driver == "VRT") {
-    if (!vrt_tried) vrt = VrtTileReader::open(path, width, height, &vrt_why_not);
+    if (!vrt_tried) vrt_refused = VrtTileReader::open(path, width, height, vrt);
     info.decoder = vrt ? fmt::format("{} tile sources composed by the cooker from their blocks (a tile it "
                                      "does not decode is read by GDAL)", vrt->sources())
-                       : fmt::format("read by GDAL's VRT driver ({})", vrt_why_not);
+                       : fmt::format("read by GDAL's VRT driver ({})", vrt_refused.message);
   }
   // The source owns the dataset from here on (the band pointer stays valid with it).
   auto src = std::make_unique<GdalSource>(std::move(ds), band, GDALDataTypeIsFloating(type) != 0,

@@ -164,12 +164,9 @@ bool has_relative_name(const CPLXMLNode* node) {
 
 VrtTileReader::~VrtTileReader() = default;
 
-std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int width, int height,
-                                                   std::string* why_not) {
-  auto refuse = [&](std::string why) {
-    if (why_not) *why_not = std::move(why);
-    return std::unique_ptr<VrtTileReader>();
-  };
+Status VrtTileReader::open(const std::string& path, int width, int height, std::unique_ptr<VrtTileReader>& out) {
+  out.reset();
+  auto refuse = [](std::string why) { return Status::failure(Error::unsupported_input, std::move(why)); };
   if (!tiff_direct_enabled()) return refuse("TERRAIN_TIFF_DIRECT=0");
   // The dataset and its bands from the VRT without its sources, the sources one at a time after
   // (vrt_stream.h): a mosaic of a million tiles never stands in memory as one tree.
@@ -322,7 +319,8 @@ std::unique_ptr<VrtTileReader> VrtTileReader::open(const std::string& path, int 
   r->type_ = int(type);
   r->tiles_.resize(r->sources_.size());
   r->state_.assign(r->sources_.size(), kUntried);
-  return r;
+  out = std::move(r);
+  return Status::success();
 }
 
 size_t VrtTileReader::set_open_tile_limit(size_t limit) { return open_tile_limit.exchange(limit); }
@@ -336,10 +334,12 @@ std::shared_ptr<const TiffBlockReader> VrtTileReader::tile(size_t i) const {
   if (state_[i] == kRefused) return nullptr;
   const Source& s = sources_[i];
   const Type type = Type(type_);
-  std::unique_ptr<TiffBlockReader> t = TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_of(type));
-  // The tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale
-  // VRT over a replaced tile may claim another type of the same size).
-  if (!t || t->layout().sample_format != sample_format_of(type)) {
+  std::unique_ptr<TiffBlockReader> t;
+  // A tile the block reader refuses is read by GDAL (the refusal's reason is not needed here). The
+  // tile must hold the type its SourceProperties claim (GDAL converts what it finds; a stale VRT
+  // over a replaced tile may claim another type of the same size).
+  if (!TiffBlockReader::open(s.path, s.tile_w, s.tile_h, bytes_of(type), t).ok() ||
+      t->layout().sample_format != sample_format_of(type)) {
     state_[i] = kRefused;
     return nullptr;
   }

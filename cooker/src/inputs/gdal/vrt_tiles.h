@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "terrain/status.h"
+
 namespace terrain::cook {
 
 class TiffBlockReader;
@@ -28,10 +30,10 @@ class VrtTileReader {
   VrtTileReader(const VrtTileReader&) = delete;
   VrtTileReader& operator=(const VrtTileReader&) = delete;
 
-  // The reader of the VRT at `path` when it is the plain case above with a band of width x height
-  // samples; else nullptr and `why_not` says why.
-  static std::unique_ptr<VrtTileReader> open(const std::string& path, int width, int height,
-                                             std::string* why_not = nullptr);
+  // The reader of the VRT at `path` into `out` when it is the plain case above with a band of
+  // width x height samples. Otherwise Error::unsupported_input whose message says why (a decision,
+  // not a failure: the caller reads the VRT through GDAL), and `out` is null.
+  static Status open(const std::string& path, int width, int height, std::unique_ptr<VrtTileReader>& out);
   // Tile readers a VrtTileReader keeps open (default 16384, about 8 MB); returns the previous
   // limit (tests: a tiny one closes and opens tiles again within and between reads).
   static size_t set_open_tile_limit(size_t limit);

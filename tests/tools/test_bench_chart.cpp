@@ -1,4 +1,4 @@
-// bench_chart (format/tools/bench_chart.h): the benchmarks' SVG charts. Points land where a linear
+// bench_chart (tools/common/bench_chart.h): the benchmarks' SVG charts. Points land where a linear
 // and a log10 axis put them, the automatic axis ends are round, the file parses as XML, and
 // NaN / inf / empty series neither crash nor write "nan" or "inf".
 #include <gtest/gtest.h>

@@ -6,7 +6,7 @@
 #include <utility>
 
 #ifndef TERRAIN_MODULE_DIR
-#define TERRAIN_MODULE_DIR "."  // relative to the executable's folder (format/tools/CMakeLists.txt)
+#define TERRAIN_MODULE_DIR "."  // relative to the executable's folder (tools/common/CMakeLists.txt)
 #endif
 
 namespace terrain {
