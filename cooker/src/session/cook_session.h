@@ -110,6 +110,5 @@ Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report)
 // The cook's provenance JSON stored in the archive (options, inputs, frame reason, voids).
 std::string cook_info(const CookOptions& o, const CookReport& r,
                       const std::vector<std::pair<std::string, std::string>>& descriptions);
-const char* policy_name(NodataPolicy p);
 
 }  // namespace terrain::cook

@@ -21,6 +21,7 @@
 #include "frame/crs.h"
 #include "inputs/height_units.h"
 #include "pyramid/node_spool.h"
+#include "session/cook_options_table.h"
 #include "inputs/source_raster.h"
 #include "terrain/archive_writer.h"
 #include "terrain/bc_decode.h"
@@ -99,82 +100,6 @@ InputFile file_of(const json& fj) {
   return fi;
 }
 
-// ---- options: every field, so a unit on another machine cooks with the plan's ----
-json options_json(const CookOptions& o) {
-  json j;
-  j["inputs"] = o.inputs;
-  j["tolerance_m"] = o.tolerance_m;
-  j["finest_level"] = o.finest_level;
-  j["crs"] = o.crs;
-  j["frame"] = o.frame;
-  j["origin"] = o.origin ? json(*o.origin) : json(nullptr);
-  j["spacing"] = o.spacing ? json(*o.spacing) : json(nullptr);
-  j["height_scale"] = o.height_scale;
-  j["height_offset"] = o.height_offset;
-  if (o.height_scale_set) j["height_scale_set"] = true;  // absent: false (earlier plans kept)
-  j["nodata_value"] = o.nodata_value ? json(*o.nodata_value) : json(nullptr);
-  j["valid_range_m"] = o.valid_range_m;
-  j["memory_limit_bytes"] = o.memory_limit_bytes;
-  j["raw_size"] = o.raw_size;
-  j["raw_type"] = o.raw_type;
-  j["raw_big_endian"] = o.raw_big_endian;
-  j["tile_encoding"] = o.tile_encoding;
-  j["nodata"] = policy_name(o.nodata);
-  j["fill_max_samples"] = o.fill_max_samples;
-  j["materials"] = o.materials_path;
-  j["surface_quality"] = int(o.surface_quality);
-  if (o.bc_rdo > 0) j["bc_rdo"] = o.bc_rdo;
-  if (o.error_checks == ErrorChecks::all) j["error_checks"] = "all";  // absent: sample (earlier plans kept)
-  j["albedo"] = o.albedo_path;
-  j["holes"] = o.holes_path;
-  j["landcover"] = o.landcover_path;
-  j["landcover_table"] = o.landcover_table_path;
-  j["heights_only"] = o.heights_only;
-  j["force"] = o.force;
-  j["zstd_level"] = o.zstd_level;
-  j["surface_zstd_level"] = o.surface_zstd_level;
-  j["overview_levels"] = int(o.overview_levels);
-  return j;
-}
-
-CookOptions options_of(const json& j) {
-  CookOptions o;
-  o.inputs = j.at("inputs").get<std::vector<std::string>>();
-  o.tolerance_m = j.at("tolerance_m");
-  o.finest_level = j.at("finest_level");
-  o.crs = j.at("crs");
-  o.frame = j.at("frame");
-  if (!j.at("origin").is_null()) o.origin = j.at("origin").get<std::array<double, 2>>();
-  if (!j.at("spacing").is_null()) o.spacing = j.at("spacing").get<std::array<double, 2>>();
-  o.height_scale = j.at("height_scale");
-  o.height_offset = j.at("height_offset");
-  o.height_scale_set = j.value("height_scale_set", false);
-  if (!j.at("nodata_value").is_null()) o.nodata_value = j.at("nodata_value").get<double>();
-  o.valid_range_m = j.at("valid_range_m").get<std::array<double, 2>>();
-  o.memory_limit_bytes = j.at("memory_limit_bytes");
-  o.raw_size = j.at("raw_size").get<std::array<int, 2>>();
-  o.raw_type = j.at("raw_type");
-  o.raw_big_endian = j.at("raw_big_endian");
-  o.tile_encoding = j.at("tile_encoding");
-  const std::string nodata = j.at("nodata");
-  o.nodata = nodata == "hole" ? NodataPolicy::hole : nodata == "fill" ? NodataPolicy::fill : NodataPolicy::automatic;
-  o.fill_max_samples = j.at("fill_max_samples");
-  o.materials_path = j.at("materials");
-  o.surface_quality = SurfaceQuality(j.at("surface_quality").get<int>());
-  o.bc_rdo = j.value("bc_rdo", 0.0f);
-  o.error_checks = j.value("error_checks", std::string("sample")) == "all" ? ErrorChecks::all : ErrorChecks::sample;
-  o.albedo_path = j.at("albedo");
-  o.holes_path = j.at("holes");
-  o.landcover_path = j.at("landcover");
-  o.landcover_table_path = j.at("landcover_table");
-  o.heights_only = j.at("heights_only");
-  o.force = j.at("force");
-  o.zstd_level = j.at("zstd_level");
-  o.surface_zstd_level = j.at("surface_zstd_level");
-  o.overview_levels = OverviewMode(j.value("overview_levels", 0));
-  return o;
-}
-
 json frame_json(const FrameCrs& f) {
   return {{"kind", int(f.kind)},          {"epsg", f.epsg},
           {"semi_major_m", f.semi_major_m}, {"inverse_flattening", f.inverse_flattening},
@@ -238,21 +163,6 @@ std::string absolute_path(const std::string& path) {
   return ec ? path : abs.lexically_normal().string();
 }
 
-// The options' file paths as plan.json's "resolved_paths" holds them, and back.
-json resolved_paths_json(const CookOptions& o) {
-  return {{"inputs", o.inputs}, {"materials", o.materials_path}, {"albedo", o.albedo_path}, {"holes", o.holes_path},
-          {"landcover", o.landcover_path}, {"landcover_table", o.landcover_table_path}};
-}
-CookOptions with_paths_of(CookOptions o, const json& j) {
-  o.inputs = j.at("inputs").get<std::vector<std::string>>();
-  o.materials_path = j.at("materials");
-  o.albedo_path = j.at("albedo");
-  o.holes_path = j.at("holes");
-  o.landcover_path = j.at("landcover");
-  o.landcover_table_path = j.at("landcover_table");
-  return o;
-}
-
 // The mosaic samples a raster file covers: its corners through the mosaic's georeferencing, one
 // sample of margin; the whole mosaic when GDAL cannot say (own formats, another CRS).
 SampleRect footprint_of(const FilePlacement& f, const Raster& header, const SampleRect& whole) {
@@ -314,9 +224,7 @@ Status collect_input_files(const CookSession& s, std::vector<InputFile>& out) {
 std::string decisions_text(const CookOptions& o, const FrameCrs& frame, const WorldInfo& w, int width, int height,
                            int finest, const std::array<uint8_t, kLevelCount>& steps) {
   json j;
-  json opt = options_json(o);
-  opt.erase("memory_limit_bytes");  // changes blocks, never bytes
-  j["options"] = opt;
+  j["options"] = plan_options_json(o, /*budget=*/false);  // the memory limit changes blocks, never bytes
   j["source"] = {width, height};
   j["frame"] = frame_json(frame);
   j["grid"] = {w.origin_x_m, w.origin_y_m, w.roots_x, w.roots_y};
@@ -764,8 +672,8 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   j["format"] = "terrain-cook-plan";
   j["version"] = 3;
   j["fingerprint"] = plan.fingerprint;
-  j["options"] = options_json(s.options);  // paths as typed: the cook info keeps them
-  j["resolved_paths"] = resolved_paths_json(resolved_options(s.options));  // what unit and merge open
+  j["options"] = plan_options_json(s.options);  // paths as typed: the cook info keeps them
+  j["resolved_paths"] = input_paths_json(resolved_options(s.options));  // what unit and merge open
   // Every input file in a file of its own, named by its contents' fingerprint: only `plan` and the
   // merge read it (a unit reads its own list), so plan.json stays small however many tiles there are.
   const std::string work_dir = std::filesystem::path(path).parent_path().string();
@@ -936,8 +844,8 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
                                                                    "`terrain-cook plan` again", path, j.value("version", 0)));
   try {
     out = PlanData{};
-    out.options = options_of(j.at("options"));
-    out.resolved = with_paths_of(out.options, j.at("resolved_paths"));
+    out.options = options_of_plan_json(j.at("options"));
+    out.resolved = with_input_paths_of(out.options, j.at("resolved_paths"));
     out.plan.fingerprint = j.at("fingerprint");
     out.source_width = j.at("source").at("width");
     out.source_height = j.at("source").at("height");
@@ -1032,10 +940,7 @@ CookOptions resolved_options(CookOptions o) {
 }
 
 bool same_plan_options(const CookOptions& planned, const CookOptions& given) {
-  json a = options_json(planned), b = options_json(given);
-  a.erase("memory_limit_bytes");
-  b.erase("memory_limit_bytes");
-  return a == b;
+  return plan_options_json(planned, /*budget=*/false) == plan_options_json(given, /*budget=*/false);
 }
 
 bool work_dir_owns(const std::string& work_dir, const std::string& path) {
