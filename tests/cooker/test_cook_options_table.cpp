@@ -15,7 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "session/cook_options_table.h"
-#include "units/work_units.h"
+#include "units/plan_file.h"
 
 namespace terrain::cook {
 namespace {

@@ -48,7 +48,7 @@ struct CookOptionRow {
 std::span<const CookOptionRow> cook_option_rows();
 
 // plan.json's "options": every plan-scope field (with `budget`, the plan_budget ones too), in the
-// table's order. The plan's fingerprint and same_plan_options (units/work_units.h) hash / compare it
+// table's order. The plan's fingerprint and same_plan_options (plan_file.h) hash / compare it
 // without the budget.
 nlohmann::ordered_json plan_options_json(const CookOptions& o, bool budget = true);
 // The options of a plan back (process-scope fields at their defaults); throws on a malformed one.
