@@ -25,7 +25,9 @@ namespace terrain::cook {
 enum class OptionScope : uint8_t {
   plan,         // a decision of the plan: in plan.json and its fingerprint; every unit cooks with the plan's
   plan_budget,  // in plan.json (the units use the plan's) but changes no byte: not in its fingerprint
-  process,      // per process (each `unit` and `merge` gives its own, or the plan keeps it elsewhere): not in plan.json's options
+  // Per process (each `unit` and `merge` gives its own, or the plan keeps it elsewhere): not in
+  // plan.json's options.
+  process,
 };
 
 struct CookOptionRow {
