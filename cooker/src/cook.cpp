@@ -16,7 +16,10 @@
 #include "pyramid/overview_levels.h"
 #include "terrain/cook.h"
 #include "terrain/output_paths.h"
-#include "units/work_units.h"
+#include "units/merge.h"
+#include "units/plan_file.h"
+#include "units/unit_file.h"
+#include "units/work_dir.h"
 
 namespace terrain::cook {
 namespace {
@@ -86,86 +89,6 @@ RootSource spool_roots(const NodeSpool& spool) {
   return src;
 }
 
-// The overview levels from the cooked roots (SPEC 19), when the plan has any, into a spool next
-// to `output`: their nodes follow every other node, and an ordered writer must know their count
-// and bytes before the first node (the directory's place).
-Status spool_overview_levels(const CookSession& s, const RootSource& roots, const std::string& output, NodeSpool& spool,
-                             CookReport& report) {
-  if (s.world.overview_step_log2.empty()) return Status::success();
-  const double c0 = process_cpu();
-  Status st = spool.open(staging_path(output, "overview"));
-  OverviewSettings settings = overview_settings(s);
-  settings.scratch_path = staging_path(output, "lattice");
-  if (st.ok())
-    st = write_overview_levels(settings, roots,
-                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, report);
-  report.cpu_overview = process_cpu() - c0;
-  return st;
-}
-
-// The shape of an archive of `parts`' nodes (an ordered writer's, archive_writer.h).
-ArchiveShape shape_of(std::initializer_list<const NodeSpool*> parts, ArchiveShape shape = {}) {
-  for (const NodeSpool* p : parts) {
-    const ArchiveShape s = p->shape();
-    for (size_t l = 0; l < size_t(kMaxLevels); ++l) shape.level_nodes[l] += s.level_nodes[l];
-    shape.payload_bytes += s.payload_bytes;
-  }
-  return shape;
-}
-
-// The merge's session: the plan's decisions without any input opened.
-void session_for_merge(const PlanData& data, CookSession& s) {
-  s.options = data.options;
-  s.frame = data.frame;
-  s.world = data.world;
-  s.ctx.step_log2 = data.steps;
-  restore_overview_steps(data.world.overview_step_log2, s);
-  s.ctx.finest_level = data.report.finest_level;
-  s.descriptions = data.descriptions;
-}
-
-Status merge_into(const PlanData& data, const std::string& work_dir, const std::string& output,
-                  const ProgressFn& progress, CookReport& report) {
-  CookSession s;
-  session_for_merge(data, s);
-  s.options.output = output;
-  SurfaceOptions so;
-  so.materials_path = data.resolved.materials_path;
-  if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
-  const CookReport planned = data.report;
-  const uint64_t limit = report.memory_limit_bytes;
-  const int threads = report.threads;
-  report = planned;
-  report.memory_limit_bytes = limit;
-  report.threads = threads;
-  report.surface_layers = !data.options.heights_only;
-  ArchiveWriter writer;
-  PyramidTotals totals;
-  // The overview levels (built from the units' roots once every unit is checked) are spooled
-  // first: the ordered writer places the directory after every payload, theirs included.
-  NodeSpool overview;
-  auto with_overview = [&](ArchiveShape& shape) {
-    if (s.world.overview_step_log2.empty()) return Status::success();
-    s.threads = threads;
-    RootSource roots;
-    Status st = unit_roots(work_dir, data.plan, roots);
-    if (st.ok()) st = spool_overview_levels(s, roots, output, overview, report);
-    if (st.ok()) shape = shape_of({&overview}, shape);
-    return st;
-  };
-  Status merged = merge_unit_files(work_dir, data.plan, data.steps, output, writer, totals, report, progress, with_overview);
-  if (merged.ok() && overview.nodes()) merged = overview.drain(writer);
-  if (!merged.ok()) {
-    writer.abort();
-    return merged;
-  }
-  finish_levels(s, totals, report);
-  const std::vector<uint64_t> bytes_read = report.input_bytes_read;
-  if (Status st = finish_archive(s, writer, report); !st.ok()) return st;
-  report.input_bytes_read = bytes_read;
-  return Status::success();
-}
-
 }  // namespace
 
 Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& report) {
@@ -190,8 +113,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
       return st;
     }
     for (uint32_t i = 0; i < summary.unit_count; ++i) {
-      std::string why;
-      if (!unit_file_valid(options.work_dir, plan, i, why))
+      if (!check_unit_file(options.work_dir, plan, i).ok())
         if (Status st = write_unit(s, plan, i, options.work_dir); !st.ok()) return st;
       if (progress && !progress(0.1 + 0.8 * double(i + 1) / summary.unit_count, fmt::format("unit {}/{}", i + 1, summary.unit_count)))
         return Status::failure(Error::cancelled, "cancelled");
@@ -300,8 +222,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   // read of the whole archive per plan; a unit damaged inside is redone by `unit` (which checks
   // its CRC before skipping) and named by the merge.
   for (const UnitPlan& u : plan.units) {
-    std::string why;
-    if (unit_file_usable(options.work_dir, plan, u.index, why)) ++summary.units_valid;
+    if (check_unit_file_head(options.work_dir, plan, u.index).ok()) ++summary.units_valid;
     else std::filesystem::remove(unit_file(options.work_dir, u.index), ec);  // stale or broken: redo
   }
   // Unit files beyond the new unit count belong to no unit any more.
@@ -340,8 +261,7 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
     for (const InputFile& f : data.plan.files) inputs.push_back({"input of the plan", f.path});
     if (Status st = check_output_paths(inputs, {{"unit file", unit_file(work_dir, index)}}); !st.ok()) return st;
   }
-  std::string why;
-  if (unit_file_valid(work_dir, data.plan, index, why)) {
+  if (check_unit_file(work_dir, data.plan, index).ok()) {
     skipped = true;
     return Status::success();
   }

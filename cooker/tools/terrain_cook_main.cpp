@@ -25,6 +25,8 @@
 #include "terminal_progress.h"
 #include "terrain/cook.h"
 #include "terrain/output_paths.h"
+#include "terrain/progress.h"
+#include "session/cook_options_table.h"
 
 namespace {
 
@@ -114,8 +116,9 @@ int run(int argc, char** argv) {
   using terrain::cook::CookOptions;
   namespace cli = terrain::cli;
   CookOptions o;
-  std::string origin, spacing, raw_size, valid_range, memory_limit, nodata = "auto", quality = "balanced", report_path;
-  std::string error_checks = "sample";
+  using terrain::cook::enum_name;
+  std::string origin, spacing, raw_size, valid_range, memory_limit, report_path;
+  std::string nodata = enum_name(o.nodata), quality = enum_name(o.surface_quality), error_checks = enum_name(o.error_checks);
   std::optional<double> nodata_value;
   bool quiet = false, json = false;
 
@@ -162,7 +165,7 @@ int run(int argc, char** argv) {
       ->capture_default_str()
       ->check(cli::in_range(-1e6, 1e6));
   app.add_option("--nodata", nodata, "auto: fill small enclosed voids, holes elsewhere; hole; fill")
-      ->check(CLI::IsMember({"auto", "hole", "fill"}))
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::NodataPolicy>()))
       ->capture_default_str();
   // NaN samples are nodata anyway, so NaN is refused as a value; +-inf is allowed (voids stored as infinity).
   app.add_option("--nodata-value", nodata_value, "Nodata value (overrides the file's); any number or +-inf, not nan")
@@ -210,7 +213,7 @@ int run(int argc, char** argv) {
                  "JSON class -> material table: {\"classes\": {\"10\": \"forest_floor\", \"80\": \"water\"}} "
                  "(palette names or indices; classes not listed keep the rules' choice)");
   app.add_option("--bc-quality", quality, "Block compression quality of normals and albedo")
-      ->check(CLI::IsMember({"fast", "balanced", "best"}))
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::SurfaceQuality>()))
       ->capture_default_str();
   app.add_option("--bc-rdo", o.bc_rdo,
                  "Rate-distortion pass over the normal and albedo blocks: where it costs at most LAMBDA squared error "
@@ -223,15 +226,15 @@ int run(int argc, char** argv) {
                  "Nodes whose normal and albedo errors the report measures (decoding their blocks): sample = one node in "
                  "8, chosen by its key (every node when the grid has at most 4 roots); all = every node (0.2 ms more CPU per node). "
                  "Hole alpha is checked on every node")
-      ->check(CLI::IsMember({"sample", "all"}))
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::ErrorChecks>()))
       ->capture_default_str();
-  std::string overview = "auto";
+  std::string overview = enum_name(o.overview_levels);
   app.add_option("--overview-levels", overview,
                  fmt::format("Overview levels above the 2048 m roots (format v2, SPEC section 19) so a streamer can "
                              "open worlds of more roots than its budget: auto = when the root grid has more than {} "
                              "cells (half the streamer's default 512-node budget), on, off",
                              terrain::cook::kOverviewAutoRoots))
-      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::OverviewMode>()))
       ->capture_default_str();
   app.add_flag("--heights-only", o.heights_only, "Skip normals, albedo, splat and cones (they stay zero)");
   app.add_flag("--force", o.force,
@@ -281,16 +284,12 @@ int run(int argc, char** argv) {
   if (!memory_limit.empty() && !terrain::cook::parse_byte_size(memory_limit, o.memory_limit_bytes))
     return usage("--memory-limit " + memory_limit + ": expects a size of at least 1M, e.g. 512M, 2G, 1.5G");
   o.nodata_value = nodata_value;
-  o.nodata = nodata == "hole" ? terrain::cook::NodataPolicy::hole
-             : nodata == "fill" ? terrain::cook::NodataPolicy::fill
-                                : terrain::cook::NodataPolicy::automatic;
-  o.overview_levels = overview == "on"    ? terrain::cook::OverviewMode::on
-                      : overview == "off" ? terrain::cook::OverviewMode::off
-                                          : terrain::cook::OverviewMode::automatic;
-  o.error_checks = error_checks == "all" ? terrain::cook::ErrorChecks::all : terrain::cook::ErrorChecks::sample;
-  o.surface_quality = quality == "fast" ? terrain::cook::SurfaceQuality::fast
-                      : quality == "best" ? terrain::cook::SurfaceQuality::best
-                                          : terrain::cook::SurfaceQuality::balanced;
+  // The names the checks above accepted (cook_options_table.h spells them).
+  using terrain::cook::enum_of;
+  o.nodata = enum_of<terrain::cook::NodataPolicy>(nodata).value_or(o.nodata);
+  o.overview_levels = enum_of<terrain::cook::OverviewMode>(overview).value_or(o.overview_levels);
+  o.error_checks = enum_of<terrain::cook::ErrorChecks>(error_checks).value_or(o.error_checks);
+  o.surface_quality = enum_of<terrain::cook::SurfaceQuality>(quality).value_or(o.surface_quality);
 
   // ---- the files: refuse before any work ----
   auto fail = [](const terrain::Status& st) {

@@ -8,7 +8,7 @@
 #include <array>
 #include <cstring>
 
-#include "bytes.h"
+#include "terrain/detail/bytes.h"
 #include "layout.h"
 #include "payload.h"
 #include "terrain/archive_writer.h"

@@ -19,7 +19,7 @@
 
 #include <zlib.h>
 
-#include "bytes.h"
+#include "terrain/detail/bytes.h"
 #include "layout.h"
 #include "payload.h"
 

@@ -5,7 +5,7 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 
-#include "bytes.h"
+#include "terrain/detail/bytes.h"
 
 namespace terrain::detail {
 namespace {

@@ -9,7 +9,7 @@
 #include <cstring>
 #include <string>
 
-#include "bytes.h"
+#include "terrain/detail/bytes.h"
 #include "terrain/archive_writer.h"
 #include "terrain/cpu_clock.h"
 #include "terrain/height_codec.h"

@@ -5,7 +5,7 @@
 
 #include <climits>
 
-#include "bytes.h"
+#include "terrain/detail/bytes.h"
 #include "terrain/zstd_context.h"
 
 namespace terrain {
@@ -53,17 +53,23 @@ std::string Status::to_string() const {
 
 namespace detail {
 
-uint32_t crc32_of(std::span<const uint8_t> bytes) {
-  uLong crc = ::crc32(0L, Z_NULL, 0);
+uint32_t crc32_of(std::span<const uint8_t> bytes) { return crc32_update(0, bytes); }
+
+uint32_t crc32_update(uint32_t crc, std::span<const uint8_t> bytes) {
+  uLong c = crc;
   const uint8_t* p = bytes.data();
   size_t left = bytes.size();
   while (left > 0) {  // zlib takes uInt lengths
     const uInt n = left > UINT_MAX ? UINT_MAX : uInt(left);
-    crc = ::crc32(crc, p, n);
+    c = ::crc32(c, p, n);
     p += n;
     left -= n;
   }
-  return uint32_t(crc);
+  return uint32_t(c);
+}
+
+uint32_t crc32_combine(uint32_t crc_a, uint32_t crc_b, uint64_t length_b) {
+  return uint32_t(::crc32_combine(crc_a, crc_b, z_off_t(length_b)));
 }
 
 namespace {

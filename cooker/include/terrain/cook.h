@@ -63,7 +63,7 @@ struct CookOptions {
   // is the seed of a shuffled order (tests: neither changes a byte of the archive).
   uint32_t block_roots = 0;
   uint64_t block_order = 0;
-  // Work units (cooker/src/units/work_units.h): with work_dir set, cook() writes the plan and
+  // Work units (cooker/src/units/plan_file.h): with work_dir set, cook() writes the plan and
   // one file per unit into it and merges them; run again after a kill it cooks only the units that
   // are missing or stale. unit_roots: units of N x N roots (0: default_unit_roots, whole blocks).
   std::string work_dir;

@@ -28,7 +28,7 @@ struct ReadOptions {
   // (values stays empty; the overlays read their samples by windows, overlays.cpp).
   bool header_only = false;
   // The caller has stat'ed every file this open may read (a work unit: the plan's files that meet
-  // its window, work_units.h): the existence checks of each file a multi-file input names (a VRT's
+  // its window, units/plan_file.h): the existence checks of each file a multi-file input names (a VRT's
   // tiles) are skipped. With thousands of tiles they were thousands of stats per unit on a shared
   // filesystem, nearly all of tiles the unit never reads.
   bool files_checked = false;

@@ -88,7 +88,7 @@ enum class CrsTransformStatus { ok, no_geodetic_crs, no_transformation };
 CrsTransformStatus gdal_point_transforms(const SourceCrs& a, const SourceCrs& b, PointTransform& a_to_b,
                                          PointTransform& b_to_a);
 
-// For the work units of a cook whose one input is a VRT mosaic (work_units.h): the VRT `path` cut
+// For the work units of a cook whose one input is a VRT mosaic (units/plan_file.h): the VRT `path` cut
 // to each of `windows` (mosaic samples): every source whose DstRect meets the window grown by one
 // sample, in order, with absolute file names; the raster, its georeferencing and the bands'
 // properties as they are. A read inside the window gives the whole VRT's samples, and a unit parses
@@ -109,7 +109,7 @@ struct FilePlacement {
   int width = 0, height = 0;
 };
 // `path` first, then, when GDAL opens it, the files it reads besides itself (a VRT's tiles) but
-// not its side-cars (.aux.xml, .ovr): the work units' input files (work_units.h).
+// not its side-cars (.aux.xml, .ovr): the work units' input files (units/plan_file.h).
 std::vector<FilePlacement> gdal_file_placements(const std::string& path);
 
 // Reads the whole source into `out` (values, geo, crs, description, nodata_declared), band of rows

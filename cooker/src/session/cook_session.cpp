@@ -14,6 +14,7 @@
 #include "pyramid/overview_levels.h"
 #include "base/parallel.h"
 #include "pyramid/quantize.h"
+#include "session/cook_options_table.h"
 #include "inputs/source_raster.h"
 #include "terrain/archive_reader.h"
 #include "inputs/tiff_blocks.h"
@@ -81,15 +82,6 @@ uint64_t peak_rss_bytes() {
 
 }  // namespace
 
-const char* policy_name(NodataPolicy p) {
-  switch (p) {
-    case NodataPolicy::automatic: return "auto";
-    case NodataPolicy::hole: return "hole";
-    case NodataPolicy::fill: return "fill";
-  }
-  return "?";
-}
-
 // `inputs`: (path, description) of every raster read (a directory input stands for several).
 std::string cook_info(const CookOptions& o, const CookReport& r,
                       const std::vector<std::pair<std::string, std::string>>& descriptions) {
@@ -103,26 +95,7 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
     if (i < r.input_height_units.size()) inputs.back()["heights"] = height_unit_json(r.input_height_units[i]);
   }
   j["inputs"] = inputs;
-  j["options"] = {{"tolerance_m", o.tolerance_m},
-                  {"finest_level", o.finest_level},
-                  {"crs", o.crs},
-                  {"frame", o.frame},
-                  {"height_scale", o.height_scale},
-                  {"height_offset", o.height_offset},
-                  {"nodata", policy_name(o.nodata)},
-                  {"fill_max_samples", o.fill_max_samples},
-                  {"materials", o.materials_path},
-                  {"albedo", o.albedo_path},
-                  {"holes", o.holes_path},
-                  {"landcover", o.landcover_path},
-                  {"landcover_table", o.landcover_table_path},
-                  {"heights_only", o.heights_only},
-                  {"zstd_level", o.zstd_level},
-                  {"surface_zstd_level", o.surface_zstd_level}};
-  if (o.bc_rdo > 0) j["options"]["bc_rdo"] = o.bc_rdo;  // absent: off (earlier bytes kept)
-  if (o.origin) j["options"]["origin"] = *o.origin;
-  if (o.spacing) j["options"]["spacing"] = *o.spacing;
-  if (o.nodata_value) j["options"]["nodata_value"] = *o.nodata_value;
+  j["options"] = cook_info_options_json(o);
   j["frame_reason"] = r.frame_reason;
   j["reconstruction"] = "Catmull-Rom bicubic in source sample space; bilinear over valid taps next to nodata";
   j["finest_level"] = r.finest_level;

@@ -7,7 +7,7 @@
 //   finish_archive
 //
 // The source is read twice: by the first pass, and by the blocks' windows. A unit restores what
-// the plan decided (restore_plan in work_units.h) instead of running the first pass.
+// the plan decided (open_session_from_plan in units/plan_file.h) instead of running the first pass.
 #pragma once
 #include <memory>
 #include <string>
@@ -51,7 +51,7 @@ struct CookSession {
   RangeSummary ranges;   // the first pass's, for the steps (freed once they are chosen)
   SampleRect window_need;  // the samples `window` holds exactly (filled as over the whole raster)
   // When not empty, every window read must lie inside it: a unit reading a VRT cut to its planned
-  // window (work_units.h), where samples outside would silently differ from the whole VRT's.
+  // window (units/plan_file.h), where samples outside would silently differ from the whole VRT's.
   SampleRect read_bounds{0, 0, -1, -1};
   // Whether this process reads the source again after the first pass (the blocks of a one-process
   // cook): GDAL's cache then holds the whole decoded source where it fits. `plan` reads it once.
@@ -113,6 +113,5 @@ Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report)
 // The cook's provenance JSON stored in the archive (options, inputs, frame reason, voids).
 std::string cook_info(const CookOptions& o, const CookReport& r,
                       const std::vector<std::pair<std::string, std::string>>& descriptions);
-const char* policy_name(NodataPolicy p);
 
 }  // namespace terrain::cook

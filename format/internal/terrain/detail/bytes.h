@@ -1,4 +1,6 @@
-// Little-endian loads and stores (the archive is little-endian everywhere, SPEC "Conventions").
+// Little-endian loads and stores (the archive is little-endian everywhere, SPEC "Conventions") and
+// CRC-32. Internal to the toolchain (format/internal: never installed, not the package's API): the
+// archive's code and the cooker's own containers (the work units' files) share them.
 #pragma once
 #include <bit>
 #include <cstdint>
@@ -33,5 +35,10 @@ inline void store_f64(uint8_t* p, double v) { store_u64(p, std::bit_cast<uint64_
 
 // CRC-32 (ISO-HDLC, zlib's crc32) of a byte range of any length.
 uint32_t crc32_of(std::span<const uint8_t> bytes);
+// `crc` (the CRC-32 of the bytes before, 0 for none) continued over `bytes`:
+// crc32_update(crc32_of(a), b) == crc32_of(a followed by b).
+uint32_t crc32_update(uint32_t crc, std::span<const uint8_t> bytes);
+// The CRC-32 of a followed by b from crc32_of(a), crc32_of(b) and b's length (zlib's crc32_combine).
+uint32_t crc32_combine(uint32_t crc_a, uint32_t crc_b, uint64_t length_b);
 
 }  // namespace terrain::detail
