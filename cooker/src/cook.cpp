@@ -32,21 +32,22 @@ double process_cpu() {
 
 ProgressFn part(const ProgressFn& p, double lo, double hi) { return p ? scaled_progress(p, lo, hi) : ProgressFn{}; }
 
-// Everything global: inputs, first pass, frame and grid, surface rules and overlays, steps.
+// Everything global: inputs, first pass, frame and grid, surface rules and overlays, steps. The
+// report gets the timings only.
 Status prepare(const CookOptions& options, const ProgressFn& progress, CookSession& s, CookReport& report) {
   const auto t0 = Clock::now();
   if (progress && !progress(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
-  if (Status st = open_inputs(options, s, report); !st.ok()) return st;
+  if (Status st = open_inputs(options, s); !st.ok()) return st;
   report.seconds_read = seconds_since(t0);
   const auto t1 = Clock::now();
   const double c1 = process_cpu();
-  if (Status st = first_pass(s, part(progress, 0.0, 0.1), report); !st.ok()) return st;
+  if (Status st = first_pass(s, part(progress, 0.0, 0.1)); !st.ok()) return st;
   const double c2 = process_cpu();
   report.cpu_first_pass = c2 - c1;
-  if (Status st = frame_and_grid(s, nullptr, report); !st.ok()) return st;
-  if (Status st = surface_setup(s, report); !st.ok()) return st;
+  if (Status st = frame_and_grid(s, nullptr); !st.ok()) return st;
+  if (Status st = surface_setup(s); !st.ok()) return st;
   const double c3 = process_cpu();
-  choose_session_steps(s, report);
+  choose_session_steps(s);
   report.cpu_steps = process_cpu() - c3;
   report.seconds_prepare = seconds_since(t1);
   return Status::success();
@@ -60,6 +61,8 @@ void finish_timing(const Clock::time_point t_start, CookReport& report) {
 
 Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
                        PlanSummary& summary, CookReport& report);
+Status cook_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PyramidTotals& totals,
+                       CookReport& report);
 
 // Block indices in cooking order: row by row; or shuffled by `seed` (tests).
 std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
@@ -96,9 +99,12 @@ Status spool_overview_levels(const CookSession& s, const RootSource& roots, cons
   Status st = spool.open(staging_path(output, "overview"));
   OverviewSettings settings = overview_settings(s);
   settings.scratch_path = staging_path(output, "lattice");
+  OverviewStats built;
   if (st.ok())
     st = write_overview_levels(settings, roots,
-                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, report);
+                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, built);
+  report.overview_nodes = built.nodes;
+  report.overview_error_max_m = built.error_max_m;
   report.cpu_overview = process_cpu() - c0;
   return st;
 }
@@ -159,10 +165,12 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
     writer.abort();
     return merged;
   }
-  finish_levels(s, totals, report);
+  finish_levels(s, totals);
   const std::vector<uint64_t> bytes_read = report.input_bytes_read;
-  if (Status st = finish_archive(s, writer, report); !st.ok()) return st;
+  if (Status st = finish_archive(s, totals, planned, writer); !st.ok()) return st;
   report.input_bytes_read = bytes_read;
+  report_blocks(s, totals, report);
+  report_archive(s, report);
   return Status::success();
 }
 
@@ -183,7 +191,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (std::filesystem::exists(plan_file(options.work_dir)) && read_plan(options.work_dir, existing).ok() &&
         same_plan_options(existing.options, options) && same_plan_options(existing.resolved, resolved_options(options)) &&
         (options.unit_roots == 0 || options.unit_roots == existing.unit_roots) && check_plan_inputs(existing.plan).ok()) {
-      if (Status st = open_session_from_plan(existing, options.threads, s, report); !st.ok()) return st;
+      if (Status st = open_session_from_plan(existing, options.threads, s); !st.ok()) return st;
       plan = existing.plan;
       summary.unit_count = uint32_t(plan.units.size());
     } else if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) {
@@ -197,14 +205,30 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
         return Status::failure(Error::cancelled, "cancelled");
     }
     CookReport merged;
-    merged.memory_limit_bytes = report.memory_limit_bytes;
-    merged.threads = report.threads;
+    merged.memory_limit_bytes = s.decided.memory_limit_bytes;
+    merged.threads = s.threads;
     if (Status st = merge_units(options.work_dir, options.output, part(progress, 0.9, 1.0), merged); !st.ok()) return st;
     report = merged;
     finish_timing(t_start, report);
     return Status::success();
   }
   CookSession s;
+  PyramidTotals totals;
+  const Status st = cook_in_session(options, progress, s, totals, report);
+  // The report from what the stages returned; on failure too (the warnings so far).
+  fill_report(s, totals, report);
+  if (!st.ok()) return st;
+  finish_timing(t_start, report);
+  if (progress) progress(1.0, "done");
+  return Status::success();
+}
+
+namespace {
+
+// The one-process cook: prepare, every block, the overview levels, the archive. The report gets
+// the timings and the spool's and the overview levels' counts (fill_report the rest).
+Status cook_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PyramidTotals& totals,
+                       CookReport& report) {
   if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
 
   // ---- pyramid: block by block ----
@@ -220,10 +244,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   const NodeSink sink = [&](NodeResult& r) {
     return spooled ? spool.add(r.record, r.payload) : writer.add_node(r.record, r.payload);
   };
-  PyramidTotals totals;
   const std::vector<uint32_t> order = block_order(s.grid.count(), options.block_order);
   for (size_t n = 0; n < order.size(); ++n) {
-    if (Status st = cook_block_of_session(s, order[n], sink, totals, report); !st.ok()) {
+    if (Status st = cook_block_of_session(s, order[n], sink, totals); !st.ok()) {
       writer.abort();
       return st;
     }
@@ -242,20 +265,18 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (Status st = overview.drain(writer); !st.ok()) return st;
     report.spool_bytes_returned = spool.punched_bytes() + overview.punched_bytes();
   }
-  finish_levels(s, totals, report);
+  finish_levels(s, totals);
   report.seconds_pyramid = seconds_since(t_pyr);
   report.cpu_blocks = process_cpu() - c_pyr;
 
   // ---- finish ----
   const auto t_fin = Clock::now();
-  if (Status st = finish_archive(s, writer, report); !st.ok()) return st;
+  CookReport decided;  // what the cook info records
+  report_decisions(s, decided);
+  if (Status st = finish_archive(s, totals, decided, writer); !st.ok()) return st;
   report.seconds_finish = seconds_since(t_fin);
-  finish_timing(t_start, report);
-  if (progress) progress(1.0, "done");
   return Status::success();
 }
-
-namespace {
 
 // plan_cook's work, keeping the session and the plan for a caller that cooks the units in this
 // process (cook() with a work dir: no input is opened twice).
@@ -267,7 +288,9 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   std::filesystem::create_directories(options.work_dir + "/units", ec);
   if (ec)
     return Status::failure(Error::io_write, fmt::format("{}: cannot create the work dir: {}", options.work_dir, ec.message()));
-  if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
+  const Status prepared = prepare(options, progress, s, report);
+  report_decisions(s, report);  // the plan's part of the report (write_plan records it)
+  if (!prepared.ok()) return prepared;
   if (Status st = plan_units(s, plan); !st.ok()) return st;
   // An input among the files the work dir's tools rewrite or remove would be lost (a VRT's tiles
   // too, known only now).
@@ -357,7 +380,8 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
     data.resolved.inputs = {cut};
     s.read_bounds = unit.window;
   }
-  if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;
+  if (Status st = open_session_from_plan(data, threads, s); !st.ok()) return st;
+  report_decisions(s, report);
   if (use_cut) s.voids.source_name = input;  // messages name the user's input, not the cut
   return write_unit(s, data.plan, index, work_dir);
 }

@@ -108,7 +108,7 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
 // For `unit`: opens the inputs of the plan into a session and restores the plan's decisions (frame,
 // grid, steps, voids). The caller has checked the files it reads with check_plan_inputs; the
 // inputs' own per-file existence checks (a VRT's tiles) are not repeated.
-Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s);
 
 // The roots of every unit file (checked as the merge checks them), for the overview levels: their
 // records and a reader of their payloads.
@@ -118,7 +118,7 @@ Status unit_roots(const std::string& work_dir, const PlanFile& plan, RootSource&
 // Statistics a unit adds to the cook's report, stored in its file for the merge.
 struct UnitStats {
   PyramidTotals totals;
-  CookReport part;  // the fields cook_block and the window reads fill
+  CookReport part;  // the fields cook_block and the window reads fill (report_blocks of `totals`)
 };
 
 // Cooks unit `index` of the session into its unit file (atomically: temp file, fsync, rename).
