@@ -126,7 +126,7 @@ int cooker_inputs_one_input(const uint8_t* data, size_t size, const std::string&
   const Format& f = kFormats[data[0] % kFormatCount];
   const std::string path = dir + "/" + f.name;
   write_file(path, data + 3, size - 3);
-  cook::CookOptions o;
+  cook::InputOptions o;
   o.inputs = {path};
   o.memory_limit_bytes = kBudget;
   o.raw_size = {std::max<int>(data[1], 1), std::max<int>(data[2], 1)};

@@ -35,21 +35,22 @@ double process_cpu() {
 
 ProgressFn part(const ProgressFn& p, double lo, double hi) { return p ? scaled_progress(p, lo, hi) : ProgressFn{}; }
 
-// Everything global: inputs, first pass, frame and grid, surface rules and overlays, steps.
+// Everything global: inputs, first pass, frame and grid, surface rules and overlays, steps. The
+// report gets the timings only.
 Status prepare(const CookOptions& options, const ProgressFn& progress, CookSession& s, CookReport& report) {
   const auto t0 = Clock::now();
   if (progress && !progress(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
-  if (Status st = open_inputs(options, s, report); !st.ok()) return st;
+  if (Status st = open_inputs(options, s); !st.ok()) return st;
   report.seconds_read = seconds_since(t0);
   const auto t1 = Clock::now();
   const double c1 = process_cpu();
-  if (Status st = first_pass(s, part(progress, 0.0, 0.1), report); !st.ok()) return st;
+  if (Status st = first_pass(s, part(progress, 0.0, 0.1)); !st.ok()) return st;
   const double c2 = process_cpu();
   report.cpu_first_pass = c2 - c1;
-  if (Status st = frame_and_grid(s, nullptr, report); !st.ok()) return st;
-  if (Status st = surface_setup(s, report); !st.ok()) return st;
+  if (Status st = frame_and_grid(s, nullptr); !st.ok()) return st;
+  if (Status st = surface_setup(s); !st.ok()) return st;
   const double c3 = process_cpu();
-  choose_session_steps(s, report);
+  choose_session_steps(s);
   report.cpu_steps = process_cpu() - c3;
   report.seconds_prepare = seconds_since(t1);
   return Status::success();
@@ -63,6 +64,10 @@ void finish_timing(const Clock::time_point t_start, CookReport& report) {
 
 Status plan_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PlanFile& plan,
                        PlanSummary& summary, CookReport& report);
+Status merge_work_dir(const std::string& work_dir, const std::string& output, int threads, const ProgressFn& progress,
+                      CookReport& report, const std::vector<NamedPath>& outputs);
+Status cook_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PyramidTotals& totals,
+                       CookReport& report);
 
 // Block indices in cooking order: row by row; or shuffled by `seed` (tests).
 std::vector<uint32_t> block_order(uint32_t count, uint64_t seed) {
@@ -106,7 +111,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (std::filesystem::exists(plan_file(options.work_dir)) && read_plan(options.work_dir, existing).ok() &&
         same_plan_options(existing.options, options) && same_plan_options(existing.resolved, resolved_options(options)) &&
         (options.unit_roots == 0 || options.unit_roots == existing.unit_roots) && check_plan_inputs(existing.plan).ok()) {
-      if (Status st = open_session_from_plan(existing, options.threads, s, report); !st.ok()) return st;
+      if (Status st = open_session_from_plan(existing, options.threads, s); !st.ok()) return st;
       plan = existing.plan;
       summary.unit_count = uint32_t(plan.units.size());
     } else if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) {
@@ -119,14 +124,32 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
         return Status::failure(Error::cancelled, "cancelled");
     }
     CookReport merged;
-    merged.memory_limit_bytes = report.memory_limit_bytes;
-    merged.threads = report.threads;
-    if (Status st = merge_units(options.work_dir, options.output, part(progress, 0.9, 1.0), merged); !st.ok()) return st;
+    if (Status st = merge_work_dir(options.work_dir, options.output, s.threads, part(progress, 0.9, 1.0), merged, {});
+        !st.ok())
+      return st;
+    merged.memory_limit_bytes = s.decided.memory_limit_bytes;
+    merged.threads = s.threads;
     report = merged;
     finish_timing(t_start, report);
     return Status::success();
   }
   CookSession s;
+  PyramidTotals totals;
+  const Status st = cook_in_session(options, progress, s, totals, report);
+  // The report from what the stages returned; on failure too (the warnings so far).
+  fill_report(s, totals, report);
+  if (!st.ok()) return st;
+  finish_timing(t_start, report);
+  if (progress) progress(1.0, "done");
+  return Status::success();
+}
+
+namespace {
+
+// The one-process cook: prepare, every block, the overview levels, the archive. The report gets
+// the timings and the spool's and the overview levels' counts (fill_report the rest).
+Status cook_in_session(const CookOptions& options, const ProgressFn& progress, CookSession& s, PyramidTotals& totals,
+                       CookReport& report) {
   if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
 
   // ---- pyramid: block by block ----
@@ -142,10 +165,9 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
   const NodeSink sink = [&](NodeResult& r) {
     return spooled ? spool.add(r.record, r.payload) : writer.add_node(r.record, r.payload);
   };
-  PyramidTotals totals;
   const std::vector<uint32_t> order = block_order(s.grid.count(), options.block_order);
   for (size_t n = 0; n < order.size(); ++n) {
-    if (Status st = cook_block_of_session(s, order[n], sink, totals, report); !st.ok()) {
+    if (Status st = cook_block_of_session(s, order[n], sink, totals); !st.ok()) {
       writer.abort();
       return st;
     }
@@ -164,20 +186,18 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (Status st = overview.drain(writer); !st.ok()) return st;
     report.spool_bytes_returned = spool.punched_bytes() + overview.punched_bytes();
   }
-  finish_levels(s, totals, report);
+  finish_levels(s, totals);
   report.seconds_pyramid = seconds_since(t_pyr);
   report.cpu_blocks = process_cpu() - c_pyr;
 
   // ---- finish ----
   const auto t_fin = Clock::now();
-  if (Status st = finish_archive(s, writer, report); !st.ok()) return st;
+  CookReport decided;  // what the cook info records
+  report_decisions(s, decided);
+  if (Status st = finish_archive(s, totals, decided, writer); !st.ok()) return st;
   report.seconds_finish = seconds_since(t_fin);
-  finish_timing(t_start, report);
-  if (progress) progress(1.0, "done");
   return Status::success();
 }
-
-namespace {
 
 // plan_cook's work, keeping the session and the plan for a caller that cooks the units in this
 // process (cook() with a work dir: no input is opened twice).
@@ -189,7 +209,9 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   std::filesystem::create_directories(options.work_dir + "/units", ec);
   if (ec)
     return Status::failure(Error::io_write, fmt::format("{}: cannot create the work dir: {}", options.work_dir, ec.message()));
-  if (Status st = prepare(options, progress, s, report); !st.ok()) return st;
+  const Status prepared = prepare(options, progress, s, report);
+  report_decisions(s, report);  // the plan's part of the report (write_plan records it)
+  if (!prepared.ok()) return prepared;
   if (Status st = plan_units(s, plan); !st.ok()) return st;
   // An input among the files the work dir's tools rewrite or remove would be lost (a VRT's tiles
   // too, known only now).
@@ -277,13 +299,22 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
     data.resolved.inputs = {cut};
     s.read_bounds = unit.window;
   }
-  if (Status st = open_session_from_plan(data, threads, s, report); !st.ok()) return st;
+  if (Status st = open_session_from_plan(data, threads, s); !st.ok()) return st;
+  report_decisions(s, report);
   if (use_cut) s.voids.source_name = input;  // messages name the user's input, not the cut
   return write_unit(s, data.plan, index, work_dir);
 }
 
 Status merge_units(const std::string& work_dir, const std::string& output, const ProgressFn& progress,
                    CookReport& report, const std::vector<NamedPath>& outputs) {
+  return merge_work_dir(work_dir, output, /*threads=*/0, progress, report, outputs);
+}
+
+namespace {
+
+// merge_units with the threads the overview levels are built with (0: all cores).
+Status merge_work_dir(const std::string& work_dir, const std::string& output, int threads, const ProgressFn& progress,
+                      CookReport& report, const std::vector<NamedPath>& outputs) {
   const auto t_start = Clock::now();
   PlanData data;
   if (Status st = read_plan(work_dir, data); !st.ok()) return st;
@@ -292,9 +323,11 @@ Status merge_units(const std::string& work_dir, const std::string& output, const
     return st;
   // Units cooked from inputs that changed since would mix two versions of the data.
   if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
-  if (Status st = merge_into(data, work_dir, output, progress, report); !st.ok()) return st;
+  if (Status st = merge_into(data, work_dir, output, threads, progress, report); !st.ok()) return st;
   finish_timing(t_start, report);
   return Status::success();
 }
+
+}  // namespace
 
 }  // namespace terrain::cook

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <fmt/format.h>
 
+#include "session/cook_session.h"
 #include "cooker_test_util.h"
 #include "inputs/inputs.h"
 #include "inputs/source_raster.h"
@@ -174,7 +175,8 @@ TEST(WebTiles, GeneratedTilesDecodeToTheirHeights) {
 
   std::vector<cook::Raster> rasters;
   // The Mapbox tile's path does not name its encoding: refused before anything is read.
-  expect_refusal(cook::load_inputs(options_for({mb_path.string()}), rasters), Error::invalid_argument,
+  expect_refusal(cook::load_inputs(cook::input_options(options_for({mb_path.string()})), rasters),
+                 Error::invalid_argument,
                  {"--tile-encoding"});
   cook::Raster r;
   ASSERT_TRUE(read_tile(terr_path.string(), "", r).ok());
@@ -237,7 +239,7 @@ TEST(WebTiles, TerrariumImageOutsideZxyDecodesToTheDemsHeights) {
   cook::Raster reference;
   {
     std::vector<cook::Raster> r;
-    ASSERT_TRUE(cook::load_inputs(options_for({dem_path.string()}), r).ok());
+    ASSERT_TRUE(cook::load_inputs(cook::input_options(options_for({dem_path.string()})), r).ok());
     reference = std::move(r[0]);
   }
   // Placed by its .aux.xml: the DEM's heights, sample positions and CRS.
@@ -245,7 +247,7 @@ TEST(WebTiles, TerrariumImageOutsideZxyDecodesToTheDemsHeights) {
     cook::CookOptions o = options_for({placed});
     o.tile_encoding = "terrarium";
     std::vector<cook::Raster> r;
-    const Status st = cook::load_inputs(o, r);
+    const Status st = cook::load_inputs(cook::input_options(o), r);
     ASSERT_TRUE(st.ok()) << st.message;
     ASSERT_EQ(r[0].width, w);
     ASSERT_EQ(r[0].height, h);
@@ -265,14 +267,15 @@ TEST(WebTiles, TerrariumImageOutsideZxyDecodesToTheDemsHeights) {
     o.spacing = std::array<double, 2>{90.0, 90.0};
     o.crs = "local";
     std::vector<cook::Raster> r;
-    const Status st = cook::load_inputs(o, r);
+    const Status st = cook::load_inputs(cook::input_options(o), r);
     ASSERT_TRUE(st.ok()) << st.message;
     for (size_t i = 0; i < heights.size(); ++i) ASSERT_EQ(r[0].values[i], heights[i]) << i;
     EXPECT_EQ(r[0].geo.c[1], 90.0);
     EXPECT_TRUE(r[0].geo.point_samples);
     // Without --spacing it has no place: the usual message.
     o.spacing.reset();
-    expect_refusal(cook::load_inputs(o, r), Error::invalid_argument, {"plain.png", "no georeferencing", "--spacing"});
+    expect_refusal(cook::load_inputs(cook::input_options(o), r),
+                   Error::invalid_argument, {"plain.png", "no georeferencing", "--spacing"});
   }
   // The same image cooked end to end: the archive's heights are the DEM's, not 129 .. 142 m.
   {
@@ -305,11 +308,13 @@ TEST(WebTiles, TerrariumImageOutsideZxyDecodesToTheDemsHeights) {
   o.spacing = std::array<double, 2>{1.0, 1.0};
   o.crs = "local";
   std::vector<cook::Raster> r;
-  expect_refusal(cook::load_inputs(o, r), Error::unsupported_input, {"grey.png", "1 band(s)", "--tile-encoding terrarium"});
+  expect_refusal(cook::load_inputs(cook::input_options(o), r),
+                 Error::unsupported_input, {"grey.png", "1 band(s)", "--tile-encoding terrarium"});
   // The flag with no PNG / WebP input would change nothing: refused.
   o = options_for({dem_path.string()});
   o.tile_encoding = "mapbox";
-  expect_refusal(cook::load_inputs(o, r), Error::invalid_argument, {"--tile-encoding mapbox", "none of the inputs"});
+  expect_refusal(cook::load_inputs(cook::input_options(o), r),
+                 Error::invalid_argument, {"--tile-encoding mapbox", "none of the inputs"});
 }
 
 // A tile and a GeoTIFF in EPSG:3857 over the same pixels are the same input to the cooker; the
@@ -432,13 +437,14 @@ TEST(GdalInputs, DirectoryInputIsEveryRasterInPathOrder) {
   ASSERT_TRUE(write_geotiff((dir / "in" / "sub" / "a_east.tif").string(), east, false, err)) << err;
   std::ofstream(dir / "in" / "README.txt") << "not a raster\n";
   std::vector<cook::Raster> rasters;
-  ASSERT_TRUE(cook::load_inputs(options_for({(dir / "in").string()}), rasters).ok());
+  ASSERT_TRUE(cook::load_inputs(cook::input_options(options_for({(dir / "in").string()})), rasters).ok());
   ASSERT_EQ(rasters.size(), 2u);
   EXPECT_EQ(rasters[0].path, (dir / "in" / "b_west.tif").string());  // "b_west.tif" < "sub/..."
   EXPECT_EQ(rasters[1].path, (dir / "in" / "sub" / "a_east.tif").string());
   EXPECT_EQ(rasters[1].at(0, 0), 1100.0f);
   fs::create_directories(dir / "empty");
-  expect_refusal(cook::load_inputs(options_for({(dir / "empty").string()}), rasters), Error::unsupported_input,
+  expect_refusal(cook::load_inputs(cook::input_options(options_for({(dir / "empty").string()})), rasters),
+                 Error::unsupported_input,
                  {"no raster files"});
 }
 
@@ -452,20 +458,22 @@ TEST(GdalInputs, BrokenVrtsAreNamedErrors) {
   ASSERT_TRUE(write_geotiff(b, east, false, err)) << err;
   ASSERT_EQ(std::system(fmt::format("gdalbuildvrt -q '{}' '{}' '{}'", vrt, a, b).c_str()), 0);
   std::vector<cook::Raster> rasters;
-  ASSERT_TRUE(cook::load_inputs(options_for({vrt}), rasters).ok());
+  ASSERT_TRUE(cook::load_inputs(cook::input_options(options_for({vrt})), rasters).ok());
   EXPECT_EQ(rasters[0].width, 2 * west.width);
   EXPECT_EQ(rasters[0].at(west.width, 0), 100.0f);
   // A tile GDAL cannot read: garbage where the TIFF was.
   std::ofstream(b, std::ios::binary | std::ios::trunc) << std::string(4096, 'x');
-  expect_refusal(cook::load_inputs(options_for({vrt}), rasters), Error::io_read, {"m.vrt", "cannot read rows"});
+  expect_refusal(cook::load_inputs(cook::input_options(options_for({vrt})), rasters),
+                 Error::io_read, {"m.vrt", "cannot read rows"});
   // A missing tile.
   fs::remove(b);
-  expect_refusal(cook::load_inputs(options_for({vrt}), rasters), Error::io_read,
+  expect_refusal(cook::load_inputs(cook::input_options(options_for({vrt})), rasters), Error::io_read,
                  {"m.vrt", "cannot read rows", "b.tif", "No such file or directory"});
   // Not a raster at all.
   const std::string text = (dir / "notes.dat").string();
   std::ofstream(text) << "hello\n";
-  expect_refusal(cook::load_inputs(options_for({text}), rasters), Error::unsupported_input, {"unknown input format"});
+  expect_refusal(cook::load_inputs(cook::input_options(options_for({text})), rasters),
+                 Error::unsupported_input, {"unknown input format"});
 }
 
 // vrt_xml.h's reading of relativeToVRT against GDAL's VRT driver, spelling by spelling: a tile of

@@ -13,6 +13,7 @@
 #include <iterator>
 #include <ogr_srs_api.h>
 
+#include "session/cook_session.h"
 #include "cooker_test_util.h"
 #include "mosaic/mosaic_source.h"
 #include "test_data.h"
@@ -173,7 +174,7 @@ TEST_F(MixedSynthetic, TheResampledInputIsReadByWindowsNotHeldWhole) {
   cook::CookOptions o;
   o.inputs = {(dir_ / "a_utm.tif").string(), (dir_ / "b_geo.tif").string()};
   cook::MosaicSource src;
-  ASSERT_TRUE(cook::open_mosaic_source(o, UINT64_MAX, src).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src).ok());
   ASSERT_EQ(src.inputs().size(), 2u);
   EXPECT_TRUE(src.inputs()[1].windowed);
   EXPECT_EQ(src.held_input_bytes(), 0u);

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <random>
 
+#include "session/cook_session.h"
 #include "cooker_test_util.h"
 #include "inputs/inputs.h"
 #include "mosaic/mosaic.h"
@@ -158,7 +159,7 @@ TEST_P(MosaicLegacy, WindowsEqualTheWholeReadWhichEqualsTheOldMosaic) {
   o.valid_range_m = c.valid_range;
 
   cook::MosaicSource src;
-  ASSERT_TRUE(cook::open_mosaic_source(o, UINT64_MAX, src).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src).ok());
   ASSERT_EQ(src.header().width, c.width);
   ASSERT_EQ(src.header().height, c.height);
   EXPECT_TRUE(src.header().values.empty());
@@ -176,7 +177,7 @@ TEST_P(MosaicLegacy, WindowsEqualTheWholeReadWhichEqualsTheOldMosaic) {
   }
   // Today's entry points: the same raster (they are this reader's whole window).
   std::vector<cook::Raster> rasters;
-  ASSERT_TRUE(cook::load_inputs(o, rasters).ok());
+  ASSERT_TRUE(cook::load_inputs(cook::input_options(o), rasters).ok());
   ASSERT_EQ(rasters.size(), c.inputs.size());
   for (size_t i = 0; i < rasters.size(); ++i) {
     EXPECT_EQ(rasters[i].implausible.out_of_range, c.out_of_range[i]);
@@ -225,9 +226,9 @@ TEST(MosaicSource, SixteenTilesAsVrtAndAsInputsEqualTheUncutDem) {
   ASSERT_EQ(std::system(fmt::format("gdalbuildvrt -q '{}'{}", vrt.string(), list).c_str()), 0);
 
   cook::MosaicSource uncut, by_vrt, by_inputs;
-  ASSERT_TRUE(cook::open_mosaic_source(options_for({dem.string()}), UINT64_MAX, uncut).ok());
-  ASSERT_TRUE(cook::open_mosaic_source(options_for({vrt.string()}), UINT64_MAX, by_vrt).ok());
-  ASSERT_TRUE(cook::open_mosaic_source(options_for(tiles), UINT64_MAX, by_inputs).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(options_for({dem.string()})), UINT64_MAX, uncut).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(options_for({vrt.string()})), UINT64_MAX, by_vrt).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(options_for(tiles)), UINT64_MAX, by_inputs).ok());
   const cook::Raster whole = read_whole(uncut);
   EXPECT_EQ(raster_hash(whole), 0xa47b33c820243021ull);
   for (cook::MosaicSource* s : {&by_vrt, &by_inputs}) {
@@ -299,7 +300,7 @@ TEST(MosaicSource, SentinelRuleAtWindowEdgesAsWhole) {
   o.valid_range_m = {-12000, 9000};
 
   std::vector<cook::Raster> rasters;
-  ASSERT_TRUE(cook::load_inputs(o, rasters).ok());
+  ASSERT_TRUE(cook::load_inputs(cook::input_options(o), rasters).ok());
   ASSERT_EQ(rasters.size(), 1u);
   EXPECT_EQ(rasters[0].implausible.sentinel, uint64_t(voids));
   EXPECT_TRUE(std::isnan(rasters[0].at(0, 0)));
@@ -309,7 +310,7 @@ TEST(MosaicSource, SentinelRuleAtWindowEdgesAsWhole) {
   EXPECT_EQ(rasters[0].at(1, 0), 302.0f);
 
   cook::MosaicSource src;
-  ASSERT_TRUE(cook::open_mosaic_source(o, UINT64_MAX, src).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src).ok());
   EXPECT_TRUE(src.inputs()[0].windowed);
   // Counting pass: 7 x 5 windows tiling the raster (their edges cut through the voids).
   src.set_count_implausible(true);
@@ -351,7 +352,7 @@ TEST(MosaicSource, BytesReadGrowWithTheWindowNotTheFile) {
   const uint64_t samples = 857ull * 793ull;
   const uint64_t file_bytes = fs::file_size(dem);
   cook::MosaicSource src;
-  ASSERT_TRUE(cook::open_mosaic_source(options_for({dem.string()}), UINT64_MAX, src).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(options_for({dem.string()})), UINT64_MAX, src).ok());
   ASSERT_TRUE(src.inputs()[0].windowed);
   EXPECT_EQ(src.inputs()[0].bytes_read, 0u);  // open reads no samples
   std::vector<float> win(100 * 100);
@@ -378,11 +379,12 @@ TEST(MosaicSource, BytesReadGrowWithTheWindowNotTheFile) {
     cook::CookOptions o = options_for({kJacksboro});
     o.crs = "EPSG:4326";
     cook::MosaicSource npz;
-    ASSERT_TRUE(cook::open_mosaic_source(o, UINT64_MAX, npz).ok());
+    ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, npz).ok());
     EXPECT_FALSE(npz.inputs()[0].windowed);
     EXPECT_GE(npz.resident_bytes(), 403ull * 344ull * 4);
     // ... within the budget it is given.
-    expect_refusal(cook::open_mosaic_source(o, 100000, npz), Error::unsupported_input, {"jacksboro_fault_dem.npz", "memory-limit"});
+    expect_refusal(cook::open_mosaic_source(cook::input_options(o), 100000, npz),
+                   Error::unsupported_input, {"jacksboro_fault_dem.npz", "memory-limit"});
   }
 }
 
@@ -419,7 +421,7 @@ TEST(MosaicSource, HgtTilesAreReadByWindowsNotHeld) {
     cook::CookOptions o;
     o.inputs = {p.string()};
     cook::MosaicSource src;
-    const Status st = cook::open_mosaic_source(o, UINT64_MAX, src);
+    const Status st = cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src);
     ASSERT_TRUE(st.ok()) << st.message;
     EXPECT_TRUE(src.inputs()[0].windowed);
     EXPECT_EQ(src.held_input_bytes(), 0u);
@@ -446,7 +448,7 @@ TEST(MosaicSource, HgtTilesAreReadByWindowsNotHeld) {
     cook::CookOptions o;
     o.inputs = {gz.string()};
     cook::MosaicSource src;
-    const Status st = cook::open_mosaic_source(o, UINT64_MAX, src);
+    const Status st = cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src);
     EXPECT_FALSE(st.ok());
     EXPECT_NE(st.message.find("temporary file"), std::string::npos) << st.message;
     EXPECT_NE(st.message.find("N10E021.hgt.gz"), std::string::npos) << st.message;
@@ -483,18 +485,21 @@ TEST(MosaicSource, OpenRefusesWhatLoadInputsRefuses) {
   ASSERT_TRUE(write_geotiff(b, east, false, err)) << err;
   ASSERT_EQ(std::system(fmt::format("gdalbuildvrt -q '{}' '{}' '{}'", vrt, a, b).c_str()), 0);
   cook::MosaicSource src;
-  ASSERT_TRUE(cook::open_mosaic_source(options_for({vrt}), UINT64_MAX, src).ok());
+  ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(options_for({vrt})), UINT64_MAX, src).ok());
   EXPECT_EQ(src.header().width, 40);
   fs::remove(b);
-  expect_refusal(cook::open_mosaic_source(options_for({vrt}), UINT64_MAX, src), Error::io_read,
+  expect_refusal(cook::open_mosaic_source(cook::input_options(options_for({vrt})), UINT64_MAX, src), Error::io_read,
                  {"m.vrt", "b.tif", "No such file or directory"});
-  expect_refusal(cook::open_mosaic_source(options_for({(dir / "nope.tif").string()}), UINT64_MAX, src), Error::io_open,
+  expect_refusal(cook::open_mosaic_source(cook::input_options(options_for({(dir / "nope.tif").string()})), UINT64_MAX, src),
+                 Error::io_open,
                  {"nope.tif"});
   // No CRS: the npz without --crs.
   if (fs::exists(kJacksboro))
-    expect_refusal(cook::open_mosaic_source(options_for({kJacksboro}), UINT64_MAX, src), Error::invalid_argument,
+    expect_refusal(cook::open_mosaic_source(cook::input_options(options_for({kJacksboro})), UINT64_MAX, src),
+                   Error::invalid_argument,
                    {"has no CRS"});
-  expect_refusal(cook::open_mosaic_source(options_for({}), UINT64_MAX, src), Error::invalid_argument,
+  expect_refusal(cook::open_mosaic_source(cook::input_options(options_for({})), UINT64_MAX, src),
+                 Error::invalid_argument,
                  {"no input files"});
 }
 

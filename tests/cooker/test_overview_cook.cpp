@@ -261,7 +261,7 @@ TEST(OverviewCook, TenThousandRootsNeedABandOfTheLatticeNotTheLattice) {
   const int64_t base = test::heap_in_use();
   int64_t peak = 0;
   size_t nodes = 0, top = 0;
-  cook::CookReport report;
+  cook::OverviewStats stats;
   const Status st = cook::write_overview_levels(
       s, roots,
       [&](const NodeRecord& r, std::span<const uint8_t>) {
@@ -272,7 +272,7 @@ TEST(OverviewCook, TenThousandRootsNeedABandOfTheLatticeNotTheLattice) {
         EXPECT_EQ(r.max_height, 4096);
         return Status::success();
       },
-      report);
+      stats);
   std::filesystem::remove_all(dir);
   ASSERT_TRUE(st.ok()) << st.to_string();
   // 50 x 50 + 25 x 25 + 13 x 13 + 7 x 7 + 4 x 4 nodes, every one over some root.

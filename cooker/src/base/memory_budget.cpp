@@ -83,9 +83,9 @@ MemoryShares memory_shares(uint64_t limit_bytes) {
   return s;
 }
 
-uint64_t memory_limit_of(const CookOptions& options) {
-  return options.memory_limit_bytes ? options.memory_limit_bytes : default_memory_limit_bytes();
-}
+uint64_t memory_limit_of(const CookOptions& options) { return memory_limit_of(options.memory_limit_bytes); }
+
+uint64_t memory_limit_of(uint64_t given_bytes) { return given_bytes ? given_bytes : default_memory_limit_bytes(); }
 
 std::string format_bytes(uint64_t bytes) {
   const double b = double(bytes);

@@ -37,6 +37,8 @@ inline constexpr uint64_t kWindowBytesPerSample = 12;
 
 // The limit in force: options.memory_limit_bytes, or default_memory_limit_bytes() when it is 0.
 uint64_t memory_limit_of(const CookOptions& options);
+// The same for a limit given on its own (0: the default).
+uint64_t memory_limit_of(uint64_t given_bytes);
 
 // Success when `need_bytes` fits in `limit_bytes`; else a no_memory-style failure (exit 1) that
 // reads "<what>: needs <need> for <purpose>, over --memory-limit <limit>; <advice>".

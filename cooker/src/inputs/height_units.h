@@ -1,10 +1,10 @@
-// Units of heights (terrain/cook.h HeightUnit): the names the cooker converts to metres, and the
+// Units of heights (terrain/height_unit.h HeightUnit): the names the cooker converts to metres, and the
 // JSON record of an input's unit shared by the cook report, the plan and the cook info.
 #pragma once
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "terrain/cook.h"
+#include "terrain/height_unit.h"
 
 namespace terrain::cook {
 

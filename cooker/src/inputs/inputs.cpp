@@ -172,7 +172,7 @@ Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::st
   return Status::success();
 }
 
-Status check_tile_encoding_use(const CookOptions& options, const std::vector<std::string>& paths) {
+Status check_tile_encoding_use(const InputOptions& options, const std::vector<std::string>& paths) {
   if (options.tile_encoding.empty() || std::any_of(paths.begin(), paths.end(), is_encoded_image_name))
     return Status::success();
   return Status::failure(Error::invalid_argument,
@@ -185,7 +185,7 @@ InputLayer::~InputLayer() = default;
 InputLayer::InputLayer(InputLayer&&) noexcept = default;
 InputLayer& InputLayer::operator=(InputLayer&&) noexcept = default;
 
-Status input_read_options(const CookOptions& options, ReadOptions& ro) {
+Status input_read_options(const InputOptions& options, ReadOptions& ro) {
   if (options.inputs.empty()) return Status::failure(Error::invalid_argument, "no input files given");
   SourceCrs crs_override;
   if (!options.crs.empty())
@@ -209,7 +209,7 @@ Status input_read_options(const CookOptions& options, ReadOptions& ro) {
   return Status::success();
 }
 
-Status open_input_layer(const std::string& path, const CookOptions& options, const ReadOptions& ro, InputLayer& out) {
+Status open_input_layer(const std::string& path, const InputOptions& options, const ReadOptions& ro, InputLayer& out) {
   out = InputLayer{};
   if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
   Raster r;
@@ -334,12 +334,12 @@ Status read_layer_window(InputLayer& layer, int x0, int y0, int w, int h, float*
   return Status::success();
 }
 
-Status load_inputs(const CookOptions& options, std::vector<Raster>& out) {
+Status load_inputs(const InputOptions& options, std::vector<Raster>& out) {
   out.clear();
   ReadOptions ro;
   if (Status st = input_read_options(options, ro); !st.ok()) return st;
   // The budget: each input's whole-cook estimate, less what the inputs before it took.
-  const uint64_t limit = memory_limit_of(options);
+  const uint64_t limit = memory_limit_of(options.memory_limit_bytes);
   uint64_t reserved = 0;
   ro.bytes_per_sample = kCookBytesPerSample;
 

@@ -1,17 +1,37 @@
 // Readers of the supported input formats, each producing a Raster (heights in metres, NaN = nodata),
 // and the dispatcher that picks one by file name and applies the georeferencing flags.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "inputs/raster.h"
-#include "terrain/cook.h"
 #include "terrain/status.h"
 
 namespace terrain::cook {
+
+// What the readers and the mosaic take of the cook's options: the CookOptions fields of the same
+// names and meanings (terrain/cook.h), copied by input_options (session/cook_session.h).
+struct InputOptions {
+  std::vector<std::string> inputs;
+  std::string crs;
+  std::optional<std::array<double, 2>> origin;
+  std::optional<std::array<double, 2>> spacing;
+  double height_scale = 1.0;
+  double height_offset = 0.0;
+  bool height_scale_set = false;
+  std::optional<double> nodata_value;
+  std::array<double, 2> valid_range_m{-12000.0, 9000.0};
+  uint64_t memory_limit_bytes = 0;  // 0: default_memory_limit_bytes() (load_inputs only)
+  std::array<int, 2> raw_size{0, 0};
+  std::string raw_type;
+  bool raw_big_endian = false;
+  std::string tile_encoding;
+};
 
 // Raw sample values before scale/offset; the readers mark nodata themselves.
 struct ReadOptions {
@@ -59,7 +79,7 @@ Status read_npz(const std::string& path, const ReadOptions& options, Raster& out
 // Reads every input with the reader its name calls for, applies --crs, --origin, --spacing,
 // --height-scale and --height-offset, and checks that each input is positioned. Each input is an
 // InputLayer (below) read whole through read_layer_window: the same path as the windowed mosaic.
-Status load_inputs(const CookOptions& options, std::vector<Raster>& out);
+Status load_inputs(const InputOptions& options, std::vector<Raster>& out);
 
 // What turns a file's values into heights (after the reader's own scale/offset and nodata):
 // --height-scale / --height-offset, --valid-range, and the undeclared -9999 rule.
@@ -85,15 +105,15 @@ struct InputLayer {
 
 // The checks of the flags load_inputs makes before reading anything, and the options every reader
 // gets from them (memory limit and bytes per sample left to the caller).
-Status input_read_options(const CookOptions& options, ReadOptions& ro);
+Status input_read_options(const InputOptions& options, ReadOptions& ro);
 // The inputs with every directory replaced by the rasters under it, in path order.
 Status expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& out);
 // --tile-encoding given while none of `paths` (expanded inputs) is a PNG / WebP it could apply to:
 // an invalid_argument error (a flag that would change nothing). Success otherwise.
-Status check_tile_encoding_use(const CookOptions& options, const std::vector<std::string>& paths);
+Status check_tile_encoding_use(const InputOptions& options, const std::vector<std::string>& paths);
 // Opens `path` (file checks, reader by name, --crs/--origin/--spacing, positioned, CRS usable, at
 // least 2x2) as load_inputs does, with `ro`'s memory budget for an input read whole.
-Status open_input_layer(const std::string& path, const CookOptions& options, const ReadOptions& ro, InputLayer& out);
+Status open_input_layer(const std::string& path, const InputOptions& options, const ReadOptions& ro, InputLayer& out);
 // Heights of samples [x0, x0+w) x [y0, y0+h) of the layer (inside it) into out: every rule of
 // HeightRules applied (a 1-sample ring is read around the window so the -9999 rule sees the same
 // neighbours as over the whole input). `scratch` holds the ring window between calls. Counts the

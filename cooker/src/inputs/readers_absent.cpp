@@ -65,7 +65,7 @@ double ProjProjection::max_scale_error(const double*, const double*, int) const 
 bool ProjProjection::metric_east_north() const { return false; }
 double ProjProjection::unit_m() const { return 1.0; }
 
-Status load_overlays(const CookOptions&, const FrameCrs&, const std::vector<Material>&, double, double, double, double,
+Status load_overlays(const OverlayOptions&, const FrameCrs&, const std::vector<Material>&, double, double, double, double,
                      int, std::unique_ptr<SurfaceOverlays>&) {
   return absent("overlays");
 }

@@ -229,7 +229,7 @@ uint64_t MosaicSource::resident_bytes() const {
   return n + (windowed ? gdal_cache_used_bytes() + tiff_block_cache_used_bytes() : 0);
 }
 
-Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
+Status open_mosaic_source(const InputOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
                           bool files_checked) {
   out = MosaicSource{};
   ReadOptions ro;

@@ -10,7 +10,7 @@
 #include "inputs/inputs.h"
 #include "inputs/raster.h"
 #include "mosaic/resample_inputs.h"
-#include "terrain/cook.h"
+#include "terrain/height_unit.h"
 #include "terrain/status.h"
 
 namespace terrain::cook {
@@ -85,7 +85,7 @@ class MosaicSource {
 // ResampledInput, read by windows like the others. memory_limit_bytes: budget for what this source
 // itself holds (inputs held whole at 4 B per sample, the resampled inputs' anchors).
 // files_checked: ReadOptions::files_checked (a work unit, whose plan's files were stat'ed).
-Status open_mosaic_source(const CookOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
+Status open_mosaic_source(const InputOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
                           bool files_checked = false);
 
 }  // namespace terrain::cook

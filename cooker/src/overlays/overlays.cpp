@@ -422,7 +422,7 @@ Status load_class_table(const std::string& path, const std::vector<Material>& pa
 
 }  // namespace
 
-Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vector<Material>& palette, double x0,
+Status load_overlays(const OverlayOptions& o, const FrameCrs& frame, const std::vector<Material>& palette, double x0,
                      double y0, double x1, double y1, int threads, std::unique_ptr<SurfaceOverlays>& out) {
   if (o.landcover_path.empty() != o.landcover_table_path.empty())
     return Status::failure(Error::invalid_argument, "--landcover and --landcover-table go together");
@@ -434,7 +434,7 @@ Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vec
   auto load = [&](const char* what, const std::string& path, bool rgb, std::unique_ptr<OverlayRaster>& slot) -> Status {
     if (path.empty()) return Status::success();
     slot = std::make_unique<OverlayRaster>();
-    slot->memory_limit = memory_limit_of(o);
+    slot->memory_limit = o.memory_limit_bytes;
     if (Status st = open_overlay(what, path, rgb, *slot); !st.ok()) return st;
     if (Status st = slot->mapping.init(slot->raster, frame, threads); !st.ok())
       return Status::failure(st.code, fmt::format("{} {}: {}", what, path, st.message));

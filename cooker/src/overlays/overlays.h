@@ -4,20 +4,28 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "surface/surface_layers.h"
-#include "terrain/cook.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
 namespace terrain::cook {
 
+// What the overlays take of the cook's options: the CookOptions fields of the same names, and the
+// memory limit in force (memory_limit_of; a window must fit it).
+struct OverlayOptions {
+  std::string albedo_path, holes_path, landcover_path, landcover_table_path;  // empty: none
+  bool heights_only = false;
+  uint64_t memory_limit_bytes = 0;
+};
+
 // Opens the overlays `o` names (none: `out` stays null: their headers only, no samples) and maps
 // each to `frame` over the frame rectangle [x0, x1] x [y0, y1] (metres: the root grid with its
 // window margin). Fails on a raster that does not overlap that rectangle, on a bad
 // --landcover-table and with --heights-only.
-Status load_overlays(const CookOptions& o, const FrameCrs& frame, const std::vector<Material>& palette, double x0,
+Status load_overlays(const OverlayOptions& o, const FrameCrs& frame, const std::vector<Material>& palette, double x0,
                      double y0, double x1, double y1, int threads, std::unique_ptr<SurfaceOverlays>& out);
 
 // Reads, in place of the previous block's, the window of each overlay that the frame rectangle

@@ -3,6 +3,7 @@
 // node key and the shared read-only context, so any thread order gives the same bytes.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -83,6 +84,7 @@ struct ErrorStats {
     samples += o.samples;
     uncovered += o.uncovered;
   }
+  double rms_m() const { return samples ? std::sqrt(sum_sq / double(samples)) : 0.0; }
 };
 struct NodeError {
   ErrorStats total;

@@ -334,7 +334,7 @@ void build_node(const OverviewSettings& s, const Band& lat, const LevelNodes& be
 }  // namespace
 
 Status write_overview_levels(const OverviewSettings& s, const RootSource& src, const NodeOut& out,
-                             CookReport& report) {
+                             OverviewStats& stats) {
   const int k = int(s.world.overview_step_log2.size());
   if (k <= 0) return Status::success();
   LatticeFile lat;
@@ -373,9 +373,9 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
           const size_t hk = size_t(b.record.key.y) * here.nx + b.record.key.x;
           here.exists[hk] = 1;
           here.bound[hk] = double(b.record.geometric_error_m);
-          report.overview_error_max_m = std::max(report.overview_error_max_m, here.bound[hk]);
+          stats.error_max_m = std::max(stats.error_max_m, here.bound[hk]);
           if (Status st = out(b.record, b.payload); !st.ok()) return st;
-          ++report.overview_nodes;
+          ++stats.nodes;
         }
       }
     }

@@ -31,7 +31,6 @@
 
 #include "surface/surface_layers.h"
 #include "terrain/archive_writer.h"
-#include "terrain/cook.h"
 #include "terrain/format.h"
 #include "terrain/status.h"
 
@@ -59,9 +58,15 @@ struct OverviewSettings {
 // Where the built nodes go: an archive writer's add_node, or a spool.
 using NodeOut = std::function<Status(const NodeRecord& record, std::span<const uint8_t> payload)>;
 
+// What write_overview_levels built: its nodes, and the largest geometric_error_m of one of them.
+struct OverviewStats {
+  uint64_t nodes = 0;
+  double error_max_m = 0;
+};
+
 // Builds the K overview levels and hands their nodes to `out` (level 6 first, then by y, x).
-// Report: overview_nodes, overview_error_max_m.
+// `stats`: what it built (the report's overview_nodes and overview_error_max_m).
 Status write_overview_levels(const OverviewSettings& settings, const RootSource& roots, const NodeOut& out,
-                             CookReport& report);
+                             OverviewStats& stats);
 
 }  // namespace terrain::cook

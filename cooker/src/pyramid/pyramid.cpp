@@ -42,8 +42,6 @@ void add_surface_stats(SurfaceTotals& t, const SurfaceStats& n) {
   t.checked_nodes += n.checked_nodes;
 }
 
-double rms_of(const ErrorStats& e) { return e.samples ? std::sqrt(e.sum_sq / double(e.samples)) : 0.0; }
-
 SampleRect source_rect(const CookContext& ctx) { return {0, 0, ctx.source_width - 1, ctx.source_height - 1}; }
 
 }  // namespace
@@ -127,8 +125,7 @@ void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance
   for (int level = finest_level - 1; level >= 0; --level) steps[size_t(level)] = steps[size_t(finest_level)];
 }
 
-Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals,
-                  CookReport& report) {
+Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals) {
   const int nthreads = resolve_threads(threads);
   // Roots that hold terrain.
   std::vector<NodeKey> keys;
@@ -144,7 +141,7 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
   const size_t batch = size_t(16) * size_t(nthreads);
   std::vector<NodeResult> results;
   for (int level = kRootLevel; level >= ctx.finest_level && !keys.empty(); --level) {
-    LevelStats& ls = report.levels[size_t(level)];
+    LevelStats& ls = totals.levels[size_t(level)];
     ErrorStats& le = totals.level_error[size_t(level)];
     std::vector<NodeKey> next;
     for (size_t start = 0; start < keys.size(); start += batch) {
@@ -161,16 +158,16 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
           if (r.record.child_mask & (1u << c)) next.push_back(child_of(r.record.key, c));
           else totals.leaf.add(r.error.quadrant[size_t(c)]);
         }
-        report.cpu_heights += r.cpu_heights;
-        report.cpu_error += r.cpu_error;
-        report.cpu_surface += r.cpu_surface;
-        report.cpu_encode += r.cpu_encode;
+        totals.cpu_heights += r.cpu_heights;
+        totals.cpu_error += r.cpu_error;
+        totals.cpu_surface += r.cpu_surface;
+        totals.cpu_encode += r.cpu_encode;
         ls.cpu_heights += r.cpu_heights;
         ls.cpu_error += r.cpu_error;
         ls.cpu_surface += r.cpu_surface;
         ls.cpu_encode += r.cpu_encode;
         for (size_t k = 0; k < kCpuParts; ++k) ls.cpu_parts[k] += r.surface.seconds_parts[k];
-        add_surface_stats(report.surface, r.surface);
+        add_surface_stats(totals.surface, r.surface);
         if (Status st = sink(r); !st.ok()) return st;
         r.payload = {};
       }
@@ -179,25 +176,6 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
     keys = std::move(next);
   }
   return Status::success();
-}
-
-void finish_pyramid_report(const CookContext& ctx, const PyramidTotals& totals, CookReport& report) {
-  report.nodes = 0;
-  for (int l = 0; l < kLevelCount; ++l) {
-    LevelStats& ls = report.levels[size_t(l)];
-    const ErrorStats& le = totals.level_error[size_t(l)];
-    report.nodes += ls.nodes;
-    ls.error_samples = le.samples;
-    ls.error_max_m = le.max_m;
-    ls.error_rms_m = rms_of(le);
-    ls.uncovered_samples = le.uncovered;
-    ls.step_log2 = ctx.step_log2[size_t(l)];
-  }
-  report.output_vertices = report.nodes * uint64_t(kHeightCount);
-  report.leaf_error_samples = totals.leaf.samples;
-  report.leaf_error_max_m = totals.leaf.max_m;
-  report.leaf_error_rms_m = rms_of(totals.leaf);
-  report.leaf_uncovered_samples = totals.leaf.uncovered;
 }
 
 }  // namespace terrain::cook

@@ -18,7 +18,7 @@
 #include "pyramid/node_cook.h"
 #include "voids/range_summary.h"
 #include "base/sample_window.h"
-#include "terrain/cook.h"
+#include "terrain/cook_stats.h"
 
 namespace terrain::cook {
 
@@ -68,16 +68,21 @@ void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance
 struct PyramidTotals {
   std::array<ErrorStats, kLevelCount> level_error{};
   ErrorStats leaf;  // each source sample against the finest node covering it
+  // Per level, what cook_block counts: nodes, vertices and CPU seconds (the other LevelStats
+  // fields are the report's, fill_report).
+  std::array<LevelStats, kLevelCount> levels{};
+  double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;  // of every node, summed over threads
+  SurfaceTotals surface;
+  // The blocks' windows (the session's reads): the largest residual of a filled void and the
+  // largest window (samples).
+  double void_fill_residual_m = 0;
+  uint64_t window_samples_max = 0;
 };
 
 // Pass 2 for one block (ctx's window covering block_cook_rect()): cooks its nodes and hands each
-// result to `sink` in key order within the block. Fills the report's per-level node and vertex
-// counts, CPU seconds and surface totals.
+// result to `sink` in key order within the block. Adds its nodes' counts, errors, CPU seconds and
+// surface statistics to `totals`.
 using NodeSink = std::function<Status(NodeResult&)>;
-Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals,
-                  CookReport& report);
-
-// The report's pyramid part after every block: nodes, errors, output vertices, steps.
-void finish_pyramid_report(const CookContext& ctx, const PyramidTotals& totals, CookReport& report);
+Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const NodeSink& sink, PyramidTotals& totals);
 
 }  // namespace terrain::cook

@@ -117,22 +117,49 @@ void set_tiff_block_cache(const CookSession& s, uint64_t most) {
   set_tiff_block_cache_bytes(std::min(most, std::max<uint64_t>(rows, uint64_t(16) << 20)));
 }
 
-Status open_inputs(const CookOptions& options, CookSession& s, CookReport& report, bool files_checked) {
+InputOptions input_options(const CookOptions& o) {
+  InputOptions in;
+  in.inputs = o.inputs;
+  in.crs = o.crs;
+  in.origin = o.origin;
+  in.spacing = o.spacing;
+  in.height_scale = o.height_scale;
+  in.height_offset = o.height_offset;
+  in.height_scale_set = o.height_scale_set;
+  in.nodata_value = o.nodata_value;
+  in.valid_range_m = o.valid_range_m;
+  in.memory_limit_bytes = o.memory_limit_bytes;
+  in.raw_size = o.raw_size;
+  in.raw_type = o.raw_type;
+  in.raw_big_endian = o.raw_big_endian;
+  in.tile_encoding = o.tile_encoding;
+  return in;
+}
+
+OverlayOptions overlay_options(const CookOptions& o, uint64_t memory_limit_bytes) {
+  OverlayOptions ov;
+  ov.albedo_path = o.albedo_path;
+  ov.holes_path = o.holes_path;
+  ov.landcover_path = o.landcover_path;
+  ov.landcover_table_path = o.landcover_table_path;
+  ov.heights_only = o.heights_only;
+  ov.memory_limit_bytes = memory_limit_bytes;
+  return ov;
+}
+
+Status open_inputs(const CookOptions& options, CookSession& s, bool files_checked) {
   if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
     return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
   if (options.finest_level < -1 || options.finest_level > kRootLevel)
     return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
   s.options = options;
   s.threads = resolve_threads(options.threads);
-  report.threads = s.threads;
-  report.tolerance_m = options.tolerance_m;
-  report.memory_limit_bytes = memory_limit_of(options);
-  s.shares = memory_shares(report.memory_limit_bytes);
+  s.decided.memory_limit_bytes = memory_limit_of(options);
+  s.shares = memory_shares(s.decided.memory_limit_bytes);
   set_gdal_cache_bytes(s.shares.gdal_cache);
   set_gdal_decode_threads(s.threads);
-  if (Status st = open_mosaic_source(options, s.shares.inputs, s.source, files_checked); !st.ok()) return st;
+  if (Status st = open_mosaic_source(input_options(options), s.shares.inputs, s.source, files_checked); !st.ok()) return st;
   const Raster& header = s.source.header();
-  report.source_samples = uint64_t(header.width) * uint64_t(header.height);
   // GDAL's cache: the whole decoded source when it fits the share and the process reads it again
   // (the cook then decodes nothing twice), else enough for a row of GDAL blocks across a wide input
   // (the first pass reads tile rows shorter than a block row) and a block's window: 128 MB. A
@@ -140,25 +167,18 @@ Status open_inputs(const CookOptions& options, CookSession& s, CookReport& repor
   // decoded tile: `plan` alone on the 1 m lidar-like 8 km square took 2.75-2.79 CPU s with the
   // whole source cached, 1.57-1.70 with 32 MB (GDAL_CACHEMAX; 96 000 against 16 500 page faults).
   {
-    const uint64_t decoded = report.source_samples * sizeof(float);
+    const uint64_t decoded = uint64_t(header.width) * uint64_t(header.height) * sizeof(float);
     const uint64_t want = decoded + decoded / 8;
     const uint64_t bounded = std::min<uint64_t>(s.shares.gdal_cache, uint64_t(128) << 20);
     set_gdal_cache_bytes(s.reads_source_again && want <= s.shares.gdal_cache ? want : bounded);
     set_tiff_block_cache(s, bounded);
   }
   s.descriptions.clear();
-  report.input_descriptions.clear();
-  report.input_height_units.clear();
-  for (const MosaicSource::InputStat& in : s.source.inputs()) {
-    s.descriptions.emplace_back(in.path, in.description);
-    report.input_height_units.push_back(in.height_unit);
-    report.input_descriptions.push_back(fmt::format("{}: {}; {}{}{}", in.path, in.description, describe_crs(in.crs),
-                                                    in.decoder.empty() ? "" : "; ", in.decoder));
-  }
+  for (const MosaicSource::InputStat& in : s.source.inputs()) s.descriptions.emplace_back(in.path, in.description);
   return Status::success();
 }
 
-Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report) {
+Status first_pass(CookSession& s, const ProgressFn& progress) {
   const Raster& header = s.source.header();
   s.source.set_count_implausible(true);
   // Read ahead on a second thread (2+ threads), in reads wide enough for GDAL to decode several
@@ -176,38 +196,33 @@ Status first_pass(CookSession& s, const ProgressFn& progress, CookReport& report
   s.voids.source_name = header.path;
   for (const MosaicSource::InputStat& in : s.source.inputs())
     if (const uint64_t n = in.implausible.out_of_range + in.implausible.sentinel; n) {
-      report.implausible_samples += n;
+      s.stats.implausible_samples += n;
       Raster named;
       named.path = in.path;
       named.implausible = in.implausible;
-      report.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
+      s.stats.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
     }
   // What each input gave (InputSamples, cook.h): one that the inputs before it cover is named.
-  report.input_samples.clear();
+  s.stats.input_samples.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
-    report.input_samples.push_back(InputSamples{in.path, in.samples_read, in.samples_used});
+    s.stats.input_samples.push_back(InputSamples{in.path, in.samples_read, in.samples_used});
     if (in.samples_used > 0 && in.samples_used * 100 >= in.samples_read) continue;
     if (in.samples_read == 0)
-      report.warnings.push_back(fmt::format("{}: contributes nothing to the archive: it has no height on the mosaic's "
-                                            "grid (every sample nodata or implausible)", in.path));
+      s.stats.warnings.push_back(fmt::format("{}: contributes nothing to the archive: it has no height on the mosaic's "
+                                             "grid (every sample nodata or implausible)", in.path));
     else if (in.samples_used == 0)
-      report.warnings.push_back(fmt::format(
+      s.stats.warnings.push_back(fmt::format(
           "{}: contributes nothing to the archive: inputs listed before it have a height at each of its {} samples on "
           "the mosaic's grid (the first input's; where inputs overlap, the one listed first wins: list it first to "
           "prefer it)", in.path, in.samples_read));
     else
-      report.warnings.push_back(fmt::format(
+      s.stats.warnings.push_back(fmt::format(
           "{}: contributes only {} of its {} samples on the mosaic's grid ({:.2f} %) to the archive: inputs listed "
           "before it have heights at the others (where inputs overlap, the one listed first wins: list it first to "
           "prefer it)", in.path, in.samples_used, in.samples_read, 100.0 * double(in.samples_used) / double(in.samples_read)));
   }
   if (s.voids.valid_samples == 0)
     return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
-  report.source_valid_samples = s.voids.valid_samples;
-  report.voids_filled_samples = s.voids.stats.filled_samples;
-  report.voids_filled_regions = s.voids.stats.filled_regions;
-  report.hole_samples = s.voids.stats.hole_samples;
-  report.hole_regions = s.voids.stats.hole_regions;
   return Status::success();
 }
 
@@ -225,7 +240,7 @@ Status check_plan_size(double roots_x, double roots_y, bool force, double span_x
   return Status::success();
 }
 
-Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& report) {
+Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   const Raster& header = s.source.header();
   const CookOptions& options = s.options;
   // Filling every void (--nodata fill) leaves no nodata: the data then reach the raster's edges.
@@ -233,10 +248,9 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
                                                                : s.voids.valid_bounds;
   if (planned) {
     s.frame = *planned;
-  } else if (Status st = choose_frame(header, options.frame, s.frame, report.frame_reason, &data); !st.ok()) {
+  } else if (Status st = choose_frame(header, options.frame, s.frame, s.decided.frame_reason, &data); !st.ok()) {
     return st;
   }
-  report.frame = s.frame;
   if (Status st = s.mapping.init(header, s.frame, s.threads); !st.ok()) return st;
   double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
   // The footprint: pixel areas, or for point samples the samples' hull.
@@ -263,18 +277,16 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
                       .extent_min_y_m = fy0,
                       .extent_max_x_m = fx1,
                       .extent_max_y_m = fy1};
-  grid_of(report) = grid_of(s.world);
+  const uint32_t rx = s.world.roots_x, ry = s.world.roots_y;
   const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
-  s.mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin,
-                             ctx.origin_x + report.roots_x * kRootSizeM + margin,
-                             ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads);
+  s.mapping.cover_frame_area(ctx.origin_x - margin, ctx.origin_y - margin, ctx.origin_x + rx * kRootSizeM + margin,
+                             ctx.origin_y + ry * kRootSizeM + margin, s.threads);
   double sx = 0, sy = 0;
   s.mapping.spacing_m(sx, sy);
-  report.source_spacing_m = std::min(sx, sy);
-  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(report.source_spacing_m);
-  report.finest_level = ctx.finest_level;
+  s.decided.source_spacing_m = std::min(sx, sy);
+  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(s.decided.source_spacing_m);
   ctx.tolerance_m = options.tolerance_m;
-  ctx.source_spacing_m = report.source_spacing_m;
+  ctx.source_spacing_m = s.decided.source_spacing_m;
   ctx.heights_only = options.heights_only;
   ctx.payload.zstd_level = options.zstd_level;
   ctx.payload.surface_zstd_level = options.surface_zstd_level;
@@ -287,17 +299,13 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned, CookReport& repor
     ctx.surface.set_outer_apron(sx > 0 ? sp / sx : 0.5, sy > 0 ? sp / sy : 0.5);
   }
   // Blocks of roots, each reading only its window of the source; work units of whole blocks.
-  uint32_t side = options.block_roots ? options.block_roots
-                                      : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy, report.roots_x,
-                                                        report.roots_y);
-  const uint32_t unit_side = options.unit_roots ? options.unit_roots
-                                                : default_unit_roots(side, sx, sy, ctx.finest_level, report.roots_x,
-                                                                     report.roots_y);
+  uint32_t side =
+      options.block_roots ? options.block_roots : block_roots_for(s.shares.window, ctx.window_margin(), sx, sy, rx, ry);
+  const uint32_t unit_side =
+      options.unit_roots ? options.unit_roots : default_unit_roots(side, sx, sy, ctx.finest_level, rx, ry);
   side = std::min(side, unit_side);  // a unit smaller than a block is cooked as one block
-  s.grid = BlockGrid{report.roots_x, report.roots_y, side};
-  s.units = BlockGrid{report.roots_x, report.roots_y, unit_side};
-  report.block_roots = s.grid.side;
-  report.blocks = s.grid.count();
+  s.grid = BlockGrid{rx, ry, side};
+  s.units = BlockGrid{rx, ry, unit_side};
   return Status::success();
 }
 
@@ -319,7 +327,7 @@ uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spac
   return k * block_side;
 }
 
-Status surface_setup(CookSession& s, CookReport& report) {
+Status surface_setup(CookSession& s) {
   const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
   SurfaceOptions so;
   so.materials_path = s.options.materials_path;
@@ -329,14 +337,14 @@ Status surface_setup(CookSession& s, CookReport& report) {
   // A grid of at most 4 roots (a few hundred nodes at most) is measured whole: a sample of a few
   // nodes would say little there, and the time is small.
   s.ctx.check_all_errors =
-      s.options.error_checks == ErrorChecks::all || uint64_t(report.roots_x) * uint64_t(report.roots_y) <= 4;
+      s.options.error_checks == ErrorChecks::all || uint64_t(s.world.roots_x) * uint64_t(s.world.roots_y) <= 4;
   if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
   s.ctx.rules = s.rules.get();
-  report.surface_layers = !s.options.heights_only;
   const CookContext& ctx = s.ctx;
-  if (Status st = load_overlays(s.options, s.frame, palette_of(*s.rules), ctx.origin_x - margin, ctx.origin_y - margin,
-                                ctx.origin_x + report.roots_x * kRootSizeM + margin,
-                                ctx.origin_y + report.roots_y * kRootSizeM + margin, s.threads, s.overlays);
+  if (Status st = load_overlays(overlay_options(s.options, s.decided.memory_limit_bytes), s.frame, palette_of(*s.rules),
+                                ctx.origin_x - margin, ctx.origin_y - margin,
+                                ctx.origin_x + s.world.roots_x * kRootSizeM + margin,
+                                ctx.origin_y + s.world.roots_y * kRootSizeM + margin, s.threads, s.overlays);
       !st.ok())
     return st;
   s.ctx.overlays = s.overlays.get();
@@ -347,7 +355,7 @@ namespace {
 
 // A block's window: the samples it needs, grown so that every void reaching into them is filled
 // exactly as over the whole raster (void_plan.h), read from the inputs and filled.
-Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
+Status read_window(CookSession& s, const SampleRect& need, PyramidTotals& totals) {
   // The window read last already holds these samples exactly.
   if (!s.window.values.empty() && s.window_need.contains(need)) return Status::success();
   const SampleRect rect = fill_read_rect(s.voids, need);
@@ -380,21 +388,21 @@ Status read_window(CookSession& s, const SampleRect& need, CookReport& report) {
   w.filled.resize(size_t(rect.samples()));
   if (Status st = s.source.read(rect.c0, rect.r0, rect.width(), rect.height(), w.values.data()); !st.ok()) return st;
   double residual = 0;
-  if (Status st = fill_voids_window(s.voids, rect, w.values.data(), w.filled.data(), residual, report.memory_limit_bytes);
+  if (Status st = fill_voids_window(s.voids, rect, w.values.data(), w.filled.data(), residual, s.decided.memory_limit_bytes);
       !st.ok())
     return st;
-  report.void_fill_residual_m = std::max(report.void_fill_residual_m, residual);
-  report.block_window_samples_max = std::max(report.block_window_samples_max, rect.samples());
+  totals.void_fill_residual_m = std::max(totals.void_fill_residual_m, residual);
+  totals.window_samples_max = std::max(totals.window_samples_max, uint64_t(rect.samples()));
   s.window_need = need;
   return Status::success();
 }
 
 }  // namespace
 
-void choose_session_steps(CookSession& s, CookReport& report) {
-  std::array<double, kLevelCount> worst{};
+void choose_session_steps(CookSession& s) {
+  std::array<double, kLevelCount>& worst = s.decided.range_bound_m;
+  worst = {};
   level_range_bounds(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, s.threads, worst);
-  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].range_bound_m = worst[size_t(l)];
   choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
   // Overview levels (SPEC 19): one step for all of them, from the bound over their nodes, at least
   // the roots'. Where it is coarser, the roots' even vertices are rounded to it as they are cooked
@@ -412,10 +420,8 @@ void choose_session_steps(CookSession& s, CookReport& report) {
       s.ctx.overview_step_log2 = step;
     }
     s.world.overview_step_log2.assign(size_t(k), uint8_t(step));
-    report.overview_range_bound_m = bound;
+    s.decided.overview_range_bound_m = bound;
   }
-  report.overview_levels = k;
-  report.overview_step_log2 = k > 0 ? s.world.overview_step_log2[0] : 0;
   s.ranges = RangeSummary{};
 }
 
@@ -448,78 +454,158 @@ int overview_levels_for(OverviewMode mode, uint32_t roots_x, uint32_t roots_y) {
 namespace {
 
 // Reads and fills the window of the roots `b` and cooks their nodes into `sink`.
-Status cook_roots(CookSession& s, const RootBlock& b, const NodeSink& sink, PyramidTotals& totals, CookReport& report) {
+Status cook_roots(CookSession& s, const RootBlock& b, const NodeSink& sink, PyramidTotals& totals) {
   const SampleRect rect = block_cook_rect(s.ctx, b);
   if (rect.empty()) return Status::success();
-  if (Status st = read_window(s, rect, report); !st.ok()) return st;
+  if (Status st = read_window(s, rect, totals); !st.ok()) return st;
   s.ctx.set_window(s.window);
   if (s.overlays) {
     double bx0 = 0, by0 = 0, bx1 = 0, by1 = 0;
     block_frame_rect(s.ctx, b, bx0, by0, bx1, by1);
     if (Status st = prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1); !st.ok()) return st;
   }
-  return cook_block(s.ctx, b, s.threads, sink, totals, report);
+  return cook_block(s.ctx, b, s.threads, sink, totals);
 }
 
 }  // namespace
 
-Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
-                             CookReport& report) {
-  return cook_roots(s, s.grid.block(index), sink, totals, report);
+Status cook_block_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals) {
+  return cook_roots(s, s.grid.block(index), sink, totals);
 }
 
-Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals,
-                            CookReport& report) {
+Status cook_unit_of_session(CookSession& s, uint32_t index, const NodeSink& sink, PyramidTotals& totals) {
   const RootBlock u = s.units.block(index);
   const uint32_t side = std::max(1u, s.grid.side);
   for (uint32_t y = u.y0; y < u.y1; y += side)
     for (uint32_t x = u.x0; x < u.x1; x += side)
-      if (Status st = cook_roots(s, RootBlock{x, y, std::min(u.x1, x + side), std::min(u.y1, y + side)}, sink, totals,
-                                 report);
+      if (Status st = cook_roots(s, RootBlock{x, y, std::min(u.x1, x + side), std::min(u.y1, y + side)}, sink, totals);
           !st.ok())
         return st;
   return Status::success();
 }
 
-void finish_levels(CookSession& s, const PyramidTotals& totals, CookReport& report) {
-  finish_pyramid_report(s.ctx, totals, report);
+void finish_levels(CookSession& s, const PyramidTotals& totals) {
   // Levels finer than the finest level cooked hold no node; they record its step (as the steps of
   // a level-by-level cook did).
   int f = 0;
-  while (f < kRootLevel && report.levels[size_t(f)].nodes == 0) ++f;
-  for (int l = f - 1; l >= 0; --l) {
-    s.ctx.step_log2[size_t(l)] = s.ctx.step_log2[size_t(f)];
-    report.levels[size_t(l)].step_log2 = s.ctx.step_log2[size_t(f)];
-  }
+  while (f < kRootLevel && totals.levels[size_t(f)].nodes == 0) ++f;
+  for (int l = f - 1; l >= 0; --l) s.ctx.step_log2[size_t(l)] = s.ctx.step_log2[size_t(f)];
 }
 
-Status finish_archive(CookSession& s, ArchiveWriter& writer, CookReport& report) {
-  if (report.nodes == 0) {
+Status finish_archive(CookSession& s, const PyramidTotals& totals, const CookReport& decided, ArchiveWriter& writer) {
+  uint64_t nodes = 0;
+  for (const LevelStats& ls : totals.levels) nodes += ls.nodes;
+  if (nodes == 0) {
     writer.abort();
     return Status::failure(Error::no_data, "no node holds terrain (is the data smaller than a vertex?)");
   }
   s.world.step_log2 = s.ctx.step_log2;
   if (s.rules) s.world.palette = palette_of(*s.rules);
-  s.world.cook_info_json = cook_info(s.options, report, s.descriptions);
+  s.world.cook_info_json = cook_info(s.options, decided, s.descriptions);
   if (Status st = writer.finish(s.world); !st.ok()) return st;
-  report.archive_bytes = writer.bytes_written();
+  s.stats.archive_bytes = writer.bytes_written();
   // From the payload tables the writer parsed (reading the archive back would keep its directory
   // in memory: the merge must not grow with the archive).
-  const SectionBytes sb = writer.section_bytes();
+  s.stats.sections = writer.section_bytes();
+  s.stats.peak_rss_bytes = peak_rss_bytes();
+  return Status::success();
+}
+
+void report_decisions(const CookSession& s, CookReport& report) {
+  report.threads = s.threads;
+  report.memory_limit_bytes = s.decided.memory_limit_bytes;
+  report.tolerance_m = s.options.tolerance_m;
+  // The inputs (open_inputs).
+  const Raster& header = s.source.header();
+  report.source_samples = uint64_t(header.width) * uint64_t(header.height);
+  report.input_descriptions.clear();
+  report.input_height_units.clear();
+  for (const MosaicSource::InputStat& in : s.source.inputs()) {
+    report.input_height_units.push_back(in.height_unit);
+    report.input_descriptions.push_back(fmt::format("{}: {}; {}{}{}", in.path, in.description, describe_crs(in.crs),
+                                                    in.decoder.empty() ? "" : "; ", in.decoder));
+  }
+  // The first pass.
+  report.implausible_samples = s.stats.implausible_samples;
+  report.input_samples = s.stats.input_samples;
+  report.warnings = s.stats.warnings;
+  report.source_valid_samples = s.voids.valid_samples;
+  report.voids_filled_samples = s.voids.stats.filled_samples;
+  report.voids_filled_regions = s.voids.stats.filled_regions;
+  report.hole_samples = s.voids.stats.hole_samples;
+  report.hole_regions = s.voids.stats.hole_regions;
+  // Frame and grid.
+  report.frame = s.frame;
+  report.frame_reason = s.decided.frame_reason;
+  grid_of(report) = grid_of(s.world);
+  report.source_spacing_m = s.decided.source_spacing_m;
+  report.finest_level = s.ctx.finest_level;
+  report.block_roots = s.grid.side;
+  report.blocks = s.grid.count();
+  report.surface_layers = !s.options.heights_only;
+  // The steps' bounds and the overview levels.
+  for (int l = 0; l < kLevelCount; ++l) report.levels[size_t(l)].range_bound_m = s.decided.range_bound_m[size_t(l)];
+  report.overview_levels = int(s.world.overview_step_log2.size());
+  report.overview_step_log2 = s.world.overview_step_log2.empty() ? 0 : s.world.overview_step_log2[0];
+  report.overview_range_bound_m = s.decided.overview_range_bound_m;
+}
+
+void report_blocks(const CookSession& s, const PyramidTotals& totals, CookReport& report) {
+  report.nodes = 0;
+  for (int l = 0; l < kLevelCount; ++l) {
+    LevelStats& ls = report.levels[size_t(l)];
+    const LevelStats& counted = totals.levels[size_t(l)];
+    const ErrorStats& le = totals.level_error[size_t(l)];
+    ls.nodes = counted.nodes;
+    ls.vertices = counted.vertices;
+    ls.cpu_heights = counted.cpu_heights;
+    ls.cpu_error = counted.cpu_error;
+    ls.cpu_surface = counted.cpu_surface;
+    ls.cpu_encode = counted.cpu_encode;
+    ls.cpu_parts = counted.cpu_parts;
+    report.nodes += ls.nodes;
+    ls.error_samples = le.samples;
+    ls.error_max_m = le.max_m;
+    ls.error_rms_m = le.rms_m();
+    ls.uncovered_samples = le.uncovered;
+    ls.step_log2 = s.ctx.step_log2[size_t(l)];
+  }
+  report.output_vertices = report.nodes * uint64_t(kHeightCount);
+  report.leaf_error_samples = totals.leaf.samples;
+  report.leaf_error_max_m = totals.leaf.max_m;
+  report.leaf_error_rms_m = totals.leaf.rms_m();
+  report.leaf_uncovered_samples = totals.leaf.uncovered;
+  report.cpu_heights = totals.cpu_heights;
+  report.cpu_error = totals.cpu_error;
+  report.cpu_surface = totals.cpu_surface;
+  report.cpu_encode = totals.cpu_encode;
+  report.surface = totals.surface;
+  report.void_fill_residual_m = totals.void_fill_residual_m;
+  report.block_window_samples_max = totals.window_samples_max;
+  report.height_samples_per_cpu_second =
+      report.cpu_heights > 0 ? double(report.output_vertices) / report.cpu_heights : 0;
+}
+
+void report_archive(const CookSession& s, CookReport& report) {
+  report.archive_bytes = s.stats.archive_bytes;
+  const SectionBytes& sb = s.stats.sections;
   for (int k = 0; k < 5; ++k) {
     report.section_stored_bytes[size_t(k)] = sb.stored[k];
     report.section_raw_bytes[size_t(k)] = sb.raw[k];
     for (int l = 0; l < kMaxLevels; ++l) report.level_section_stored_bytes[size_t(l)][size_t(k)] = sb.stored_by_level[l][k];
   }
   for (int l = 0; l < kMaxLevels; ++l) report.level_nodes[size_t(l)] = sb.nodes_by_level[l];
+  report.peak_rss_bytes = s.stats.peak_rss_bytes;
+  if (s.stats.archive_bytes > 0 && report.leaf_error_max_m > s.options.tolerance_m)
+    report.warnings.push_back(unmet_tolerance_warning(report));
+}
+
+void fill_report(const CookSession& s, const PyramidTotals& totals, CookReport& report) {
+  report_decisions(s, report);
+  report_blocks(s, totals, report);
+  report_archive(s, report);
   report.input_bytes_read.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) report.input_bytes_read.push_back(in.bytes_read);
-  report.output_vertices = report.nodes * uint64_t(kHeightCount);
-  report.height_samples_per_cpu_second =
-      report.cpu_heights > 0 ? double(report.output_vertices) / report.cpu_heights : 0;
-  report.peak_rss_bytes = peak_rss_bytes();
-  if (report.leaf_error_max_m > s.options.tolerance_m) report.warnings.push_back(unmet_tolerance_warning(report));
-  return Status::success();
 }
 
 }  // namespace terrain::cook

@@ -412,9 +412,12 @@ Status spool_overview_levels(const CookSession& s, const RootSource& roots, cons
   Status st = spool.open(staging_path(output, "overview"));
   OverviewSettings settings = overview_settings(s);
   settings.scratch_path = staging_path(output, "lattice");
+  OverviewStats built;
   if (st.ok())
     st = write_overview_levels(settings, roots,
-                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, report);
+                               [&](const NodeRecord& r, std::span<const uint8_t> p) { return spool.add(r, p); }, built);
+  report.overview_nodes = built.nodes;
+  report.overview_error_max_m = built.error_max_m;
   report.cpu_overview = process_cpu_seconds() - c0;
   return st;
 }
@@ -428,7 +431,7 @@ ArchiveShape shape_of(std::initializer_list<const NodeSpool*> parts, ArchiveShap
   return shape;
 }
 
-Status merge_into(const PlanData& data, const std::string& work_dir, const std::string& output,
+Status merge_into(const PlanData& data, const std::string& work_dir, const std::string& output, int threads,
                   const ProgressFn& progress, CookReport& report) {
   CookSession s;
   session_for_merge(data, s);
@@ -436,15 +439,9 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   SurfaceOptions so;
   so.materials_path = data.resolved.materials_path;
   if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
-  const CookReport planned = data.report;
-  const uint64_t limit = report.memory_limit_bytes;
-  const int threads = report.threads;
-  report = planned;
-  report.memory_limit_bytes = limit;
-  report.threads = threads;
-  report.surface_layers = !data.options.heights_only;
   ArchiveWriter writer;
   PyramidTotals totals;
+  CookReport merged;  // what the merge itself adds: the inputs' bytes read by the units, the overview levels
   // The overview levels (built from the units' roots once every unit is checked) are spooled
   // first: the ordered writer places the directory after every payload, theirs included.
   NodeSpool overview;
@@ -453,20 +450,27 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
     s.threads = threads;
     RootSource roots;
     Status st = unit_roots(work_dir, data.plan, roots);
-    if (st.ok()) st = spool_overview_levels(s, roots, output, overview, report);
+    if (st.ok()) st = spool_overview_levels(s, roots, output, overview, merged);
     if (st.ok()) shape = shape_of({&overview}, shape);
     return st;
   };
-  Status merged = merge_unit_files(work_dir, data.plan, data.steps, output, writer, totals, report, progress, with_overview);
-  if (merged.ok() && overview.nodes()) merged = overview.drain(writer);
-  if (!merged.ok()) {
+  Status st = merge_unit_files(work_dir, data.plan, data.steps, output, writer, totals, merged, progress, with_overview);
+  if (st.ok() && overview.nodes()) st = overview.drain(writer);
+  if (!st.ok()) {
     writer.abort();
-    return merged;
+    return st;
   }
-  finish_levels(s, totals, report);
-  const std::vector<uint64_t> bytes_read = report.input_bytes_read;
-  if (Status st = finish_archive(s, writer, report); !st.ok()) return st;
-  report.input_bytes_read = bytes_read;
+  finish_levels(s, totals);
+  if (Status fin = finish_archive(s, totals, data.report, writer); !fin.ok()) return fin;
+  // The report, once: the plan's part, then what the units and the merge added.
+  report = data.report;
+  report.surface_layers = !data.options.heights_only;
+  report.input_bytes_read = merged.input_bytes_read;
+  report.overview_nodes = merged.overview_nodes;
+  report.overview_error_max_m = merged.overview_error_max_m;
+  report.cpu_overview = merged.cpu_overview;
+  report_blocks(s, totals, report);
+  report_archive(s, report);
   return Status::success();
 }
 

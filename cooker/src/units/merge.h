@@ -21,15 +21,17 @@ struct PlanData;
 struct RootSource;
 
 // Merges the units of the plan `data` (read_plan, plan_file.h) in `work_dir` into the archive
-// `output` and fills `report` from the plan's part and the units' stats. `report` comes in with
-// the process's memory_limit_bytes and threads. On failure the archive is not written (the
-// writer is aborted) and the failure names the unit.
-Status merge_into(const PlanData& data, const std::string& work_dir, const std::string& output,
+// `output`, the overview levels built with `threads` (0: all cores), and fills `report` once, at
+// the end, from the plan's part and the units' stats (its memory limit and threads are the
+// caller's to set). On failure the archive is not written (the writer is aborted) and the failure
+// names the unit.
+Status merge_into(const PlanData& data, const std::string& work_dir, const std::string& output, int threads,
                   const ProgressFn& progress, CookReport& report);
 
 // The overview levels from the cooked roots (SPEC 19), when the plan has any, into a spool next
 // to `output`: their nodes follow every other node, and an ordered writer must know their count
-// and bytes before the first node (the directory's place).
+// and bytes before the first node (the directory's place). Their count, largest error and CPU
+// seconds go to `report`.
 Status spool_overview_levels(const CookSession& s, const RootSource& roots, const std::string& output, NodeSpool& spool,
                              CookReport& report);
 // The shape of an archive of `parts`' nodes (an ordered writer's, archive_writer.h).

@@ -573,12 +573,12 @@ Status check_plan_inputs(const PlanFile& plan, std::optional<uint32_t> unit) {
   return Status::success();
 }
 
-Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report) {
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s) {
   CookOptions o = data.resolved;  // the files the plan saw, from whatever directory this runs in
   o.threads = threads;
   o.unit_roots = data.unit_roots;
   // The callers checked the plan's files (check_plan_inputs) before anything is read from them.
-  if (Status st = open_inputs(o, s, report, /*files_checked=*/true); !st.ok()) return st;
+  if (Status st = open_inputs(o, s, /*files_checked=*/true); !st.ok()) return st;
   // GDAL's cache as the one-process cook's for a source it cannot hold: 128 MB keeps the tiles
   // that neighbouring blocks of the unit share (a unit is several blocks) instead of decoding them
   // again. 32 MB, once right for units of one block, decoded 15 % more tiles in units of 4 blocks
@@ -593,13 +593,13 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s,
                                        header.width, header.height, data.source_width, data.source_height));
   s.voids = data.voids;
   s.voids.source_name = header.path;
-  if (Status st = frame_and_grid(s, &data.frame, report); !st.ok()) return st;
+  if (Status st = frame_and_grid(s, &data.frame); !st.ok()) return st;
   if (s.world.origin_x_m != data.world.origin_x_m || s.world.origin_y_m != data.world.origin_y_m ||
       s.world.roots_x != data.world.roots_x || s.world.roots_y != data.world.roots_y)
     return Status::failure(Error::internal, "the plan's root grid does not follow from its inputs");
   s.ctx.step_log2 = data.steps;
   restore_overview_steps(data.world.overview_step_log2, s);
-  return surface_setup(s, report);
+  return surface_setup(s);
 }
 
 

@@ -76,6 +76,6 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
 // For `unit`: opens the inputs of the plan into a session and restores the plan's decisions (frame,
 // grid, steps, voids). The caller has checked the files it reads with check_plan_inputs; the
 // inputs' own per-file existence checks (a VRT's tiles) are not repeated.
-Status open_session_from_plan(const PlanData& data, int threads, CookSession& s, CookReport& report);
+Status open_session_from_plan(const PlanData& data, int threads, CookSession& s);
 
 }  // namespace terrain::cook

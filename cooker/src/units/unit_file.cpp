@@ -70,14 +70,15 @@ json stats_json(const UnitStats& u) {
           {"input_bytes_read", r.input_bytes_read}};
 }
 
-// Adds one unit's stats to the cook's (the sums cook_block makes, in unit order).
+// Adds one unit's stats to the cook's (the sums cook_block and the window reads make, in unit
+// order): the bytes its inputs read to `r`, the rest to `totals`.
 void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
   for (int l = 0; l < kLevelCount; ++l) {
-    r.levels[size_t(l)].nodes += j.at("levels").at(l).at(0).get<uint32_t>();
-    r.levels[size_t(l)].vertices += j.at("levels").at(l).at(1).get<uint64_t>();
+    totals.levels[size_t(l)].nodes += j.at("levels").at(l).at(0).get<uint32_t>();
+    totals.levels[size_t(l)].vertices += j.at("levels").at(l).at(1).get<uint64_t>();
     totals.level_error[size_t(l)].add(error_of(j.at("level_error").at(l)));
     if (j.contains("level_cpu")) {
-      LevelStats& ls = r.levels[size_t(l)];
+      LevelStats& ls = totals.levels[size_t(l)];
       const json& c = j.at("level_cpu").at(l);
       const auto stages = c.at("stages").get<std::vector<double>>();
       ls.cpu_heights += stages.at(0);
@@ -90,12 +91,12 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
   }
   totals.leaf.add(error_of(j.at("leaf")));
   const json& c = j.at("cpu");
-  r.cpu_heights += c.at(0).get<double>();
-  r.cpu_error += c.at(1).get<double>();
-  r.cpu_surface += c.at(2).get<double>();
-  r.cpu_encode += c.at(3).get<double>();
+  totals.cpu_heights += c.at(0).get<double>();
+  totals.cpu_error += c.at(1).get<double>();
+  totals.cpu_surface += c.at(2).get<double>();
+  totals.cpu_encode += c.at(3).get<double>();
   const json& s = j.at("surface");
-  SurfaceTotals& t = r.surface;
+  SurfaceTotals& t = totals.surface;
   t.cpu_normals += s.at(0).get<double>();
   t.cpu_albedo += s.at(1).get<double>();
   t.cpu_splat += s.at(2).get<double>();
@@ -119,8 +120,8 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
     const auto parts = j.at("cpu_parts").get<std::vector<double>>();
     for (size_t k = 0; k < std::min(parts.size(), t.cpu_parts.size()); ++k) t.cpu_parts[k] += parts[k];
   }
-  r.void_fill_residual_m = std::max(r.void_fill_residual_m, j.at("void_fill_residual_m").get<double>());
-  r.block_window_samples_max = std::max(r.block_window_samples_max, j.at("window_samples").get<uint64_t>());
+  totals.void_fill_residual_m = std::max(totals.void_fill_residual_m, j.at("void_fill_residual_m").get<double>());
+  totals.window_samples_max = std::max(totals.window_samples_max, j.at("window_samples").get<uint64_t>());
   const auto bytes = j.at("input_bytes_read").get<std::vector<uint64_t>>();
   if (r.input_bytes_read.size() < bytes.size()) r.input_bytes_read.resize(bytes.size());
   for (size_t i = 0; i < bytes.size(); ++i) r.input_bytes_read[i] += bytes[i];
@@ -244,11 +245,11 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
   NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
   if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
   UnitStats stats;
-  stats.part.memory_limit_bytes = memory_limit_of(s.options);
   std::vector<uint64_t> read_before;
   for (const MosaicSource::InputStat& in : s.source.inputs()) read_before.push_back(in.bytes_read);
   const NodeSink sink = [&](NodeResult& r) { return spool.add(r.record, r.payload); };
-  if (Status st = cook_unit_of_session(s, index, sink, stats.totals, stats.part); !st.ok()) return st;
+  if (Status st = cook_unit_of_session(s, index, sink, stats.totals); !st.ok()) return st;
+  report_blocks(s, stats.totals, stats.part);
   for (size_t i = 0; i < s.source.inputs().size(); ++i)
     stats.part.input_bytes_read.push_back(s.source.inputs()[i].bytes_read - (i < read_before.size() ? read_before[i] : 0));
   // The spool's entries in canonical order, their payloads copied behind the table.

@@ -26,7 +26,7 @@ inline constexpr size_t kUnitHeader = 64, kUnitRecord = 48;
 // Statistics a unit adds to the cook's report, stored in its file for the merge.
 struct UnitStats {
   PyramidTotals totals;
-  CookReport part;  // the fields cook_block and the window reads fill
+  CookReport part;  // the fields cook_block and the window reads fill (report_blocks of `totals`)
 };
 
 // Cooks unit `index` of the session into its unit file (atomically: temp file, fsync, rename).

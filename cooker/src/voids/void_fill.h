@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "inputs/raster.h"
-#include "terrain/cook.h"
+#include "terrain/nodata_policy.h"
 #include "terrain/status.h"
 
 namespace terrain::cook {

@@ -18,7 +18,7 @@
 
 #include "voids/range_summary.h"
 #include "base/sample_window.h"
-#include "terrain/cook.h"
+#include "terrain/nodata_policy.h"
 #include "terrain/progress.h"
 #include "terrain/status.h"
 #include "voids/void_fill.h"
