@@ -40,15 +40,15 @@ ProgressFn part(const ProgressFn& p, double lo, double hi) { return p ? scaled_p
 Status prepare(const CookOptions& options, const ProgressFn& progress, CookSession& s, CookReport& report) {
   const auto t0 = Clock::now();
   if (progress && !progress(0.0, "reading")) return Status::failure(Error::cancelled, "cancelled");
-  if (Status st = open_inputs(options, s); !st.ok()) return st;
+  TERRAIN_TRY(open_inputs(options, s));
   report.seconds_read = seconds_since(t0);
   const auto t1 = Clock::now();
   const double c1 = process_cpu();
-  if (Status st = first_pass(s, part(progress, 0.0, 0.1)); !st.ok()) return st;
+  TERRAIN_TRY(first_pass(s, part(progress, 0.0, 0.1)));
   const double c2 = process_cpu();
   report.cpu_first_pass = c2 - c1;
-  if (Status st = frame_and_grid(s, nullptr); !st.ok()) return st;
-  if (Status st = surface_setup(s); !st.ok()) return st;
+  TERRAIN_TRY(frame_and_grid(s, nullptr));
+  TERRAIN_TRY(surface_setup(s));
   const double c3 = process_cpu();
   choose_session_steps(s);
   report.cpu_steps = process_cpu() - c3;
@@ -111,7 +111,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     if (std::filesystem::exists(plan_file(options.work_dir)) && read_plan(options.work_dir, existing).ok() &&
         same_plan_options(existing.options, options) && same_plan_options(existing.resolved, resolved_options(options)) &&
         (options.unit_roots == 0 || options.unit_roots == existing.unit_roots) && check_plan_inputs(existing.plan).ok()) {
-      if (Status st = open_session_from_plan(existing, options.threads, s); !st.ok()) return st;
+      TERRAIN_TRY(open_session_from_plan(existing, options.threads, s));
       plan = existing.plan;
       summary.unit_count = uint32_t(plan.units.size());
     } else if (Status st = plan_in_session(options, part(progress, 0.0, 0.1), s, plan, summary, report); !st.ok()) {
@@ -119,7 +119,7 @@ Status cook(const CookOptions& options, const ProgressFn& progress, CookReport& 
     }
     for (uint32_t i = 0; i < summary.unit_count; ++i) {
       if (!check_unit_file(options.work_dir, plan, i).ok())
-        if (Status st = write_unit(s, plan, i, options.work_dir); !st.ok()) return st;
+        TERRAIN_TRY(write_unit(s, plan, i, options.work_dir));
       if (progress && !progress(0.1 + 0.8 * double(i + 1) / summary.unit_count, fmt::format("unit {}/{}", i + 1, summary.unit_count)))
         return Status::failure(Error::cancelled, "cancelled");
     }
@@ -156,12 +156,12 @@ Status cook_in_session(const CookOptions& options, const ProgressFn& progress, C
   const auto t_pyr = Clock::now();
   const double c_pyr = process_cpu();
   ArchiveWriter writer;
-  if (Status st = writer.open(options.output); !st.ok()) return st;
+  TERRAIN_TRY(writer.open(options.output));
   NodeSpool spool;
   // Overview levels read the roots back from the spool: such cooks always spool.
   const bool spooled = s.grid.count() > 1 || !s.world.overview_step_log2.empty();
   if (spooled)
-    if (Status st = spool.open(staging_path(options.output, "spool")); !st.ok()) return st;
+    TERRAIN_TRY(spool.open(staging_path(options.output, "spool")));
   const NodeSink sink = [&](NodeResult& r) {
     return spooled ? spool.add(r.record, r.payload) : writer.add_node(r.record, r.payload);
   };
@@ -180,10 +180,10 @@ Status cook_in_session(const CookOptions& options, const ProgressFn& progress, C
     // records.
     report.spool_bytes = spool.bytes();
     NodeSpool overview;
-    if (Status st = spool_overview_levels(s, spool_roots(spool), options.output, overview, report); !st.ok()) return st;
-    if (Status st = writer.open_ordered(options.output, shape_of({&spool, &overview})); !st.ok()) return st;
-    if (Status st = spool.drain(writer); !st.ok()) return st;
-    if (Status st = overview.drain(writer); !st.ok()) return st;
+    TERRAIN_TRY(spool_overview_levels(s, spool_roots(spool), options.output, overview, report));
+    TERRAIN_TRY(writer.open_ordered(options.output, shape_of({&spool, &overview})));
+    TERRAIN_TRY(spool.drain(writer));
+    TERRAIN_TRY(overview.drain(writer));
     report.spool_bytes_returned = spool.punched_bytes() + overview.punched_bytes();
   }
   finish_levels(s, totals);
@@ -194,7 +194,7 @@ Status cook_in_session(const CookOptions& options, const ProgressFn& progress, C
   const auto t_fin = Clock::now();
   CookReport decided;  // what the cook info records
   report_decisions(s, decided);
-  if (Status st = finish_archive(s, totals, decided, writer); !st.ok()) return st;
+  TERRAIN_TRY(finish_archive(s, totals, decided, writer));
   report.seconds_finish = seconds_since(t_fin);
   return Status::success();
 }
@@ -212,7 +212,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   const Status prepared = prepare(options, progress, s, report);
   report_decisions(s, report);  // the plan's part of the report (write_plan records it)
   if (!prepared.ok()) return prepared;
-  if (Status st = plan_units(s, plan); !st.ok()) return st;
+  TERRAIN_TRY(plan_units(s, plan));
   // An input among the files the work dir's tools rewrite or remove would be lost (a VRT's tiles
   // too, known only now).
   for (const InputFile& f : plan.files)
@@ -251,7 +251,7 @@ Status plan_in_session(const CookOptions& options, const ProgressFn& progress, C
   for (uint32_t i = summary.unit_count; std::filesystem::exists(unit_file(options.work_dir, i), ec); ++i)
     std::filesystem::remove(unit_file(options.work_dir, i), ec);
   remove_stale_staging_in(units_dir(options.work_dir));  // staged files of unit runs killed on this host
-  if (Status st = write_unit_inputs(s, plan, options.work_dir); !st.ok()) return st;
+  TERRAIN_TRY(write_unit_inputs(s, plan, options.work_dir));
   return write_plan(s, report, plan, summary.plan_path);
 }
 
@@ -269,19 +269,19 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
   skipped = false;
   report = CookReport{};
   PlanData data;
-  if (Status st = read_plan(work_dir, data, index); !st.ok()) return st;
+  TERRAIN_TRY(read_plan(work_dir, data, index));
   if (const char* fail = std::getenv("TERRAIN_COOK_FAIL_UNITS")) {  // test hook: a unit that fails
     const std::string list = std::string(",") + fail + ",";
     if (list.find(fmt::format(",{},", index)) != std::string::npos)
       return Status::failure(Error::internal, fmt::format("unit {}: failing on purpose (TERRAIN_COOK_FAIL_UNITS)", index));
   }
   // A unit file from inputs that changed since the plan is not "complete": refuse before anything.
-  if (Status st = check_plan_inputs(data.plan, index); !st.ok()) return st;
+  TERRAIN_TRY(check_plan_inputs(data.plan, index));
   // Its unit file must not be one of the files it reads (nor a device, FIFO or directory).
   {
     std::vector<NamedPath> inputs;
     for (const InputFile& f : data.plan.files) inputs.push_back({"input of the plan", f.path});
-    if (Status st = check_output_paths(inputs, {{"unit file", unit_file(work_dir, index)}}); !st.ok()) return st;
+    TERRAIN_TRY(check_output_paths(inputs, {{"unit file", unit_file(work_dir, index)}}));
   }
   if (check_unit_file(work_dir, data.plan, index).ok()) {
     skipped = true;
@@ -299,7 +299,7 @@ Status cook_unit(const std::string& work_dir, uint32_t index, int threads, uint3
     data.resolved.inputs = {cut};
     s.read_bounds = unit.window;
   }
-  if (Status st = open_session_from_plan(data, threads, s); !st.ok()) return st;
+  TERRAIN_TRY(open_session_from_plan(data, threads, s));
   report_decisions(s, report);
   if (use_cut) s.voids.source_name = input;  // messages name the user's input, not the cut
   return write_unit(s, data.plan, index, work_dir);
@@ -317,13 +317,13 @@ Status merge_work_dir(const std::string& work_dir, const std::string& output, in
                       CookReport& report, const std::vector<NamedPath>& outputs) {
   const auto t_start = Clock::now();
   PlanData data;
-  if (Status st = read_plan(work_dir, data); !st.ok()) return st;
+  TERRAIN_TRY(read_plan(work_dir, data));
   if (Status st = check_merge_outputs(work_dir, data.plan, outputs.empty() ? std::vector<NamedPath>{{"-o", output}} : outputs);
       !st.ok())
     return st;
   // Units cooked from inputs that changed since would mix two versions of the data.
   if (Status st = check_plan_inputs(data.plan); !st.ok()) return st;
-  if (Status st = merge_into(data, work_dir, output, threads, progress, report); !st.ok()) return st;
+  TERRAIN_TRY(merge_into(data, work_dir, output, threads, progress, report));
   finish_timing(t_start, report);
   return Status::success();
 }

@@ -76,7 +76,7 @@ Status make_projection(const FrameCrs& crs, std::shared_ptr<const Projection>& o
     return Status::success();
   }
   std::shared_ptr<const ProjProjection> p;
-  if (Status st = ProjProjection::create(crs.definition, p); !st.ok()) return st;
+  TERRAIN_TRY(ProjProjection::create(crs.definition, p));
   out = p;
   return Status::success();
 }
@@ -103,7 +103,7 @@ FrameCrs centred_tm(const SourceCrs& src, double lon, double lat, std::string& r
 Status frame_for_projected(const Raster& r, const SampleRect* data, FrameCrs& out, std::string& reason) {
   const SourceCrs& src = r.crs;
   std::shared_ptr<const ProjProjection> proj;
-  if (Status st = ProjProjection::create(src.tm.definition, proj); !st.ok()) return st;
+  TERRAIN_TRY(ProjProjection::create(src.tm.definition, proj));
   int c0 = 0, r0 = 0, c1 = 0, r1 = 0;
   data_or_raster_bounds(r, data, c0, r0, c1, r1);
   const AffineMap map = AffineMap::from(r.geo);
@@ -144,7 +144,7 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
   const SourceCrs& src = source.crs;
   if (!frame_spec.empty()) {
     SourceCrs f;
-    if (Status st = parse_crs_spec(frame_spec, f); !st.ok()) return st;
+    TERRAIN_TRY(parse_crs_spec(frame_spec, f));
     if (f.kind == CrsKind::local) {
       if (src.kind != CrsKind::local)
         return Status::failure(Error::invalid_argument,
@@ -153,7 +153,7 @@ Status choose_frame(const Raster& source, const std::string& frame_spec, FrameCr
     } else if (f.kind == CrsKind::transverse_mercator || f.kind == CrsKind::projected) {
       if (f.kind == CrsKind::projected) {
         std::shared_ptr<const ProjProjection> p;
-        if (Status st = ProjProjection::create(f.tm.definition, p); !st.ok()) return st;
+        TERRAIN_TRY(ProjProjection::create(f.tm.definition, p));
         if (!p->metric_east_north())
           return Status::failure(Error::invalid_argument,
                                  fmt::format("--frame {}: {} does not have metre easting/northing axes; a frame is "
@@ -248,15 +248,15 @@ Status SourceMapping::init(const Raster& source, const FrameCrs& frame, int thre
     chain_ = Chain::geographic;
     double lat = 0;
     affine_map_.to_model(0.5 * (width_ - 1), 0.5 * (height_ - 1), lon_centre_, lat);
-    if (Status st = check_polar_reach(source); !st.ok()) return st;
+    TERRAIN_TRY(check_polar_reach(source));
   } else {
     return Status::failure(Error::unsupported_input, fmt::format("cannot map {} to the frame", describe_crs(src)));
   }
   affine_ = chain_ == Chain::affine;
   if (affine_) return Status::success();
-  if (Status st = make_projection(frame, frame_tm_); !st.ok()) return st;
+  TERRAIN_TRY(make_projection(frame, frame_tm_));
   if (chain_ == Chain::projected)
-    if (Status st = make_projection(src.tm, source_tm_); !st.ok()) return st;
+    TERRAIN_TRY(make_projection(src.tm, source_tm_));
   const int margin = 4;
   const int nx = (width_ + 2 * margin) / kSampleAnchorStep + 5;
   const int ny = (height_ + 2 * margin) / kSampleAnchorStep + 5;

@@ -178,7 +178,7 @@ Status open_hgt_source(const std::string& path, const ReadOptions& options, std:
   std::vector<uint8_t> bytes;
   std::string container;
   Raster head;
-  if (Status st = open_hgt(path, n, bytes, container, head); !st.ok()) return st;
+  TERRAIN_TRY(open_hgt(path, n, bytes, container, head));
   int fd = -1;
   if (container == "plain") {
     fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -204,7 +204,7 @@ Status open_hgt_source(const std::string& path, const ReadOptions& options, std:
 
 Status read_hgt(const std::string& path, const ReadOptions& options, Raster& out) {
   std::unique_ptr<SourceRaster> src;
-  if (Status st = open_hgt_source(path, options, src); !st.ok()) return st;
+  TERRAIN_TRY(open_hgt_source(path, options, src));
   const SourceInfo& info = src->info();
   if (Status mst = check_raster_memory(path, uint64_t(info.width), uint64_t(info.height), "Int16", options); !mst.ok())
     return mst;

@@ -30,9 +30,9 @@ Status read_raw(const std::string& path, const ReadOptions& options, Raster& out
     return Status::failure(Error::unsupported_input,
                            fmt::format("{}: {} bytes, but {}x{} {} samples need {} bytes (check --raw-size / --raw-type)",
                                        path, size, w, h, type, expected));
-  if (Status st = check_raster_memory(path, uint64_t(w), uint64_t(h), type, options, expected); !st.ok()) return st;
+  TERRAIN_TRY(check_raster_memory(path, uint64_t(w), uint64_t(h), type, options, expected));
   std::vector<uint8_t> data;
-  if (Status st = read_file_bytes(path, data); !st.ok()) return st;
+  TERRAIN_TRY(read_file_bytes(path, data));
   if (data.size() != expected)
     return Status::failure(Error::io_read, fmt::format("{}: changed size while being read", path));
   out = Raster{};

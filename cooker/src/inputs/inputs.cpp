@@ -189,7 +189,7 @@ Status input_read_options(const InputOptions& options, ReadOptions& ro) {
   if (options.inputs.empty()) return Status::failure(Error::invalid_argument, "no input files given");
   SourceCrs crs_override;
   if (!options.crs.empty())
-    if (Status st = parse_crs_spec(options.crs, crs_override); !st.ok()) return st;
+    TERRAIN_TRY(parse_crs_spec(options.crs, crs_override));
   if (options.origin && !options.spacing)
     return Status::failure(Error::invalid_argument, "--origin needs --spacing (the distance between samples)");
   if (options.spacing && !((*options.spacing)[0] > 0 && (*options.spacing)[1] > 0))
@@ -211,7 +211,7 @@ Status input_read_options(const InputOptions& options, ReadOptions& ro) {
 
 Status open_input_layer(const std::string& path, const InputOptions& options, const ReadOptions& ro, InputLayer& out) {
   out = InputLayer{};
-  if (Status st = check_input_file("", path); !st.ok()) return st;  // "no such file", "not a regular file (FIFO)"
+  TERRAIN_TRY(check_input_file("", path));  // "no such file", "not a regular file (FIFO)"
   Raster r;
   std::unique_ptr<SourceRaster> src;
   Status st;
@@ -322,12 +322,12 @@ Status read_layer_window(InputLayer& layer, int x0, int y0, int w, int h, float*
   const int rx1 = std::min(r.width, x0 + w + ring), ry1 = std::min(r.height, y0 + h + ring);
   const int rw = rx1 - rx0, rh = ry1 - ry0;
   if (rw == w && rh == h) {
-    if (Status st = layer.source->read_window(x0, y0, w, h, out); !st.ok()) return st;
+    TERRAIN_TRY(layer.source->read_window(x0, y0, w, h, out));
     finish_window(out, w, h, 0, 0, w, h, layer.rules, count);
     return Status::success();
   }
   scratch.resize(size_t(rw) * size_t(rh));
-  if (Status st = layer.source->read_window(rx0, ry0, rw, rh, scratch.data()); !st.ok()) return st;
+  TERRAIN_TRY(layer.source->read_window(rx0, ry0, rw, rh, scratch.data()));
   finish_window(scratch.data(), rw, rh, x0 - rx0, y0 - ry0, w, h, layer.rules, count);
   for (int row = 0; row < h; ++row)
     std::copy_n(&scratch[size_t(y0 - ry0 + row) * size_t(rw) + size_t(x0 - rx0)], size_t(w), out + size_t(row) * size_t(w));
@@ -337,20 +337,20 @@ Status read_layer_window(InputLayer& layer, int x0, int y0, int w, int h, float*
 Status load_inputs(const InputOptions& options, std::vector<Raster>& out) {
   out.clear();
   ReadOptions ro;
-  if (Status st = input_read_options(options, ro); !st.ok()) return st;
+  TERRAIN_TRY(input_read_options(options, ro));
   // The budget: each input's whole-cook estimate, less what the inputs before it took.
   const uint64_t limit = memory_limit_of(options.memory_limit_bytes);
   uint64_t reserved = 0;
   ro.bytes_per_sample = kCookBytesPerSample;
 
   std::vector<std::string> paths;
-  if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
-  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
+  TERRAIN_TRY(expand_inputs(options.inputs, paths));
+  TERRAIN_TRY(check_tile_encoding_use(options, paths));
   std::vector<float> scratch;
   for (const std::string& path : paths) {
     ro.memory_limit_bytes = limit > reserved ? limit - reserved : 0;
     InputLayer layer;
-    if (Status st = open_input_layer(path, options, ro, layer); !st.ok()) return st;
+    TERRAIN_TRY(open_input_layer(path, options, ro, layer));
     if (layer.source) {
       // One window over the whole input: the windowed mosaic's path.
       const SourceInfo& info = layer.source->info();

@@ -46,7 +46,7 @@ Status MosaicSource::assemble(std::vector<Layer> layers, std::vector<InputStat> 
       const bool windowed = in.source != nullptr;
       held_bytes -= uint64_t(r.values.size()) * sizeof(float);  // counted again below when held whole
       std::unique_ptr<ResampledInput> resampled;
-      if (Status st = ResampledInput::open(ref, std::move(in), resampled); !st.ok()) return st;
+      TERRAIN_TRY(ResampledInput::open(ref, std::move(in), resampled));
       held_bytes += uint64_t(resampled->input().values.size()) * sizeof(float) + resampled->resident_bytes();
       if (Status st = check_memory(held_bytes, memory_limit_bytes, header.path,
                                    "its anchors and the inputs held whole",
@@ -237,18 +237,18 @@ Status open_mosaic_source(const InputOptions& options, uint64_t memory_limit_byt
   ro.files_checked = files_checked;
   ro.bytes_per_sample = sizeof(float);  // what this source holds of an input read whole
   std::vector<std::string> paths;
-  if (Status st = expand_inputs(options.inputs, paths); !st.ok()) return st;
-  if (Status st = check_tile_encoding_use(options, paths); !st.ok()) return st;
+  TERRAIN_TRY(expand_inputs(options.inputs, paths));
+  TERRAIN_TRY(check_tile_encoding_use(options, paths));
   std::vector<MosaicSource::Layer> layers;
   std::vector<MosaicSource::InputStat> stats;
   uint64_t held = 0;
   for (const std::string& path : paths) {
     ro.memory_limit_bytes = memory_limit_bytes > held ? memory_limit_bytes - held : 0;
     MosaicSource::Layer l;
-    if (Status st = open_input_layer(path, options, ro, l.input); !st.ok()) return st;
+    TERRAIN_TRY(open_input_layer(path, options, ro, l.input));
     // A VRT's missing tile would only show when a window first reaches it: name it now.
     if (l.input.source && !files_checked)
-      if (Status st = check_vrt_tiles(path); !st.ok()) return st;
+      TERRAIN_TRY(check_vrt_tiles(path));
     const Raster& r = l.input.raster;
     MosaicSource::InputStat s;
     s.path = r.path;

@@ -137,8 +137,7 @@ Status ResampledInput::open(const Raster& ref, InputLayer layer, std::unique_ptr
     for (int y = 0; y < height; y += rows) {
       const int h = std::min(rows, height - y);
       m.window.resize(size_t(width) * size_t(h));
-      if (Status st = read_layer_window(m.layer, 0, y, width, h, m.window.data(), m.scratch, &count); !st.ok())
-        return st;
+      TERRAIN_TRY(read_layer_window(m.layer, 0, y, width, h, m.window.data(), m.scratch, &count));
     }
     r->implausible_ = count;
     m.window = std::vector<float>();
@@ -188,8 +187,7 @@ Status ResampledInput::read(int x0, int y0, int w, int h, float* out) {
         ww = int(ia1) - wx0 + 1;
         wh = int(ib1) - wy0 + 1;
         m.window.resize(size_t(ww) * size_t(wh));
-        if (Status st = read_layer_window(m.layer, wx0, wy0, ww, wh, m.window.data(), m.scratch, nullptr); !st.ok())
-          return st;
+        TERRAIN_TRY(read_layer_window(m.layer, wx0, wy0, ww, wh, m.window.data(), m.scratch, nullptr));
       }
       for (int j = 0; j < th; ++j)
         for (int i = 0; i < tw; ++i) {

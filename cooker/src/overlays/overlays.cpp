@@ -435,7 +435,7 @@ Status load_overlays(const OverlayOptions& o, const FrameCrs& frame, const std::
     if (path.empty()) return Status::success();
     slot = std::make_unique<OverlayRaster>();
     slot->memory_limit = o.memory_limit_bytes;
-    if (Status st = open_overlay(what, path, rgb, *slot); !st.ok()) return st;
+    TERRAIN_TRY(open_overlay(what, path, rgb, *slot));
     if (Status st = slot->mapping.init(slot->raster, frame, threads); !st.ok())
       return Status::failure(st.code, fmt::format("{} {}: {}", what, path, st.message));
     slot->mapping.cover_frame_area(x0, y0, x1, y1, threads);
@@ -455,11 +455,11 @@ Status load_overlays(const OverlayOptions& o, const FrameCrs& frame, const std::
                                                          describe_crs(slot->raster.crs)));
     return Status::success();
   };
-  if (Status st = load("--albedo", o.albedo_path, true, ov->albedo); !st.ok()) return st;
-  if (Status st = load("--holes", o.holes_path, false, ov->holes); !st.ok()) return st;
+  TERRAIN_TRY(load("--albedo", o.albedo_path, true, ov->albedo));
+  TERRAIN_TRY(load("--holes", o.holes_path, false, ov->holes));
   if (!o.landcover_path.empty()) {
-    if (Status st = load_class_table(o.landcover_table_path, palette, ov->class_material); !st.ok()) return st;
-    if (Status st = load("--landcover", o.landcover_path, false, ov->classes); !st.ok()) return st;
+    TERRAIN_TRY(load_class_table(o.landcover_table_path, palette, ov->class_material));
+    TERRAIN_TRY(load("--landcover", o.landcover_path, false, ov->classes));
   }
   out = std::move(ov);
   return Status::success();
@@ -471,7 +471,7 @@ Status prepare_overlays_block(SurfaceOverlays& ov, double x0, double y0, double 
     if (!o) continue;
     // The whole-raster fallback reads once.
     if (o->whole && !o->window.empty()) continue;
-    if (Status st = read_overlay_window(*o, frame_rect_window(*o, x0, y0, x1, y1)); !st.ok()) return st;
+    TERRAIN_TRY(read_overlay_window(*o, frame_rect_window(*o, x0, y0, x1, y1)));
   }
   return Status::success();
 }

@@ -92,8 +92,8 @@ Status NodeSpool::drain(ArchiveWriter& writer) {
   for (const Entry& e : sorted) for_each_chunk(e, [&](size_t c, uint32_t n) { left[c] += n; });
   std::vector<uint8_t> buf;
   for (const Entry& e : sorted) {
-    if (Status st = read(e, buf); !st.ok()) return st;
-    if (Status st = writer.add_node(e.record, buf); !st.ok()) return st;
+    TERRAIN_TRY(read(e, buf));
+    TERRAIN_TRY(writer.add_node(e.record, buf));
     for_each_chunk(e, [&](size_t c, uint32_t n) {
       left[c] -= n;
       if (left[c] == 0 && ::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, off_t(c) << kChunkShift,

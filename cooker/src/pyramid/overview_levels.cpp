@@ -188,7 +188,7 @@ Status build_lattice(const OverviewSettings& s, const RootSource& src, LatticeFi
     for (size_t start = next; start < end; start += batch) {
       const size_t n = std::min(batch, end - start);
       for (size_t i = 0; i < n; ++i)
-        if (Status st = src.read(order[start + i], bytes[i]); !st.ok()) return st;
+        TERRAIN_TRY(src.read(order[start + i], bytes[i]));
       parallel_for(n, s.threads, [&](size_t i) { decode_root(src.roots[order[start + i]], step5, bytes[i], even[i]); });
       for (size_t i = 0; i < n; ++i) {  // in root order: the result does not depend on the threads
         const NodeRecord& rec = src.roots[order[start + i]];
@@ -214,7 +214,7 @@ Status build_lattice(const OverviewSettings& s, const RootSource& src, LatticeFi
     next = end;
     // Rows 64 R .. 64 R + 63 are final; row 64 R + 64 is the next root row's first.
     const bool last = row + 1 == roots.ny;
-    if (Status st = lat.write_rows(int64_t(row) * (kEven - 1), last ? kEven : kEven - 1, band.data()); !st.ok()) return st;
+    TERRAIN_TRY(lat.write_rows(int64_t(row) * (kEven - 1), last ? kEven : kEven - 1, band.data()));
     std::copy(band.end() - lat.w, band.end(), band.begin());
     std::fill(band.begin() + lat.w, band.end(), kNoVertex);
   }
@@ -237,7 +237,7 @@ Status load_band(const LatticeFile& lat, int level, uint32_t y, Band& band, std:
   band.cols = (lat.w - 1) / band.stride + 1;
   band.units.resize(size_t(band.rows * band.cols));
   for (int64_t r = 0; r < band.rows; ++r) {
-    if (Status st = lat.read_row(lo + r * band.stride, row); !st.ok()) return st;
+    TERRAIN_TRY(lat.read_row(lo + r * band.stride, row));
     int32_t* out = &band.units[size_t(r * band.cols)];
     for (int64_t c = 0; c < band.cols; ++c) out[c] = row[size_t(c * band.stride)];
   }
@@ -339,7 +339,7 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
   if (k <= 0) return Status::success();
   LatticeFile lat;
   LevelNodes below;
-  if (Status st = build_lattice(s, src, lat, below); !st.ok()) return st;
+  TERRAIN_TRY(build_lattice(s, src, lat, below));
   const size_t batch = size_t(8) * size_t(resolve_threads(s.threads));
   std::vector<BuiltNode> built(batch);
   Band band;
@@ -363,7 +363,7 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
         }
       }
       if (keys.empty()) continue;
-      if (Status st = load_band(lat, level, y, band, row); !st.ok()) return st;
+      TERRAIN_TRY(load_band(lat, level, y, band, row));
       for (size_t start = 0; start < keys.size(); start += batch) {
         const size_t n = std::min(batch, keys.size() - start);
         parallel_for(n, s.threads, [&](size_t i) { build_node(s, band, below, keys[start + i], built[i]); });
@@ -374,7 +374,7 @@ Status write_overview_levels(const OverviewSettings& s, const RootSource& src, c
           here.exists[hk] = 1;
           here.bound[hk] = double(b.record.geometric_error_m);
           stats.error_max_m = std::max(stats.error_max_m, here.bound[hk]);
-          if (Status st = out(b.record, b.payload); !st.ok()) return st;
+          TERRAIN_TRY(out(b.record, b.payload));
           ++stats.nodes;
         }
       }

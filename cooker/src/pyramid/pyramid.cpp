@@ -168,7 +168,7 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
         ls.cpu_encode += r.cpu_encode;
         for (size_t k = 0; k < kCpuParts; ++k) ls.cpu_parts[k] += r.surface.seconds_parts[k];
         add_surface_stats(totals.surface, r.surface);
-        if (Status st = sink(r); !st.ok()) return st;
+        TERRAIN_TRY(sink(r));
         r.payload = {};
       }
     }

@@ -158,7 +158,7 @@ Status open_inputs(const CookOptions& options, CookSession& s, bool files_checke
   s.shares = memory_shares(s.decided.memory_limit_bytes);
   set_gdal_cache_bytes(s.shares.gdal_cache);
   set_gdal_decode_threads(s.threads);
-  if (Status st = open_mosaic_source(input_options(options), s.shares.inputs, s.source, files_checked); !st.ok()) return st;
+  TERRAIN_TRY(open_mosaic_source(input_options(options), s.shares.inputs, s.source, files_checked));
   const Raster& header = s.source.header();
   // GDAL's cache: the whole decoded source when it fits the share and the process reads it again
   // (the cook then decodes nothing twice), else enough for a row of GDAL blocks across a wide input
@@ -251,7 +251,7 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   } else if (Status st = choose_frame(header, options.frame, s.frame, s.decided.frame_reason, &data); !st.ok()) {
     return st;
   }
-  if (Status st = s.mapping.init(header, s.frame, s.threads); !st.ok()) return st;
+  TERRAIN_TRY(s.mapping.init(header, s.frame, s.threads));
   double fx0 = 0, fy0 = 0, fx1 = 0, fy1 = 0;
   // The footprint: pixel areas, or for point samples the samples' hull.
   s.mapping.frame_bounds(data.c0, data.r0, data.c1, data.r1, header.geo.point_samples ? 0.0 : 0.5, fx0, fy0, fx1, fy1);
@@ -266,8 +266,7 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
     return Status::failure(Error::unsupported_input,
                            fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
                                        (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
-  if (Status st = check_plan_size(roots_x, roots_y, options.force, (fx1 - fx0) / 1000, (fy1 - fy0) / 1000); !st.ok())
-    return st;
+  TERRAIN_TRY(check_plan_size(roots_x, roots_y, options.force, (fx1 - fx0) / 1000, (fy1 - fy0) / 1000));
   s.world = WorldInfo{.crs = s.frame,
                       .origin_x_m = ctx.origin_x,
                       .origin_y_m = ctx.origin_y,
@@ -338,7 +337,7 @@ Status surface_setup(CookSession& s) {
   // nodes would say little there, and the time is small.
   s.ctx.check_all_errors =
       s.options.error_checks == ErrorChecks::all || uint64_t(s.world.roots_x) * uint64_t(s.world.roots_y) <= 4;
-  if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
+  TERRAIN_TRY(load_material_rules(so, s.rules));
   s.ctx.rules = s.rules.get();
   const CookContext& ctx = s.ctx;
   if (Status st = load_overlays(overlay_options(s.options, s.decided.memory_limit_bytes), s.frame, palette_of(*s.rules),
@@ -462,7 +461,7 @@ Status cook_roots(CookSession& s, const RootBlock& b, const NodeSink& sink, Pyra
   if (s.overlays) {
     double bx0 = 0, by0 = 0, bx1 = 0, by1 = 0;
     block_frame_rect(s.ctx, b, bx0, by0, bx1, by1);
-    if (Status st = prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1); !st.ok()) return st;
+    TERRAIN_TRY(prepare_overlays_block(*s.overlays, bx0, by0, bx1, by1));
   }
   return cook_block(s.ctx, b, s.threads, sink, totals);
 }

@@ -59,7 +59,7 @@ class LevelCursor {
     if (table_i_ == table_n_) {
       const uint64_t n = std::min<uint64_t>(end_ - next_, kTableChunk);
       table_.resize(size_t(n) * kUnitRecord);
-      if (Status st = read_at(fd_, table_.data(), table_.size(), kUnitHeader + next_ * kUnitRecord, path_); !st.ok()) return st;
+      TERRAIN_TRY(read_at(fd_, table_.data(), table_.size(), kUnitHeader + next_ * kUnitRecord, path_));
       table_i_ = 0;
       table_n_ = n;
     }
@@ -145,8 +145,7 @@ class EdgeCheck {
     if (south_of != north_.end() && south_of->second.y + 1 != r.key.y) south_of = north_.end();  // not adjacent
     if (west_of == east_.end() && south_of == north_.end() && !east && !north) return Status::success();
     const bool holes = (r.flags & kNodeFlagHasHoles) != 0;
-    if (Status st = decode_node_payload(payload, kSectionHeights | (holes ? kSectionAlbedo : 0u), data_); !st.ok())
-      return st;
+    TERRAIN_TRY(decode_node_payload(payload, kSectionHeights | (holes ? kSectionAlbedo : 0u), data_));
     if (holes) decode_hole_mask(data_, mask_.data());
     const int step = steps_[size_t(level)];
     auto at = [&](int i, int j) {  // vertex (i, j): its units, or kHole
@@ -259,7 +258,7 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
     }
     m.level_nodes = count;
     shape.payload_bytes += at - c.payload_start;
-    if (Status st = add_unit_stats(c, u.index, totals, report); !st.ok()) return st;
+    TERRAIN_TRY(add_unit_stats(c, u.index, totals, report));
     if (progress && !progress(0.05 * double(u.index + 1) / double(plan.units.size()), "checking units"))
       return Status::failure(Error::cancelled, "cancelled");
   }
@@ -275,8 +274,8 @@ Status merge_unit_files(const std::string& work_dir, const PlanFile& plan, const
   uint64_t total = 0, copied = 0;
   for (uint64_t n : shape.level_nodes) total += n;
   if (extend_shape)
-    if (Status st = extend_shape(shape); !st.ok()) return st;
-  if (Status st = writer.open_ordered(output, shape); !st.ok()) return st;
+    TERRAIN_TRY(extend_shape(shape));
+  TERRAIN_TRY(writer.open_ordered(output, shape));
   size_t widest = 0;
   for (const auto& [rows, list] : bands) widest = std::max(widest, list.size());
   std::vector<ReadBuffer> buffers(widest);
@@ -438,7 +437,7 @@ Status merge_into(const PlanData& data, const std::string& work_dir, const std::
   s.options.output = output;
   SurfaceOptions so;
   so.materials_path = data.resolved.materials_path;
-  if (Status st = load_material_rules(so, s.rules); !st.ok()) return st;
+  TERRAIN_TRY(load_material_rules(so, s.rules));
   ArchiveWriter writer;
   PyramidTotals totals;
   CookReport merged;  // what the merge itself adds: the inputs' bytes read by the units, the overview levels

@@ -167,12 +167,12 @@ Status collect_input_files(const CookSession& s, std::vector<InputFile>& out) {
     const std::vector<FilePlacement> files = gdal_file_placements(in.path);
     const bool placed = files[0].opened && same_crs(in.crs, header.crs);
     for (const FilePlacement& f : files)
-      if (Status st = add(f.path, placed && f.opened ? footprint_of(f, header, whole) : whole); !st.ok()) return st;
+      TERRAIN_TRY(add(f.path, placed && f.opened ? footprint_of(f, header, whole) : whole));
   }
   for (const std::string* p : {&s.options.materials_path, &s.options.albedo_path, &s.options.holes_path,
                                &s.options.landcover_path, &s.options.landcover_table_path})
     if (!p->empty())
-      if (Status st = add(*p, whole); !st.ok()) return st;
+      TERRAIN_TRY(add(*p, whole));
   return Status::success();
 }
 
@@ -226,7 +226,7 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
     StagedText f(path);
     put_file_list(json{{"format", "terrain-cook-unit-inputs"}, {"unit", u.index}, {"fingerprint", u.fingerprint}},
                   unit_files(plan, u.index), [&](std::string_view t) { f.put(t); });
-    if (Status st = f.commit(path, /*durable=*/false); !st.ok()) return st;
+    TERRAIN_TRY(f.commit(path, /*durable=*/false));
   }
   const std::vector<MosaicSource::InputStat>& inputs = s.source.inputs();
   std::set<std::string> current;
@@ -249,7 +249,7 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
   }
   bool written = false;
   if (!outputs.empty())
-    if (Status st = write_vrt_windows(inputs[0].path, windows, outputs, written); !st.ok()) return st;
+    TERRAIN_TRY(write_vrt_windows(inputs[0].path, windows, outputs, written));
   // On disk before the plan that names them (write_plan fsyncs plan.json).
   const int fd = ::open(units_dir(work_dir).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   const bool synced = fd >= 0 && ::syncfs(fd) == 0;
@@ -262,7 +262,7 @@ Status write_unit_inputs(const CookSession& s, const PlanFile& plan, const std::
 
 Status plan_units(CookSession& s, PlanFile& plan) {
   plan = PlanFile{};
-  if (Status st = collect_input_files(s, plan.files); !st.ok()) return st;
+  TERRAIN_TRY(collect_input_files(s, plan.files));
   const Raster& header = s.source.header();
   plan.fingerprint = hex64(fnv1a(decisions_text(s.options, s.frame, s.world, header.width, header.height,
                                                 s.ctx.finest_level, s.ctx.step_log2)));
@@ -303,7 +303,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   });
   const std::string inputs_fingerprint = hex64(h);
   const std::string inputs_path = inputs_file(work_dir, inputs_fingerprint);
-  if (Status st = list.commit(inputs_path, /*durable=*/true); !st.ok()) return st;
+  TERRAIN_TRY(list.commit(inputs_path, /*durable=*/true));
   j["inputs"] = {{"count", plan.files.size()}, {"fingerprint", inputs_fingerprint}};
   const Raster& header = s.source.header();
   j["source"] = {{"width", header.width}, {"height", header.height}};
@@ -347,7 +347,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
   j["units"] = units;
   // Atomically: a plan is either the old one or the new one.
   remove_stale_staging(path);  // a plan write killed before its rename
-  if (Status st = write_text_file(path, j.dump(1) + "\n", /*durable=*/true); !st.ok()) return st;
+  TERRAIN_TRY(write_text_file(path, j.dump(1) + "\n", /*durable=*/true));
   // Only now the inputs of earlier plans go: until the rename they were the plan's.
   std::set<std::string> current{std::filesystem::path(inputs_path).filename().string()};
   for (const UnitPlan& u : plan.units) current.insert(std::filesystem::path(unit_inputs_file(work_dir, u)).filename().string());
@@ -406,7 +406,7 @@ Status read_all_inputs(const std::string& work_dir, const json& ref, std::vector
   if (hex64(h) != fingerprint)
     return Status::failure(Error::no_data, fmt::format("{}: damaged (its fingerprint is not the plan's); run "
                                                        "`terrain-cook plan` again", path));
-  if (Status st = parse_file_list(path, "terrain-cook-inputs", files); !st.ok()) return st;
+  TERRAIN_TRY(parse_file_list(path, "terrain-cook-inputs", files));
   if (files.size() != ref.at("count").get<size_t>())
     return Status::failure(Error::no_data, fmt::format("{}: {} files, the plan says {}", path, files.size(),
                                                        ref.at("count").get<size_t>()));
@@ -422,7 +422,7 @@ Status read_unit_inputs(const std::string& work_dir, const std::string& plan_fin
   if (!std::ifstream(path))
     return Status::failure(Error::io_open, fmt::format("{}: unit {}'s list of input files is missing ({}); run "
                                                        "`terrain-cook plan` again", path, unit.index, std::strerror(errno)));
-  if (Status st = parse_file_list(path, "terrain-cook-unit-inputs", files); !st.ok()) return st;
+  TERRAIN_TRY(parse_file_list(path, "terrain-cook-unit-inputs", files));
   bool all_meet = true;
   for (const InputFile& f : files) all_meet = all_meet && meets(f.footprint, unit.window);
   if (!all_meet || unit_fingerprint(plan_fingerprint, unit, files) != unit.fingerprint)
@@ -578,7 +578,7 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s)
   o.threads = threads;
   o.unit_roots = data.unit_roots;
   // The callers checked the plan's files (check_plan_inputs) before anything is read from them.
-  if (Status st = open_inputs(o, s, /*files_checked=*/true); !st.ok()) return st;
+  TERRAIN_TRY(open_inputs(o, s, /*files_checked=*/true));
   // GDAL's cache as the one-process cook's for a source it cannot hold: 128 MB keeps the tiles
   // that neighbouring blocks of the unit share (a unit is several blocks) instead of decoding them
   // again. 32 MB, once right for units of one block, decoded 15 % more tiles in units of 4 blocks
@@ -593,7 +593,7 @@ Status open_session_from_plan(const PlanData& data, int threads, CookSession& s)
                                        header.width, header.height, data.source_width, data.source_height));
   s.voids = data.voids;
   s.voids.source_name = header.path;
-  if (Status st = frame_and_grid(s, &data.frame); !st.ok()) return st;
+  TERRAIN_TRY(frame_and_grid(s, &data.frame));
   if (s.world.origin_x_m != data.world.origin_x_m || s.world.origin_y_m != data.world.origin_y_m ||
       s.world.roots_x != data.world.roots_x || s.world.roots_y != data.world.roots_y)
     return Status::failure(Error::internal, "the plan's root grid does not follow from its inputs");

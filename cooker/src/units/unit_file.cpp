@@ -243,12 +243,12 @@ Status write_unit(CookSession& s, const PlanFile& plan, uint32_t index, const st
   // removed by the next plan or merge (one listing of the units for all of them, not one per unit).
   const std::string temp = staging_path(path);
   NodeSpool spool;  // the unit's payloads as they come; the file gets them in canonical order
-  if (Status st = spool.open(temp + ".payloads"); !st.ok()) return st;
+  TERRAIN_TRY(spool.open(temp + ".payloads"));
   UnitStats stats;
   std::vector<uint64_t> read_before;
   for (const MosaicSource::InputStat& in : s.source.inputs()) read_before.push_back(in.bytes_read);
   const NodeSink sink = [&](NodeResult& r) { return spool.add(r.record, r.payload); };
-  if (Status st = cook_unit_of_session(s, index, sink, stats.totals); !st.ok()) return st;
+  TERRAIN_TRY(cook_unit_of_session(s, index, sink, stats.totals));
   report_blocks(s, stats.totals, stats.part);
   for (size_t i = 0; i < s.source.inputs().size(); ++i)
     stats.part.input_bytes_read.push_back(s.source.inputs()[i].bytes_read - (i < read_before.size() ? read_before[i] : 0));

@@ -235,7 +235,7 @@ Status plan_voids(int width, int height, const ReadSamples& read, NodataPolicy p
       if (ahead) {
         if (tx >= chunk_x1 || tx == 0) {
           spare = std::move(chunk);
-          if (Status st = ahead->take(chunk); !st.ok()) return st;
+          TERRAIN_TRY(ahead->take(chunk));
           chunk_x0 = tx;
           chunk_x1 = int(std::min<int64_t>(int64_t(tx) + chunk_w, width));
           request_next();

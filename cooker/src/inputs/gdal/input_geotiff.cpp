@@ -155,7 +155,7 @@ Status read_geotiff(const std::string& path, const ReadOptions& options, Raster&
     return Status::failure(Error::unsupported_input, fmt::format("{}: inconsistent {} size ({})", path,
                                                                   TIFFIsTiled(tif.get()) ? "tile" : "strip", tiff_error));
   if (!options.header_only)
-    if (Status st = check_raster_memory(path, width, height, tname, options, uint64_t(block_bytes)); !st.ok()) return st;
+    TERRAIN_TRY(check_raster_memory(path, width, height, tname, options, uint64_t(block_bytes)));
 
   out = Raster{};
   out.path = path;

@@ -107,7 +107,7 @@ Status open_web_tile(const std::string& path, const TileAddress& t, TileEncoding
                      std::unique_ptr<SourceRaster>& out) {
   std::unique_ptr<WebTileSource> src;
   std::string driver;
-  if (Status st = open_rgb(path, enc, true, src, driver); !st.ok()) return st;
+  TERRAIN_TRY(open_rgb(path, enc, true, src, driver));
   SourceInfo& info = src->info_mut();
   const int w = info.width, h = info.height;
   info.geo = web_tile_geo(t, w);
@@ -125,7 +125,7 @@ Status open_encoded_image(const std::string& path, TileEncoding enc, const Sampl
                           std::unique_ptr<SourceRaster>& out) {
   std::unique_ptr<WebTileSource> src;
   std::string driver;
-  if (Status st = open_rgb(path, enc, false, src, driver); !st.ok()) return st;
+  TERRAIN_TRY(open_rgb(path, enc, false, src, driver));
   SourceInfo& info = src->info_mut();
   info.geo = geo;
   info.crs = crs;
