@@ -190,7 +190,7 @@ Raster plane_raster(int w, int h, double a, double bx, double by) {
 
 TEST(Reconstruct, CatmullRomPassesThroughSamplesAndReproducesPlanes) {
   Raster r = plane_raster(20, 20, 100.0, 0.25, -0.5);
-  Surface s(r);
+  SourceSurface s(r);
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> u(0.0, 19.0);
   for (int k = 0; k < 2000; ++k) {
@@ -202,7 +202,7 @@ TEST(Reconstruct, CatmullRomPassesThroughSamplesAndReproducesPlanes) {
   // Non-planar data: the surface still interpolates every sample exactly.
   Raster bumpy = plane_raster(16, 16, 0, 0, 0);
   for (size_t i = 0; i < bumpy.values.size(); ++i) bumpy.values[i] = float((i * 7919) % 113);
-  Surface sb(bumpy);
+  SourceSurface sb(bumpy);
   for (int row = 0; row < 16; ++row)
     for (int col = 0; col < 16; ++col) {
       double h = 0;
@@ -214,7 +214,7 @@ TEST(Reconstruct, CatmullRomPassesThroughSamplesAndReproducesPlanes) {
 TEST(Reconstruct, NodataFallsBackToBilinearOverValidTapsAndHolesFollowTheNearestSample) {
   Raster r = plane_raster(10, 10, 50.0, 1.0, 0.0);
   r.values[size_t(5) * 10 + 5] = NAN;
-  Surface s(r);
+  SourceSurface s(r);
   double h = 0;
   EXPECT_FALSE(s.sample(5.2, 4.9, h));  // nearest sample is the void
   ASSERT_TRUE(s.sample(5.6, 5.0, h));   // nearest is (6, 5): bilinear from (6,5) only on this row
@@ -237,7 +237,7 @@ TEST(Reconstruct, SharedAxesAndCachedRowsGiveIdenticalBits) {
   Raster r = plane_raster(40, 40, 0, 0, 0);
   for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(std::sin(double(i) * 0.37) * 100.0);
   r.values[size_t(20) * 40 + 20] = NAN;
-  Surface s(r);
+  SourceSurface s(r);
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> u(-0.6, 39.6);
   int compared = 0;
@@ -245,7 +245,7 @@ TEST(Reconstruct, SharedAxesAndCachedRowsGiveIdenticalBits) {
     const double c = u(rng), w = u(rng);
     double a = 0, b = 0, d = 0;
     const bool ok_a = s.sample(c, w, a);
-    const Surface::Axis x = s.column(c), y = s.row(w);
+    const SourceSurface::Axis x = s.column(c), y = s.row(w);
     const bool ok_b = s.sample(x, y, b);
     ASSERT_EQ(ok_a, ok_b);
     if (ok_a) {
@@ -278,7 +278,7 @@ TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
   for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(std::sin(double(i) * 0.37) * 100.0 - 40.0);
   for (const auto& [c, w] : std::vector<std::pair<int, int>>{{20, 14}, {0, 7}, {36, 28}, {5, 0}, {21, 14}})
     r.values[size_t(w) * 37 + size_t(c)] = NAN;
-  Surface s(r);
+  SourceSurface s(r);
   std::mt19937 rng(17);
   std::uniform_real_distribution<double> u(-3.0, 40.0);
   std::uniform_int_distribution<int> pick(0, 9), len(1, 200);
@@ -311,7 +311,7 @@ TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
         continue;
       }
       EXPECT_EQ(std::memcmp(&want, &h[size_t(k)], sizeof want), 0) << cols[size_t(k)] << ", " << rows[size_t(k)];
-      const Surface::Axis x = s.column(cols[size_t(k)]), y = s.row(rows[size_t(k)]);
+      const SourceSurface::Axis x = s.column(cols[size_t(k)]), y = s.row(rows[size_t(k)]);
       general += !(s.x_interior(x) && s.y_interior(y));
     }
   }
@@ -350,7 +350,7 @@ TEST(Reconstruct, SamplePointsGivesEveryPointTheBitsOfSample) {
 }
 
 // Zero ground (the sea of SRTM tiles): compute_window writes +0 for mapped rows whose points all
-// lie inside Surface::zero_bounds. Bound checked: every such point gets exactly sample()'s +0 (and
+// lie inside SourceSurface::zero_bounds. Bound checked: every such point gets exactly sample()'s +0 (and
 // sample_points'), including points on the bounds' lower edges and just below their upper edges;
 // the zero block is ringed by nonzero samples, so bounds one sample too wide read one of them
 // (the points just outside do, below). Extents reaching a nonzero sample, a NaN or the window's
@@ -361,10 +361,10 @@ TEST(Reconstruct, ZeroBoundsHoldOnlyPointsWhoseTapsAreAllZero) {
   for (size_t i = 0; i < r.values.size(); ++i) r.values[i] = float(50.0 + 20.0 * std::sin(double(i) * 0.37));
   for (int row = 8; row <= 30; ++row)  // the zero block: columns 10..40, rows 8..30, signed zeros mixed
     for (int col = 10; col <= 40; ++col) r.values[size_t(row) * kW + size_t(col)] = (col + row) % 3 ? 0.0f : -0.0f;
-  const Surface s(r);
-  const auto bounded = [](const Surface::ZeroBounds& b) { return b.c_lo < b.c_hi && b.r_lo < b.r_hi; };
+  const SourceSurface s(r);
+  const auto bounded = [](const SourceSurface::ZeroBounds& b) { return b.c_lo < b.c_hi && b.r_lo < b.r_hi; };
   // Extent 11..38.9 x 9..28.9 without spare reads columns 10..40, rows 8..30: the block exactly.
-  const Surface::ZeroBounds b = s.zero_bounds(11.0, 38.9, 9.0, 28.9, 0);
+  const SourceSurface::ZeroBounds b = s.zero_bounds(11.0, 38.9, 9.0, 28.9, 0);
   ASSERT_TRUE(bounded(b));
   EXPECT_EQ(b.c_lo, 11.0);
   EXPECT_EQ(b.c_hi, 39.0);
@@ -380,7 +380,7 @@ TEST(Reconstruct, ZeroBoundsHoldOnlyPointsWhoseTapsAreAllZero) {
   EXPECT_FALSE(bounded(s.zero_bounds(11.0, INFINITY, 9.0, 28.9, 0)));
   Raster voided = r;
   voided.values[size_t(20) * kW + 25] = NAN;
-  EXPECT_FALSE(bounded(Surface(voided).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
+  EXPECT_FALSE(bounded(SourceSurface(voided).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
   // A window of the source that ends at column 11: the same zeros, but not all inside it.
   SampleWindow win;
   win.rect = {11, 0, kW - 1, kH - 1};
@@ -389,8 +389,8 @@ TEST(Reconstruct, ZeroBoundsHoldOnlyPointsWhoseTapsAreAllZero) {
   win.values.resize(win.rect.samples());
   for (int row = 0; row < kH; ++row)
     for (int col = 11; col < kW; ++col) win.values[win.index(col, row)] = r.values[size_t(row) * kW + size_t(col)];
-  EXPECT_FALSE(bounded(Surface(win).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
-  EXPECT_TRUE(bounded(Surface(win).zero_bounds(12.0, 38.9, 9.0, 28.9, 0)));
+  EXPECT_FALSE(bounded(SourceSurface(win).zero_bounds(11.0, 38.9, 9.0, 28.9, 0)));
+  EXPECT_TRUE(bounded(SourceSurface(win).zero_bounds(12.0, 38.9, 9.0, 28.9, 0)));
 
   std::mt19937 rng(23);
   std::uniform_real_distribution<double> uc(b.c_lo, b.c_hi), ur(b.r_lo, b.r_hi);

@@ -74,7 +74,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   // Axis-aligned sources: every row of vertices shares the columns' Catmull-Rom weights (the
   // mapping gives the same column for any row, so the bits are those of the per-vertex path).
   const bool shared_columns = ctx.mapping->axis_aligned();
-  std::array<Surface::Axis, kWindowSize> column_axes;
+  std::array<SourceSurface::Axis, kWindowSize> column_axes;
   std::array<bool, kWindowSize> x_in{};
   // Other sources map every row through the anchors at the same x: plan the columns once
   // (identical bits to map_frame_row).
@@ -90,7 +90,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
     }
   }
   // Vertex rows closer than source rows: cache each source row's horizontal sums (per column).
-  std::array<Surface::Axis, kWindowSize> row_axes;
+  std::array<SourceSurface::Axis, kWindowSize> row_axes;
   int cache_r0 = 0, cache_rows = 0;
   thread_local std::vector<double> cache;
   thread_local std::vector<uint8_t> cached;
@@ -101,8 +101,8 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
       ctx.mapping->map_frame_row(y, xs.data(), 1, &c, &r);
       row_axes[size_t(j)] = ctx.surface.row(r);
     }
-    const Surface::Axis& south = row_axes[size_t(lo)];
-    const Surface::Axis& north = row_axes[size_t(hi - 1)];
+    const SourceSurface::Axis& south = row_axes[size_t(lo)];
+    const SourceSurface::Axis& north = row_axes[size_t(hi - 1)];
     if (south.in && north.in && std::abs(south.i - north.i) < kWindowSize) {
       cache_r0 = std::min(south.i, north.i) - 1;
       cache_rows = std::abs(south.i - north.i) + 4;
@@ -119,10 +119,10 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
   };
   // Zero ground (the sea of SRTM tiles, 91-99 % of the shared ones): when the source around the
   // window holds only zeros, a mapped row whose every point reads its 16 taps there is +0
-  // throughout (Surface::zero_bounds) and skips the sums. The bounds come from the first and last
+  // throughout (SourceSurface::zero_bounds) and skips the sums. The bounds come from the first and last
   // rows' extent with two samples to spare; each row checks its own points against them, so the
   // bits are those of sample_points() whatever the mapping does in between.
-  Surface::ZeroBounds zero;
+  SourceSurface::ZeroBounds zero;
   // The first row is mapped last here, and the row loop takes its points as they are.
   bool first_row_mapped = false;
   if (!shared_columns && hi > lo) {
@@ -168,7 +168,7 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
                                   row_ok.data() + lo);
       }
     }
-    const Surface::Axis& row_axis = row_axes[size_t(j)];
+    const SourceSurface::Axis& row_axis = row_axes[size_t(j)];
     const double* source_rows[4] = {};
     const bool use_cache = cache_rows > 0 && ctx.surface.y_interior(row_axis);
     if (use_cache)

@@ -24,7 +24,7 @@ struct CookContext {
   const SampleWindow* window = nullptr;
   int source_width = 0, source_height = 0;  // the whole source (mosaic), in samples
   const SourceMapping* mapping = nullptr;
-  Surface surface;
+  SourceSurface surface;
   double origin_x = 0, origin_y = 0;
   std::array<uint8_t, kLevelCount> step_log2{};
   // Overview levels (SPEC 19): their step when it is coarser than the roots' (every vertex on the

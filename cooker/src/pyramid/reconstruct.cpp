@@ -11,7 +11,7 @@ namespace {
 
 constexpr int kRun = 64;  // points per pass of sample_points (its scratch lives on the stack)
 
-// The Axis of every point of a run, as Surface::axis() computes it (same operations; the floor
+// The Axis of every point of a run, as SourceSurface::axis() computes it (same operations; the floor
 // goes through int32, exact for the coordinates inside the raster's band, |x| < size + 2), in
 // structure-of-arrays form. AVX2 only widens the lanes: no FMA, so the bits are the baseline's.
 struct RunAxes {
@@ -88,7 +88,7 @@ TERRAIN_AVX2_CLONES void interior_sums(const RunAxes& a, int m, const float* z, 
   int cell_c = -1 << 30, cell_r = -1 << 30;
   for (int k = 0; k < m; ++k) {
     const int ic = a.i[0][k], ir = a.i[1][k];
-    if (!a.in[k] || !(Surface::taps_inside(ic, width) && Surface::taps_inside(ir, height))) {
+    if (!a.in[k] || !(SourceSurface::taps_inside(ic, width) && SourceSurface::taps_inside(ir, height))) {
       done[k] = 2;
       continue;
     }
@@ -121,7 +121,7 @@ TERRAIN_AVX2_CLONES void interior_sums(const RunAxes& a, int m, const float* z, 
 
 }  // namespace
 
-void Surface::sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const {
+void SourceSurface::sample_points(const double* cols, const double* rows, int n, double* h, uint8_t* ok) const {
   RunAxes a;
   uint8_t done[kRun];
   for (int k0 = 0; k0 < n; k0 += kRun) {
@@ -149,7 +149,7 @@ void Surface::sample_points(const double* cols, const double* rows, int n, doubl
   }
 }
 
-bool Surface::zeros_in(int c0, int r0, int c1, int r1) const {
+bool SourceSurface::zeros_in(int c0, int r0, int c1, int r1) const {
   if (c0 < std::max(0, c0_) || r0 < std::max(0, r0_) || c1 >= std::min(w_, c0_ + int(stride_)) ||
       r1 >= std::min(h_, r0_ + rows_) || c1 < c0 || r1 < r0)
     return false;
@@ -162,7 +162,7 @@ bool Surface::zeros_in(int c0, int r0, int c1, int r1) const {
   return true;
 }
 
-Surface::ZeroBounds Surface::zero_bounds(double cmin, double cmax, double rmin, double rmax, int spare) const {
+SourceSurface::ZeroBounds SourceSurface::zero_bounds(double cmin, double cmax, double rmin, double rmax, int spare) const {
   ZeroBounds b;
   constexpr double kFar = 1e9;  // beyond any raster (and NaN): no bounds
   if (!(cmin > -kFar && cmax < kFar && rmin > -kFar && rmax < kFar && cmin <= cmax && rmin <= rmax)) return b;
@@ -177,7 +177,7 @@ Surface::ZeroBounds Surface::zero_bounds(double cmin, double cmax, double rmin, 
   return b;
 }
 
-bool Surface::sample_general(const Axis& x, const Axis& y, double& h) const {
+bool SourceSurface::sample_general(const Axis& x, const Axis& y, double& h) const {
   const int ic = x.i, ir = y.i;
   const double tx = x.t, ty = y.t;
   const double* wx = x.w;

@@ -44,21 +44,21 @@ inline double continued_difference(double outer, double inner) {
   return outer > limit ? limit : outer < -limit ? -limit : outer;  // NaN limit: both false
 }
 
-class Surface {
+class SourceSurface {
  public:
-  Surface() = default;
+  SourceSurface() = default;
   // The whole raster in memory.
-  explicit Surface(const Raster& r)
+  explicit SourceSurface(const Raster& r)
       : z_(r.values.data()), stride_(r.width), rows_(r.height), w_(r.width), h_(r.height) {}
   // A window of the source (block-wise cook): sample coordinates stay the whole source's, and every
   // evaluation that reads only samples inside the window gives the bits the whole raster gives.
-  explicit Surface(const SampleWindow& win)
+  explicit SourceSurface(const SampleWindow& win)
       : z_(win.values.data()), c0_(win.rect.c0), r0_(win.rect.r0), stride_(win.rect.width()), rows_(win.rect.height()),
         w_(win.source_width), h_(win.source_height) {}
   // Keeps the outer apron, replaces the samples.
   void set_samples(const SampleWindow& win) {
     const double ac = apron_c_, ar = apron_r_;
-    *this = Surface(win);
+    *this = SourceSurface(win);
     apron_c_ = ac;
     apron_r_ = ar;
   }
