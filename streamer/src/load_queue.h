@@ -21,8 +21,8 @@ class LoadQueue {
   struct Result {
     uint32_t node = 0;
     NodeData* data = nullptr;  // owned by the pool; give back with free_buffer()
-    // The node's surface for queries (when the sections hold heights), made here so that the
-    // owner's update() only links it in: ~40 us per node, 5 ms for a frame of 128 deliveries.
+    // The node's surface for queries (when the sections hold heights), made here on the worker so
+    // that the owner's update() only links it in (streamer/README.md gives the cost it moves).
     std::shared_ptr<const NodeSurface> surface;
     Status status;
     uint64_t bytes_read = 0;

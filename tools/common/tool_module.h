@@ -1,6 +1,6 @@
 // Modules the command-line tools load on first use instead of linking: a library such as
-// OpenImageIO maps ~150 shared libraries into a process (~0.4 s of CPU per start), which a tool
-// pays on every run even when it never reads or writes an image. A module sits next to the
+// OpenImageIO maps some 150 shared libraries into a process, whose start-up a tool would pay on
+// every run even when it never reads or writes an image (cooker/README.md, "Figures behind the code"). A module sits next to the
 // executable in the build tree and in <libdir>/terrain once installed.
 #pragma once
 #include <string>
