@@ -54,7 +54,42 @@ assert blocks["window_samples_max"] < 24000 * 24000 // 4, blocks
 import os
 if not os.environ.get("TERRAIN_SANITIZE"):
     assert peak < 700 << 20, peak                    # 512 MB budget plus the process's own code and libraries
-assert r["output"]["nodes"] == 12 * 13, r["output"]   # flat: the 12 x 13 roots over 24 km (grid origin at multiples of 2048 m), nothing finer
+# Flat ground refines only where the edge rule asks (cooker/README.md, "What gets cooked"): the
+# lattice's phase puts the samples (centres 500000.5 .. 523999.5, 1 m) on the vertices, so at a
+# level of spacing d > 1 m the last samples of the east and north edges lie beyond the last vertex
+# that has a sample nearest (a hole vertex follows) and are drawn by no triangle; nodes holding such
+# samples refine, down to level 1, where every sample is a vertex. The model restates those rules
+# over the grid relative to the origin (samples x 288 .. 24287, y 1408 .. 25407; west and south
+# edges fall on vertices of every level up to 16 m), independently of the cooker's code.
+import math
+def model(x0, x1, y0, y1, roots):
+    nodes = [(X, Y) for X in range(roots[0]) for Y in range(roots[1])]
+    counts = [0] * 6
+    counts[5] = len(nodes)
+    for L in range(5, 0, -1):
+        d = 0.5 * 2 ** L; S = 128 * d
+        xs, ys = (math.floor(x1 / d) * d, x1), (math.floor(y1 / d) * d, y1)  # uncovered strips (a, b]
+        def strip(lo, hi, a, b): return a < b and b >= lo and a < hi
+        def meets(lo, hi, a, b): return b >= lo and a <= hi
+        kids = []
+        for X, Y in nodes:
+            xl, yl = X * S, Y * S
+            if d > 0.5 and ((strip(xl, xl + S, *xs) and meets(yl, yl + S, y0, y1)) or
+                            (strip(yl, yl + S, *ys) and meets(xl, xl + S, x0, x1))):
+                h = S / 2
+                for c in range(4):
+                    cx, cy = 2 * X + (c & 1), 2 * Y + (c >> 1)
+                    if meets(cx * h, cx * h + h, x0 - 0.5, x1 + 0.5) and meets(cy * h, cy * h + h, y0 - 0.5, y1 + 0.5):
+                        kids.append((cx, cy))
+        nodes = kids
+        counts[L - 1] = len(kids)
+    return counts
+assert r["frame"]["origin_m"] == [499712.5, 4974592.5], r["frame"]   # 2048 m multiples plus the samples' phase
+assert r["frame"]["roots"] == [12, 13], r["frame"]
+expected = model(288, 24287, 1408, 25407, (12, 13))
+got = [l["nodes"] for l in r["levels"]]
+assert got == expected, (got, expected)
+assert expected[0] == 0 and expected[5] == 12 * 13, expected
 PY
     ;;
   patched_header)

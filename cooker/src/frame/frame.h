@@ -106,6 +106,14 @@ class SourceMapping {
   // Affine without rotation: a vertex's sample column depends on its frame x only and its sample
   // row on y only (exactly: the cross terms are zero), so rows and columns of vertices share them.
   bool axis_aligned() const { return affine_ && affine_map_.inv[2] == 0.0 && affine_map_.inv[4] == 0.0; }
+  // Axis-aligned only: the frame position of sample (0, 0) and the frame steps from one sample to
+  // the next along a row and a column (signed: rows usually run south).
+  void sample_grid(double& x00, double& y00, double& step_x, double& step_y) const {
+    x00 = affine_map_.c[0];
+    y00 = affine_map_.c[3];
+    step_x = affine_map_.c[1];
+    step_y = affine_map_.c[5];
+  }
   // Frame bounding box of the sample rectangle [c0 - m, c1 + m] x [r0 - m, r1 + m].
   void frame_bounds(int c0, int r0, int c1, int r1, double m, double& x0, double& y0, double& x1, double& y1) const;
   // Source sample spacing in frame metres at the raster centre (x, y).

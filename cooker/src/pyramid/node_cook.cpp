@@ -285,6 +285,33 @@ typedef float V4f __attribute__((vector_size(16)));
 std::atomic<bool> dense_rows_enabled{true};
 std::atomic<uint64_t> dense_rows_measured{0};
 
+// A sample that lies exactly on a vertex (fu and fv each 0 or 1) whose own triangle is a hole is
+// still on the drawn surface when any of the six triangles around that vertex is drawn (quads are
+// split along the south-west to north-east diagonal); the surface there is the vertex's height.
+// This is what lets data whose samples are vertices (1 m lidar at level 1) stop refining at its
+// edges. (i, j): the vertex, node coordinates; its neighbours lie in the window's margin.
+struct VertexCover {
+  const NodeWindow* w;
+  bool hole(int i, int j) const {
+    return w->hole[size_t(j + kWindowMargin) * kWindowSize + size_t(i + kWindowMargin)] != 0;
+  }
+  // NaN when no triangle around vertex (i, j) is drawn.
+  double height_if_drawn(int i, int j) const {
+    if (hole(i, j)) return NAN;
+    const bool e = !hole(i + 1, j), n = !hole(i, j + 1), ne = !hole(i + 1, j + 1);
+    const bool w_ = !hole(i - 1, j), s = !hole(i, j - 1), sw = !hole(i - 1, j - 1);
+    const bool drawn = (e && ne) || (n && ne) || (w_ && n) || (s && e) || (sw && s) || (sw && w_);
+    return drawn ? double(w->units[size_t(j + kWindowMargin) * kWindowSize + size_t(i + kWindowMargin)]) * kHeightUnitM
+                 : double(NAN);
+  }
+  // The sample at fraction (fu, fv) of quad (i, j): its vertex's height when it is on a vertex
+  // around which a triangle is drawn, else NaN.
+  double on_vertex(int i, int j, double fu, double fv) const {
+    if (!((fu == 0.0 || fu == 1.0) && (fv == 0.0 || fv == 1.0))) return NAN;
+    return height_if_drawn(i + (fu == 1.0), j + (fv == 1.0));
+  }
+};
+
 // measure_error's rows where the source is denser than the node's vertices and the frame's axes
 // are the source's: every sample of a row has the row's frame y, and per column the quad and its
 // fraction are column_quad and column_fu (count + 4 elements: 4 past the last column are read and
@@ -295,7 +322,8 @@ std::atomic<uint64_t> dense_rows_measured{0};
 // rms may differ from a sample-by-sample sum in its last bits.
 TERRAIN_AVX2_CLONES void measure_dense_level_rows(const CookContext& ctx, const SampleWindow& src, int r0, int r1, int c0,
                                                   int c1, double y0, double inv_s, const double* hv,
-                                                  const int* column_quad, const double* column_fu, NodeError& out) {
+                                                  const int* column_quad, const double* column_fu,
+                                                  const VertexCover& cover, NodeError& out) {
   const int count = c1 - c0 + 1;
   const bool any_filled = !src.filled.empty();
   const V4d zero = {0, 0, 0, 0};
@@ -373,7 +401,19 @@ TERRAIN_AVX2_CLONES void measure_dense_level_rows(const CookContext& ctx, const 
         q.max_m = (measured & (e > q.max_m)) ? e : q.max_m;
         q.sum_sq += measured ? e * e : zero;
         q.samples -= measured;
-        q.uncovered -= valid & ~ok;
+        const V4l missed = valid & ~ok;
+        for (int k = 0; k < 4; ++k) {
+          if (!missed[k]) continue;
+          const double hv_k = cover.on_vertex(i, j, fu[k], fv);
+          if (std::isnan(hv_k)) {
+            ++q.uncovered[k];
+            continue;
+          }
+          const double ek = std::fabs(hv_k - z[k]);
+          if (ek > q.max_m[k]) q.max_m[k] = ek;
+          q.sum_sq[k] += ek * ek;
+          ++q.samples[k];
+        }
       }
     }
   }
@@ -427,6 +467,7 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
   fys.resize(size_t(c1 - c0 + 1));
   const bool any_filled = !src.filled.empty();
   const bool level_rows = ctx.mapping->axis_aligned();
+  const VertexCover cover{&w};
   // Axis-aligned: every row has the same frame x per column too (bitwise), so each column's u, quad
   // column and fraction are computed once per node (column_quad < 0: outside the node).
   thread_local std::vector<double> column_fu;
@@ -507,7 +548,11 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
           }
           const bool se = fu >= fv;
           if (!(se ? se_ok : nw_ok)) {
-            ++acc.uncovered;
+            const double hv_k = cover.on_vertex(i, j, fu, fv);
+            if (std::isnan(hv_k))
+              ++acc.uncovered;
+            else
+              record(std::fabs(hv_k - double(z)));
             continue;
           }
           const double h = se ? h00 + fu * d_se + t_se : t_nw + fu * d_nw;
@@ -529,7 +574,11 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
         // Quads split along the south-west to north-east diagonal (format/SPEC.md "Surface").
         const double h00 = at(i, j), h11 = at(i + 1, j + 1), hc = fu >= fv ? at(i + 1, j) : at(i, j + 1);
         if (std::isnan(h00) || std::isnan(h11) || std::isnan(hc)) {
-          ++acc.uncovered;
+          const double hv_k = cover.on_vertex(i, j, fu, fv);
+          if (std::isnan(hv_k))
+            ++acc.uncovered;
+          else
+            record(std::fabs(hv_k - double(z)));
           continue;
         }
         const double h = fu >= fv ? h00 + fu * (hc - h00) + fv * (h11 - hc) : h00 + fv * (hc - h00) + fu * (h11 - hc);
@@ -539,7 +588,8 @@ void measure_error(const CookContext& ctx, const NodeKey& key, const NodeWindow&
     }
   };
   if (dense && level_rows && dense_rows_enabled.load(std::memory_order_relaxed))
-    measure_dense_level_rows(ctx, src, r0, r1, c0, c1, y0, inv_s, hv.data(), column_quad.data(), column_fu.data(), out);
+    measure_dense_level_rows(ctx, src, r0, r1, c0, c1, y0, inv_s, hv.data(), column_quad.data(), column_fu.data(), cover,
+                             out);
   else if (dense)
     measure_rows([&](int i, int j) { return hv[size_t(j) * kHeightSamples + size_t(i)]; });
   else

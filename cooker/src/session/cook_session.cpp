@@ -35,6 +35,20 @@ int finest_level_for(double source_spacing_m) {
   return kRootLevel;
 }
 
+// The vertex lattice's phase along one axis (cooker/README.md, "Lattice phase"): the offset in
+// [0, spacing) of the source's samples from the frame's multiples of their spacing. The origin is
+// that offset plus a multiple of the root size, so a sample is a vertex of every level whose
+// spacing divides the samples' (1 m lidar: every sample is a level-1 vertex, and level 1 reproduces
+// the samples up to the height step), and cooks of neighbouring tiles of one product share the
+// root grid. 0 where the samples do not lie on lines of the frame's axes (another CRS, rotation).
+double lattice_phase(double sample0, double spacing) {
+  const double s = std::abs(spacing);
+  if (!(s > 0) || !std::isfinite(sample0)) return 0.0;
+  double p = std::fmod(sample0, s);  // exact
+  if (p < 0) p += s;
+  return p < s ? p : 0.0;
+}
+
 // Nodes stop refining at the finest level allowed, even where the error still exceeds the
 // tolerance (coarse sources: Catmull-Rom between 30-100 m samples is not met by bilinear vertices).
 std::string unmet_tolerance_warning(const CookReport& r) {
@@ -259,8 +273,15 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   ctx.source_width = header.width;
   ctx.source_height = header.height;
   ctx.mapping = &s.mapping;
-  ctx.origin_x = std::floor(fx0 / kRootSizeM) * kRootSizeM;
-  ctx.origin_y = std::floor(fy0 / kRootSizeM) * kRootSizeM;
+  double phase_x = 0, phase_y = 0;
+  if (s.mapping.axis_aligned()) {
+    double x00 = 0, y00 = 0, step_x = 0, step_y = 0;
+    s.mapping.sample_grid(x00, y00, step_x, step_y);
+    phase_x = lattice_phase(x00, step_x);
+    phase_y = lattice_phase(y00, step_y);
+  }
+  ctx.origin_x = std::floor((fx0 - phase_x) / kRootSizeM) * kRootSizeM + phase_x;
+  ctx.origin_y = std::floor((fy0 - phase_y) / kRootSizeM) * kRootSizeM + phase_y;
   const double roots_x = std::ceil((fx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((fy1 - ctx.origin_y) / kRootSizeM);
   if (roots_x * roots_y > 1e7)
     return Status::failure(Error::unsupported_input,
