@@ -7,9 +7,18 @@
 // Each cook runs terrain-cook (next to this program) as a child process, so peak memory is the
 // child's own (wait4 ru_maxrss) and the numbers are those a user sees.
 //
-// --scale: cooks 1 m lidar-like squares of --sizes km (made by make_lidar_like.py from a real DEM)
-// with default flags (the bounded-memory, block-wise cook) and, for --baseline-sizes, in-core (one
-// block) side by side; prints peak memory, time and throughput per size and the issue-13 targets.
+// --scale: cooks squares of --sizes km of real lidar (mirror mosaics of one shared lidar tile, made
+// by make_mirror_mosaic.py in the build tree: --lidar slovenia (1 m, the default), tahoe_bare or
+// tahoe_highest (0.5 m, warped to UTM first), or --source FILE) with default flags (the
+// bounded-memory, block-wise cook) and, for --baseline-sizes, in-core (one block) side by side;
+// prints peak memory, time and throughput per size and the issue-13 targets. Every row also gives
+// nodes per km2 and archive bytes per valid source sample, beside those of the real tile cooked
+// alone with the same flags (the reference row), so that a reader can check the squares cook like
+// the real data. --lidar lidar_like keeps the old, smoother squares (make_lidar_like.py: Kilauea
+// 30 m upsampled plus value noise) for comparison with earlier measurements.
+//
+// --units: plan + units + merge against the one-process cook of the --units-km square of --scale
+// (made when missing) or of --units-dem, with the same two statistics and the reference row.
 //
 // --chart FILE.svg: the sweep's cook time and archive size against tolerance and measured error,
 // one series per DEM (bench_chart.h); with --scale, the scale chart.
@@ -240,19 +249,42 @@ bool same_bytes(const std::string& a, const std::string& b) {
   return fa.eof() && fb.eof();
 }
 
+// What a cook's report says about how the data cooks: nodes and archive bytes against the valid
+// source samples and the ground they cover (valid samples x spacing^2). Generated squares must give
+// figures close to those of the real tile they are made of before anything measured on them is quoted.
+struct DataStats {
+  uint64_t nodes = 0, archive_bytes = 0, valid_samples = 0;
+  double spacing_m = 0;  // the report's source spacing (frame metres)
+  double area_km2() const { return double(valid_samples) * spacing_m * spacing_m / 1e6; }
+  double nodes_per_km2() const { return area_km2() > 0 ? double(nodes) / area_km2() : NAN; }
+  double bytes_per_sample() const { return valid_samples ? double(archive_bytes) / double(valid_samples) : NAN; }
+};
+
+DataStats data_stats(const nlohmann::json& report) {
+  DataStats d;
+  d.nodes = report["output"]["nodes"];
+  d.archive_bytes = report["output"]["archive_bytes"];
+  if (report.contains("source")) {
+    d.valid_samples = report["source"].value("valid_samples", uint64_t(0));
+    d.spacing_m = report["source"].value("spacing_m", 0.0);
+  }
+  return d;
+}
+
 struct ScaleRow {
   std::string mode;  // "blocks" (default flags) or "in-core" (one block, large budget)
   int km = 0;
-  uint64_t samples = 0;
+  uint64_t samples = 0;  // of the square: estimated before the cook, the report's valid samples after
   std::string status = "ok";  // or why the row was skipped / failed
   double gen_s = NAN, wall_s = NAN, cpu_s = NAN, rss_bytes = NAN;
-  uint64_t nodes = 0, archive_bytes = 0, report_peak_rss_bytes = 0, memory_limit_bytes = 0;
+  DataStats data;
+  uint64_t report_peak_rss_bytes = 0, memory_limit_bytes = 0;
   int64_t blocks = -1, block_roots = -1;  // -1: the report has no "blocks" (a cooker before issue 13)
   uint64_t window_samples_max = 0, spool_bytes = 0;
   std::string vs_in_core = "-";  // blocks rows: "same bytes" / "DIFFERENT" against the in-core archive
   std::vector<double> wall_runs, cpu_runs, rss_runs;  // per run; the row holds their medians
   bool ok() const { return status == "ok"; }
-  double bytes_per_sample() const { return rss_bytes / double(samples); }
+  double rss_bytes_per_sample() const { return rss_bytes / double(samples); }
   double samples_per_cpu_s() const { return double(samples) / cpu_s; }
 };
 
@@ -272,8 +304,8 @@ bool scale_cook_once(ScaleRow& row, const std::string& tool, const std::string& 
     row.status = "failed: terrain-cook printed no JSON report";
     return false;
   }
-  row.nodes = j["output"]["nodes"];
-  row.archive_bytes = j["output"]["archive_bytes"];
+  row.data = data_stats(j);
+  if (row.data.valid_samples) row.samples = row.data.valid_samples;
   row.report_peak_rss_bytes = j.value("peak_rss_bytes", uint64_t(0));
   row.memory_limit_bytes = j.value("memory_limit_bytes", uint64_t(0));
   if (j.contains("blocks") && j["blocks"].is_object()) {
@@ -292,19 +324,82 @@ bool scale_cook_once(ScaleRow& row, const std::string& tool, const std::string& 
   return true;
 }
 
+// The real lidar tile the benchmark squares are made of (--lidar), and how they are made.
+struct Lidar {
+  std::string name;          // tables and file names: "slovenia", "tahoe_bare", ... or --source's stem
+  std::string file;          // the shared tile (or --source)
+  std::string tr_m;          // "": the tile is metric; else the spacing make_mirror_mosaic.py warps it to
+  bool lidar_like = false;   // squares from make_lidar_like.py (Kilauea upsampled), not mirrored from `file`
+};
+
+// The --lidar choices; nullopt for an unknown name.
+std::optional<Lidar> lidar_choice(const std::string& choice, const std::string& data) {
+  const std::string d = data + "/";
+  if (choice == "slovenia") return Lidar{"slovenia", d + "slovenia_TM1_564_146.tif", "", false};
+  if (choice == "tahoe_bare") return Lidar{"tahoe_bare", d + "tahoe_lidar_bareearth.tif", "0.5", false};
+  if (choice == "tahoe_highest") return Lidar{"tahoe_highest", d + "tahoe_lidar_highesthit.tif", "0.5", false};
+  // The reference of the lidar-like squares is the real 1 m lidar they stand in for.
+  if (choice == "lidar_like") return Lidar{"slovenia", d + "slovenia_TM1_564_146.tif", "", true};
+  return std::nullopt;
+}
+
 struct ScaleOptions {
   std::vector<int> sizes, baseline_sizes;  // km
   bool heights_only = false;
   int runs = 1;
   double tile_km = 0;  // > 0: each DEM is a VRT of tile_km x tile_km km GeoTIFF tiles
-  std::string work, source, python, script;
-  std::string chart;  // --chart: a copy of the scale chart
+  Lidar lidar;
+  std::string data;    // the shared DEMs (lidar_like: its Kilauea source)
+  std::string work, python;
+  std::string tile;    // the real tile in a metric CRS, in work (made by prepare_tile)
+  std::string chart;   // --chart: a copy of the scale chart
 };
+
+std::string script_path(const std::string& name) {
+  return std::string(terrain::bench_source_dir()) + "/cooker/bench/" + name;
+}
+
+// File stem of the generated squares: which data they hold.
+std::string square_stem(const ScaleOptions& o) {
+  return o.lidar.lidar_like ? std::string("lidar_like") : o.lidar.name + "_mirror";
+}
 
 // The generated DEM of one size: one tiled GeoTIFF, or a VRT of GeoTIFF tiles (--tile-km).
 std::string dem_path(const ScaleOptions& o, int km) {
-  return o.tile_km > 0 ? fmt::format("{}/lidar_like_{}km_tiles{:g}km.vrt", o.work, km, o.tile_km)
-                       : fmt::format("{}/lidar_like_{}km.tif", o.work, km);
+  return o.tile_km > 0 ? fmt::format("{}/{}_{}km_tiles{:g}km.vrt", o.work, square_stem(o), km, o.tile_km)
+                       : fmt::format("{}/{}_{}km.tif", o.work, square_stem(o), km);
+}
+
+// Copies the real tile into the work folder in a metric CRS (make_mirror_mosaic.py --grid 1x1
+// --metric: a geographic tile is warped to UTM at lidar.tr_m, or its own spacing, and cropped to its
+// data) unless present; "" or why not.
+std::string prepare_tile(ScaleOptions& o) {
+  o.tile = fmt::format("{}/{}_tile.tif", o.work, o.lidar.name);
+  if (std::filesystem::exists(o.tile)) return "";
+  std::vector<std::string> argv = {o.python, script_path("make_mirror_mosaic.py"), "--source", o.lidar.file, "--grid",
+                                   "1x1", "--metric", "--out", o.tile};
+  if (!o.lidar.tr_m.empty()) argv.insert(argv.end(), {"--tr", o.lidar.tr_m});
+  return run(argv).ok ? "" : fmt::format("{} make_mirror_mosaic.py could not copy {} to {}", o.python, o.lidar.file, o.tile);
+}
+
+// The real tile cooked alone with the benchmark's flags: the figures the squares should come close to.
+std::optional<DataStats> cook_reference(const std::string& tool, const ScaleOptions& o) {
+  const std::string archive = o.work + "/reference.terrain";
+  std::vector<std::string> argv = {tool, o.tile, "-o", archive, "--json"};
+  if (o.heights_only) argv.push_back("--heights-only");
+  const Run r = run(argv);
+  std::error_code ec;
+  std::filesystem::remove(archive, ec);
+  if (!r.ok) return std::nullopt;
+  const auto j = nlohmann::json::parse(r.out, nullptr, false);
+  if (j.is_discarded() || !j.contains("output")) return std::nullopt;
+  return data_stats(j);
+}
+
+std::string describe_reference(const ScaleOptions& o, const DataStats& ref) {
+  return fmt::format("{} tile ({}, {:.3g} km2, {} samples at {:.3g} m): {} nodes, {:.1f} nodes/km2, {:.3f} bytes/sample",
+                     o.lidar.name, o.tile, ref.area_km2(), ref.valid_samples, ref.spacing_m, ref.nodes,
+                     ref.nodes_per_km2(), ref.bytes_per_sample());
 }
 
 // Makes the DEM of one size unless present; "" or why not.
@@ -316,21 +411,30 @@ std::string ensure_dem(const ScaleOptions& o, const std::string& dem, uint64_t s
   const double disk_need = kGeneratedBytesPerSample * double(samples);
   if (disk_need > double(disk_free_bytes(o.work)))
     return fmt::format("skipped: generating the DEM needs ~{:.1f} GB of disk in {}", gb(disk_need), o.work);
-  std::vector<std::string> argv = {o.python, o.script, "--source", o.source, "--size-km", std::to_string(km),
-                                   "--out", dem};
+  const std::string script = script_path(o.lidar.lidar_like ? "make_lidar_like.py" : "make_mirror_mosaic.py");
+  const std::string source = o.lidar.lidar_like ? o.data + "/kilauea_utm5n.tif" : o.tile;
+  std::vector<std::string> argv = {o.python, script, "--source", source, "--size-km", std::to_string(km), "--out", dem};
   if (o.tile_km > 0) argv.insert(argv.end(), {"--tile-km", fmt::format("{:g}", o.tile_km)});
   const Run g = run(argv);
   gen_s = g.wall_s;
-  return g.ok ? "" : fmt::format("failed: {} {} could not make {}", o.python, o.script, dem);
+  return g.ok ? "" : fmt::format("failed: {} {} could not make {}", o.python, script, dem);
 }
 
 std::string count_or_dash(int64_t v) { return v < 0 ? "-" : std::to_string(v); }
 
+void print_scale_header() {
+  fmt::print("{:<8} {:>4} {:>13} {:>9} {:>8} {:>8} {:>8} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6} {:>6} {:>6}  {:<10}  {}\n",
+             "mode", "km", "samples", "peak_MiB", "rssB/smp", "wall_s", "cpu_s", "MS/cpu_s", "nodes", "nodes/km2",
+             "arcB/smp", "archive_B", "blocks", "roots", "gen_s", "vs_in-core", "status");
+}
+
 void print_scale_row(const ScaleRow& r) {
-  fmt::print("{:<8} {:>4} {:>13} {:>9.1f} {:>7.2f} {:>8.2f} {:>8.2f} {:>9.2f} {:>7} {:>12} {:>6} {:>6} {:>6.1f}  {:<10}  {}\n",
-             r.mode, r.km, r.samples, mib(r.rss_bytes), r.bytes_per_sample(), r.wall_s, r.cpu_s,
-             r.samples_per_cpu_s() / 1e6, r.nodes, r.archive_bytes, count_or_dash(r.blocks),
-             count_or_dash(r.block_roots), r.gen_s, r.vs_in_core, r.status);
+  fmt::print("{:<8} {:>4} {:>13} {:>9.1f} {:>8.2f} {:>8.2f} {:>8.2f} {:>9.2f} {:>7} {:>9.1f} {:>8.3f} {:>12} {:>6} {:>6} "
+             "{:>6.1f}  {:<10}  {}\n",
+             r.mode, r.km, r.samples, mib(r.rss_bytes), r.rss_bytes_per_sample(), r.wall_s, r.cpu_s,
+             r.samples_per_cpu_s() / 1e6, r.data.nodes, r.data.nodes_per_km2(), r.data.bytes_per_sample(),
+             r.data.archive_bytes, count_or_dash(r.blocks), count_or_dash(r.block_roots), r.gen_s, r.vs_in_core,
+             r.status);
   std::fflush(stdout);
 }
 
@@ -452,41 +556,80 @@ terrain::chart::Chart scale_chart(const std::vector<ScaleRow>& rows, const std::
   return c;
 }
 
-int scale_main(const std::string& tool, const std::filesystem::path& self, ScaleOptions o) {
-  if (o.work.empty()) o.work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
-  if (o.script.empty()) o.script = std::string(terrain::bench_source_dir()) + "/cooker/bench/make_lidar_like.py";
+// The work folder, the real tile in it and the tile cooked alone (the reference row of --scale and
+// --units); nullopt after printing why not.
+std::optional<DataStats> prepare_reference(const std::string& tool, ScaleOptions& o) {
+  std::error_code ec;
+  if (!std::filesystem::exists(o.lidar.file)) {
+    fmt::print(stderr, "terrain-cook-bench: lidar tile {} not found (--lidar, --source or --data)\n", o.lidar.file);
+    return std::nullopt;
+  }
+  std::filesystem::create_directories(o.work, ec);
+  if (ec) {
+    fmt::print(stderr, "terrain-cook-bench: cannot create --work {}: {}\n", o.work, ec.message());
+    return std::nullopt;
+  }
+  if (const std::string why = prepare_tile(o); !why.empty()) {
+    fmt::print(stderr, "terrain-cook-bench: {}\n", why);
+    return std::nullopt;
+  }
+  const auto ref = cook_reference(tool, o);
+  if (!ref || !ref->valid_samples) {
+    fmt::print(stderr, "terrain-cook-bench: terrain-cook failed on the reference tile {}\n", o.tile);
+    return std::nullopt;
+  }
+  return ref;
+}
+
+void print_reference(const ScaleOptions& o, const DataStats& ref) {
+  fmt::print("reference, the real tile cooked alone ({}): {}\n", o.heights_only ? "--heights-only" : "default flags",
+             describe_reference(o, ref));
+}
+
+// How the squares are made, for the table's heading.
+std::string describe_squares(const ScaleOptions& o) {
+  const std::string form = o.tile_km > 0 ? fmt::format("VRT of {:g} km GeoTIFF tiles", o.tile_km) : "one GeoTIFF";
+  if (o.lidar.lidar_like)
+    return fmt::format("1 m lidar-like squares (make_lidar_like.py: {}/kilauea_utm5n.tif upsampled plus value noise; "
+                       "{})", o.data, form);
+  return fmt::format("squares mirrored from the {} lidar tile (make_mirror_mosaic.py of {}; {})", o.lidar.name, o.tile,
+                     form);
+}
+
+// Beside each size: its nodes per km2 and bytes per sample over the reference tile's.
+void print_likeness(const std::vector<ScaleRow>& rows, const DataStats& ref) {
+  std::vector<std::string> sizes;
+  for (const ScaleRow& r : rows)
+    if (r.mode == "blocks" && r.ok())
+      sizes.push_back(fmt::format("{} km {:.2f}x, {:.2f}x", r.km, r.data.nodes_per_km2() / ref.nodes_per_km2(),
+                                  r.data.bytes_per_sample() / ref.bytes_per_sample()));
+  fmt::print("\nLike the real tile? nodes/km2 and archive bytes per source sample over the reference's ({:.1f}, "
+             "{:.3f}): {}\n",
+             ref.nodes_per_km2(), ref.bytes_per_sample(), fmt::join(sizes, "; "));
+}
+
+int scale_main(const std::string& tool, const ScaleOptions& o, const DataStats& ref) {
   const std::string& work = o.work;
-  const std::string& source = o.source;
   const bool heights_only = o.heights_only;
   const int runs = o.runs;
   std::error_code ec;
-  std::filesystem::create_directories(work, ec);
-  if (ec) {
-    fmt::print(stderr, "terrain-cook-bench: cannot create --work {}: {}\n", work, ec.message());
-    return 1;
-  }
-  if (!std::filesystem::exists(source)) {
-    fmt::print(stderr, "terrain-cook-bench: source DEM {} not found (--source, or --data)\n", source);
-    return 1;
-  }
   const std::string mode = heights_only ? "heights-only" : "full";
   const std::vector<std::string> common = heights_only ? std::vector<std::string>{"--heights-only"}
                                                        : std::vector<std::string>{};
   std::vector<std::string> in_core = common;
   in_core.insert(in_core.end(), {"--block-roots", kInCoreBlockRoots, "--memory-limit", kInCoreMemoryLimit});
-  const std::string dem_form = o.tile_km > 0 ? fmt::format("VRT of {:g} km GeoTIFF tiles", o.tile_km) : "GeoTIFF";
-  fmt::print("terrain-cook-bench --scale: {} cooks of 1 m lidar-like squares ({}) from {}, work {}, median of {} "
-             "run{}\n",
-             mode, dem_form, source, work, runs, runs == 1 ? "" : "s");
+  fmt::print("terrain-cook-bench --scale: {} cooks of {}, work {}, median of {} run{}\n", mode, describe_squares(o),
+             work, runs, runs == 1 ? "" : "s");
   fmt::print("blocks: default flags{}; in-core: the same plus --block-roots {} --memory-limit {} (one block: "
              "the whole source in memory), skipped when its estimated peak (max({} B/sample, measured so far) x "
              "samples) exceeds {:.0f}% of MemAvailable. vs_in-core: the blocks archive compared byte for byte "
-             "with the in-core one.\n\n",
+             "with the in-core one. rssB/smp: peak RSS per source sample; nodes/km2 and arcB/smp (archive bytes "
+             "per valid source sample) against the reference row below.\n",
              heights_only ? " + --heights-only" : "", kInCoreBlockRoots, kInCoreMemoryLimit,
              kAssumedInCoreBytesPerSample, 100 * kUsableMemoryFraction);
-  fmt::print("{:<8} {:>4} {:>13} {:>9} {:>7} {:>8} {:>8} {:>9} {:>7} {:>12} {:>6} {:>6} {:>6}  {:<10}  {}\n", "mode",
-             "km", "samples", "peak_MiB", "B/samp", "wall_s", "cpu_s", "MS/cpu_s", "nodes", "archive_B", "blocks",
-             "roots", "gen_s", "vs_in-core", "status");
+  print_reference(o, ref);
+  fmt::print("\n");
+  print_scale_header();
   std::vector<ScaleRow> rows;
   double in_core_bps = 0;  // largest in-core bytes per sample measured so far
   bool different = false;
@@ -494,13 +637,15 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
     ScaleRow b;
     b.mode = "blocks";
     b.km = km;
-    b.samples = uint64_t(km) * 1000 * uint64_t(km) * 1000;
+    const double spacing = o.lidar.lidar_like ? 1.0 : ref.spacing_m;
+    const uint64_t side = uint64_t(std::llround(km * 1000.0 / spacing));
+    b.samples = side * side;  // the report's valid samples once cooked
     const std::string dem = dem_path(o, km);
     const std::string why = ensure_dem(o, dem, b.samples, km, b.gen_s);
     const bool have_dem = why.empty();
     if (!have_dem) b.status = why;
-    const std::string blocks_archive = fmt::format("{}/lidar_like_{}km.blocks.terrain", work, km);
-    const std::string in_core_archive = fmt::format("{}/lidar_like_{}km.in-core.terrain", work, km);
+    const std::string blocks_archive = fmt::format("{}/{}_{}km.blocks.terrain", work, square_stem(o), km);
+    const std::string in_core_archive = fmt::format("{}/{}_{}km.in-core.terrain", work, square_stem(o), km);
     const bool want_in_core =
         std::find(o.baseline_sizes.begin(), o.baseline_sizes.end(), km) != o.baseline_sizes.end();
     ScaleRow i;
@@ -523,7 +668,7 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
     }
     if (!want_in_core || !b.ok()) print_scale_row(b);  // else printed with the comparison below
     if (want_in_core) {
-      if (i.ok()) in_core_bps = std::max(in_core_bps, i.bytes_per_sample());
+      if (i.ok()) in_core_bps = std::max(in_core_bps, i.rss_bytes_per_sample());
       if (b.ok() && i.ok()) {
         b.vs_in_core = same_bytes(blocks_archive, in_core_archive) ? "same bytes" : "DIFFERENT";
         different |= b.vs_in_core == "DIFFERENT";
@@ -539,36 +684,50 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
     std::filesystem::remove(in_core_archive, ec);
   }
 
+  print_likeness(rows, ref);
   const std::vector<TargetCheck> checks = scale_targets(rows);
   fmt::print("\nTargets (issue 13):\n");
   for (const TargetCheck& c : checks) fmt::print("  {:<4}  {}: {}\n", c.verdict, c.name, c.detail);
 
   // The table next to the DEMs, one set of files per mode (heights-only and full runs do not overwrite each other).
-  const std::string stem = fmt::format("{}/scale-{}", work, mode);
+  const std::string stem =
+      fmt::format("{}/scale-{}-{}", work, o.lidar.lidar_like ? std::string("lidar_like") : o.lidar.name, mode);
   nlohmann::json js = nlohmann::json::array();
   std::ofstream csv(stem + ".csv");
   csv << "mode,size_km,samples,peak_rss_bytes,bytes_per_sample,wall_s,cpu_s,samples_per_cpu_s,nodes,archive_bytes,"
-         "blocks,block_roots,window_samples_max,spool_bytes,gen_s,vs_in_core,status\n";
+         "blocks,block_roots,window_samples_max,spool_bytes,gen_s,vs_in_core,status,nodes_per_km2,"
+         "archive_bytes_per_source_sample\n";
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   auto opt = [](int64_t v) { return v < 0 ? nlohmann::json(nullptr) : nlohmann::json(v); };
   for (const ScaleRow& r : rows) {
     js.push_back({{"mode", r.mode}, {"size_km", r.km}, {"samples", r.samples}, {"peak_rss_bytes", num(r.rss_bytes)},
                   {"report_peak_rss_bytes", r.report_peak_rss_bytes}, {"memory_limit_bytes", r.memory_limit_bytes},
-                  {"bytes_per_sample", num(r.bytes_per_sample())}, {"wall_s", num(r.wall_s)}, {"cpu_s", num(r.cpu_s)},
-                  {"samples_per_cpu_s", num(r.samples_per_cpu_s())}, {"nodes", r.nodes},
-                  {"archive_bytes", r.archive_bytes}, {"blocks", opt(r.blocks)}, {"block_roots", opt(r.block_roots)},
+                  {"bytes_per_sample", num(r.rss_bytes_per_sample())}, {"wall_s", num(r.wall_s)},
+                  {"cpu_s", num(r.cpu_s)}, {"samples_per_cpu_s", num(r.samples_per_cpu_s())}, {"nodes", r.data.nodes},
+                  {"nodes_per_km2", num(r.data.nodes_per_km2())},
+                  {"archive_bytes_per_source_sample", num(r.data.bytes_per_sample())},
+                  {"archive_bytes", r.data.archive_bytes}, {"blocks", opt(r.blocks)}, {"block_roots", opt(r.block_roots)},
                   {"window_samples_max", r.window_samples_max}, {"spool_bytes", r.spool_bytes},
                   {"gen_s", num(r.gen_s)}, {"vs_in_core", r.vs_in_core}, {"status", r.status}});
-    csv << fmt::format("{},{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.0f},{},{},{},{},{},{},{:.1f},{},\"{}\"\n", r.mode, r.km,
-                       r.samples, r.rss_bytes, r.bytes_per_sample(), r.wall_s, r.cpu_s, r.samples_per_cpu_s(),
-                       r.nodes, r.archive_bytes, count_or_dash(r.blocks), count_or_dash(r.block_roots),
-                       r.window_samples_max, r.spool_bytes, r.gen_s, r.vs_in_core, r.status);
+    csv << fmt::format("{},{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.0f},{},{},{},{},{},{},{:.1f},{},\"{}\",{:.2f},{:.4f}\n",
+                       r.mode, r.km, r.samples, r.rss_bytes, r.rss_bytes_per_sample(), r.wall_s, r.cpu_s,
+                       r.samples_per_cpu_s(), r.data.nodes, r.data.archive_bytes, count_or_dash(r.blocks),
+                       count_or_dash(r.block_roots), r.window_samples_max, r.spool_bytes, r.gen_s, r.vs_in_core,
+                       r.status, r.data.nodes_per_km2(), r.data.bytes_per_sample());
   }
   nlohmann::json targets = nlohmann::json::array();
   for (const TargetCheck& c : checks) targets.push_back({{"target", c.name}, {"verdict", c.verdict}, {"detail", c.detail}});
   std::ofstream(stem + ".json") << nlohmann::json{{"mode", mode},
-                                                  {"source", source},
-                                                  {"dem_form", dem_form},
+                                                  {"squares", describe_squares(o)},
+                                                  {"lidar", o.lidar.name},
+                                                  {"reference", {{"tile", o.tile},
+                                                                 {"nodes", ref.nodes},
+                                                                 {"archive_bytes", ref.archive_bytes},
+                                                                 {"valid_samples", ref.valid_samples},
+                                                                 {"spacing_m", ref.spacing_m},
+                                                                 {"nodes_per_km2", num(ref.nodes_per_km2())},
+                                                                 {"archive_bytes_per_source_sample",
+                                                                  num(ref.bytes_per_sample())}}},
                                                   {"runs", runs},
                                                   {"threads", std::thread::hardware_concurrency()},
                                                   {"in_core_flags", in_core},
@@ -577,7 +736,8 @@ int scale_main(const std::string& tool, const std::filesystem::path& self, Scale
                                        .dump(2)
                                 << "\n";
   const std::string chart_error = terrain::chart::write_svg(
-      scale_chart(rows, fmt::format("terrain-cook {} on 1 m lidar-like squares: blocks (default flags) vs in-core", mode)),
+      scale_chart(rows, fmt::format("terrain-cook {} on {} squares: blocks (default flags) vs in-core", mode,
+                                    o.lidar.lidar_like ? std::string("1 m lidar-like") : "mirrored " + o.lidar.name)),
       stem + ".svg");
   if (!chart_error.empty()) fmt::print(stderr, "terrain-cook-bench: {}\n", chart_error);
   if (!o.chart.empty()) {
@@ -664,12 +824,13 @@ struct UnitsRound {
   UnitsPass pass[2];                          // 1 and 2 workers
 };
 
-int units_main(const std::string& tool, const std::string& dem, uint32_t unit_roots, bool heights_only, int runs,
-               const std::string& work_root) {
+int units_main(const std::string& tool, const std::string& dem, uint32_t unit_roots, const ScaleOptions& o,
+               const DataStats& ref, int runs, const std::string& work_root) {
+  const bool heights_only = o.heights_only;
   std::error_code ec;
   std::filesystem::create_directories(work_root, ec);
   if (!std::filesystem::exists(dem)) {
-    fmt::print(stderr, "terrain-cook-bench --units: {} not found (make it with --scale --sizes 8)\n", dem);
+    fmt::print(stderr, "terrain-cook-bench --units: {} not found\n", dem);
     return 1;
   }
   std::vector<std::string> flags;
@@ -678,6 +839,7 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
              heights_only ? "heights only" : "full",
              unit_roots ? std::to_string(unit_roots) : std::string("the plan's default"), runs, runs == 1 ? "" : "s",
              work_root);
+  print_reference(o, ref);
   const std::string one = work_root + "/one.terrain";
   // A process start of terrain-cook (its shared libraries), which every unit and the merge pay:
   // the median of 3 runs of `terrain-cook merge --help`.
@@ -690,6 +852,7 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   std::vector<UnitsRound> rounds;
   int failures = 0;
   uint64_t bytes = 0;
+  DataStats data;  // of the one-process archive
   fmt::print("\n{:<6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7}\n", "round", "workers",
              "one cpu_s", "plan cpu", "units cpu", "merge s", "cp s", "dd sync s", "total cpu", "over %", "x cp",
              "x dd");
@@ -703,6 +866,7 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
     {
       std::ifstream in(work_root + "/one.json");
       const auto j = nlohmann::json::parse(in, nullptr, false);
+      if (!j.is_discarded() && j.contains("output")) data = data_stats(j);
       if (!j.is_discarded() && j.contains("time_s")) {
         round.first_pass_cpu = j["time_s"].value("cpu_first_pass", 0.0);
         round.blocks_cpu = j["time_s"].value("cpu_blocks", 0.0);
@@ -747,6 +911,10 @@ int units_main(const std::string& tool, const std::string& dem, uint32_t unit_ro
   fmt::print("\nArchive {:.1f} MB, {} units; process start-up (terrain-cook merge --help) {:.3f} s wall, {:.3f} s CPU; "
              "merge peak RSS {:.1f} MB\n",
              double(bytes) / 1e6, last.units, start.wall_s, start.cpu_s, double(last.merge.rss_bytes) / 1e6);
+  fmt::print("Like the real tile? The one-process archive: {} nodes, {:.1f} nodes/km2 ({:.2f}x the reference's "
+             "{:.1f}), {:.3f} bytes per source sample ({:.2f}x the reference's {:.3f})\n",
+             data.nodes, data.nodes_per_km2(), data.nodes_per_km2() / ref.nodes_per_km2(), ref.nodes_per_km2(),
+             data.bytes_per_sample(), data.bytes_per_sample() / ref.bytes_per_sample(), ref.bytes_per_sample());
   auto med = [&](auto f) {
     std::vector<double> v;
     for (const UnitsRound& r : rounds) v.push_back(f(r));
@@ -1092,7 +1260,10 @@ int main(int argc, char** argv) {
   app.add_option("--chart", chart,
                  "Also write an SVG chart: the sweep's cook time and archive size against tolerance and measured "
                  "error per DEM (with --scale: the scale chart)");
-  app.add_flag("--scale", scale, "Instead of the sweep: cook 1 m lidar-like squares of --sizes km, peak memory per size");
+  app.add_flag("--scale", scale,
+               "Instead of the sweep: cook squares of --sizes km mirrored from a real lidar tile (--lidar), peak "
+               "memory, throughput, nodes per km2 and archive bytes per source sample per size, beside the tile "
+               "cooked alone");
   app.add_option("--sizes", so.sizes, "--scale: square sides in km")->delimiter(',')->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_option("--baseline-sizes", so.baseline_sizes,
@@ -1100,23 +1271,38 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
-  app.add_flag("--heights-only", so.heights_only, "--scale: cook with --heights-only");
+  app.add_flag("--heights-only", so.heights_only, "--scale, --units: cook with --heights-only");
   app.add_option("--tile-km", so.tile_km,
-                 "--scale: generate each square as a VRT of K x K km GeoTIFF tiles, as national lidar comes "
+                 "--scale, --units: generate each square as a VRT of K x K km GeoTIFF tiles, as national lidar comes "
                  "(default 0: one tiled GeoTIFF)")
       ->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--work", so.work, "--scale: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
-  app.add_option("--source", so.source, "--scale: real DEM in a metric CRS to upsample (default: <data>/kilauea_utm5n.tif)");
-  app.add_option("--python", so.python, "--scale: Python with GDAL and numpy")->capture_default_str();
-  app.add_option("--script", so.script, "--scale: the DEM generator (default: make_lidar_like.py of the source tree)");
+  app.add_option("--work", so.work,
+                 "--scale, --units: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
+  std::string lidar = "slovenia";
+  app.add_option("--lidar", lidar,
+                 "--scale, --units: the real tile the squares are mirrored from: slovenia (1 m, EPSG:3794), tahoe_bare "
+                 "or tahoe_highest (0.47 x 0.61 m EPSG:4326, warped to UTM at 0.5 m first); lidar_like: the old "
+                 "squares of make_lidar_like.py (Kilauea 30 m upsampled plus value noise, far smoother than lidar)")
+      ->check(CLI::IsMember({"slovenia", "tahoe_bare", "tahoe_highest", "lidar_like"}))
+      ->capture_default_str();
+  std::string source;
+  app.add_option("--source", source,
+                 "--scale, --units: mirror this real DEM tile instead of --lidar's (a geographic one is warped to UTM "
+                 "first)");
+  app.add_option("--python", so.python, "--scale, --units: Python with GDAL and numpy")->capture_default_str();
   bool units = false;
   uint32_t unit_roots = 0;
   std::string units_dem;
   app.add_flag("--units", units,
                "Instead of the sweep: plan + units (1 and 2 worker processes) + merge against the one-process cook "
-               "of --units-dem (default: the 8 km square of --scale), merge MB/s next to cp, a 16-machine makespan; "
-               "--runs rounds (default 3), medians of the per-round ratios");
-  app.add_option("--units-dem", units_dem, "--units: the DEM to cook");
+               "of the --units-km square of --scale (made when missing) or --units-dem, merge MB/s next to cp, a "
+               "16-machine makespan, nodes per km2 and bytes per source sample beside the real tile's; --runs rounds "
+               "(default 3), medians of the per-round ratios");
+  int units_km = 8;
+  app.add_option("--units-km", units_km, "--units: side of the square to cook, km")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--units-dem", units_dem, "--units: cook this DEM instead of the --units-km square");
   app.add_option("--unit-roots", unit_roots, "--units: units of N x N roots (0: the plan's default size)")->capture_default_str();
   std::vector<double> rdo_lambdas;
   std::vector<std::string> rdo_extra;
@@ -1127,7 +1313,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--rdo-dems", rdo_extra,
-                 "--rdo and --against: more DEM files to cook (e.g. the 1 m lidar-like squares of --scale)")
+                 "--rdo and --against: more DEM files to cook (e.g. the squares --scale made in its --work folder)")
       ->delimiter(',');
   std::string against;
   std::vector<std::string> against_flags;
@@ -1150,16 +1336,33 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
   }
-  if (units) {
-    const std::string root = so.work.empty() ? (self.parent_path() / "bench-scale").string() : so.work;
-    return units_main(tool, units_dem.empty() ? root + "/lidar_like_8km.tif" : units_dem, unit_roots, so.heights_only,
-                      app.count("--runs") ? runs : 3, root + "/units");
-  }
-  if (scale) {
-    so.runs = app.count("--runs") ? runs : 1;
-    so.chart = chart;
-    if (so.source.empty()) so.source = std::filesystem::path(data + "/kilauea_utm5n.tif").lexically_normal().string();
-    return scale_main(tool, self, so);
+  if (units || scale) {
+    so.data = std::filesystem::path(data).lexically_normal().string();
+    so.lidar = *lidar_choice(lidar, so.data);
+    if (!source.empty()) so.lidar = Lidar{std::filesystem::path(source).stem().string(), source, "", false};
+    if (so.work.empty()) so.work = (self.parent_path() / "bench-scale").string();  // the build tree, never the repo
+    if (source.empty() && !std::filesystem::exists(so.lidar.file)) {  // the shared data is not there: skip
+      fmt::print("terrain-cook-bench: skipped: the shared lidar tile {} is not there (--data)\n", so.lidar.file);
+      return 0;
+    }
+    const auto ref = prepare_reference(tool, so);
+    if (!ref) return 1;
+    if (scale) {
+      so.runs = app.count("--runs") ? runs : 1;
+      so.chart = chart;
+      return scale_main(tool, so, *ref);
+    }
+    std::string dem = units_dem;
+    if (dem.empty()) {
+      dem = dem_path(so, units_km);
+      double gen_s = 0;
+      const uint64_t side = uint64_t(std::llround(units_km * 1000.0 / (so.lidar.lidar_like ? 1.0 : ref->spacing_m)));
+      if (const std::string why = ensure_dem(so, dem, side * side, units_km, gen_s); !why.empty()) {
+        fmt::print(stderr, "terrain-cook-bench --units: {}\n", why);
+        return 1;
+      }
+    }
+    return units_main(tool, dem, unit_roots, so, *ref, app.count("--runs") ? runs : 3, so.work + "/units");
   }
   const std::string d = data + "/";
   std::vector<Dem> dems = {
