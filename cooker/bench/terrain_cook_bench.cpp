@@ -20,6 +20,9 @@
 // --units: plan + units + merge against the one-process cook of the --units-km square of --scale
 // (made when missing) or of --units-dem, with the same two statistics and the reference row.
 //
+// --steps MM,...: heights-only cooks of each DEM at each --height-step: height bytes per source sample
+// and the full-detail error against the step (the height step study of issue 50).
+//
 // --chart FILE.svg: the sweep's cook time and archive size against tolerance and measured error,
 // one series per DEM (bench_chart.h); with --scale, the scale chart.
 #include <CLI/CLI.hpp>
@@ -1115,6 +1118,101 @@ int rdo_main(const std::string& tool, const std::vector<Dem>& dems, const std::v
   return rc;
 }
 
+// --steps: the height step against bytes and error. Heights-only cooks of each DEM with
+// --height-step at each step (and the default, from the tolerance): the heights section per source
+// sample and the full-detail error against every source sample (sizes and errors are deterministic:
+// one cook each).
+struct StepRow {
+  std::string dem;
+  double step_m = 0;  // 0: the default
+  double finest_step_m = 0, bytes_per_sample = 0, rms_m = 0, max_m = 0;
+  uint64_t nodes = 0;
+};
+
+int steps_main(const std::string& tool, const std::vector<Dem>& dems, const std::vector<std::string>& only,
+               const std::vector<double>& steps_mm, const std::string& chart_path) {
+  const auto scratch = std::filesystem::temp_directory_path() / fmt::format("terrain-cook-bench-steps-{}", getpid());
+  std::filesystem::create_directories(scratch);
+  const std::string archive = (scratch / "steps.terrain").string();
+  fmt::print("terrain-cook-bench --steps: --heights-only cooks at the default tolerance with --height-step {} mm and "
+             "the default step (tolerance / 32); heights = stored height bytes per source sample; error = the "
+             "full-detail error against every source sample (the cook report's).\n\n",
+             fmt::join(steps_mm, ", "));
+  fmt::print("{:<16} {:>9} {:>9} {:>7} {:>10} {:>7} {:>9} {:>8}\n", "dem", "step_mm", "finest_mm", "nodes", "heights_B",
+             "x", "rms_mm", "max_m");
+  std::vector<StepRow> rows;
+  for (const Dem& dem : dems) {
+    if (!only.empty() && std::find(only.begin(), only.end(), dem.name) == only.end()) continue;
+    if (!std::filesystem::exists(dem.file)) {
+      fmt::print("{:<16} (missing: {})\n", dem.name, dem.file);
+      continue;
+    }
+    std::vector<double> all = {0.0};
+    for (double mm : steps_mm) all.push_back(mm / 1000.0);
+    std::vector<StepRow> r;
+    for (double step : all) {
+      std::vector<std::string> flags = {"--heights-only"};
+      if (step > 0) flags.insert(flags.end(), {"--height-step", fmt::format("{}", step)});
+      const auto c = cook(tool, dem, flags, 1, archive);
+      if (!c) break;
+      const auto& j = c->report;
+      StepRow row;
+      row.dem = dem.name;
+      row.step_m = step;
+      row.nodes = c->nodes;
+      const double samples = j["source"]["valid_samples"].get<double>();
+      row.bytes_per_sample = j["output"]["sections"]["heights"]["stored_bytes"].get<double>() / samples;
+      row.rms_m = j["full_detail_error"]["rms_m"];
+      row.max_m = j["full_detail_error"]["max_m"];
+      row.finest_step_m = 1e9;
+      for (const auto& l : j["levels"])
+        if (l["nodes"].get<uint64_t>() > 0) row.finest_step_m = std::min(row.finest_step_m, l["step_m"].get<double>());
+      r.push_back(row);
+    }
+    if (r.empty()) continue;
+    for (const StepRow& row : r) {
+      fmt::print("{:<16} {:>9} {:>9.3f} {:>7} {:>10.4f} {:>7.3f} {:>9.3f} {:>8.4f}\n", row.dem,
+                 row.step_m > 0 ? fmt::format("{:.3f}", row.step_m * 1000) : "default", row.finest_step_m * 1000,
+                 row.nodes, row.bytes_per_sample, row.bytes_per_sample / r[0].bytes_per_sample, row.rms_m * 1000,
+                 row.max_m);
+      rows.push_back(row);
+    }
+  }
+  std::filesystem::remove_all(scratch);
+  if (chart_path.empty()) return 0;
+  namespace ch = terrain::chart;
+  ch::Chart c;
+  c.title = "terrain-cook-bench --steps: height bytes and full-detail error against the height step, per DEM";
+  c.note = fmt::format("--heights-only cooks at the default tolerance (0.5 m) with --height-step {} mm; the "
+                       "default step is tolerance / 32 = 15.6 mm. {}",
+                       fmt::join(steps_mm, ", "), ch::machine_note());
+  const ch::Axis step_axis{"finest height step, mm", ch::Scale::log10, false};
+  const ch::Axis bytes{"height bytes per source sample", ch::Scale::linear, true};
+  const ch::Axis rms{"full-detail RMS error, mm", ch::Scale::log10, false};
+  ch::Panel p[2] = {{"height bytes against the step", step_axis, bytes, {}, {}, {}},
+                    {"full-detail RMS error against the step", step_axis, rms, {}, {}, {}}};
+  for (size_t i = 0; i < rows.size();) {
+    size_t e = i;
+    while (e < rows.size() && rows[e].dem == rows[i].dem) ++e;
+    ch::Series s[2];
+    for (ch::Series& x : s) x.name = rows[i].dem;
+    for (size_t k = i + 1; k < e; ++k) {  // the explicit steps (the default repeats one of them)
+      s[0].points.push_back({rows[k].finest_step_m * 1000, rows[k].bytes_per_sample, ""});
+      s[1].points.push_back({rows[k].finest_step_m * 1000, rows[k].rms_m * 1000, ""});
+    }
+    p[0].series.push_back(s[0]);
+    p[1].series.push_back(s[1]);
+    i = e;
+  }
+  c.panels.assign(std::begin(p), std::end(p));
+  if (const std::string e = ch::write_svg(c, chart_path); !e.empty()) {
+    fmt::print(stderr, "terrain-cook-bench: {}\n", e);
+    return 1;
+  }
+  fmt::print("Wrote {}\n", chart_path);
+  return 0;
+}
+
 // --against BIN: the same default cooks with another terrain-cook (the previous commit's build) and
 // this one, in turn; per DEM the CPU per node of every stage and part from the two cook reports,
 // bytes per source sample per section, the error figures, and whether the archives are identical.
@@ -1313,8 +1411,15 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--rdo-dems", rdo_extra,
-                 "--rdo and --against: more DEM files to cook (e.g. the squares --scale made in its --work folder)")
+                 "--rdo, --steps and --against: more DEM files to cook (e.g. the squares --scale made in its --work folder)")
       ->delimiter(',');
+  std::vector<double> step_mms;
+  app.add_option("--steps", step_mms,
+                 "Instead of the sweep: --heights-only cooks of each DEM with --height-step at each of these steps "
+                 "(mm) and the default: height bytes per source sample and the full-detail error (--chart: both "
+                 "against the step)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.9, 16000.0));
   std::string against;
   std::vector<std::string> against_flags;
   app.add_option("--against", against,
@@ -1378,7 +1483,7 @@ int main(int argc, char** argv) {
        d + "ps_height_1k.png"},
       {"jacksboro", "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz", {"--crs", "EPSG:4326"}, ""},
   };
-  if (!against.empty() || !rdo_lambdas.empty()) {
+  if (!against.empty() || !rdo_lambdas.empty() || !step_mms.empty()) {
     // The --rdo-dems files join the shared DEMs (and the --dems filter, when one is given).
     std::vector<std::string> names = only;
     for (const std::string& f : rdo_extra) {
@@ -1386,6 +1491,7 @@ int main(int argc, char** argv) {
       dems.push_back({name, f, {}, ""});
       if (!only.empty()) names.push_back(name);
     }
+    if (!step_mms.empty()) return steps_main(tool, dems, names, step_mms, chart);
     return !against.empty() ? against_main(against, tool, dems, names, against_flags, runs)
                             : rdo_main(tool, dems, names, rdo_lambdas, runs, chart);
   }

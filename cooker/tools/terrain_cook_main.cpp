@@ -147,6 +147,10 @@ int run(int argc, char** argv) {
   app.add_option("--finest-level", o.finest_level,
                  "Finest level to cook, 0 (0.5 m) .. 5 (16 m); default: the finest level with spacing >= 1/32 of the source spacing (refinement stops earlier where the tolerance is met)")
       ->check(cli::int_range(0, 5));
+  app.add_option("--height-step", o.height_step_m,
+                 "Finest height step in metres, rounded down to a power of two of 1/1024 m (default: from the "
+                 "tolerance, tolerance / 32: 15.6 mm at 0.5 m); levels whose height range needs more take more")
+      ->check(cli::number_check("> 0 and <= 16", [](double v) { return v > 0 && v <= 16; }));
   app.add_option("--threads", o.threads, "Worker threads (default 0: all cores)")->check(cli::int_range(0, 1024));
   app.add_option("--crs", o.crs,
                  "CRS of inputs that lack one (or override): EPSG:<code> (geographic or projected), a PROJ string or WKT, "

@@ -24,12 +24,12 @@ using json = nlohmann::ordered_json;
 
 // Every field of CookOptions, in declaration order: the binding only compiles with all of them.
 auto options_fields(CookOptions& o) {
-  auto& [inputs, output, tolerance_m, finest_level, threads, crs, frame, origin, spacing, height_scale, height_offset,
+  auto& [inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale, height_offset,
          height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots, block_order, work_dir,
          unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata, fill_max_samples, materials_path,
          surface_quality, error_checks, bc_rdo, albedo_path, holes_path, landcover_path, landcover_table_path,
          heights_only, force, overview_levels, zstd_level, surface_zstd_level] = o;
-  return std::tie(inputs, output, tolerance_m, finest_level, threads, crs, frame, origin, spacing, height_scale,
+  return std::tie(inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale,
                   height_offset, height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots,
                   block_order, work_dir, unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata,
                   fill_max_samples, materials_path, surface_quality, error_checks, bc_rdo, albedo_path, holes_path,
@@ -37,7 +37,7 @@ auto options_fields(CookOptions& o) {
                   surface_zstd_level);
 }
 const std::vector<std::string> kFieldNames = {
-    "inputs", "output", "tolerance_m", "finest_level", "threads", "crs", "frame", "origin", "spacing", "height_scale",
+    "inputs", "output", "tolerance_m", "finest_level", "height_step_m", "threads", "crs", "frame", "origin", "spacing", "height_scale",
     "height_offset", "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "block_roots",
     "block_order", "work_dir", "unit_roots", "raw_size", "raw_type", "raw_big_endian", "tile_encoding", "nodata",
     "fill_max_samples", "materials_path", "surface_quality", "error_checks", "bc_rdo", "albedo_path", "holes_path",
@@ -62,6 +62,7 @@ CookOptions set_every_field() {
   o.output = "out.terrain";
   o.tolerance_m = 1.25;
   o.finest_level = 3;
+  o.height_step_m = 0.0625;
   o.threads = 7;
   o.crs = "EPSG:32633";
   o.frame = "tm:lon0=15";

@@ -32,6 +32,9 @@ struct CookOptions {
 
   double tolerance_m = 0.5;         // a node is refined while its geometric error exceeds this
   int finest_level = -1;            // -1: from the source resolution; else 0..5
+  // --height-step: the finest height step, the largest power of two of 1/1024 m at most this
+  // (metres); 0: from the tolerance (tolerance / 32). Levels whose range needs more still coarsen.
+  double height_step_m = 0;
   int threads = 0;                  // 0: all cores
 
   // Georeferencing for inputs that lack it, or overrides (see crs.h for the accepted forms).

@@ -111,9 +111,8 @@ double overview_range_bound(const CookContext& ctx, const RangeSummary& ranges, 
   return worst;
 }
 
-void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
+void choose_steps(const std::array<double, kLevelCount>& worst, int floor_step, int finest_level,
                   std::array<uint8_t, kLevelCount>& steps, int overview_step) {
-  const int floor_step = tolerance_step(tolerance_m);
   for (int level = kRootLevel; level >= finest_level; --level) {
     const double w = worst[size_t(level)];
     const int coarsest = std::max(int(steps[kRootLevel]), overview_step);

@@ -60,7 +60,8 @@ double overview_range_bound(const CookContext& ctx, const RangeSummary& ranges, 
 // Levels finer than ctx.finest_level get the finest level's step.
 // overview_step >= 0: the step of overview levels above the roots, which rounds the roots' even
 // vertices (SPEC 19 rule 7) and so widens every level's range by up to half of it.
-void choose_steps(const std::array<double, kLevelCount>& worst, double tolerance_m, int finest_level,
+// floor_step: the finest step any level takes (tolerance_step, or --height-step's step_at_most).
+void choose_steps(const std::array<double, kLevelCount>& worst, int floor_step, int finest_level,
                   std::array<uint8_t, kLevelCount>& steps, int overview_step = -1);
 
 // Totals of the cook that blocks add to (summed in block order: floating sums may differ in the

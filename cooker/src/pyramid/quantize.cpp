@@ -73,11 +73,13 @@ TERRAIN_AVX2_CLONES bool quantize_row(const double* h, const uint8_t* ok, const 
   return good;
 }
 
-int tolerance_step(double tolerance_m) {
+int step_at_most(double metres) {
   int s = 0;
-  while (s < kMaxStepLog2 && std::ldexp(1.0, s + 1) * kHeightUnitM <= tolerance_m / 32.0) ++s;
+  while (s < kMaxStepLog2 && std::ldexp(1.0, s + 1) * kHeightUnitM <= metres) ++s;
   return s;
 }
+
+int tolerance_step(double tolerance_m) { return step_at_most(tolerance_m / 32.0); }
 
 int required_step(double range_bound_m, int root_step) {
   const double units = std::max(range_bound_m, 0.0) * 1024.0 + 1.0;

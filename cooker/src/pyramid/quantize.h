@@ -45,9 +45,11 @@ inline int64_t quantize_units(double h_m, double scale, int step_log2) {
 bool quantize_row(const double* h, const uint8_t* ok, const double* scale, const double* step, int n, int32_t* units,
                   uint8_t* hole);
 
-// The coarsest step the tolerance allows: the largest power of two of units <= tolerance / 32
-// (2^4 units = 15.6 mm at 0.5 m), at least 1 unit, at most 2^14. Rounding then costs at most
-// 1/64 of the tolerance, and no bits are spent on sensor noise far below it.
+// The largest power of two of units <= metres, at least 1 unit, at most 2^14 (kMaxStepLog2).
+int step_at_most(double metres);
+// The coarsest step the tolerance allows: step_at_most(tolerance / 32) (2^4 units = 15.6 mm at
+// 0.5 m). Rounding then costs at most 1/64 of the tolerance, and no bits are spent on sensor noise
+// far below it.
 int tolerance_step(double tolerance_m);
 
 // The step of a level, chosen just before the level is cooked, from an upper bound on the surface

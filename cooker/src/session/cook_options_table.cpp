@@ -145,6 +145,8 @@ const CookOptionRow kRows[] = {
     both<&O::surface_zstd_level>("surface_zstd_level", "", "surface_zstd_level", 15),
     {"overview_levels", "--overview-levels", kPlan, "overview_levels", nullptr, -1, false,
      put_number<&O::overview_levels>, get_number_or_zero<&O::overview_levels>, nullptr},
+    {"height_step_m", "--height-step", kPlan, "height_step_m", "height_step_m", 20, false,
+     put_if_positive<&O::height_step_m>, get_or_zero<&O::height_step_m>, put_if_positive<&O::height_step_m>},
 };
 
 constexpr EnumName<NodataPolicy> kNodataNames[] = {

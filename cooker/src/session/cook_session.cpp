@@ -166,6 +166,8 @@ Status open_inputs(const CookOptions& options, CookSession& s, bool files_checke
     return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
   if (options.finest_level < -1 || options.finest_level > kRootLevel)
     return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
+  if (!(options.height_step_m >= 0 && options.height_step_m <= 16))
+    return Status::failure(Error::invalid_argument, "--height-step must be 0 (from the tolerance) .. 16 metres");
   s.options = options;
   s.threads = resolve_threads(options.threads);
   s.decided.memory_limit_bytes = memory_limit_of(options);
@@ -273,16 +275,20 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   ctx.source_width = header.width;
   ctx.source_height = header.height;
   ctx.mapping = &s.mapping;
-  double phase_x = 0, phase_y = 0;
+  // The root grid covers the footprint; where the samples lie on the frame's axes it starts at
+  // their phase and covers their centres (the samples' hull), so a footprint whose pixel edges lie
+  // on root boundaries does not spill half a pixel into one more row and column of roots.
+  double phase_x = 0, phase_y = 0, gx0 = fx0, gy0 = fy0, gx1 = fx1, gy1 = fy1;
   if (s.mapping.axis_aligned()) {
     double x00 = 0, y00 = 0, step_x = 0, step_y = 0;
     s.mapping.sample_grid(x00, y00, step_x, step_y);
     phase_x = lattice_phase(x00, step_x);
     phase_y = lattice_phase(y00, step_y);
+    s.mapping.frame_bounds(data.c0, data.r0, data.c1, data.r1, 0.0, gx0, gy0, gx1, gy1);
   }
-  ctx.origin_x = std::floor((fx0 - phase_x) / kRootSizeM) * kRootSizeM + phase_x;
-  ctx.origin_y = std::floor((fy0 - phase_y) / kRootSizeM) * kRootSizeM + phase_y;
-  const double roots_x = std::ceil((fx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((fy1 - ctx.origin_y) / kRootSizeM);
+  ctx.origin_x = std::floor((gx0 - phase_x) / kRootSizeM) * kRootSizeM + phase_x;
+  ctx.origin_y = std::floor((gy0 - phase_y) / kRootSizeM) * kRootSizeM + phase_y;
+  const double roots_x = std::ceil((gx1 - ctx.origin_x) / kRootSizeM), roots_y = std::ceil((gy1 - ctx.origin_y) / kRootSizeM);
   if (roots_x * roots_y > 1e7)
     return Status::failure(Error::unsupported_input,
                            fmt::format("the data spans {:.0f} x {:.0f} km in the frame: too large for one archive",
@@ -423,7 +429,9 @@ void choose_session_steps(CookSession& s) {
   std::array<double, kLevelCount>& worst = s.decided.range_bound_m;
   worst = {};
   level_range_bounds(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, s.threads, worst);
-  choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2);
+  const int floor_step =
+      s.options.height_step_m > 0 ? step_at_most(s.options.height_step_m) : tolerance_step(s.ctx.tolerance_m);
+  choose_steps(worst, floor_step, s.ctx.finest_level, s.ctx.step_log2);
   // Overview levels (SPEC 19): one step for all of them, from the bound over their nodes, at least
   // the roots'. Where it is coarser, the roots' even vertices are rounded to it as they are cooked
   // (compute_window), so no node is re-rounded afterwards; every level's range then widens by up to
@@ -435,7 +443,7 @@ void choose_session_steps(CookSession& s) {
     const double bound = overview_range_bound(s.ctx, s.ranges, s.grid.roots_x, s.grid.roots_y, k);
     int step = std::max(required_step(bound, -1), int(s.ctx.step_log2[kRootLevel]));
     if (step > s.ctx.step_log2[kRootLevel]) {
-      choose_steps(worst, s.ctx.tolerance_m, s.ctx.finest_level, s.ctx.step_log2, step);
+      choose_steps(worst, floor_step, s.ctx.finest_level, s.ctx.step_log2, step);
       step = std::max(step, int(s.ctx.step_log2[kRootLevel]));
       s.ctx.overview_step_log2 = step;
     }
