@@ -201,8 +201,9 @@ const TexelComponents& texel_components() {
 
 // Degrees between reference normals (ax, ay, az) and decoded ones whose x and y components are
 // (bx, by) before unpack_normal, 4 at a time (n a multiple of 4). Each lane does unpack_normal's
-// float operations and normal_error_per_texel's double ones in their order; both sides of every
-// branch are computed and selected (a branch that computes a value would stop GCC vectorising).
+// float operations and normal_error_per_texel's double ones in their order; both sides of a
+// branch are computed and selected (a branch that computes a value would stop GCC vectorising),
+// the rarely taken ones only when a lane takes them.
 TERRAIN_AVX2_CLONES void normal_angles_deg(const float* __restrict ax, const float* __restrict ay,
                                            const float* __restrict az, const float* __restrict bx,
                                            const float* __restrict by, size_t n, double* __restrict degs) {
@@ -219,14 +220,18 @@ TERRAIN_AVX2_CLONES void normal_angles_deg(const float* __restrict ax, const flo
     std::memcpy(&fa2, az + v, sizeof fa2);
     // unpack_normal.
     const V4f rr = x * x + y * y;
-    V4f zi = one_f - rr, root = rr;
-    for (int l = 0; l < 4; ++l) {
-      zi[l] = std::sqrt(zi[l]);
-      root[l] = std::sqrt(root[l]);
-    }
-    const V4f inv = one_f / root;
+    V4f zi = one_f - rr;
+    for (int l = 0; l < 4; ++l) zi[l] = std::sqrt(zi[l]);
     const V4i inside = rr < one_f;
-    const V4f b0f = inside ? x : x * inv, b1f = inside ? y : y * inv, b2f = inside ? zi : zero_f;
+    V4f b0f = x, b1f = y;
+    if (!(inside[0] & inside[1] & inside[2] & inside[3])) {  // some outside the unit disc: rescaled
+      V4f root = rr;
+      for (int l = 0; l < 4; ++l) root[l] = std::sqrt(root[l]);
+      const V4f inv = one_f / root;
+      b0f = inside ? x : x * inv;
+      b1f = inside ? y : y * inv;
+    }
+    const V4f b2f = inside ? zi : zero_f;
     // The angle: cross and dot products, then fast_atan2_pos_select.
     const V4d a0 = __builtin_convertvector(fa0, V4d), a1 = __builtin_convertvector(fa1, V4d);
     const V4d a2 = __builtin_convertvector(fa2, V4d), b0 = __builtin_convertvector(b0f, V4d);
@@ -236,9 +241,10 @@ TERRAIN_AVX2_CLONES void normal_angles_deg(const float* __restrict ax, const flo
     for (int l = 0; l < 4; ++l) sy[l] = std::sqrt(sy[l]);
     const V4d sx = a0 * b0 + a1 * b1 + a2 * b2;
     const V4d q = sy / V4d(V4l(sx) & abs_mask);
-    const V4d r = one / q;
     const V4l big = q > one;
-    const V4d t = big ? r : q, t2 = t * t;
+    V4d t = q;
+    if (big[0] | big[1] | big[2] | big[3]) t = big ? one / q : q;  // angles over 45 degrees
+    const V4d t2 = t * t;
     const V4d p =
         t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
     const V4d a = big ? half_pi - p : p;
