@@ -269,6 +269,43 @@ typedef float V4f __attribute__((vector_size(16)));
 typedef double V4d __attribute__((vector_size(32)));
 typedef int64_t V4l __attribute__((vector_size(32)));
 
+// Vertex heights in metres (as the shader dequantizes them) of a node's 129 x 129 samples.
+TERRAIN_AVX2_CLONES void vertex_metres(const uint16_t* __restrict heights, int32_t height_offset, int step_log2,
+                                       double* __restrict z) {
+  for (int k = 0; k < kHeightCount; ++k) z[k] = units_to_metres(vertex_units(height_offset, heights[k], step_log2));
+}
+
+// Normals of the unstitched triangles of every quad, in float, as branch-free row loops (the
+// outputs a row of quads at a time, kQuadsPerSide apart):
+// quad (i,j) -> (i,j),(i+1,j),(i+1,j+1) with normal ~ (h00-h10, h10-h11, s) into (ax, ay, az) and
+//               (i,j),(i+1,j+1),(i,j+1) with normal ~ (h01-h11, h00-h01, s) into (bx, by, bz).
+// Separate restrict pointers: with an array of them GCC left the loop scalar.
+TERRAIN_AVX2_CLONES void quad_normals(const double* __restrict z, float sf, float* __restrict ax, float* __restrict ay,
+                                      float* __restrict az, float* __restrict bx, float* __restrict by,
+                                      float* __restrict bz) {
+  const float s2 = sf * sf;
+  for (int j = 0; j < kQuadsPerSide;
+       ++j, ax += kQuadsPerSide, ay += kQuadsPerSide, az += kQuadsPerSide, bx += kQuadsPerSide, by += kQuadsPerSide,
+       bz += kQuadsPerSide) {
+    // Row heights as float differences first (exact enough: the margins are 1e-4 rad and up).
+    float dxr0[kQuadsPerSide], dxr1[kQuadsPerSide], dyl[kQuadsPerSide + 1];
+    const double* r0 = &z[size_t(j * kHeightSamples)];
+    const double* r1 = r0 + kHeightSamples;
+    for (int i = 0; i < kQuadsPerSide; ++i) {
+      dxr0[i] = float(r0[i] - r0[i + 1]);
+      dxr1[i] = float(r1[i] - r1[i + 1]);
+    }
+    for (int i = 0; i <= kQuadsPerSide; ++i) dyl[i] = float(r0[i] - r1[i]);
+    for (int i = 0; i < kQuadsPerSide; ++i) {
+      const float x1 = dxr0[i], y1 = dyl[i + 1];
+      const float x2 = dxr1[i], y2 = dyl[i];
+      const float i1 = 1.0f / std::sqrt(x1 * x1 + y1 * y1 + s2), i2 = 1.0f / std::sqrt(x2 * x2 + y2 * y2 + s2);
+      ax[i] = x1 * i1; ay[i] = y1 * i1; az[i] = sf * i1;
+      bx[i] = x2 * i2; by[i] = y2 * i2; bz[i] = sf * i2;
+    }
+  }
+}
+
 }  // namespace
 
 // 8 at a time, so a patch with relief stops after its first 8.
@@ -306,11 +343,9 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
     // loop would otherwise reload from thread-local storage for every vertex.
     double* __restrict zs = z.data();
     uint8_t* __restrict hs = hole.data();
-    for (int j = 0; j < kHeightSamples; ++j) {
+    vertex_metres(node.heights.data(), height_offset, step_log2, zs);
+    for (int j = 0; j < kHeightSamples && window_holes; ++j) {
       const size_t row = size_t(j * kHeightSamples);
-      for (int i = 0; i < kHeightSamples; ++i)
-        zs[row + size_t(i)] = units_to_metres(vertex_units(height_offset, node.heights[row + size_t(i)], step_log2));
-      if (!window_holes) continue;
       const uint8_t* src = window_holes + size_t((j + kWindowMargin) * kWindowSize + kWindowMargin);
       uint8_t any = 0;
       for (int i = 0; i < kHeightSamples; ++i) {
@@ -333,39 +368,13 @@ void collect_patch_normals(const NodeData& node, int32_t height_offset, int step
   float* dy = out.y.data();
   float* dz = out.z.data();
   size_t count = 0;
-  // Normals of the unstitched triangles of every quad, in float, as branch-free row loops:
-  // quad (i,j) -> (i,j),(i+1,j),(i+1,j+1) with normal ~ (h00-h10, h10-h11, s) and
-  //               (i,j),(i+1,j+1),(i,j+1) with normal ~ (h01-h11, h00-h01, s).
+  // Normals of the unstitched triangles of every quad (quad_normals).
   static thread_local std::vector<float> nbuf;
   nbuf.resize(size_t(kQuadsPerSide) * kQuadsPerSide * 6);
   float* n1[3] = {nbuf.data(), nbuf.data() + kQuadsPerSide * kQuadsPerSide, nbuf.data() + 2 * kQuadsPerSide * kQuadsPerSide};
   float* n2[3] = {n1[0] + 3 * kQuadsPerSide * kQuadsPerSide, n1[1] + 3 * kQuadsPerSide * kQuadsPerSide,
                   n1[2] + 3 * kQuadsPerSide * kQuadsPerSide};
-  const float sf = float(s), s2 = sf * sf;
-  for (int j = 0; j < kQuadsPerSide; ++j) {
-    // Row heights as float differences first (exact enough: the margins are 1e-4 rad and up).
-    float dxr0[kQuadsPerSide], dxr1[kQuadsPerSide], dyl[kQuadsPerSide + 1];
-    const double* r0 = &z[at(0, j)];
-    const double* r1 = &z[at(0, j + 1)];
-    for (int i = 0; i < kQuadsPerSide; ++i) {
-      dxr0[i] = float(r0[i] - r0[i + 1]);
-      dxr1[i] = float(r1[i] - r1[i + 1]);
-    }
-    for (int i = 0; i <= kQuadsPerSide; ++i) dyl[i] = float(r0[i] - r1[i]);
-    float* __restrict ax = n1[0] + j * kQuadsPerSide;
-    float* __restrict ay = n1[1] + j * kQuadsPerSide;
-    float* __restrict az = n1[2] + j * kQuadsPerSide;
-    float* __restrict bx = n2[0] + j * kQuadsPerSide;
-    float* __restrict by = n2[1] + j * kQuadsPerSide;
-    float* __restrict bz = n2[2] + j * kQuadsPerSide;
-    for (int i = 0; i < kQuadsPerSide; ++i) {
-      const float x1 = dxr0[i], y1 = dyl[i + 1];
-      const float x2 = dxr1[i], y2 = dyl[i];
-      const float i1 = 1.0f / std::sqrt(x1 * x1 + y1 * y1 + s2), i2 = 1.0f / std::sqrt(x2 * x2 + y2 * y2 + s2);
-      ax[i] = x1 * i1; ay[i] = y1 * i1; az[i] = sf * i1;
-      bx[i] = x2 * i2; by[i] = y2 * i2; bz[i] = sf * i2;
-    }
-  }
+  quad_normals(z.data(), float(s), n1[0], n1[1], n1[2], n2[0], n2[1], n2[2]);
   const std::vector<StitchedTriangle>& table = stitch_table();
   const StitchArrays& stitch = stitch_arrays();
   static thread_local std::vector<float> snx, sny, snz;

@@ -3,6 +3,7 @@
 // before compression.
 #include "normals.h"
 
+#include "avx2_clones.h"
 #include "fast_math.h"
 #include "terrain/surface_contract.h"
 
@@ -33,6 +34,44 @@ inline bool mean_diff(float a0, float a1, float b0, float b1, double& out) {
   if (!n) return false;
   out = s / n;
   return true;
+}
+
+// The ring (8 spacings wide) and centre (4 wide) height sums of one AO block whose south-west
+// vertex is (i0, j0), for it and the 3 blocks east of it (one per lane): each lane adds its
+// block's values in the order of the per-block loop (rows south to north, west to east), a
+// missing height as +0.0 (the sums start at +0.0 and can never be -0.0, so that equals leaving
+// it out).
+TERRAIN_AVX2_CLONES void block_ao_lanes(const float* h, int i0, int j0, double s, float ao[4]) {
+  typedef double V4d __attribute__((vector_size(32)));
+  typedef int64_t V4l __attribute__((vector_size(32)));
+  V4d ring = {}, inner = {};
+  V4l nr = {}, ni = {};
+  const V4d zero = {};
+  const auto add = [&](const float* p, V4d& sum, V4l& n) {
+    const V4d v = {p[0], p[4], p[8], p[12]};
+    const V4l ok = v == v;
+    sum += ok ? v : zero;
+    n -= ok;
+  };
+  for (int b = -2; b <= 6; ++b) {
+    const float* row = &h[size_t((j0 + b + kWindowMargin) * kWindowSize + (i0 - 2 + kWindowMargin))];  // a = -2
+    if (b == -2 || b == 6) {
+      for (int a = 0; a <= 8; ++a) add(row + a, ring, nr);
+      continue;
+    }
+    add(row, ring, nr);
+    if (b >= 0 && b <= 4)
+      for (int a = 2; a <= 6; ++a) add(row + a, inner, ni);
+    add(row + 8, ring, nr);
+  }
+  for (int l = 0; l < 4; ++l) {
+    ao[l] = 1.0f;
+    if (ni[l] && nr[l]) {
+      const double depth = std::max(0.0, ring[l] / double(nr[l]) - inner[l] / double(ni[l]));
+      const double r = depth / (4.0 * s);
+      ao[l] = float(1.0 / (1.0 + r * r));
+    }
+  }
 }
 
 }  // namespace
@@ -72,28 +111,13 @@ void compute_normal_texels(const SurfaceInput& in, NormalTexels& out) {
       n[t * 3 + 2] = inv;
     }
   }
-  // Block ambient occlusion (see normals.h).
+  // Block ambient occlusion (see normals.h), 4 blocks of a block row at a time.
+  static_assert(((kTexelBlocks + 3) / 4 * 4 - 1) * 4 - kApron + 6 + kWindowMargin < kWindowSize);  // padding lanes read inside
   for (int by = 0; by < kTexelBlocks; ++by)
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      const int i0 = bx * 4 - kApron, j0 = by * 4 - kApron;  // south-west vertex of the block
-      double inner = 0, ring = 0;
-      int ni = 0, nr = 0;
-      for (int b = -2; b <= 6; ++b)
-        for (int a = -2; a <= 6; ++a) {
-          const bool border = a == -2 || a == 6 || b == -2 || b == 6;
-          const bool centre = a >= 0 && a <= 4 && b >= 0 && b <= 4;
-          if (!border && !centre) continue;
-          const float v = wh(h, i0 + a, j0 + b);
-          if (std::isnan(v)) continue;
-          if (border) { ring += v; ++nr; } else { inner += v; ++ni; }
-        }
-      float ao = 1.0f;
-      if (ni && nr) {
-        const double depth = std::max(0.0, ring / nr - inner / ni);
-        const double r = depth / (4.0 * s);
-        ao = float(1.0 / (1.0 + r * r));
-      }
-      out.ao[size_t(by * kTexelBlocks + bx)] = ao;
+    for (int bx = 0; bx < kTexelBlocks; bx += 4) {
+      float ao[4];
+      block_ao_lanes(h, bx * 4 - kApron, by * 4 - kApron, s, ao);
+      for (int l = 0; l < 4 && bx + l < kTexelBlocks; ++l) out.ao[size_t(by * kTexelBlocks + bx + l)] = ao[l];
     }
 }
 
@@ -156,7 +180,113 @@ void encode_bc3_image(const uint8_t* rgba, Bc3Method method, uint8_t* out_blocks
                       [method](const uint8_t* block, uint8_t* out) { encode_bc3_block(block, method, out); });
 }
 
+namespace {
+
+typedef float V4f __attribute__((vector_size(16)));
+typedef int32_t V4i __attribute__((vector_size(16)));
+typedef double V4d __attribute__((vector_size(32)));
+typedef int64_t V4l __attribute__((vector_size(32)));
+
+// normal_of_texel of every byte.
+struct TexelComponents {
+  float c[256];
+  TexelComponents() {
+    for (int v = 0; v < 256; ++v) c[v] = normal_of_texel(uint8_t(v));
+  }
+};
+const TexelComponents& texel_components() {
+  static const TexelComponents t;
+  return t;
+}
+
+// Degrees between reference normals (ax, ay, az) and decoded ones whose x and y components are
+// (bx, by) before unpack_normal, 4 at a time (n a multiple of 4). Each lane does unpack_normal's
+// float operations and normal_error_per_texel's double ones in their order; both sides of a
+// branch are computed and selected (a branch that computes a value would stop GCC vectorising),
+// the rarely taken ones only when a lane takes them.
+TERRAIN_AVX2_CLONES void normal_angles_deg(const float* __restrict ax, const float* __restrict ay,
+                                           const float* __restrict az, const float* __restrict bx,
+                                           const float* __restrict by, size_t n, double* __restrict degs) {
+  const V4f one_f = {1, 1, 1, 1}, zero_f = {};
+  const V4d zero = {}, half_pi = {1.5707963267948966, 1.5707963267948966, 1.5707963267948966, 1.5707963267948966};
+  const V4d pi = half_pi + half_pi, one = {1, 1, 1, 1};
+  const V4l abs_mask = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+  for (size_t v = 0; v < n; v += 4) {
+    V4f x, y, fa0, fa1, fa2;
+    std::memcpy(&x, bx + v, sizeof x);
+    std::memcpy(&y, by + v, sizeof y);
+    std::memcpy(&fa0, ax + v, sizeof fa0);
+    std::memcpy(&fa1, ay + v, sizeof fa1);
+    std::memcpy(&fa2, az + v, sizeof fa2);
+    // unpack_normal.
+    const V4f rr = x * x + y * y;
+    V4f zi = one_f - rr;
+    for (int l = 0; l < 4; ++l) zi[l] = std::sqrt(zi[l]);
+    const V4i inside = rr < one_f;
+    V4f b0f = x, b1f = y;
+    if (!(inside[0] & inside[1] & inside[2] & inside[3])) {  // some outside the unit disc: rescaled
+      V4f root = rr;
+      for (int l = 0; l < 4; ++l) root[l] = std::sqrt(root[l]);
+      const V4f inv = one_f / root;
+      b0f = inside ? x : x * inv;
+      b1f = inside ? y : y * inv;
+    }
+    const V4f b2f = inside ? zi : zero_f;
+    // The angle: cross and dot products, then fast_atan2_pos_select.
+    const V4d a0 = __builtin_convertvector(fa0, V4d), a1 = __builtin_convertvector(fa1, V4d);
+    const V4d a2 = __builtin_convertvector(fa2, V4d), b0 = __builtin_convertvector(b0f, V4d);
+    const V4d b1 = __builtin_convertvector(b1f, V4d), b2 = __builtin_convertvector(b2f, V4d);
+    const V4d cx = a1 * b2 - a2 * b1, cy = a2 * b0 - a0 * b2, cz = a0 * b1 - a1 * b0;
+    V4d sy = cx * cx + cy * cy + cz * cz;
+    for (int l = 0; l < 4; ++l) sy[l] = std::sqrt(sy[l]);
+    const V4d sx = a0 * b0 + a1 * b1 + a2 * b2;
+    const V4d q = sy / V4d(V4l(sx) & abs_mask);
+    const V4l big = q > one;
+    V4d t = q;
+    if (big[0] | big[1] | big[2] | big[3]) t = big ? one / q : q;  // angles over 45 degrees
+    const V4d t2 = t * t;
+    const V4d p =
+        t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 + t2 * -0.01172120)))));
+    const V4d a = big ? half_pi - p : p;
+    const V4d angle = sx == zero ? (sy == zero ? zero : half_pi) : (sx > zero ? a : pi - a);
+    const V4d deg = angle * kRadToDeg;
+    std::memcpy(degs + v, &deg, sizeof deg);
+  }
+}
+
+}  // namespace
+
 AngleStats normal_error(const NormalTexels& ref, const uint8_t* bc3_blocks) {
+  // Decode in block order into arrays, the angles 4 lanes at a time, then the sums in block order
+  // (normal_error_per_texel's order).
+  static_assert(kTexelCount % 4 == 0);
+  struct Scratch {
+    alignas(32) float ax[kTexelCount], ay[kTexelCount], az[kTexelCount], bx[kTexelCount], by[kTexelCount];
+    alignas(32) double degs[kTexelCount];
+  };
+  static thread_local Scratch sc;
+  const float* comp = texel_components().c;
+  size_t m = 0;
+  const auto decode = [](const uint8_t* block, uint8_t* out) { decode_bc3_block(block, out); };
+  for_each_decoded_texel(bc3_blocks, 16, decode, [&](size_t k, const uint8_t* texel) {
+    sc.ax[m] = ref.n[k * 3];
+    sc.ay[m] = ref.n[k * 3 + 1];
+    sc.az[m] = ref.n[k * 3 + 2];
+    sc.bx[m] = comp[texel[3]];
+    sc.by[m] = comp[texel[1]];
+    ++m;
+  });
+  normal_angles_deg(sc.ax, sc.ay, sc.az, sc.bx, sc.by, m, sc.degs);
+  AngleStats st;
+  for (size_t v = 0; v < m; ++v) {
+    st.sum_deg += sc.degs[v];
+    st.max_deg = std::max(st.max_deg, sc.degs[v]);
+  }
+  st.count = m;
+  return st;
+}
+
+AngleStats normal_error_per_texel(const NormalTexels& ref, const uint8_t* bc3_blocks) {
   // Decode in block order, then the angles as one branch-free loop (the same operations as
   // fast_angle(), selects instead of branches, so SIMD lanes give the same doubles), then the sums
   // in block order as before.

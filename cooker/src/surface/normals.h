@@ -55,5 +55,7 @@ struct AngleStats {
 };
 // Angular error of the decoded BC3 normals against the float normals.
 AngleStats normal_error(const NormalTexels& ref, const uint8_t* bc3_blocks);
+// The same, a texel at a time: the definition normal_error (4 lanes) is tested against.
+AngleStats normal_error_per_texel(const NormalTexels& ref, const uint8_t* bc3_blocks);
 
 }  // namespace terrain::cook

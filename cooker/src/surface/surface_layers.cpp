@@ -50,21 +50,34 @@ void encode_bc1_image(const uint8_t* rgba, Bc1Method method, uint8_t* out_blocks
 }
 
 AlbedoCheck check_albedo(const uint8_t* rgba, const uint8_t* bc1_blocks) {
+  // The squared differences are integers: summed in 64-bit integers, the node's total is the
+  // double that adding them one by one as doubles gives (every partial sum is below 2^53, exact).
   AlbedoCheck c;
-  const auto decode = [](const uint8_t* block, uint8_t* out) { decode_bc1_block(block, out); };
-  for_each_decoded_texel(bc1_blocks, 8, decode, [&](size_t k, const uint8_t* texel) {
-    const bool hole = rgba[k * 4 + 3] < 128, transparent = texel[3] == 0;
-    if (hole != transparent) ++c.alpha_mismatches;
-    if (hole) {
-      ++c.holes;
-      return;
+  uint64_t sq = 0, mismatches = 0, holes = 0;
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint8_t dec[64];
+      decode_bc1_block(bc1_blocks + size_t(by * kTexelBlocks + bx) * 8, dec);
+      for (int r = 0; r < 4; ++r) {
+        const uint8_t* src = rgba + size_t((by * 4 + r) * kTexels + bx * 4) * 4;
+        const uint8_t* got = dec + r * 16;
+        for (int i = 0; i < 4; ++i) {
+          const bool hole = src[i * 4 + 3] < 128, transparent = got[i * 4 + 3] == 0;
+          mismatches += hole != transparent;
+          holes += hole;
+          uint32_t e = 0;
+          for (int ch = 0; ch < 3; ++ch) {
+            const int d = int(src[i * 4 + ch]) - got[i * 4 + ch];
+            e += uint32_t(d * d);
+          }
+          sq += hole ? 0u : e;
+        }
+      }
     }
-    for (int ch = 0; ch < 3; ++ch) {
-      const double d = double(rgba[k * 4 + size_t(ch)]) - texel[ch];
-      c.sq_err += d * d;
-    }
-    c.samples += 3;
-  });
+  c.alpha_mismatches = mismatches;
+  c.holes = holes;
+  c.sq_err = double(sq);
+  c.samples = (uint64_t(kTexelCount) - holes) * 3;
   return c;
 }
 
