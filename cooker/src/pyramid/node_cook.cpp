@@ -372,6 +372,31 @@ TERRAIN_AVX2_CLONES void measure_dense_level_rows(const CookContext& ctx, const 
       const V4d t_nwv = {t_nw, t_nw, t_nw, t_nw}, d_nwv = {d_nw, d_nw, d_nw, d_nw};
       const V4l se_okv = {se_ok, se_ok, se_ok, se_ok}, nw_okv = {nw_ok, nw_ok, nw_ok, nw_ok};
       Lanes& q = quadrant[(cq >> 16) | qv];
+      if (!(se_ok && nw_ok)) {
+        // A quad with a hole vertex (data edges): sample by sample, the same operations, each
+        // sample in the lane the vector loop gives it, with the on-vertex rule for missed samples.
+        for (int m = a; m < b; ++m) {
+          const int k = (m - a) & 3;
+          const float zf = zs[m];
+          if (std::isnan(zf) || (filled && filled[m])) continue;
+          const double fu = column_fu[m];
+          const bool se = fu >= fv;
+          double h = NAN;
+          if (se ? se_ok : nw_ok)
+            h = se ? (h00 + fu * d_se) + t_se : t_nw + fu * d_nw;
+          else
+            h = cover.on_vertex(i, j, fu, fv);
+          if (std::isnan(h)) {
+            ++q.uncovered[k];
+            continue;
+          }
+          const double e = std::fabs(h - double(zf));
+          if (e > q.max_m[k]) q.max_m[k] = e;
+          q.sum_sq[k] += e * e;
+          ++q.samples[k];
+        }
+        continue;
+      }
       for (int n = a; n < b; n += 4) {
         const int left = b - n;
         V4d fu, z;
@@ -401,19 +426,7 @@ TERRAIN_AVX2_CLONES void measure_dense_level_rows(const CookContext& ctx, const 
         q.max_m = (measured & (e > q.max_m)) ? e : q.max_m;
         q.sum_sq += measured ? e * e : zero;
         q.samples -= measured;
-        const V4l missed = valid & ~ok;
-        for (int k = 0; k < 4; ++k) {
-          if (!missed[k]) continue;
-          const double hv_k = cover.on_vertex(i, j, fu[k], fv);
-          if (std::isnan(hv_k)) {
-            ++q.uncovered[k];
-            continue;
-          }
-          const double ek = std::fabs(hv_k - z[k]);
-          if (ek > q.max_m[k]) q.max_m[k] = ek;
-          q.sum_sq[k] += ek * ek;
-          ++q.samples[k];
-        }
+        q.uncovered -= valid & ~ok;
       }
     }
   }
