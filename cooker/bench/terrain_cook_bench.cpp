@@ -1214,8 +1214,9 @@ int steps_main(const std::string& tool, const std::vector<Dem>& dems, const std:
 }
 
 // --against BIN: the same default cooks with another terrain-cook (the previous commit's build) and
-// this one, in turn; per DEM the CPU per node of every stage and part from the two cook reports,
-// bytes per source sample per section, the error figures, and whether the archives are identical.
+// this one, in turn; per DEM the nodes per level, the CPU per node and per source sample of every
+// stage and part from the two cook reports, bytes per source sample per section, the error figures,
+// and whether the archives are identical.
 struct AgainstCook {
   nlohmann::json report;
   std::string bytes;  // the archive
@@ -1283,12 +1284,24 @@ int against_main(const std::string& before, const std::string& tool, const std::
     const uint64_t nodes = ra["output"]["nodes"].get<uint64_t>();
     fmt::print("\n{}: {} nodes, archive {:.2f} MB, {}\n", dem.name, nodes, double(last[1]->bytes.size()) / 1e6,
                same ? "identical bytes" : fmt::format("DIFFERENT bytes (before {:.2f} MB)", double(last[0]->bytes.size()) / 1e6));
-    fmt::print("  {:<16} {:>9} {:>9} {:>8}\n", "CPU ms/node", "before", "after", "after/b");
+    // Nodes per level (finest first) and CPU per valid source sample: a stage's ms per node times
+    // each side's own node count, over the samples (dropping nodes lowers it where ms/node cannot).
+    auto level_nodes = [](const nlohmann::json& r) {
+      std::vector<uint64_t> n;
+      for (const auto& l : r["levels"]) n.push_back(l["nodes"].get<uint64_t>());
+      return fmt::format("{}", fmt::join(n, " "));
+    };
+    fmt::print("  nodes per level 0..5: before {}; after {}\n", level_nodes(rb), level_nodes(ra));
+    const double ns_b = 1e6 * rb["output"]["nodes"].get<double>() / rb["source"]["valid_samples"].get<double>();
+    const double ns_a = 1e6 * double(nodes) / ra["source"]["valid_samples"].get<double>();
+    fmt::print("  {:<16} {:>9} {:>9} {:>8} {:>10} {:>10} {:>8}\n", "CPU per stage", "ms/node b", "ms/node a", "after/b",
+               "ns/smp b", "ns/smp a", "after/b");
     for (const auto& [stage, values] : ms[1]) {
       const double a = median(values);
       const double b = ms[0].count(stage) ? median(ms[0].at(stage)) : NAN;
       if (!(a > 0.0005) && !(b > 0.0005)) continue;  // stages this cook does not have
-      fmt::print("  {:<16} {:>9.3f} {:>9.3f} {:>8.2f}\n", stage, b, a, a / b);
+      fmt::print("  {:<16} {:>9.3f} {:>9.3f} {:>8.2f} {:>10.1f} {:>10.1f} {:>8.2f}\n", stage, b, a, a / b, b * ns_b,
+                 a * ns_a, (a * ns_a) / (b * ns_b));
     }
     // Stored bytes per valid source sample, per section and for normals + albedo together (the
     // sections the rate-distortion pass works on), each side over its own report.

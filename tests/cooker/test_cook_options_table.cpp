@@ -127,8 +127,8 @@ TEST(CookOptionsTable, ListsEveryFieldOnce) {
       EXPECT_NE(r.info_put, nullptr) << r.field;
     }
   }
-  EXPECT_EQ(plan_keys.size(), 32u);  // the 38 fields less output, threads, work dir, unit size, block size and order
-  EXPECT_EQ(info_keys.size(), 20u);
+  EXPECT_EQ(plan_keys.size(), 33u);  // the 39 fields less output, threads, work dir, unit size, block size and order
+  EXPECT_EQ(info_keys.size(), 21u);
 }
 
 TEST(CookOptionsTable, EveryPlanOptionRoundTripsThroughAPlan) {
@@ -167,7 +167,7 @@ TEST(CookOptionsTable, PlanKeysKeepTheirOrderAndForms) {
       "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "raw_size", "raw_type",
       "raw_big_endian", "tile_encoding", "nodata", "fill_max_samples", "materials", "surface_quality", "bc_rdo",
       "error_checks", "albedo", "holes", "landcover", "landcover_table", "heights_only", "force", "zstd_level",
-      "surface_zstd_level", "overview_levels"};
+      "surface_zstd_level", "overview_levels", "height_step_m"};  // new keys go last: plans already written
   EXPECT_EQ(keys, expected);
   EXPECT_EQ(j.at("nodata"), "fill");
   EXPECT_EQ(j.at("surface_quality"), 2);
@@ -211,6 +211,12 @@ TEST(CookOptionsTable, CookInfoRecordsItsOptionsInTheArchivesOrder) {
   EXPECT_EQ(j.at("spacing"), json::array({2.0, 2.0}));
   EXPECT_EQ(j.at("nodata_value"), -32768.0);
   EXPECT_EQ(std::prev(j.end()).key(), "nodata_value");
+  // --height-step (issue 50) is recorded only when given, after every older key.
+  EXPECT_FALSE(j.contains("height_step_m"));
+  o.height_step_m = 0.03125;
+  const json k = cook_info_options_json(o);
+  EXPECT_EQ(std::prev(k.end()).key(), "height_step_m");
+  EXPECT_EQ(k.at("height_step_m"), 0.03125);
 }
 
 TEST(CookOptionsTable, EnumNamesRoundTrip) {
