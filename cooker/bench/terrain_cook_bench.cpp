@@ -997,6 +997,16 @@ terrain::chart::Chart sweep_chart(const std::vector<SweepPoint>& points, int run
   return c;
 }
 
+// Writes a mode's chart and says where; false (with the reason on stderr) when it cannot.
+bool write_chart(const terrain::chart::Chart& c, const std::string& path) {
+  if (const std::string e = terrain::chart::write_svg(c, path); !e.empty()) {
+    fmt::print(stderr, "terrain-cook-bench: {}\n", e);
+    return false;
+  }
+  fmt::print("Wrote {}\n", path);
+  return true;
+}
+
 // --rdo: the rate-distortion pass (--bc-rdo) against the plain encoders, per DEM.
 struct RdoRow {
   std::string dem;
@@ -1110,12 +1120,7 @@ int rdo_main(const std::string& tool, const std::vector<Dem>& dems, const std::v
     i = e;
   }
   c.panels.assign(std::begin(p), std::end(p));
-  if (const std::string e = ch::write_svg(c, chart_path); !e.empty()) {
-    fmt::print(stderr, "terrain-cook-bench: {}\n", e);
-    return 1;
-  }
-  fmt::print("Wrote {}\n", chart_path);
-  return rc;
+  return write_chart(c, chart_path) ? rc : 1;
 }
 
 // --steps: the height step against bytes and error. Heights-only cooks of each DEM with
@@ -1205,12 +1210,7 @@ int steps_main(const std::string& tool, const std::vector<Dem>& dems, const std:
     i = e;
   }
   c.panels.assign(std::begin(p), std::end(p));
-  if (const std::string e = ch::write_svg(c, chart_path); !e.empty()) {
-    fmt::print(stderr, "terrain-cook-bench: {}\n", e);
-    return 1;
-  }
-  fmt::print("Wrote {}\n", chart_path);
-  return 0;
+  return write_chart(c, chart_path) ? 0 : 1;
 }
 
 // --against BIN: the same default cooks with another terrain-cook (the previous commit's build) and
