@@ -155,6 +155,12 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
   // One payload buffer per thread, reused: the largest payload is 1 MiB (SPEC 12).
   thread_local std::vector<uint8_t> bytes;
   TERRAIN_TRY(read_payload(index, bytes));
+  // Normals codec 4 is legal only in archives that declare it (SPEC 6.5, 16.7).
+  constexpr size_t kNormalsCodecByte = 4 + size_t(layout::SectionId::normals) * layout::kPayloadTableEntrySize + 1;
+  if (!impl_->world.derived_normals && bytes.size() > kNormalsCodecByte &&
+      bytes[kNormalsCodecByte] == uint8_t(layout::Codec::normals_derived))
+    return Status::failure(Error::payload_invalid, impl_->where(impl_->nodes[index]) +
+                                                       "normals section uses codec 4 (derived) but the archive has no derived_normals record");
   if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
     s.message = impl_->where(impl_->nodes[index]) + s.message;
     return s;

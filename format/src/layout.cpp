@@ -254,6 +254,7 @@ std::vector<uint8_t> encode_extensions(const WorldInfo& w) {
     record.append(w.overview_step_log2.begin(), w.overview_step_log2.end());
     add(layout::kExtensionOverviewLevels, record);
   }
+  if (w.derived_normals) add(layout::kExtensionDerivedNormals, std::string());
   return out;
 }
 
@@ -279,6 +280,9 @@ Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
       if (size < 2 || size != 1u + data[0] || data[0] == 0)
         return bad("overview_levels record of " + std::to_string(size) + " bytes: expected 1 + K bytes with K >= 1");
       w.overview_step_log2.assign(data + 1, data + size);  // ranges: validate_world
+    } else if (tag == layout::kExtensionDerivedNormals) {
+      if (size != 0) return bad("derived_normals record of " + std::to_string(size) + " bytes: expected 0");
+      w.derived_normals = true;
     } else if (!(tag & layout::kExtensionOptional)) {
       return bad("unknown required tag " + std::to_string(tag) + " (written by a newer writer)");
     }
@@ -289,7 +293,7 @@ Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
 }  // namespace
 
 uint32_t required_format_version(const WorldInfo& w) {
-  const bool v2 = w.crs.kind == ProjectionKind::proj || !w.overview_step_log2.empty();
+  const bool v2 = w.crs.kind == ProjectionKind::proj || !w.overview_step_log2.empty() || w.derived_normals;
   return v2 ? layout::kFormatVersionV2 : layout::kFormatVersion;
 }
 

@@ -11,6 +11,8 @@
 
 #include "terrain/detail/bytes.h"
 #include "terrain/archive_writer.h"
+#include "terrain/bc_decode.h"
+#include "terrain/derived_normals.h"
 #include "terrain/cpu_clock.h"
 #include "terrain/height_codec.h"
 #include "terrain/zstd_context.h"
@@ -43,7 +45,9 @@ Status parse_payload_table(std::span<const uint8_t> table, uint64_t payload_size
     if ((!has_shift && e[2] != 0) || e[3] != 0) return bad(name + " section entry has reserved bytes set");
     if (has_shift && e[2] > 15) return bad("height_shift " + std::to_string(e[2]) + " outside 0..15");
     const bool height_only = codec == uint8_t(layout::Codec::height_predictor) || codec == uint8_t(layout::Codec::height_constant);
-    if (codec > uint8_t(layout::Codec::height_constant) || (height_only && !heights))
+    const bool normals_only = codec == uint8_t(layout::Codec::normals_derived);
+    if (codec > uint8_t(layout::Codec::normals_derived) || (height_only && !heights) ||
+        (normals_only && s != uint32_t(layout::SectionId::normals)))
       return bad(name + " section has unknown codec " + std::to_string(codec));
     PayloadSection& sec = out[s];
     sec.codec = layout::Codec(codec);
@@ -208,7 +212,7 @@ Status decompress_into(std::span<const uint8_t> src, uint8_t* dst, size_t dst_si
 }  // namespace detail
 
 Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out,
-                           PayloadTiming* timing) {
+                           PayloadTiming* timing, const NormalsDerivation* derived_normals) {
   using namespace detail;
   if (options.zstd_level < -7 || options.zstd_level > 22)
     return Status::failure(Error::invalid_argument, "zstd_level " + std::to_string(options.zstd_level) + " outside -7..22");
@@ -264,6 +268,14 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
         for (int i = 0; i < kHeightCount; ++i) store_u16(scratch.data() + 2 * i, data.heights[size_t(i)]);
         st = compress_section(scratch, options.zstd_level, layout::Codec::zstd, out, entries[s]);
       }
+    } else if (s == uint32_t(layout::SectionId::normals) && derived_normals) {
+      uint8_t bytes[kNormalsDerivationBytes];
+      store_normals_derivation(*derived_normals, bytes);
+      NormalsDerivation check;
+      if (!load_normals_derivation(bytes, sizeof(bytes), check))
+        return Status::failure(Error::invalid_argument, "derived normals: rise_per_unit must be finite and > 0, AO values <= 31");
+      st = compress_section(bytes, surface_level, layout::Codec::normals_derived, out, entries[s]);
+      store_u32(entries[s] + 8, layout::kSectionRawSize[s]);  // raw_size: the decoded BC3 section
     } else {
       st = compress_section(raw[s], surface_level, layout::Codec::zstd, out, entries[s]);
     }
@@ -275,38 +287,99 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
   return Status::success();
 }
 
+namespace detail {
+namespace {
+
+Status decode_heights(const PayloadSection& sec, std::span<const uint8_t> src, std::array<uint16_t, kHeightCount>& heights) {
+  if (sec.codec == layout::Codec::height_constant) {  // stored_size == 2 checked by the table parser
+    std::fill(heights.begin(), heights.end(), load_u16(src.data()));
+    return Status::success();
+  }
+  alignas(64) uint8_t buffer[2 * kHeightCount];
+  if (sec.codec == layout::Codec::stored) {
+    std::memcpy(buffer, src.data(), sizeof(buffer));
+  } else {
+    TERRAIN_TRY(decompress_into(src, buffer, sizeof(buffer), "heights"));
+  }
+  if (sec.codec == layout::Codec::height_predictor) return residuals_to_heights(buffer, sec.height_shift, heights);
+  for (int i = 0; i < kHeightCount; ++i) heights[size_t(i)] = load_u16(buffer + 2 * i);
+  return Status::success();
+}
+
+// Codec 4 (SPEC 16.7): the texels from the node's heights, hole mask (albedo alpha), apron and AO.
+Status decode_derived_normals(std::span<const uint8_t> src, const std::array<uint16_t, kHeightCount>& heights,
+                              const uint8_t* albedo_bc1, uint8_t* normals_bc3) {
+  uint8_t bytes[kNormalsDerivationBytes];
+  TERRAIN_TRY(decompress_into(src, bytes, sizeof(bytes), "normals"));
+  static thread_local NormalsDerivation d;
+  if (!load_normals_derivation(bytes, sizeof(bytes), d))
+    return Status::failure(Error::payload_invalid, "normals section (derived): rise_per_unit not finite and > 0, or an AO value above 31");
+  static thread_local std::array<uint8_t, kHeightCount> holes;
+  holes.fill(0);
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      const uint16_t mask = bc1_transparent_mask(albedo_bc1 + 8 * size_t(by * kTexelBlocks + bx));
+      if (!mask) continue;
+      for (int p = 0; p < 16; ++p) {
+        if (!(mask >> p & 1)) continue;
+        const int i = bx * 4 + p % 4 - kApron, j = by * 4 + p / 4 - kApron;
+        if (i >= 0 && i < kHeightSamples && j >= 0 && j < kHeightSamples) holes[size_t(j * kHeightSamples + i)] = 1;
+      }
+    }
+  static thread_local std::array<uint8_t, kTexels * kTexels * 4> rgba;
+  derive_normal_texels(heights.data(), holes.data(), d, rgba.data());
+  encode_derived_normals_bc3(rgba.data(), normals_bc3);
+  return Status::success();
+}
+
+}  // namespace
+}  // namespace detail
+
 Status decode_node_payload(std::span<const uint8_t> bytes, unsigned sections, NodeData& out) {
   using namespace detail;
   PayloadTable table;
   TERRAIN_TRY(parse_payload_table(bytes, table));
+  auto section_bytes = [&](layout::SectionId id) {
+    const PayloadSection& sec = table[size_t(id)];
+    return bytes.subspan(sec.data_offset, sec.stored_size);
+  };
   uint8_t* dst[layout::kSectionCount] = {nullptr, out.normals_bc3.data(), out.albedo_bc1.data(), out.splat.data(),
                                          out.cones_bc3.data()};
+  const bool derive = (sections & kSectionNormals) && table[size_t(layout::SectionId::normals)].codec == layout::Codec::normals_derived;
   for (uint32_t s = 0; s < layout::kSectionCount; ++s) {
     if (!(sections & (1u << s))) continue;
     const PayloadSection& sec = table[s];
     const auto src = bytes.subspan(sec.data_offset, sec.stored_size);
-    const char* name = layout::kSectionName[s];
     if (s == uint32_t(layout::SectionId::heights)) {
-      if (sec.codec == layout::Codec::height_constant) {  // stored_size == 2 checked by the table parser
-        std::fill(out.heights.begin(), out.heights.end(), load_u16(src.data()));
-        continue;
-      }
-      alignas(64) uint8_t buffer[2 * kHeightCount];
-      if (sec.codec == layout::Codec::stored) {
-        std::memcpy(buffer, src.data(), sizeof(buffer));
-      } else {
-        TERRAIN_TRY(decompress_into(src, buffer, sizeof(buffer), name));
-      }
-      if (sec.codec == layout::Codec::height_predictor) {
-        TERRAIN_TRY(residuals_to_heights(buffer, sec.height_shift, out.heights));
-      } else {
-        for (int i = 0; i < kHeightCount; ++i) out.heights[size_t(i)] = load_u16(buffer + 2 * i);
-      }
+      TERRAIN_TRY(decode_heights(sec, src, out.heights));
+    } else if (s == uint32_t(layout::SectionId::normals) && derive) {
+      continue;  // after the heights and the albedo, below
     } else if (sec.codec == layout::Codec::stored) {
       std::memcpy(dst[s], src.data(), sec.raw_size);
     } else {
-      TERRAIN_TRY(decompress_into(src, dst[s], sec.raw_size, name));
+      TERRAIN_TRY(decompress_into(src, dst[s], sec.raw_size, layout::kSectionName[s]));
     }
+  }
+  if (derive) {
+    // The inputs the caller did not ask for are decoded into scratch, so only the asked sections of `out` change.
+    static thread_local std::array<uint16_t, kHeightCount> heights;
+    static thread_local std::array<uint8_t, kAlbedoBytes> albedo;
+    const std::array<uint16_t, kHeightCount>* h = &out.heights;
+    if (!(sections & kSectionHeights)) {
+      TERRAIN_TRY(decode_heights(table[size_t(layout::SectionId::heights)], section_bytes(layout::SectionId::heights), heights));
+      h = &heights;
+    }
+    const uint8_t* a = out.albedo_bc1.data();
+    if (!(sections & kSectionAlbedo)) {
+      const PayloadSection& sec = table[size_t(layout::SectionId::albedo)];
+      if (sec.codec == layout::Codec::stored) {
+        std::memcpy(albedo.data(), section_bytes(layout::SectionId::albedo).data(), sec.raw_size);
+      } else {
+        TERRAIN_TRY(decompress_into(section_bytes(layout::SectionId::albedo), albedo.data(), sec.raw_size, "albedo"));
+      }
+      a = albedo.data();
+    }
+    TERRAIN_TRY(decode_derived_normals(section_bytes(layout::SectionId::normals), *h, a, out.normals_bc3.data()));
   }
   return Status::success();
 }

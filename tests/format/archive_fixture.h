@@ -13,6 +13,7 @@
 #include "terrain/archive_reader.h"
 #include "terrain/archive_writer.h"
 #include "terrain/bc_decode.h"
+#include "terrain/derived_normals.h"
 #include "terrain/format.h"
 
 namespace terrain::test {
@@ -234,9 +235,15 @@ inline BuiltNode make_seed_node(const WorldInfo& w, const NodeKey& key) {
 
 // Seed archives: 0 = one root in a local frame; 1 = a 6-level chain with a hole (UTM frame);
 // 2 = one root with plain-zstd heights and a stored (incompressible) cones section;
-// 3 = one root whose heights are constant (heights codec 3, SPEC 9.3).
+// 3 = one root whose heights are constant (heights codec 3, SPEC 9.3);
+// 4 = one root whose normals are derived from its heights (normals codec 4, SPEC 16.7).
 inline Status write_seed_archive(const std::string& path, int kind) {
   WorldInfo w = make_world(1, 1);
+  w.derived_normals = kind == 4;
+  NormalsDerivation derivation;
+  derivation.rise_per_unit = 1.0f / 512.0f;
+  for (size_t i = 0; i < derivation.apron.size(); ++i) derivation.apron[i] = uint8_t(120 + (i / 2) % 16);
+  for (size_t i = 0; i < derivation.ao.size(); ++i) derivation.ao[i] = uint8_t(31 - i % 4);
   if (kind != 1) {
     w.crs = FrameCrs{};
     w.crs.name = "local";
@@ -257,7 +264,7 @@ inline Status write_seed_archive(const std::string& path, int kind) {
       n.data->heights.fill(0);
       n.record.min_height = n.record.max_height = n.record.height_offset;
     }
-    TERRAIN_TRY(encode_node_payload(*n.data, options, payload));
+    TERRAIN_TRY(encode_node_payload(*n.data, options, payload, nullptr, kind == 4 ? &derivation : nullptr));
     TERRAIN_TRY(writer.add_node(n.record, payload));
   }
   return writer.finish(w);

@@ -43,6 +43,7 @@ TEST(GoldenArchive, OneRootMatchesFrozenBytes) { check_golden("one_root.terrain"
 TEST(GoldenArchive, SixLevelChainMatchesFrozenBytes) { check_golden("chain6.terrain", 1); }
 TEST(GoldenArchive, PlainAndStoredCodecsMatchFrozenBytes) { check_golden("plain_codecs.terrain", 2); }
 TEST(GoldenArchive, ConstantHeightsCodecMatchesFrozenBytes) { check_golden("constant_heights.terrain", 3); }
+TEST(GoldenArchive, DerivedNormalsCodecMatchesFrozenBytes) { check_golden("derived_normals.terrain", 4); }
 
 }  // namespace
 }  // namespace terrain

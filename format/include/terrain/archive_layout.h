@@ -96,6 +96,7 @@ inline constexpr uint32_t kExtensionHeaderSize = 8;
 inline constexpr uint32_t kExtensionOptional = 0x80000000u;
 inline constexpr uint32_t kExtensionFrameDefinition = 1;  // UTF-8 PROJ WKT2:2019 of a projection_kind 2 frame
 inline constexpr uint32_t kExtensionOverviewLevels = 2;  // SPEC 19: u8 K, then u8 step_log2 of levels 6 .. 5+K
+inline constexpr uint32_t kExtensionDerivedNormals = 3;  // SPEC 16.7: no data; payloads may use normals codec 4
 inline constexpr uint32_t kMaxFrameDefinitionSize = 64 * 1024;
 inline constexpr uint32_t kMaxExtensionSize = 16u << 20;
 
@@ -109,6 +110,7 @@ enum class Codec : uint8_t {
   zstd = 1,               // one zstd frame of the raw bytes
   height_predictor = 2,   // one zstd frame of the height residual planes (heights only)
   height_constant = 3,    // 2 bytes: the one value of every height sample (heights only)
+  normals_derived = 4,    // one zstd frame of the apron and AO; the rest from the heights (normals only, SPEC 16.7)
 };
 // Raw (decoded) size of each section, indexed by SectionId.
 inline constexpr std::array<uint32_t, kSectionCount> kSectionRawSize = {

@@ -18,6 +18,8 @@
 
 namespace terrain {
 
+struct NormalsDerivation;  // terrain/derived_normals.h
+
 struct PayloadOptions {
   // zstd level of the heights (and of every section unless surface_zstd_level is set). 3 is the
   // quick general default; levels 10-18 switch the height residuals to tuned optimal parsing
@@ -37,8 +39,10 @@ struct PayloadOptions {
 struct PayloadTiming {
   std::array<double, 5> section_end_s{};
 };
+// derived_normals (optional): the normals section is written with codec 4 (SPEC 16.7) from it, and
+// data.normals_bc3 is not read; the archive must then declare the derived_normals extension.
 Status encode_node_payload(const NodeData& data, const PayloadOptions& options, std::vector<uint8_t>& out,
-                           PayloadTiming* timing = nullptr);
+                           PayloadTiming* timing = nullptr, const NormalsDerivation* derived_normals = nullptr);
 
 // Decodes `bytes` (one node's stored payload, checksum already verified or not) into `out`.
 // Only the sections in `sections` are written. Safe on any bytes: bounds-checked, never trusts sizes.

@@ -108,6 +108,9 @@ struct WorldInfo {
   // Format v2, SPEC section 19: step_log2 of the overview levels 6, 7, ... (K = size(), 0..14;
   // empty = none, the roots are the top of the tree). Never decreasing upward from step_log2[5].
   std::vector<uint8_t> overview_step_log2;
+  // Format v2, SPEC 16.7: node payloads may code their normals with codec 4 (derived from the
+  // heights); declared by the derived_normals extension record.
+  bool derived_normals = false;
 };
 
 // Levels of the archive's tree: 6 + K (K overview levels).

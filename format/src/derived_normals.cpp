@@ -1,0 +1,191 @@
+#include "terrain/derived_normals.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+#include "terrain/surface_contract.h"
+
+namespace terrain {
+namespace {
+
+bool is_apron(int t, int u) { return t < kApron || t >= kTexels - kApron || u < kApron || u >= kTexels - kApron; }
+
+int expand6(int g) { return (g << 2) | (g >> 4); }
+int nearest6(int v) { return (v * 63 + 127) / 255; }
+
+// The alpha half: endpoints max/min of the 16 values (8-value mode when they differ); each value
+// takes the nearest palette entry, ties to the one nearer the maximum.
+void encode_alpha(const uint8_t v[16], uint8_t out[8]) {
+  int lo = 255, hi = 0;
+  for (int i = 0; i < 16; ++i) {
+    lo = std::min<int>(lo, v[i]);
+    hi = std::max<int>(hi, v[i]);
+  }
+  out[0] = uint8_t(hi);
+  out[1] = uint8_t(lo);
+  uint64_t bits = 0;
+  if (hi > lo) {
+    // Entries by position from the maximum: position p holds index 0 (p = 0), 1 (p = 7), p + 1 otherwise.
+    int value[8];
+    for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;  // bc_decode.h, nearest rounding
+    value[0] = hi;
+    value[7] = lo;
+    const int range = hi - lo;
+    for (int i = 0; i < 16; ++i) {
+      // The linear estimate, then the exact nearest among it and its two neighbours.
+      int p = std::clamp(((hi - v[i]) * 14 + range) / (2 * range), 0, 7);
+      if (p > 0 && std::abs(v[i] - value[p - 1]) <= std::abs(v[i] - value[p])) --p;
+      else if (p < 7 && std::abs(v[i] - value[p + 1]) < std::abs(v[i] - value[p])) ++p;
+      const int index = p == 0 ? 0 : p == 7 ? 1 : p + 1;
+      bits |= uint64_t(index) << (3 * i);
+    }
+  }
+  for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(bits >> (8 * b));
+}
+
+// Indices and squared error of the 16 values against the 4-colour G palette of endpoints g0 >= g1
+// (six bits): nearest entry, ties to the one nearer g0.
+long colour_fit(const uint8_t g[16], int g0, int g1, uint32_t& bits) {
+  const int e0 = expand6(g0), e1 = expand6(g1);
+  const int p2 = (2 * e0 + e1 + 1) / 3, p3 = (e0 + 2 * e1 + 1) / 3;  // bc_decode.h, nearest rounding
+  const int value[4] = {e0, p2, p3, e1};                              // by position from g0
+  static constexpr uint32_t kIndex[4] = {0, 2, 3, 1};
+  const int m01 = e0 + p2, m12 = p2 + p3, m23 = p3 + e1;
+  long err = 0;
+  bits = 0;
+  for (int i = 0; i < 16; ++i) {
+    const int v2 = 2 * g[i];
+    const int p = int(v2 < m01) + int(v2 < m12) + int(v2 < m23);
+    const int d = g[i] - value[p];
+    err += d * d;
+    bits |= kIndex[p] << (2 * i);
+  }
+  return err;
+}
+
+// The colour half: R = q (5 bits, exact), B = 0; G's endpoints are the better (first on a tie) of
+// the nearest six-bit values of the block's max and min and the tightest pair that covers them.
+void encode_colour(int q, const uint8_t g[16], uint8_t out[8]) {
+  int lo = 255, hi = 0;
+  for (int i = 0; i < 16; ++i) {
+    lo = std::min<int>(lo, g[i]);
+    hi = std::max<int>(hi, g[i]);
+  }
+  int g0 = nearest6(hi), g1 = nearest6(lo);
+  uint32_t bits;
+  long err = colour_fit(g, g0, g1, bits);
+  int c0 = g0, c1 = g1;
+  while (c0 < 63 && expand6(c0) < hi) ++c0;
+  while (c1 > 0 && expand6(c1) > lo) --c1;
+  if (err > 0 && (c0 != g0 || c1 != g1)) {
+    uint32_t cover_bits;
+    const long cover = colour_fit(g, c0, c1, cover_bits);
+    if (cover < err) {
+      g0 = c0;
+      g1 = c1;
+      bits = cover_bits;
+    }
+  }
+  const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
+  out[0] = uint8_t(e0);
+  out[1] = uint8_t(e0 >> 8);
+  out[2] = uint8_t(e1);
+  out[3] = uint8_t(e1 >> 8);
+  for (int b = 0; b < 4; ++b) out[4 + b] = uint8_t(bits >> (8 * b));
+}
+
+// Mean difference along the two parallel cell edges (a0 -> a1, b0 -> b1) that have both corners.
+float edge_gradient(int a0, int a1, bool a_ok, int b0, int b1, bool b_ok) {
+  if (a_ok && b_ok) return float((a1 - a0) + (b1 - b0)) * 0.5f;
+  if (a_ok) return float(a1 - a0);
+  if (b_ok) return float(b1 - b0);
+  return 0.0f;
+}
+
+}  // namespace
+
+void store_normals_derivation(const NormalsDerivation& d, uint8_t out[kNormalsDerivationBytes]) {
+  uint32_t bits;
+  std::memcpy(&bits, &d.rise_per_unit, 4);
+  for (int b = 0; b < 4; ++b) out[b] = uint8_t(bits >> (8 * b));
+  std::memcpy(out + 4, d.apron.data(), d.apron.size());
+  std::memcpy(out + 4 + d.apron.size(), d.ao.data(), d.ao.size());
+}
+
+bool load_normals_derivation(const uint8_t* bytes, size_t size, NormalsDerivation& out) {
+  if (size != kNormalsDerivationBytes) return false;
+  const uint32_t bits = uint32_t(bytes[0]) | (uint32_t(bytes[1]) << 8) | (uint32_t(bytes[2]) << 16) | (uint32_t(bytes[3]) << 24);
+  std::memcpy(&out.rise_per_unit, &bits, 4);
+  if (!std::isfinite(out.rise_per_unit) || !(out.rise_per_unit > 0)) return false;
+  std::memcpy(out.apron.data(), bytes + 4, out.apron.size());
+  std::memcpy(out.ao.data(), bytes + 4 + out.apron.size(), out.ao.size());
+  for (uint8_t q : out.ao)
+    if (q > 31) return false;
+  return true;
+}
+
+void derive_normal_texels(const uint16_t* heights, const uint8_t* holes, const NormalsDerivation& d,
+                          uint8_t rgba[kTexels * kTexels * 4]) {
+  const float half_rise = 0.5f * d.rise_per_unit;
+  // R (block AO) and B of every texel; the apron's x8 and y8 in record order.
+  size_t apron_at = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      uint8_t* px = rgba + 4 * size_t(u * kTexels + t);
+      const int q = d.ao[size_t((u / 4) * kTexelBlocks + t / 4)];
+      px[0] = uint8_t((q << 3) | (q >> 2));
+      px[2] = 0;
+      if (is_apron(t, u)) {
+        px[3] = d.apron[apron_at++];
+        px[1] = d.apron[apron_at++];
+      }
+    }
+  // Interior cells a row at a time: the plain gradient in a loop without branches, then the
+  // cells with a hole corner (rows that have one) with the edge rule.
+  float gx[128], gy[128];
+  for (int j = 0; j < 128; ++j) {
+    const uint16_t* south = heights + size_t(j * kHeightSamples);
+    const uint16_t* north = south + kHeightSamples;
+    for (int i = 0; i < 128; ++i) {
+      gx[i] = float((int(south[i + 1]) - int(south[i])) + (int(north[i + 1]) - int(north[i]))) * half_rise;
+      gy[i] = float((int(north[i]) - int(south[i])) + (int(north[i + 1]) - int(south[i + 1]))) * half_rise;
+    }
+    if (holes) {
+      const uint8_t* hs = holes + size_t(j * kHeightSamples);
+      const uint8_t* hn = hs + kHeightSamples;
+      for (int i = 0; i < 128; ++i) {
+        if (!(hs[i] | hs[i + 1] | hn[i] | hn[i + 1])) continue;
+        const bool ok00 = !hs[i], ok10 = !hs[i + 1], ok01 = !hn[i], ok11 = !hn[i + 1];
+        gx[i] = edge_gradient(south[i], south[i + 1], ok00 && ok10, north[i], north[i + 1], ok01 && ok11) * d.rise_per_unit;
+        gy[i] = edge_gradient(south[i], north[i], ok00 && ok01, south[i + 1], north[i + 1], ok10 && ok11) * d.rise_per_unit;
+      }
+    }
+    uint8_t* row = rgba + 4 * size_t((j + kApron) * kTexels + kApron);
+    for (int i = 0; i < 128; ++i) {
+      const float inv = 1.0f / std::sqrt(gx[i] * gx[i] + gy[i] * gy[i] + 1.0f);
+      row[4 * i + 3] = normal_texel_of(-gx[i] * inv);
+      row[4 * i + 1] = normal_texel_of(-gy[i] * inv);
+    }
+  }
+}
+
+void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]) {
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      uint8_t x8[16], y8[16];
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+          const uint8_t* px = rgba + 4 * size_t((by * 4 + r) * kTexels + bx * 4 + c);
+          x8[4 * r + c] = px[3];
+          y8[4 * r + c] = px[1];
+        }
+      const int q = rgba[4 * size_t((by * 4) * kTexels + bx * 4)] >> 3;
+      uint8_t* out = bc3 + 16 * size_t(by * kTexelBlocks + bx);
+      encode_alpha(x8, out);
+      encode_colour(q, y8, out + 8);
+    }
+}
+
+}  // namespace terrain
