@@ -119,6 +119,7 @@ int run(int argc, char** argv) {
   using terrain::cook::enum_name;
   std::string origin, spacing, raw_size, valid_range, memory_limit, report_path;
   std::string nodata = enum_name(o.nodata), quality = enum_name(o.surface_quality), error_checks = enum_name(o.error_checks);
+  std::string normals = enum_name(o.normals);
   std::optional<double> nodata_value;
   bool quiet = false, json = false;
 
@@ -232,6 +233,12 @@ int run(int argc, char** argv) {
                  "Hole alpha is checked on every node")
       ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::ErrorChecks>()))
       ->capture_default_str();
+  app.add_option("--normals", normals,
+                 "Normals of the nodes cooked from the source: derived = stored as the 2-texel apron and block AO only, "
+                 "every reader rebuilds the texels from the heights (format v2, SPEC 16.7; the Slovenian 1 m tile: 0.53x the archive bytes); "
+                 "stored = the cooker's BC3 blocks, shaped by --bc-rdo")
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::NormalsMode>()))
+      ->capture_default_str();
   std::string overview = enum_name(o.overview_levels);
   app.add_option("--overview-levels", overview,
                  fmt::format("Overview levels above the 2048 m roots (format v2, SPEC section 19) so a streamer can "
@@ -293,6 +300,7 @@ int run(int argc, char** argv) {
   o.nodata = enum_of<terrain::cook::NodataPolicy>(nodata).value_or(o.nodata);
   o.overview_levels = enum_of<terrain::cook::OverviewMode>(overview).value_or(o.overview_levels);
   o.error_checks = enum_of<terrain::cook::ErrorChecks>(error_checks).value_or(o.error_checks);
+  o.normals = enum_of<terrain::cook::NormalsMode>(normals).value_or(o.normals);
   o.surface_quality = enum_of<terrain::cook::SurfaceQuality>(quality).value_or(o.surface_quality);
 
   // ---- the files: refuse before any work ----

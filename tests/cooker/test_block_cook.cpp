@@ -210,6 +210,7 @@ TEST(BlockCook, SurfaceLayersToo) {
 TEST(BlockCook, BcRdoToo) {
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-rdo"), "blocky", blocky_dem(), true, o));
+  o.normals = cook::NormalsMode::stored;  // the pass shapes stored normal blocks (derived ones have none)
   o.threads = 2;
   o.tolerance_m = 2.0;
   cook::CookOptions plain = o;
@@ -271,6 +272,7 @@ TEST(BlockCook, ErrorChecksSampleOrAllSameBytes) {
 TEST(BlockCook, DrainGivesTheSpoolSpaceBack) {
   cook::CookOptions o;
   ASSERT_NO_FATAL_FAILURE(write_cook_input(scratch_dir("block-spool"), "blocky", blocky_dem(), true, o));
+  o.normals = cook::NormalsMode::stored;  // payloads large enough to spool more than one chunk
   {  // a file system that cannot punch holes keeps the space: nothing to check there
     const std::string probe = o.output + ".probe";
     const int fd = ::open(probe.c_str(), O_RDWR | O_CREAT | O_TRUNC, 0600);

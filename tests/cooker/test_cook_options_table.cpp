@@ -27,12 +27,12 @@ auto options_fields(CookOptions& o) {
   auto& [inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale, height_offset,
          height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots, block_order, work_dir,
          unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata, fill_max_samples, materials_path,
-         surface_quality, error_checks, bc_rdo, albedo_path, holes_path, landcover_path, landcover_table_path,
+         surface_quality, error_checks, normals, bc_rdo, albedo_path, holes_path, landcover_path, landcover_table_path,
          heights_only, force, overview_levels, zstd_level, surface_zstd_level] = o;
   return std::tie(inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale,
                   height_offset, height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots,
                   block_order, work_dir, unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata,
-                  fill_max_samples, materials_path, surface_quality, error_checks, bc_rdo, albedo_path, holes_path,
+                  fill_max_samples, materials_path, surface_quality, error_checks, normals, bc_rdo, albedo_path, holes_path,
                   landcover_path, landcover_table_path, heights_only, force, overview_levels, zstd_level,
                   surface_zstd_level);
 }
@@ -40,7 +40,7 @@ const std::vector<std::string> kFieldNames = {
     "inputs", "output", "tolerance_m", "finest_level", "height_step_m", "threads", "crs", "frame", "origin", "spacing", "height_scale",
     "height_offset", "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "block_roots",
     "block_order", "work_dir", "unit_roots", "raw_size", "raw_type", "raw_big_endian", "tile_encoding", "nodata",
-    "fill_max_samples", "materials_path", "surface_quality", "error_checks", "bc_rdo", "albedo_path", "holes_path",
+    "fill_max_samples", "materials_path", "surface_quality", "error_checks", "normals", "bc_rdo", "albedo_path", "holes_path",
     "landcover_path", "landcover_table_path", "heights_only", "force", "overview_levels", "zstd_level",
     "surface_zstd_level"};
 constexpr size_t kFieldCount = std::tuple_size_v<decltype(options_fields(std::declval<CookOptions&>()))>;
@@ -87,6 +87,7 @@ CookOptions set_every_field() {
   o.materials_path = "rules.json";
   o.surface_quality = SurfaceQuality::best;
   o.error_checks = ErrorChecks::all;
+  o.normals = NormalsMode::stored;
   o.bc_rdo = 5.5f;
   o.albedo_path = "ortho.tif";
   o.holes_path = "holes.tif";
@@ -127,8 +128,8 @@ TEST(CookOptionsTable, ListsEveryFieldOnce) {
       EXPECT_NE(r.info_put, nullptr) << r.field;
     }
   }
-  EXPECT_EQ(plan_keys.size(), 33u);  // the 39 fields less output, threads, work dir, unit size, block size and order
-  EXPECT_EQ(info_keys.size(), 21u);
+  EXPECT_EQ(plan_keys.size(), 34u);  // the 40 fields less output, threads, work dir, unit size, block size and order
+  EXPECT_EQ(info_keys.size(), 22u);
 }
 
 TEST(CookOptionsTable, EveryPlanOptionRoundTripsThroughAPlan) {
@@ -167,16 +168,18 @@ TEST(CookOptionsTable, PlanKeysKeepTheirOrderAndForms) {
       "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "raw_size", "raw_type",
       "raw_big_endian", "tile_encoding", "nodata", "fill_max_samples", "materials", "surface_quality", "bc_rdo",
       "error_checks", "albedo", "holes", "landcover", "landcover_table", "heights_only", "force", "zstd_level",
-      "surface_zstd_level", "overview_levels", "height_step_m"};  // new keys go last: plans already written
+      "surface_zstd_level", "overview_levels", "height_step_m", "normals"};  // new keys go last: plans already written
   EXPECT_EQ(keys, expected);
   EXPECT_EQ(j.at("nodata"), "fill");
   EXPECT_EQ(j.at("surface_quality"), 2);
   EXPECT_EQ(j.at("error_checks"), "all");
   EXPECT_EQ(j.at("overview_levels"), 2);
+  EXPECT_EQ(j.at("normals"), "stored");
   // At their defaults, the options added after the first plans are left out or null.
   const json d = plan_options_json(CookOptions{});
   EXPECT_FALSE(d.contains("height_scale_set"));
   EXPECT_FALSE(d.contains("error_checks"));
+  EXPECT_FALSE(d.contains("normals"));
   EXPECT_TRUE(d.at("origin").is_null());
   EXPECT_TRUE(d.at("nodata_value").is_null());
   EXPECT_EQ(d.at("bc_rdo"), 28.0);
@@ -217,6 +220,12 @@ TEST(CookOptionsTable, CookInfoRecordsItsOptionsInTheArchivesOrder) {
   const json k = cook_info_options_json(o);
   EXPECT_EQ(std::prev(k.end()).key(), "height_step_m");
   EXPECT_EQ(k.at("height_step_m"), 0.03125);
+  // --normals stored (SPEC 16.7's codec 4 is the default) likewise, after it.
+  EXPECT_FALSE(k.contains("normals"));
+  o.normals = NormalsMode::stored;
+  const json n = cook_info_options_json(o);
+  EXPECT_EQ(std::prev(n.end()).key(), "normals");
+  EXPECT_EQ(n.at("normals"), "stored");
 }
 
 TEST(CookOptionsTable, EnumNamesRoundTrip) {

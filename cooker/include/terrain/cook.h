@@ -25,6 +25,10 @@ enum class SurfaceQuality : uint8_t { fast, balanced, best };
 // every node either way.
 enum class ErrorChecks : uint8_t { sample, all };
 enum class OverviewMode : uint8_t { automatic, on, off };
+// Normals of the nodes cooked from the source (SPEC 16.7): derived = the payload stores only the
+// apron and AO and every reader rebuilds the texels from the heights (normals codec 4); stored =
+// the cooker's BC3 blocks (with --bc-rdo). Overview nodes above the roots keep stored normals.
+enum class NormalsMode : uint8_t { derived, stored };
 
 struct CookOptions {
   std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
@@ -80,6 +84,7 @@ struct CookOptions {
   std::string materials_path;
   SurfaceQuality surface_quality = SurfaceQuality::balanced;
   ErrorChecks error_checks = ErrorChecks::sample;  // --error-checks
+  NormalsMode normals = NormalsMode::derived;      // --normals
   // Rate-distortion pass over the normal and albedo blocks (--bc-rdo, cooker/src/surface/bc_rdo.h):
   // squared error accepted per byte of literals saved; 0 = off (the blocks of the encoder as they are).
   // The default, 28, keeps every shared DEM and the 1 m lidar-like square (down to level 0) within

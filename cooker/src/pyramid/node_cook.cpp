@@ -9,6 +9,7 @@
 #include "avx2_clones.h"
 #include "pyramid/quantize.h"
 #include "terrain/cpu_clock.h"
+#include "terrain/derived_normals.h"
 
 namespace terrain::cook {
 namespace {
@@ -671,6 +672,7 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   const double t2 = thread_cpu_seconds();
 
   bool surface_done = false;
+  static thread_local NormalsDerivation derivation;
   if (!ctx.heights_only) {
     surface_done = true;
     heights_m.resize(kWindowCount);
@@ -688,13 +690,15 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
     in.bc_rdo = ctx.bc_rdo;
     in.measure_errors = ctx.check_all_errors || error_check_sampled(key);
     in.overlays = ctx.overlays;
-    out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface);
+    out.status = cook_surface_layers(in, *data, out.record.height_offset, step, *data, &out.surface,
+                                     ctx.derive_normals ? &derivation : nullptr);
     if (!out.status.ok()) return;
   }
   if (!surface_done) encode_hole_albedo(window->hole.data(), data->albedo_bc1);
   const double t3 = thread_cpu_seconds();
   PayloadTiming timing;
-  out.status = encode_node_payload(*data, ctx.payload, out.payload, &timing);
+  out.status = encode_node_payload(*data, ctx.payload, out.payload, &timing,
+                                   surface_done && ctx.derive_normals ? &derivation : nullptr);
   if (!out.status.ok()) return;
   const double t4 = timing.section_end_s[4];
   for (size_t s = 0; s < 5; ++s)

@@ -37,6 +37,7 @@ struct CookContext {
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
   float bc_rdo = 0;  // CookOptions::bc_rdo
+  bool derive_normals = false;  // CookOptions::normals == derived: normals codec 4 (SPEC 16.7)
   bool check_all_errors = false;  // CookOptions::error_checks == all (else error_check_sampled nodes)
   const SurfaceOverlays* overlays = nullptr;  // --albedo / --holes / --landcover rasters (overlays.cpp), or null
   PayloadOptions payload;

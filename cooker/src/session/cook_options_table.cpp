@@ -147,6 +147,8 @@ const CookOptionRow kRows[] = {
      put_number<&O::overview_levels>, get_number_or_zero<&O::overview_levels>, nullptr},
     {"height_step_m", "--height-step", kPlan, "height_step_m", "height_step_m", 20, false,
      put_if_positive<&O::height_step_m>, get_or_zero<&O::height_step_m>, put_if_positive<&O::height_step_m>},
+    {"normals", "--normals", kPlan, "normals", "normals", 21, false, put_name_unless_first<&O::normals>,
+     get_name_or_first<&O::normals>, put_name_unless_first<&O::normals>},
 };
 
 constexpr EnumName<NodataPolicy> kNodataNames[] = {
@@ -154,6 +156,7 @@ constexpr EnumName<NodataPolicy> kNodataNames[] = {
 constexpr EnumName<SurfaceQuality> kQualityNames[] = {
     {SurfaceQuality::fast, "fast"}, {SurfaceQuality::balanced, "balanced"}, {SurfaceQuality::best, "best"}};
 constexpr EnumName<ErrorChecks> kErrorCheckNames[] = {{ErrorChecks::sample, "sample"}, {ErrorChecks::all, "all"}};
+constexpr EnumName<NormalsMode> kNormalsNames[] = {{NormalsMode::derived, "derived"}, {NormalsMode::stored, "stored"}};
 constexpr EnumName<OverviewMode> kOverviewNames[] = {
     {OverviewMode::automatic, "auto"}, {OverviewMode::on, "on"}, {OverviewMode::off, "off"}};
 
@@ -210,6 +213,10 @@ std::span<const EnumName<SurfaceQuality>> enum_names<SurfaceQuality>() {
 template <>
 std::span<const EnumName<ErrorChecks>> enum_names<ErrorChecks>() {
   return kErrorCheckNames;
+}
+template <>
+std::span<const EnumName<NormalsMode>> enum_names<NormalsMode>() {
+  return kNormalsNames;
 }
 template <>
 std::span<const EnumName<OverviewMode>> enum_names<OverviewMode>() {

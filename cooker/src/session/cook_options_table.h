@@ -77,6 +77,8 @@ std::span<const EnumName<SurfaceQuality>> enum_names<SurfaceQuality>();
 template <>
 std::span<const EnumName<ErrorChecks>> enum_names<ErrorChecks>();
 template <>
+std::span<const EnumName<NormalsMode>> enum_names<NormalsMode>();
+template <>
 std::span<const EnumName<OverviewMode>> enum_names<OverviewMode>();
 
 template <class E>

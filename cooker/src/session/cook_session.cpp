@@ -353,6 +353,10 @@ uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spac
   return k * block_side;
 }
 
+// Whether the nodes cooked from the source code their normals with codec 4 (SPEC 16.7); the archive
+// then declares it (WorldInfo::derived_normals), in one process and in the merge alike.
+bool derives_normals(const CookOptions& o) { return !o.heights_only && o.normals == NormalsMode::derived; }
+
 Status surface_setup(CookSession& s) {
   const double margin = kWindowMargin * vertex_spacing_m(kRootLevel) + kRootSizeM;
   SurfaceOptions so;
@@ -360,6 +364,7 @@ Status surface_setup(CookSession& s) {
   so.bc_quality = BcQuality(uint8_t(s.options.surface_quality));
   s.ctx.bc_quality = so.bc_quality;
   s.ctx.bc_rdo = s.options.bc_rdo;
+  s.ctx.derive_normals = derives_normals(s.options);
   // A grid of at most 4 roots (a few hundred nodes at most) is measured whole: a sample of a few
   // nodes would say little there, and the time is small.
   s.ctx.check_all_errors =
@@ -530,6 +535,7 @@ Status finish_archive(CookSession& s, const PyramidTotals& totals, const CookRep
   s.world.step_log2 = s.ctx.step_log2;
   if (s.rules) s.world.palette = palette_of(*s.rules);
   s.world.cook_info_json = cook_info(s.options, decided, s.descriptions);
+  s.world.derived_normals = derives_normals(s.options);
   if (Status st = writer.finish(s.world); !st.ok()) return st;
   s.stats.archive_bytes = writer.bytes_written();
   // From the payload tables the writer parsed (reading the archive back would keep its directory

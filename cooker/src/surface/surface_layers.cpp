@@ -118,6 +118,7 @@ namespace {
 // (a hole vertex drops its triangles, so the cones ignore them too); orthophoto colours replace
 // the splat bake, which stays where the orthophoto has no data.
 Status cook_with_overlays(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset, int step_log2,
+                          NormalsDerivation* derived_normals,
                           NodeData& out, SurfaceStats* stats) {
   static thread_local std::vector<uint8_t> rgb, valid, holes, classes;
   const SurfaceOverlays& ov = *in.overlays;
@@ -139,7 +140,7 @@ Status cook_with_overlays(const SurfaceInput& in, const NodeData& node_heights, 
   if (with_rgb) {
     size_t missing = 0;
     for (uint8_t v : valid) missing += v == 0;
-    if (missing == size_t(kWindowCount)) return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats);
+    if (missing == size_t(kWindowCount)) return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats, derived_normals);
     if (missing > 0) {
       // Vertices without orthophoto data take the splat-baked colour around them: vertex v is
       // the corner of texels v + 1 and v + 2 (centres v -/+ 0.5), so no shift.
@@ -163,17 +164,51 @@ Status cook_with_overlays(const SurfaceInput& in, const NodeData& node_heights, 
     }
     plain.albedo_rgb = rgb.data();
   }
-  return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats);
+  return cook_surface_layers(plain, node_heights, height_offset, step_log2, out, stats, derived_normals);
+}
+
+}  // namespace
+
+namespace {
+
+// What a codec-4 normals section stores (the packed texels' apron and block AO), and in
+// out.normals_bc3 what every reader derives from it, the node's heights and its albedo's holes.
+void derive_reader_normals(const uint8_t* packed_rgba, const NodeData& node_heights, int step_log2, double spacing_m,
+                           NodeData& out, NormalsDerivation& d) {
+  d.rise_per_unit = float(std::ldexp(kHeightUnitM, step_log2) / spacing_m);
+  size_t at = 0;
+  for (int u = 0; u < kTexels; ++u)
+    for (int t = 0; t < kTexels; ++t) {
+      if (t >= kApron && t < kTexels - kApron && u >= kApron && u < kTexels - kApron) continue;
+      const uint8_t* px = packed_rgba + 4 * size_t(u * kTexels + t);
+      d.apron[at++] = px[3];
+      d.apron[at++] = px[1];
+    }
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx)
+      d.ao[size_t(by * kTexelBlocks + bx)] = uint8_t(packed_rgba[4 * size_t(by * 4 * kTexels + bx * 4)] >> 3);
+  static thread_local std::array<uint8_t, kHeightCount> holes;
+  decode_hole_mask(out, holes.data());
+  static thread_local std::array<uint8_t, kTexelCount * 4> derived;
+  derive_normal_texels(node_heights.heights.data(), holes.data(), d, derived.data());
+  encode_derived_normals_bc3(derived.data(), out.normals_bc3.data());
+}
+
+double next_lap_time(double& t) {
+  const double now = thread_cpu_seconds();
+  const double lap = now - t;
+  t = now;
+  return lap;
 }
 
 }  // namespace
 
 Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset, int step_log2,
-                           NodeData& out, SurfaceStats* stats) {
+                           NodeData& out, SurfaceStats* stats, NormalsDerivation* derived_normals) {
   if (!in.heights_m || !in.rules || !(in.spacing_m > 0) || in.rules->palette.empty())
     return Status::failure(Error::invalid_argument,
                            "node " + node_name(in.key) + ": surface input needs heights, material rules and a positive spacing");
-  if (in.overlays) return cook_with_overlays(in, node_heights, height_offset, step_log2, out, stats);
+  if (in.overlays) return cook_with_overlays(in, node_heights, height_offset, step_log2, derived_normals, out, stats);
   const MaterialRules& rules = *in.rules;
 
   // Each layer's steps are laps of one clock (CpuPart order); the four layer times are their sums.
@@ -210,8 +245,10 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   compute_normal_texels(in, normals);
   pack_normal_texels(normals, normal_rgba);
   next_lap(CpuPart::normals_texels);
-  encode_bc3_image(normal_rgba.data(), normals_method(in.bc_quality), out.normals_bc3.data());
-  rdo_normal_blocks(normal_rgba.data(), in.bc_rdo, out.normals_bc3.data());
+  if (!derived_normals) {
+    encode_bc3_image(normal_rgba.data(), normals_method(in.bc_quality), out.normals_bc3.data());
+    rdo_normal_blocks(normal_rgba.data(), in.bc_rdo, out.normals_bc3.data());
+  }
   next_lap(CpuPart::normals_bc3);
 
   // Albedo.
@@ -221,6 +258,11 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   encode_bc1_image(albedo_rgba.data(), albedo_method(in.bc_quality), out.albedo_bc1.data());
   rdo_albedo_blocks(albedo_rgba.data(), in.bc_rdo, out.albedo_bc1.data());
   next_lap(CpuPart::albedo_bc1);
+  if (derived_normals) {
+    // After the albedo: the texels come from the hole mask a reader decodes from it.
+    derive_reader_normals(normal_rgba.data(), node_heights, step_log2, in.spacing_m, out, *derived_normals);
+    lap[size_t(CpuPart::normals_bc3)] += next_lap_time(t);
+  }
   const auto sum = [&](CpuPart a, CpuPart b) { return lap[size_t(a)] + lap[size_t(b)]; };
   const double t_splat = sum(CpuPart::splat_fields, CpuPart::splat_rules);
   const double t_cones = sum(CpuPart::cones_normals, CpuPart::cones_fit) + lap[size_t(CpuPart::cones_bc3)];
