@@ -10,10 +10,12 @@
 namespace terrain {
 namespace {
 
-bool is_apron(int t, int u) { return t < kApron || t >= kTexels - kApron || u < kApron || u >= kTexels - kApron; }
 
 int expand6(int g) { return (g << 2) | (g >> 4); }
 int nearest6(int v) { return (v * 63 + 127) / 255; }
+
+// Loops over the 16 texels of a block are written lane by lane, without branches, so that they
+// vectorise; the results are those of the plain per-texel definitions in the comments.
 
 // The alpha half: endpoints max/min of the 16 values (8-value mode when they differ); each value
 // takes the nearest palette entry, ties to the one nearer the maximum.
@@ -32,35 +34,33 @@ void encode_alpha(const uint8_t v[16], uint8_t out[8]) {
     for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;  // bc_decode.h, nearest rounding
     value[0] = hi;
     value[7] = lo;
-    const int range = hi - lo;
-    for (int i = 0; i < 16; ++i) {
-      // The linear estimate, then the exact nearest among it and its two neighbours.
-      int p = std::clamp(((hi - v[i]) * 14 + range) / (2 * range), 0, 7);
-      if (p > 0 && std::abs(v[i] - value[p - 1]) <= std::abs(v[i] - value[p])) --p;
-      else if (p < 7 && std::abs(v[i] - value[p + 1]) < std::abs(v[i] - value[p])) ++p;
-      const int index = p == 0 ? 0 : p == 7 ? 1 : p + 1;
-      bits |= uint64_t(index) << (3 * i);
+    // Position = how many of the 7 midpoints between neighbouring entries lie above the value
+    // (a value on a midpoint stays with the entry nearer the maximum).
+    int16_t v2[16], pos[16] = {};
+    for (int i = 0; i < 16; ++i) v2[i] = int16_t(2 * v[i]);
+    for (int k = 0; k < 7; ++k) {
+      const int16_t mid = int16_t(value[k] + value[k + 1]);
+      for (int i = 0; i < 16; ++i) pos[i] = int16_t(pos[i] + (v2[i] < mid));
     }
+    static constexpr uint64_t kIndex[8] = {0, 2, 3, 4, 5, 6, 7, 1};
+    for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (3 * i);
   }
   for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(bits >> (8 * b));
 }
 
-// Indices and squared error of the 16 values against the 4-colour G palette of endpoints g0 >= g1
-// (six bits): nearest entry, ties to the one nearer g0.
-long colour_fit(const uint8_t g[16], int g0, int g1, uint32_t& bits) {
+// Positions (0 = g0's entry .. 3 = g1's) and squared error of the 16 values against the 4-colour G
+// palette of endpoints g0 >= g1 (six bits): nearest entry, ties to the one nearer g0.
+int colour_fit(const uint8_t g[16], int g0, int g1, int16_t pos[16]) {
   const int e0 = expand6(g0), e1 = expand6(g1);
   const int p2 = (2 * e0 + e1 + 1) / 3, p3 = (e0 + 2 * e1 + 1) / 3;  // bc_decode.h, nearest rounding
-  const int value[4] = {e0, p2, p3, e1};                              // by position from g0
-  static constexpr uint32_t kIndex[4] = {0, 2, 3, 1};
-  const int m01 = e0 + p2, m12 = p2 + p3, m23 = p3 + e1;
-  long err = 0;
-  bits = 0;
+  const int16_t m01 = int16_t(e0 + p2), m12 = int16_t(p2 + p3), m23 = int16_t(p3 + e1);
+  int err = 0;
   for (int i = 0; i < 16; ++i) {
-    const int v2 = 2 * g[i];
-    const int p = int(v2 < m01) + int(v2 < m12) + int(v2 < m23);
-    const int d = g[i] - value[p];
+    const int16_t v2 = int16_t(2 * g[i]);
+    pos[i] = int16_t((v2 < m01) + (v2 < m12) + (v2 < m23));
+    const int16_t value = pos[i] == 0 ? int16_t(e0) : pos[i] == 1 ? int16_t(p2) : pos[i] == 2 ? int16_t(p3) : int16_t(e1);
+    const int d = g[i] - value;
     err += d * d;
-    bits |= kIndex[p] << (2 * i);
   }
   return err;
 }
@@ -74,20 +74,22 @@ void encode_colour(int q, const uint8_t g[16], uint8_t out[8]) {
     hi = std::max<int>(hi, g[i]);
   }
   int g0 = nearest6(hi), g1 = nearest6(lo);
-  uint32_t bits;
-  long err = colour_fit(g, g0, g1, bits);
+  int16_t pos[16];
+  const int err = colour_fit(g, g0, g1, pos);
   int c0 = g0, c1 = g1;
   while (c0 < 63 && expand6(c0) < hi) ++c0;
   while (c1 > 0 && expand6(c1) > lo) --c1;
   if (err > 0 && (c0 != g0 || c1 != g1)) {
-    uint32_t cover_bits;
-    const long cover = colour_fit(g, c0, c1, cover_bits);
-    if (cover < err) {
+    int16_t cover_pos[16];
+    if (colour_fit(g, c0, c1, cover_pos) < err) {
       g0 = c0;
       g1 = c1;
-      bits = cover_bits;
+      std::memcpy(pos, cover_pos, sizeof(pos));
     }
   }
+  static constexpr uint32_t kIndex[4] = {0, 2, 3, 1};
+  uint32_t bits = 0;
+  for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (2 * i);
   const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
   out[0] = uint8_t(e0);
   out[1] = uint8_t(e0 >> 8);
@@ -131,17 +133,22 @@ void derive_normal_texels(const uint16_t* heights, const uint8_t* holes, const N
   const float half_rise = 0.5f * d.rise_per_unit;
   // R (block AO) and B of every texel; the apron's x8 and y8 in record order.
   size_t apron_at = 0;
-  for (int u = 0; u < kTexels; ++u)
-    for (int t = 0; t < kTexels; ++t) {
-      uint8_t* px = rgba + 4 * size_t(u * kTexels + t);
-      const int q = d.ao[size_t((u / 4) * kTexelBlocks + t / 4)];
-      px[0] = uint8_t((q << 3) | (q >> 2));
-      px[2] = 0;
-      if (is_apron(t, u)) {
-        px[3] = d.apron[apron_at++];
-        px[1] = d.apron[apron_at++];
+  for (int u = 0; u < kTexels; ++u) {
+    uint8_t* row = rgba + 4 * size_t(u * kTexels);
+    const uint8_t* ao = d.ao.data() + size_t((u / 4) * kTexelBlocks);
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      const uint8_t r = uint8_t((ao[bx] << 3) | (ao[bx] >> 2));
+      for (int c = 0; c < 4; ++c) {
+        row[4 * (4 * bx + c) + 0] = r;
+        row[4 * (4 * bx + c) + 2] = 0;
       }
     }
+    const bool whole_row = u < kApron || u >= kTexels - kApron;
+    for (int t = 0; t < kTexels; t = (whole_row || t != kApron - 1) ? t + 1 : kTexels - kApron) {
+      row[4 * t + 3] = d.apron[apron_at++];
+      row[4 * t + 1] = d.apron[apron_at++];
+    }
+  }
   // Interior cells a row at a time: the plain gradient in a loop without branches, then the
   // cells with a hole corner (rows that have one) with the edge rule.
   float gx[128], gy[128];

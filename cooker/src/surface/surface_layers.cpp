@@ -171,10 +171,10 @@ Status cook_with_overlays(const SurfaceInput& in, const NodeData& node_heights, 
 
 namespace {
 
-// What a codec-4 normals section stores (the packed texels' apron and block AO), and in
-// out.normals_bc3 what every reader derives from it, the node's heights and its albedo's holes.
+// What a codec-4 normals section stores (the packed texels' apron and block AO), and (with
+// `blocks`) in out.normals_bc3 what every reader derives from it, the node's heights and its albedo's holes.
 void derive_reader_normals(const uint8_t* packed_rgba, const NodeData& node_heights, int step_log2, double spacing_m,
-                           NodeData& out, NormalsDerivation& d) {
+                           bool blocks, NodeData& out, NormalsDerivation& d) {
   d.rise_per_unit = float(std::ldexp(kHeightUnitM, step_log2) / spacing_m);
   size_t at = 0;
   for (int u = 0; u < kTexels; ++u)
@@ -187,6 +187,7 @@ void derive_reader_normals(const uint8_t* packed_rgba, const NodeData& node_heig
   for (int by = 0; by < kTexelBlocks; ++by)
     for (int bx = 0; bx < kTexelBlocks; ++bx)
       d.ao[size_t(by * kTexelBlocks + bx)] = uint8_t(packed_rgba[4 * size_t(by * 4 * kTexels + bx * 4)] >> 3);
+  if (!blocks) return;
   static thread_local std::array<uint8_t, kHeightCount> holes;
   decode_hole_mask(out, holes.data());
   static thread_local std::array<uint8_t, kTexelCount * 4> derived;
@@ -260,7 +261,9 @@ Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights,
   next_lap(CpuPart::albedo_bc1);
   if (derived_normals) {
     // After the albedo: the texels come from the hole mask a reader decodes from it.
-    derive_reader_normals(normal_rgba.data(), node_heights, step_log2, in.spacing_m, out, *derived_normals);
+    // The blocks only serve the error statistics: nothing after the cook reads them.
+    derive_reader_normals(normal_rgba.data(), node_heights, step_log2, in.spacing_m, in.measure_errors, out,
+                          *derived_normals);
     lap[size_t(CpuPart::normals_bc3)] += next_lap_time(t);
   }
   const auto sum = [&](CpuPart a, CpuPart b) { return lap[size_t(a)] + lap[size_t(b)]; };

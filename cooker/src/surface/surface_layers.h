@@ -131,8 +131,9 @@ bool error_check_sampled(const NodeKey& key);
 // `node_heights` is the node's own R16 grid with its offset and level step (cones use the exact
 // triangles the renderer draws); it may be the same object as `out`. Thread-safe; deterministic.
 // derived_normals (optional): the normals are coded with codec 4 (SPEC 16.7): it receives what the
-// payload stores, and out.normals_bc3 holds what every reader derives from it (so the error
-// statistics measure what a renderer samples); the cooker's BC3 encoder and --bc-rdo do not run.
+// payload stores; with in.measure_errors out.normals_bc3 holds what every reader derives from it
+// (so the error statistics measure what a renderer samples), else it is left as it was. The
+// cooker's BC3 encoder and --bc-rdo do not run.
 Status cook_surface_layers(const SurfaceInput& in, const NodeData& node_heights, int32_t height_offset,
                            int step_log2, NodeData& out, SurfaceStats* stats,
                            NormalsDerivation* derived_normals = nullptr);
