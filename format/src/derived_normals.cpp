@@ -5,6 +5,10 @@
 #include <cstdlib>
 #include <cstring>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "terrain/surface_contract.h"
 
 namespace terrain {
@@ -131,28 +135,35 @@ bool load_normals_derivation(const uint8_t* bytes, size_t size, NormalsDerivatio
 void derive_normal_texels(const uint16_t* heights, const uint8_t* holes, const NormalsDerivation& d,
                           uint8_t rgba[kTexels * kTexels * 4]) {
   const float half_rise = 0.5f * d.rise_per_unit;
-  // R (block AO) and B of every texel; the apron's x8 and y8 in record order.
+  // Texels are written as little-endian words R | G << 8 | B << 16 | A << 24 (R = block AO, B = 0).
+  auto store = [rgba](int t, int u, uint32_t word) { std::memcpy(rgba + 4 * size_t(u * kTexels + t), &word, 4); };
+  uint32_t red[kTexels];  // the R byte of each texel of the current row
+  auto fill_red = [&](int u) {
+    for (int t = 0; t < kTexels; ++t) {
+      const uint32_t q = d.ao[size_t((u / 4) * kTexelBlocks + t / 4)];
+      red[t] = (q << 3) | (q >> 2);
+    }
+  };
+  // The apron's x8 and y8 in record order.
   size_t apron_at = 0;
-  for (int u = 0; u < kTexels; ++u) {
-    uint8_t* row = rgba + 4 * size_t(u * kTexels);
-    const uint8_t* ao = d.ao.data() + size_t((u / 4) * kTexelBlocks);
-    for (int bx = 0; bx < kTexelBlocks; ++bx) {
-      const uint8_t r = uint8_t((ao[bx] << 3) | (ao[bx] >> 2));
-      for (int c = 0; c < 4; ++c) {
-        row[4 * (4 * bx + c) + 0] = r;
-        row[4 * (4 * bx + c) + 2] = 0;
-      }
-    }
-    const bool whole_row = u < kApron || u >= kTexels - kApron;
-    for (int t = 0; t < kTexels; t = (whole_row || t != kApron - 1) ? t + 1 : kTexels - kApron) {
-      row[4 * t + 3] = d.apron[apron_at++];
-      row[4 * t + 1] = d.apron[apron_at++];
-    }
-  }
-  // Interior cells a row at a time: the plain gradient in a loop without branches, then the
-  // cells with a hole corner (rows that have one) with the edge rule.
+  auto apron = [&](int t, int u) {
+    const uint32_t x8 = d.apron[apron_at], y8 = d.apron[apron_at + 1];
+    apron_at += 2;
+    store(t, u, red[t] | (y8 << 8) | (x8 << 24));
+  };
   float gx[128], gy[128];
-  for (int j = 0; j < 128; ++j) {
+  uint32_t words[128];
+  for (int u = 0; u < kTexels; ++u) {
+    fill_red(u);
+    if (u < kApron || u >= kTexels - kApron) {
+      for (int t = 0; t < kTexels; ++t) apron(t, u);
+      continue;
+    }
+    apron(0, u);
+    apron(1, u);
+    // Interior cells of row j: the plain gradient in a loop without branches, then the cells with a
+    // hole corner with the edge rule.
+    const int j = u - kApron;
     const uint16_t* south = heights + size_t(j * kHeightSamples);
     const uint16_t* north = south + kHeightSamples;
     for (int i = 0; i < 128; ++i) {
@@ -169,16 +180,23 @@ void derive_normal_texels(const uint16_t* heights, const uint8_t* holes, const N
         gy[i] = edge_gradient(south[i], north[i], ok00 && ok01, south[i + 1], north[i + 1], ok10 && ok11) * d.rise_per_unit;
       }
     }
-    uint8_t* row = rgba + 4 * size_t((j + kApron) * kTexels + kApron);
     for (int i = 0; i < 128; ++i) {
       const float inv = 1.0f / std::sqrt(gx[i] * gx[i] + gy[i] * gy[i] + 1.0f);
-      row[4 * i + 3] = normal_texel_of(-gx[i] * inv);
-      row[4 * i + 1] = normal_texel_of(-gy[i] * inv);
+      gx[i] = -gx[i] * inv;
+      gy[i] = -gy[i] * inv;
     }
+    for (int i = 0; i < 128; ++i) {
+      // normal_texel_of() (surface_contract.h) spelled out, so that the loop vectorises.
+      const int x8 = std::clamp(int(128.5f + 127.0f * gx[i]), 1, 255), y8 = std::clamp(int(128.5f + 127.0f * gy[i]), 1, 255);
+      words[i] = red[i + kApron] | (uint32_t(y8) << 8) | (uint32_t(x8) << 24);
+    }
+    std::memcpy(rgba + 4 * size_t(u * kTexels + kApron), words, sizeof(words));
+    apron(kTexels - 2, u);
+    apron(kTexels - 1, u);
   }
 }
 
-void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]) {
+void encode_derived_normals_bc3_reference(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]) {
   for (int by = 0; by < kTexelBlocks; ++by)
     for (int bx = 0; bx < kTexelBlocks; ++bx) {
       uint8_t x8[16], y8[16];
@@ -194,5 +212,123 @@ void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8
       encode_colour(q, y8, out + 8);
     }
 }
+
+#if defined(__SSE2__)
+namespace {
+
+// Horizontal min and max of 16 int16 lanes held in two registers.
+inline void min_max16(__m128i a, __m128i b, int& lo, int& hi) {
+  __m128i mn = _mm_min_epi16(a, b), mx = _mm_max_epi16(a, b);
+  mn = _mm_min_epi16(mn, _mm_shuffle_epi32(mn, _MM_SHUFFLE(1, 0, 3, 2)));
+  mx = _mm_max_epi16(mx, _mm_shuffle_epi32(mx, _MM_SHUFFLE(1, 0, 3, 2)));
+  mn = _mm_min_epi16(mn, _mm_shuffle_epi32(mn, _MM_SHUFFLE(2, 3, 0, 1)));
+  mx = _mm_max_epi16(mx, _mm_shuffle_epi32(mx, _MM_SHUFFLE(2, 3, 0, 1)));
+  mn = _mm_min_epi16(mn, _mm_srli_epi32(mn, 16));
+  mx = _mm_max_epi16(mx, _mm_srli_epi32(mx, 16));
+  lo = int16_t(_mm_cvtsi128_si32(mn));
+  hi = int16_t(_mm_cvtsi128_si32(mx));
+}
+
+// Squared error and entry positions (0..3 from g0) of 16 G values (2 x 8 int16) against the palette
+// of colour_fit(): the same nearest rule, with the nested compares of monotone midpoints.
+inline int colour_fit_sse2(const __m128i g[2], int g0, int g1, __m128i pos[2]) {
+  const int e0 = expand6(g0), e1 = expand6(g1);
+  const int p2 = (2 * e0 + e1 + 1) / 3, p3 = (e0 + 2 * e1 + 1) / 3;
+  const __m128i m01 = _mm_set1_epi16(int16_t(e0 + p2)), m12 = _mm_set1_epi16(int16_t(p2 + p3)),
+                m23 = _mm_set1_epi16(int16_t(p3 + e1));
+  const __m128i d1 = _mm_set1_epi16(int16_t(p2 - e0)), d2 = _mm_set1_epi16(int16_t(p3 - p2)),
+                d3 = _mm_set1_epi16(int16_t(e1 - p3)), base = _mm_set1_epi16(int16_t(e0));
+  __m128i sum = _mm_setzero_si128();
+  for (int h = 0; h < 2; ++h) {
+    const __m128i v2 = _mm_add_epi16(g[h], g[h]);
+    const __m128i c1 = _mm_cmplt_epi16(v2, m01), c2 = _mm_cmplt_epi16(v2, m12), c3 = _mm_cmplt_epi16(v2, m23);
+    pos[h] = _mm_sub_epi16(_mm_sub_epi16(_mm_sub_epi16(_mm_setzero_si128(), c1), c2), c3);
+    const __m128i value = _mm_add_epi16(
+        _mm_add_epi16(base, _mm_and_si128(c1, d1)), _mm_add_epi16(_mm_and_si128(c2, d2), _mm_and_si128(c3, d3)));
+    const __m128i d = _mm_sub_epi16(g[h], value);
+    sum = _mm_add_epi32(sum, _mm_madd_epi16(d, d));
+  }
+  sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(1, 0, 3, 2)));
+  sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtsi128_si32(sum);
+}
+
+}  // namespace
+
+void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]) {
+  const __m128i byte_mask = _mm_set1_epi32(0xFF);
+  for (int by = 0; by < kTexelBlocks; ++by)
+    for (int bx = 0; bx < kTexelBlocks; ++bx) {
+      // x8 (A) and y8 (G) of the block's texels as 2 x 8 int16, texel 4 r + c in lane order.
+      __m128i x[2], g[2];
+      for (int h = 0; h < 2; ++h) {
+        const uint8_t* row0 = rgba + 4 * size_t((by * 4 + 2 * h) * kTexels + bx * 4);
+        const __m128i r0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row0));
+        const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row0 + 4 * kTexels));
+        x[h] = _mm_packs_epi32(_mm_srli_epi32(r0, 24), _mm_srli_epi32(r1, 24));
+        g[h] = _mm_packs_epi32(_mm_and_si128(_mm_srli_epi32(r0, 8), byte_mask), _mm_and_si128(_mm_srli_epi32(r1, 8), byte_mask));
+      }
+      uint8_t* out = bc3 + 16 * size_t(by * kTexelBlocks + bx);
+      alignas(16) int16_t lane[16];
+      // Alpha: as encode_alpha().
+      int lo, hi;
+      min_max16(x[0], x[1], lo, hi);
+      out[0] = uint8_t(hi);
+      out[1] = uint8_t(lo);
+      uint64_t abits = 0;
+      if (hi > lo) {
+        int value[8];
+        for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;
+        value[0] = hi;
+        value[7] = lo;
+        __m128i pos[2] = {_mm_setzero_si128(), _mm_setzero_si128()};
+        const __m128i v2[2] = {_mm_add_epi16(x[0], x[0]), _mm_add_epi16(x[1], x[1])};
+        for (int k = 0; k < 7; ++k) {
+          const __m128i mid = _mm_set1_epi16(int16_t(value[k] + value[k + 1]));
+          pos[0] = _mm_sub_epi16(pos[0], _mm_cmplt_epi16(v2[0], mid));
+          pos[1] = _mm_sub_epi16(pos[1], _mm_cmplt_epi16(v2[1], mid));
+        }
+        _mm_store_si128(reinterpret_cast<__m128i*>(lane), pos[0]);
+        _mm_store_si128(reinterpret_cast<__m128i*>(lane + 8), pos[1]);
+        static constexpr uint64_t kIndex[8] = {0, 2, 3, 4, 5, 6, 7, 1};
+        for (int i = 0; i < 16; ++i) abits |= kIndex[lane[i]] << (3 * i);
+      }
+      for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(abits >> (8 * b));
+      // Colour: as encode_colour().
+      const int q = rgba[4 * size_t((by * 4) * kTexels + bx * 4)] >> 3;
+      min_max16(g[0], g[1], lo, hi);
+      int g0 = nearest6(hi), g1 = nearest6(lo);
+      __m128i pos[2];
+      const int err = colour_fit_sse2(g, g0, g1, pos);
+      int c0 = g0, c1 = g1;
+      while (c0 < 63 && expand6(c0) < hi) ++c0;
+      while (c1 > 0 && expand6(c1) > lo) --c1;
+      if (err > 0 && (c0 != g0 || c1 != g1)) {
+        __m128i cover[2];
+        if (colour_fit_sse2(g, c0, c1, cover) < err) {
+          g0 = c0;
+          g1 = c1;
+          pos[0] = cover[0];
+          pos[1] = cover[1];
+        }
+      }
+      _mm_store_si128(reinterpret_cast<__m128i*>(lane), pos[0]);
+      _mm_store_si128(reinterpret_cast<__m128i*>(lane + 8), pos[1]);
+      static constexpr uint32_t kColourIndex[4] = {0, 2, 3, 1};
+      uint32_t cbits = 0;
+      for (int i = 0; i < 16; ++i) cbits |= kColourIndex[lane[i]] << (2 * i);
+      const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
+      out[8] = uint8_t(e0);
+      out[9] = uint8_t(e0 >> 8);
+      out[10] = uint8_t(e1);
+      out[11] = uint8_t(e1 >> 8);
+      for (int b = 0; b < 4; ++b) out[12 + b] = uint8_t(cbits >> (8 * b));
+    }
+}
+#else
+void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]) {
+  encode_derived_normals_bc3_reference(rgba, bc3);
+}
+#endif
 
 }  // namespace terrain

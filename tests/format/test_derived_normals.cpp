@@ -2,6 +2,7 @@
 // reader uses, the payload round trip and the archive-level rule (only with the derived_normals record).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -117,6 +118,26 @@ TEST(DerivedNormals, EncoderPicksTheNearestEntryOfItsPalette) {
       for (int e = 0; e < 8; ++e) ASSERT_LE(std::abs(decoded[4 * p + 3] - src[3]), std::abs(alpha_palette[e] - src[3]));
       for (int e = 0; e < 4; ++e) ASSERT_LE(std::abs(decoded[4 * p + 1] - src[1]), std::abs(probe[4 * e + 1] - src[1]));
     }
+  }
+}
+
+TEST(DerivedNormals, VectorEncoderWritesTheReferenceBytes) {
+  // Images of every spread from flat to full range, AO constant per block as the layout has it.
+  std::mt19937 rng(9);
+  std::vector<uint8_t> rgba(size_t(kTexels) * kTexels * 4), fast(kNormalsBytes), reference(kNormalsBytes);
+  for (int spread = 1; spread <= 256; spread += 5) {
+    for (int u = 0; u < kTexels; ++u)
+      for (int t = 0; t < kTexels; ++t) {
+        uint8_t* px = &rgba[4 * size_t(u * kTexels + t)];
+        const uint32_t q = (uint32_t(t / 4) * 7 + uint32_t(u / 4) * 3) % 32;
+        px[0] = uint8_t((q << 3) | (q >> 2));
+        px[1] = uint8_t(std::clamp(128 + int(rng() % uint32_t(spread)) - spread / 2, 1, 255));
+        px[2] = 0;
+        px[3] = uint8_t(std::clamp(100 + int(rng() % uint32_t(spread)) - spread / 3, 1, 255));
+      }
+    encode_derived_normals_bc3(rgba.data(), fast.data());
+    encode_derived_normals_bc3_reference(rgba.data(), reference.data());
+    ASSERT_EQ(fast, reference) << "spread " << spread;
   }
 }
 

@@ -40,5 +40,7 @@ void derive_normal_texels(const uint16_t* heights, const uint8_t* holes, const N
 // per block, alpha endpoints min/max of x8; colour endpoints R = the block's AO, B = 0, G the best
 // of two six-bit endpoint pairs (the nearest to its min/max of y8, and the tightest covering them).
 void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]);
+// The same, a texel at a time: the definition the SSE2 form (x86-64) is tested against.
+void encode_derived_normals_bc3_reference(const uint8_t rgba[kTexels * kTexels * 4], uint8_t bc3[kNormalsBytes]);
 
 }  // namespace terrain
