@@ -1045,8 +1045,10 @@ int rdo_main(const std::string& tool, const std::vector<Dem>& dems, const std::v
     bool ok = true;
     for (int k = 0; k < runs && ok; ++k)
       for (size_t l = 0; l < all.size() && ok; ++l) {
-        // Every node decoded and measured: the error columns are the point of this table.
-        const auto c = cook(tool, dem, {"--bc-rdo", fmt::format("{}", all[l]), "--error-checks", "all"}, 1, archive);
+        // Every node decoded and measured: the error columns are the point of this table. Stored
+        // normals: the pass shapes their blocks (derived normals have none to shape).
+        const auto c = cook(tool, dem, {"--bc-rdo", fmt::format("{}", all[l]), "--error-checks", "all", "--normals", "stored"},
+                            1, archive);
         if (!c) {
           ok = false;
           break;
@@ -1418,7 +1420,7 @@ int main(int argc, char** argv) {
   std::vector<double> rdo_lambdas;
   std::vector<std::string> rdo_extra;
   app.add_option("--rdo", rdo_lambdas,
-                 "Instead of the sweep: default cooks of each DEM with --bc-rdo 0 and each of these lambdas, in turn "
+                 "Instead of the sweep: cooks of each DEM with --normals stored and --bc-rdo 0 and each of these lambdas, in turn "
                  "(--runs, default 3): normal + albedo bytes, mean normal error, albedo PSNR, CPU ms per node (--chart: "
                  "bytes against loss)")
       ->delimiter(',')
