@@ -124,7 +124,8 @@ bool load_normals_derivation(const uint8_t* bytes, size_t size, NormalsDerivatio
   if (size != kNormalsDerivationBytes) return false;
   const uint32_t bits = uint32_t(bytes[0]) | (uint32_t(bytes[1]) << 8) | (uint32_t(bytes[2]) << 16) | (uint32_t(bytes[3]) << 24);
   std::memcpy(&out.rise_per_unit, &bits, 4);
-  if (!std::isfinite(out.rise_per_unit) || !(out.rise_per_unit > 0)) return false;
+  // At most kMaxRisePerUnit, so no gradient of u16 heights overflows a float (the texels stay finite).
+  if (!(out.rise_per_unit > 0 && out.rise_per_unit <= kMaxRisePerUnit)) return false;
   std::memcpy(out.apron.data(), bytes + 4, out.apron.size());
   std::memcpy(out.ao.data(), bytes + 4 + out.apron.size(), out.ao.size());
   for (uint8_t q : out.ao)

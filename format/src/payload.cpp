@@ -273,7 +273,7 @@ Status encode_node_payload(const NodeData& data, const PayloadOptions& options, 
       store_normals_derivation(*derived_normals, bytes);
       NormalsDerivation check;
       if (!load_normals_derivation(bytes, sizeof(bytes), check))
-        return Status::failure(Error::invalid_argument, "derived normals: rise_per_unit must be finite and > 0, AO values <= 31");
+        return Status::failure(Error::invalid_argument, "derived normals: rise_per_unit must be in (0, 1024], AO values <= 31");
       st = compress_section(bytes, surface_level, layout::Codec::normals_derived, out, entries[s]);
       store_u32(entries[s] + 8, layout::kSectionRawSize[s]);  // raw_size: the decoded BC3 section
     } else {
@@ -313,7 +313,7 @@ Status decode_derived_normals(std::span<const uint8_t> src, const std::array<uin
   TERRAIN_TRY(decompress_into(src, bytes, sizeof(bytes), "normals"));
   static thread_local NormalsDerivation d;
   if (!load_normals_derivation(bytes, sizeof(bytes), d))
-    return Status::failure(Error::payload_invalid, "normals section (derived): rise_per_unit not finite and > 0, or an AO value above 31");
+    return Status::failure(Error::payload_invalid, "normals section (derived): rise_per_unit outside (0, 1024], or an AO value above 31");
   static thread_local std::array<uint8_t, kHeightCount> holes;
   holes.fill(0);
   for (int by = 0; by < kTexelBlocks; ++by)

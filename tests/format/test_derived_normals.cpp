@@ -198,6 +198,8 @@ TEST(DerivedNormals, MalformedRecordsAndCodecsAreRejected) {
   std::vector<uint8_t> out;
   d.rise_per_unit = NAN;
   EXPECT_FALSE(encode_node_payload(*n.data, PayloadOptions{}, out, nullptr, &d).ok());
+  d.rise_per_unit = 2048.0f;  // past kMaxRisePerUnit: gradients could overflow
+  EXPECT_FALSE(encode_node_payload(*n.data, PayloadOptions{}, out, nullptr, &d).ok());
   d.rise_per_unit = 0.5f;
   d.ao[7] = 32;
   EXPECT_FALSE(encode_node_payload(*n.data, PayloadOptions{}, out, nullptr, &d).ok());

@@ -14,7 +14,7 @@ inline constexpr int kNormalsBlocks = (kTexels / 4) * (kTexels / 4);        // 1
 
 // What a codec-4 normals section stores (its zstd frame holds these bytes in this order, SPEC 16.7).
 struct NormalsDerivation {
-  // Metres of rise per height unit and per vertex spacing: step(L) / s(L) (a finite float > 0).
+  // Metres of rise per height unit and per vertex spacing: step(L) / s(L), in (0, kMaxRisePerUnit].
   float rise_per_unit = 0;
   // Apron texels (t or u in {0, 1, 130, 131}), row-major south to north, west to east: x8 then y8
   // (the A and G bytes of SPEC 16.2).
@@ -23,9 +23,12 @@ struct NormalsDerivation {
   std::array<uint8_t, kNormalsBlocks> ao{};
 };
 inline constexpr uint32_t kNormalsDerivationBytes = 4 + 2 * kNormalsApronTexels + kNormalsBlocks;  // 3173
+// Largest rise_per_unit a reader accepts: 32x the largest a valid archive has (a step of 2^14
+// units = 16 m over level 0's 0.5 m spacing).
+inline constexpr float kMaxRisePerUnit = 1024.0f;
 
 // Serialised form (little-endian float bits) and its parse; parse fails on a size other than
-// kNormalsDerivationBytes, a rise that is not finite and > 0, or an AO value above 31.
+// kNormalsDerivationBytes, a rise outside (0, kMaxRisePerUnit], or an AO value above 31.
 void store_normals_derivation(const NormalsDerivation& d, uint8_t out[kNormalsDerivationBytes]);
 bool load_normals_derivation(const uint8_t* bytes, size_t size, NormalsDerivation& out);
 
