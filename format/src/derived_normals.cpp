@@ -18,6 +18,46 @@ namespace {
 int expand6(int g) { return (g << 2) | (g >> 4); }
 int nearest6(int v) { return (v * 63 + 127) / 255; }
 
+// The 8 alpha entries by position from the maximum (bc_decode.h, nearest rounding): position p
+// holds index 0 (p = 0), 1 (p = 7), p + 1 otherwise.
+void alpha_entries(int hi, int lo, int value[8]) {
+  for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;
+  value[0] = hi;
+  value[7] = lo;
+}
+
+// Alpha half: endpoints hi, lo and the 3-bit indices of the 16 positions (all 0 when hi == lo).
+void store_alpha_block(int hi, int lo, const int16_t pos[16], uint8_t out[8]) {
+  static constexpr uint64_t kIndex[8] = {0, 2, 3, 4, 5, 6, 7, 1};
+  uint64_t bits = 0;
+  if (hi > lo)
+    for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (3 * i);
+  out[0] = uint8_t(hi);
+  out[1] = uint8_t(lo);
+  for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(bits >> (8 * b));
+}
+
+// The tightest six-bit G pair whose expanded values cover [lo, hi], from the nearest pair g0, g1.
+void covering_pair(int g0, int g1, int hi, int lo, int& c0, int& c1) {
+  c0 = g0;
+  c1 = g1;
+  while (c0 < 63 && expand6(c0) < hi) ++c0;
+  while (c1 > 0 && expand6(c1) > lo) --c1;
+}
+
+// Colour half: endpoints (R = q, G = g0 / g1, B = 0) and the 2-bit indices of the 16 positions.
+void store_colour_block(int q, int g0, int g1, const int16_t pos[16], uint8_t out[8]) {
+  static constexpr uint32_t kIndex[4] = {0, 2, 3, 1};
+  uint32_t bits = 0;
+  for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (2 * i);
+  const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
+  out[0] = uint8_t(e0);
+  out[1] = uint8_t(e0 >> 8);
+  out[2] = uint8_t(e1);
+  out[3] = uint8_t(e1 >> 8);
+  for (int b = 0; b < 4; ++b) out[4 + b] = uint8_t(bits >> (8 * b));
+}
+
 // Loops over the 16 texels of a block are written lane by lane, without branches, so that they
 // vectorise; the results are those of the plain per-texel definitions in the comments.
 
@@ -29,27 +69,20 @@ void encode_alpha(const uint8_t v[16], uint8_t out[8]) {
     lo = std::min<int>(lo, v[i]);
     hi = std::max<int>(hi, v[i]);
   }
-  out[0] = uint8_t(hi);
-  out[1] = uint8_t(lo);
-  uint64_t bits = 0;
+  int16_t pos[16] = {};
   if (hi > lo) {
-    // Entries by position from the maximum: position p holds index 0 (p = 0), 1 (p = 7), p + 1 otherwise.
     int value[8];
-    for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;  // bc_decode.h, nearest rounding
-    value[0] = hi;
-    value[7] = lo;
+    alpha_entries(hi, lo, value);
     // Position = how many of the 7 midpoints between neighbouring entries lie above the value
     // (a value on a midpoint stays with the entry nearer the maximum).
-    int16_t v2[16], pos[16] = {};
+    int16_t v2[16];
     for (int i = 0; i < 16; ++i) v2[i] = int16_t(2 * v[i]);
     for (int k = 0; k < 7; ++k) {
       const int16_t mid = int16_t(value[k] + value[k + 1]);
       for (int i = 0; i < 16; ++i) pos[i] = int16_t(pos[i] + (v2[i] < mid));
     }
-    static constexpr uint64_t kIndex[8] = {0, 2, 3, 4, 5, 6, 7, 1};
-    for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (3 * i);
   }
-  for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(bits >> (8 * b));
+  store_alpha_block(hi, lo, pos, out);
 }
 
 // Positions (0 = g0's entry .. 3 = g1's) and squared error of the 16 values against the 4-colour G
@@ -80,9 +113,8 @@ void encode_colour(int q, const uint8_t g[16], uint8_t out[8]) {
   int g0 = nearest6(hi), g1 = nearest6(lo);
   int16_t pos[16];
   const int err = colour_fit(g, g0, g1, pos);
-  int c0 = g0, c1 = g1;
-  while (c0 < 63 && expand6(c0) < hi) ++c0;
-  while (c1 > 0 && expand6(c1) > lo) --c1;
+  int c0, c1;
+  covering_pair(g0, g1, hi, lo, c0, c1);
   if (err > 0 && (c0 != g0 || c1 != g1)) {
     int16_t cover_pos[16];
     if (colour_fit(g, c0, c1, cover_pos) < err) {
@@ -91,15 +123,7 @@ void encode_colour(int q, const uint8_t g[16], uint8_t out[8]) {
       std::memcpy(pos, cover_pos, sizeof(pos));
     }
   }
-  static constexpr uint32_t kIndex[4] = {0, 2, 3, 1};
-  uint32_t bits = 0;
-  for (int i = 0; i < 16; ++i) bits |= kIndex[pos[i]] << (2 * i);
-  const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
-  out[0] = uint8_t(e0);
-  out[1] = uint8_t(e0 >> 8);
-  out[2] = uint8_t(e1);
-  out[3] = uint8_t(e1 >> 8);
-  for (int b = 0; b < 4; ++b) out[4 + b] = uint8_t(bits >> (8 * b));
+  store_colour_block(q, g0, g1, pos, out);
 }
 
 // Mean difference along the two parallel cell edges (a0 -> a1, b0 -> b1) that have both corners.
@@ -270,18 +294,13 @@ void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8
         g[h] = _mm_packs_epi32(_mm_and_si128(_mm_srli_epi32(r0, 8), byte_mask), _mm_and_si128(_mm_srli_epi32(r1, 8), byte_mask));
       }
       uint8_t* out = bc3 + 16 * size_t(by * kTexelBlocks + bx);
-      alignas(16) int16_t lane[16];
       // Alpha: as encode_alpha().
       int lo, hi;
       min_max16(x[0], x[1], lo, hi);
-      out[0] = uint8_t(hi);
-      out[1] = uint8_t(lo);
-      uint64_t abits = 0;
+      alignas(16) int16_t lane[16] = {};
       if (hi > lo) {
         int value[8];
-        for (int p = 0; p < 8; ++p) value[p] = ((7 - p) * hi + p * lo + 3) / 7;
-        value[0] = hi;
-        value[7] = lo;
+        alpha_entries(hi, lo, value);
         __m128i pos[2] = {_mm_setzero_si128(), _mm_setzero_si128()};
         const __m128i v2[2] = {_mm_add_epi16(x[0], x[0]), _mm_add_epi16(x[1], x[1])};
         for (int k = 0; k < 7; ++k) {
@@ -291,19 +310,16 @@ void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8
         }
         _mm_store_si128(reinterpret_cast<__m128i*>(lane), pos[0]);
         _mm_store_si128(reinterpret_cast<__m128i*>(lane + 8), pos[1]);
-        static constexpr uint64_t kIndex[8] = {0, 2, 3, 4, 5, 6, 7, 1};
-        for (int i = 0; i < 16; ++i) abits |= kIndex[lane[i]] << (3 * i);
       }
-      for (int b = 0; b < 6; ++b) out[2 + b] = uint8_t(abits >> (8 * b));
+      store_alpha_block(hi, lo, lane, out);
       // Colour: as encode_colour().
       const int q = rgba[4 * size_t((by * 4) * kTexels + bx * 4)] >> 3;
       min_max16(g[0], g[1], lo, hi);
       int g0 = nearest6(hi), g1 = nearest6(lo);
       __m128i pos[2];
       const int err = colour_fit_sse2(g, g0, g1, pos);
-      int c0 = g0, c1 = g1;
-      while (c0 < 63 && expand6(c0) < hi) ++c0;
-      while (c1 > 0 && expand6(c1) > lo) --c1;
+      int c0, c1;
+      covering_pair(g0, g1, hi, lo, c0, c1);
       if (err > 0 && (c0 != g0 || c1 != g1)) {
         __m128i cover[2];
         if (colour_fit_sse2(g, c0, c1, cover) < err) {
@@ -315,15 +331,7 @@ void encode_derived_normals_bc3(const uint8_t rgba[kTexels * kTexels * 4], uint8
       }
       _mm_store_si128(reinterpret_cast<__m128i*>(lane), pos[0]);
       _mm_store_si128(reinterpret_cast<__m128i*>(lane + 8), pos[1]);
-      static constexpr uint32_t kColourIndex[4] = {0, 2, 3, 1};
-      uint32_t cbits = 0;
-      for (int i = 0; i < 16; ++i) cbits |= kColourIndex[lane[i]] << (2 * i);
-      const uint16_t e0 = uint16_t((q << 11) | (g0 << 5)), e1 = uint16_t((q << 11) | (g1 << 5));
-      out[8] = uint8_t(e0);
-      out[9] = uint8_t(e0 >> 8);
-      out[10] = uint8_t(e1);
-      out[11] = uint8_t(e1 >> 8);
-      for (int b = 0; b < 4; ++b) out[12 + b] = uint8_t(cbits >> (8 * b));
+      store_colour_block(q, g0, g1, lane, out + 8);
     }
 }
 #else
