@@ -6,9 +6,11 @@ if(NOT "$ENV{TERRAIN_DATA_DIR}" STREQUAL "")
   set(DATA "$ENV{TERRAIN_DATA_DIR}")
 endif()
 file(MAKE_DIRECTORY ${OUT})
+# --tolerance 0.5 (the default of 1 m data; coarse DEMs default to 1/32 of their spacing): the
+# streamer, viewer and package tests need trees several levels deep over these coarse DEMs.
 set(jobs
-  "jacksboro|/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz|--crs,EPSG:4326"
-  "kilauea|${DATA}/kilauea_utm5n.tif|"
+  "jacksboro|/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz|--crs,EPSG:4326,--tolerance,0.5"
+  "kilauea|${DATA}/kilauea_utm5n.tif|--tolerance,0.5"
   "tahoe|${DATA}/tahoe_lidar_bareearth.tif|"
   "slovenia|${DATA}/slovenia_TM1_564_146.tif|")
 foreach(job IN LISTS jobs)

@@ -109,6 +109,7 @@ std::string report_json(const CookReport& r) {
                 {"local", r.frame.kind == ProjectionKind::local},
                 {"roots", {r.roots_x, r.roots_y}}};
   j["tolerance_m"] = r.tolerance_m;
+  j["tolerance_from"] = r.tolerance_from_source ? "source" : "option";
   j["finest_level"] = r.finest_level;
   nlohmann::ordered_json levels = nlohmann::ordered_json::array();
   for (int l = 0; l < kLevelCount; ++l) {
@@ -203,9 +204,9 @@ std::string report_json(const CookReport& r) {
 std::string report_summary(const CookReport& r) {
   std::string s;
   s += fmt::format("frame: {}\n", describe_frame(r.frame));
-  s += fmt::format("grid: origin ({:.1f}, {:.1f}) m, {}x{} roots of 2048 m; finest level {} ({} m); tolerance {} m\n",
+  s += fmt::format("grid: origin ({:.1f}, {:.1f}) m, {}x{} roots of 2048 m; finest level {} ({} m); tolerance {:.3g} m{}\n",
                    r.origin_x_m, r.origin_y_m, r.roots_x, r.roots_y, r.finest_level, vertex_spacing_m(r.finest_level),
-                   r.tolerance_m);
+                   r.tolerance_m, r.tolerance_from_source ? " (1/32 of the source spacing, at least 0.5 m)" : "");
   // Heights that were not taken as metres as they are: the unit and the factor applied.
   for (size_t i = 0; i < r.input_height_units.size(); ++i) {
     const HeightUnit& u = r.input_height_units[i];

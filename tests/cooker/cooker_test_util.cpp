@@ -1,3 +1,4 @@
+#include <nlohmann/json.hpp>
 #include "cooker_test_util.h"
 
 #include <cstdio>
@@ -254,5 +255,9 @@ void expect_same_raster(const cook::Raster& a, const cook::Raster& b) {
   EXPECT_EQ(a.crs.tm.inverse_flattening, b.crs.tm.inverse_flattening);
 }
 
+double CookedArchive::tolerance() const {
+  const auto j = nlohmann::json::parse(reader.world().cook_info_json, nullptr, false);
+  return j.is_object() && j.contains("options") ? j["options"].value("tolerance_m", 0.0) : 0.0;
+}
 
 }  // namespace terrain::test

@@ -73,6 +73,8 @@ struct CookedArchive {
     for (int l = 0; l < kLevelCount; ++l) m = std::max(m, half_step(l));
     return m;
   }
+  // The tolerance the cook used, as its cook information records it (0 when absent).
+  double tolerance() const;
 };
 
 // Frame coordinates of longitude/latitude in an archive's Transverse Mercator frame

@@ -201,7 +201,7 @@ TEST(CookOptionsTable, SamePlanOptionsIgnoresOnlyWhatChangesNoByte) {
 TEST(CookOptionsTable, CookInfoRecordsItsOptionsInTheArchivesOrder) {
   // The bytes every archive of default options holds (the cook info, SPEC section 6).
   EXPECT_EQ(cook_info_options_json(CookOptions{}).dump(),
-            R"({"tolerance_m":0.5,"finest_level":-1,"crs":"","frame":"","height_scale":1.0,"height_offset":0.0,)"
+            R"({"tolerance_m":0.0,"finest_level":-1,"crs":"","frame":"","height_scale":1.0,"height_offset":0.0,)"
             R"("nodata":"auto","fill_max_samples":4096,"materials":"","albedo":"","holes":"","landcover":"",)"
             R"("landcover_table":"","heights_only":false,"zstd_level":9,"surface_zstd_level":6,"bc_rdo":28.0})");
   CookOptions o;

@@ -150,6 +150,48 @@ TEST(HardCase, ConstantHeight) {
   EXPECT_LE(s.worst_error, c.archive.half_step(5) + kMm);
 }
 
+// Without --tolerance the cook takes 1/32 of the source spacing, at least 0.5 m (cooker/README.md,
+// "Levels"): a 30 m DEM of steep hills gets 0.9375 m, states it in the report and the cook info, holds
+// every sample within it + half a step + 1 mm, and cooks fewer nodes than the same DEM at 0.5 m
+// (which refines further); a 1 m DEM keeps 0.5 m, and --tolerance still sets it.
+TEST(HardCase, DefaultToleranceFollowsTheSourceSpacing) {
+  SyntheticDem d = utm_dem(160, 160, 30.0, 500015.0, 5004785.0);
+  for (int row = 0; row < d.height; ++row)
+    for (int col = 0; col < d.width; ++col)
+      d.at(col, row) = 800.0 + 300.0 * std::sin(col * 0.31) * std::cos(row * 0.23) + 40.0 * std::sin(col * 1.3 + row * 0.9);
+  Cooked c;
+  cook_dem("tolerance-30m", d, {}, c);
+  if (HasFatalFailure()) return;
+  EXPECT_EQ(c.report.source_spacing_m, 30.0);
+  EXPECT_EQ(c.report.tolerance_m, 30.0 / 32.0);
+  EXPECT_TRUE(c.report.tolerance_from_source);
+  const auto info = nlohmann::json::parse(c.archive.reader.world().cook_info_json);
+  EXPECT_EQ(info["options"]["tolerance_m"].get<double>(), 30.0 / 32.0);
+  EXPECT_EQ(nlohmann::json::parse(cook::report_json(c.report))["tolerance_from"], "source");
+  expect_samples_within_bound(d, c, 30.0 / 32.0);
+  EXPECT_GT(c.report.leaf_error_max_m, 0.5);  // the wider tolerance is used, not only stated
+
+  cook::CookOptions fine;
+  fine.tolerance_m = 0.5;
+  Cooked f;
+  cook_dem("tolerance-30m-fine", d, fine, f);
+  if (HasFatalFailure()) return;
+  EXPECT_EQ(f.report.tolerance_m, 0.5);
+  EXPECT_FALSE(f.report.tolerance_from_source);
+  expect_samples_within_bound(d, f, 0.5);
+  EXPECT_LT(c.report.nodes, f.report.nodes);
+
+  SyntheticDem lidar = utm_dem(300, 300, 1.0, 500000.0, 5000299.0);
+  for (int row = 0; row < lidar.height; ++row)
+    for (int col = 0; col < lidar.width; ++col) lidar.at(col, row) = 300.0 + 5.0 * std::sin(col * 0.05) * std::sin(row * 0.07);
+  Cooked l;
+  cook_dem("tolerance-1m", lidar, {}, l);
+  if (HasFatalFailure()) return;
+  EXPECT_EQ(l.report.tolerance_m, 0.5);
+  EXPECT_TRUE(l.report.tolerance_from_source);
+  expect_samples_within_bound(lidar, l, 0.5);
+}
+
 // Flat ground cooked with the surface layers: every triangle's normal is straight up, so every patch
 // cone is exactly 0 degrees (format/SPEC.md section 16.5: "Flat patches get angle 0"), and the encoded
 // cone is its alpha target ceil(0) + 1 step (90/255 degrees) or more, never the never-cull 255. The
@@ -189,7 +231,7 @@ TEST(HardCase, VerticalStepOf1000m) {
   o.tolerance_m = 0.5;
   Cooked c;
   cook_dem("step", d, o, c);
-  expect_samples_within_bound(d, c, o.tolerance_m);
+  expect_samples_within_bound(d, c, c.report.tolerance_m);
   const double cliff_x = d.mx(300) - 0.5;
   for (const NodeRecord& n : c.archive.reader.nodes()) {
     EXPECT_GE(units_to_metres(n.min_height), -62.5 - kMm);
@@ -265,7 +307,7 @@ TEST(HardCase, CliffOf2500mAtTheRasterEdge) {
     EXPECT_GE(units_to_metres(n.min_height), lo - overshoot) << n.key.level << "/" << n.key.x << "/" << n.key.y;
     EXPECT_LE(units_to_metres(n.max_height), hi + overshoot) << n.key.level << "/" << n.key.x << "/" << n.key.y;
   }
-  expect_samples_within_bound(d, c, o.tolerance_m);
+  expect_samples_within_bound(d, c, c.report.tolerance_m);
 }
 
 // Isolated one-sample spikes of +50 m on flat ground. Bounds: tolerance + half step + 1 mm at
@@ -279,7 +321,7 @@ TEST(HardCase, OneSampleSpikes) {
   cook::CookOptions o;
   Cooked c;
   cook_dem("spikes", d, o, c);
-  expect_samples_within_bound(d, c, o.tolerance_m);
+  expect_samples_within_bound(d, c, c.report.tolerance_m);
   for (auto [col, row] : spikes) {
     const auto h = c.archive.height(d.mx(col), d.my(row));
     ASSERT_TRUE(h);
@@ -314,7 +356,7 @@ TEST(HardCase, NineKilometresOfReliefInOneRoot) {
   EXPECT_EQ(c.report.origin_x_m, 501764.0);
   EXPECT_GE(units_to_metres(root.max_height), top_on_vertex - hs);
   EXPECT_LE(units_to_metres(root.max_height), 8848.0 + apron + hs);
-  expect_samples_within_bound(d, c, o.tolerance_m);
+  expect_samples_within_bound(d, c, c.report.tolerance_m);
 }
 
 // 1 mm of relief over 100 m, cooked with a tolerance that resolves it (0.5 mm: the step follows
@@ -358,7 +400,7 @@ TEST(HardCase, NegativeHeights) {
     EXPECT_LT(n.max_height, 0);
     EXPECT_GE(units_to_metres(n.min_height), -430.0 - c.archive.max_half_step() - kMm);
   }
-  expect_samples_within_bound(d, c, o.tolerance_m);
+  expect_samples_within_bound(d, c, c.report.tolerance_m);
 }
 
 // Bound: a clear no_data error naming the file, and no archive written.
@@ -404,7 +446,7 @@ TEST(HardCase, NodataAlongBorders) {
   for (int row = 0; row < d.height; ++row)
     for (int col = 0; col < d.width; ++col)
       if (col < 22 || row < 22) inner.at(col, row) = NAN;
-  expect_samples_within_bound(inner, c, o.tolerance_m);
+  expect_samples_within_bound(inner, c, c.report.tolerance_m);
   // The filled void carries the plane (harmonic fill of planar surroundings).
   const auto h = c.archive.height(d.mx(100) + 0.5, d.my(100) - 0.5);
   ASSERT_TRUE(h);
@@ -431,7 +473,7 @@ TEST(HardCase, GeographicInputAt70North) {
   const FrameCrs& f = c.archive.reader.world().crs;
   EXPECT_EQ(f.kind, ProjectionKind::transverse_mercator);
   EXPECT_NEAR(f.lon0_deg, 25.02, 1.0 / 3600);
-  expect_samples_within_bound(d, c, o.tolerance_m, true);
+  expect_samples_within_bound(d, c, c.report.tolerance_m, true);
 }
 
 // Geographic input across the UTM zone 31/32 boundary (6 E). Bounds: one frame centred on the
@@ -445,7 +487,7 @@ TEST(HardCase, InputStraddlingAUtmZoneBoundary) {
   cook::CookOptions o;
   cook_dem("utmzones", d, o, c);
   EXPECT_NEAR(c.archive.reader.world().crs.lon0_deg, 6.0, 1e-9);
-  expect_samples_within_bound(d, c, o.tolerance_m, true);
+  expect_samples_within_bound(d, c, c.report.tolerance_m, true);
 }
 
 // A 45-degree plane at northing 5000 km, 0.5 m samples. Catmull-Rom and the triangulation
@@ -675,7 +717,7 @@ TEST(Inputs, FrameOverrideProjectsIntoTheGivenFrame) {
   EXPECT_EQ(f.epsg, 32632);
   EXPECT_EQ(f.false_easting_m, 500000.0);
   EXPECT_EQ(f.scale_k0, 0.9996);
-  expect_samples_within_bound(d, c, o.tolerance_m, true);
+  expect_samples_within_bound(d, c, c.report.tolerance_m, true);
 }
 
 // A raw R16 heightmap (little-endian uint16) with --raw-size, --spacing, --height-scale, --crs

@@ -112,7 +112,7 @@ TEST_F(MixedSynthetic, FirstListedWinsAcrossCrss) {
   CookedArchive ca;
   ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "ab.terrain", 2, ca));
   EXPECT_EQ(ca.reader.world().crs.epsg, 32633);
-  const double bound = 0.5 + ca.max_half_step() + 0.001;
+  const double bound = ca.tolerance() + ca.max_half_step() + 0.001;
   size_t checked = 0, bad = 0;
   for (int row = 0; row < 100; ++row)
     for (int col = 0; col < 100; ++col) {
@@ -138,7 +138,7 @@ TEST_F(MixedSynthetic, TheOtherOrderLetsTheGeographicInputWin) {
   ASSERT_NO_FATAL_FAILURE(cook({"a_utm.tif", "b_geo.tif"}, "ab.terrain", 2, ab));
   ASSERT_NO_FATAL_FAILURE(cook({"b_geo.tif", "a_utm.tif"}, "ba.terrain", 2, ba));
   EXPECT_NE(ba.reader.world().crs.epsg, 32633);
-  const double bound = 0.5 + ba.max_half_step() + 0.001;
+  const double bound = ba.tolerance() + ba.max_half_step() + 0.001;
   // A's sample (30, 30): away from the hole (which is around A's sample (70, 70)).
   double lon = pair_.a.mx(30), lat = pair_.a.my(30);
   const auto h_ab = ab.height(pair_.a.mx(30), pair_.a.my(30));
@@ -270,7 +270,7 @@ TEST(MixedReal, KilaueaHalfInGeographicCooksWithinTheDerivedBound) {
   for (double& v : z)
     if (has_nodata && v == nodata) v = NAN;
 
-  const double base = 0.5 + ca.max_half_step() + 0.001;
+  const double base = ca.tolerance() + ca.max_half_step() + 0.001;
   constexpr int kWindow = 5;
   size_t west_points = 0, east_points = 0, bad = 0;
   double worst_excess = -INFINITY, sum_resampling = 0, sum_east_error = 0, sum_east_step = 0;

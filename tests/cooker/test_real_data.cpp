@@ -3,6 +3,8 @@
 // terrain-inspect --sample-file, and walked for seams.
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <array>
 #include <nlohmann/json.hpp>
 
@@ -288,7 +290,14 @@ TEST_P(RealData, OracleAgreesWithinToleranceHalfStepAndAMillimetre) {
               "%zu edge points without terrain\n",
               d.name, r.points, r.answered, r.worst_error, r.bound, r.violations, r.missing_edge);
   EXPECT_GE(r.points, 10000u);
-  EXPECT_EQ(r.tolerance, 0.5);  // the default
+  // The default tolerance: 1/32 of the source spacing in the frame, at least 0.5 m (cooker/README.md,
+  // "Levels"); the spacings are the DEMs' (3" at 19-22 N: 85.7-87.5 m across; 1" at 46 S: 21.7 m).
+  const std::map<std::string, double> expected_tolerance = {
+      {"tahoe_bare", 0.5},        {"tahoe_highest", 0.5},    {"slovenia", 0.5},          {"jacksboro", 74.573 / 32},
+      {"kilauea", 30.0 / 32},     {"oetztal", 63.567 / 32},  {"n22w160", 85.747 / 32},   {"n19w155", 87.478 / 32},
+      {"s46w066", 21.711 / 32},   {"puget", 160.0 / 32}};
+  ASSERT_TRUE(expected_tolerance.count(d.name)) << d.name;
+  EXPECT_NEAR(r.tolerance, expected_tolerance.at(d.name), 1e-3);
   // Every point with data answered, on the raster's edge and beside nodata too (SPEC section 10's
   // boundary rule, refinement along data edges to half the source spacing, the outer apron).
   EXPECT_EQ(r.answered, r.points) << r.missing_inner << " inner and " << r.missing_edge << " edge points without terrain";
@@ -335,8 +344,11 @@ TEST_P(RealData, RecordedErrorsBoundEveryPoint) {
 // (float heights near 4 km). And close to it at the finest level with nodes: only there does every
 // sample the level covers belong to a leaf that answers it (a coarser level's maximum may sit under
 // finer nodes), so the oracle's random samples must find at least half of the report's maximum
-// when >= 500 of them land there (measured: jacksboro level 4 0.1983 m = 0.1983 m, tahoe_bare
-// level 0 0.117 of 0.151 m, slovenia level 0 0.0075 m = 0.0075 m).
+// when >= 1000 of them land there (measured: tahoe_bare level 0 0.117 of 0.151 m, slovenia level 0
+// 0.0075 m = 0.0075 m; at the tolerance that follows the source, Kilauea's finest level holds 116
+// nodes on its cliffs, 514 points found 0.25 of its 0.53 m). Not where the finest level is the
+// roots: nothing was refined, and the maximum sits on a few samples (N19W155's coast: 1.27 m, which
+// 10000 points put at 0.15 m).
 TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
   const RealDem& d = GetParam();
   TERRAIN_REQUIRE_DATA(dem_path(d));
@@ -357,7 +369,7 @@ TEST_P(RealData, ReportLevelErrorsAgreeWithTheOracle) {
                 r.level_worst[size_t(l)], r.level_points[size_t(l)]);
     if (r.level_points[size_t(l)] == 0) continue;
     EXPECT_GE(reported, r.level_worst[size_t(l)] - kMm) << "level " << l;
-    if (l == finest && r.level_points[size_t(l)] >= 500) {
+    if (l == finest && l < kRootLevel && r.level_points[size_t(l)] >= 1000) {
       EXPECT_GE(r.level_worst[size_t(l)], 0.5 * reported) << "finest level " << l;
     }
     ++levels_checked;

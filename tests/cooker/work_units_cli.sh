@@ -258,6 +258,11 @@ PY
       grep -Eq -- "$1" err.txt || fail "message does not match '$1'"
       [ "$(cat out.terrain)" = old ] || fail "out.terrain was replaced"
     }
+    flip_byte() {  # FILE OFFSET: invert every bit of one byte (writing a fixed byte may write what is there)
+      local b
+      b=$(od -An -tu1 -j "$2" -N1 "$1" | tr -d ' ')
+      printf "\\$(printf '%03o' $((255 - b)))" | dd of="$1" bs=1 seek="$2" conv=notrunc status=none
+    }
     cp w/units/unit-0.tcu keep0
     cp other/units/unit-0.tcu w/units/unit-0.tcu
     expect_merge "unit 0 .*from another plan"
@@ -265,14 +270,14 @@ PY
     head -c 1000 w/units/unit-1.tcu > t && mv t w/units/unit-1.tcu
     expect_merge "unit 1 .*truncated"
     "$cook" unit w 1 -q || fail "redo unit 1"
-    printf 'X' | dd of=w/units/unit-1.tcu bs=1 seek=200 conv=notrunc status=none
+    flip_byte w/units/unit-1.tcu 200
     expect_merge "unit 1 .*checksum"
     "$cook" unit w 1 -q || fail "redo unit 1"
     # Damage inside the payloads: the merge finds it while it copies (one read of each unit), fails,
     # and leaves neither an archive nor its temporary file; `unit` (a full check) redoes the unit.
     cp w/units/unit-1.tcu keep1
     size=$(stat -c %s w/units/unit-1.tcu)
-    printf 'X' | dd of=w/units/unit-1.tcu bs=1 seek=$((size - 20)) conv=notrunc status=none
+    flip_byte w/units/unit-1.tcu $((size - 20))
     cmp -s keep1 w/units/unit-1.tcu && fail "the damage changed nothing"
     expect_merge "unit 1 .*checksum"
     no_leftovers

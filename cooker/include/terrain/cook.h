@@ -30,11 +30,18 @@ enum class OverviewMode : uint8_t { automatic, on, off };
 // the cooker's BC3 blocks (with --bc-rdo). Overview nodes above the roots keep stored normals.
 enum class NormalsMode : uint8_t { derived, stored };
 
+// The tolerance a cook uses when none is given: the larger of 0.5 m and 1/32 of the source's
+// sample spacing (frame metres, the finer axis). 1 m lidar: 0.5 m; 30 m DEMs: 0.94 m; SRTM3 at
+// 86-93 m: 2.7-2.9 m, within SRTM's own 5-10 m relative LE90 (cooker/README.md, "Levels").
+double default_tolerance_m(double source_spacing_m);
+
 struct CookOptions {
   std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
   std::string output;               // archive path (written atomically)
 
-  double tolerance_m = 0.5;         // a node is refined while its geometric error exceeds this
+  // A node is refined while its geometric error exceeds this (metres); 0: from the source,
+  // default_tolerance_m(source spacing).
+  double tolerance_m = 0;
   int finest_level = -1;            // -1: from the source resolution; else 0..5
   // --height-step: the finest height step, the largest power of two of 1/1024 m at most this
   // (metres); 0: from the tolerance (tolerance / 32). Levels whose range needs more still coarsen.
@@ -164,7 +171,8 @@ struct CookReport {
   uint32_t roots_x = 0, roots_y = 0;
   double extent_min_x_m = 0, extent_min_y_m = 0, extent_max_x_m = 0, extent_max_y_m = 0;  // data footprint
   int finest_level = kRootLevel;     // finest level allowed
-  double tolerance_m = 0;
+  double tolerance_m = 0;            // in force: CookOptions::tolerance_m, or the source's default
+  bool tolerance_from_source = false;  // default_tolerance_m(source_spacing_m): no tolerance was given
   std::array<LevelStats, kLevelCount> levels{};
   // Height error where the renderer shows full detail (each source sample against the finest
   // node covering it).

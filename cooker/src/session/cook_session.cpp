@@ -59,8 +59,10 @@ std::string unmet_tolerance_warning(const CookReport& r) {
                        "nodes refine further (at the cost of more nodes)", r.source_spacing_m, l - 1);
   else
     why += " and the finest the format has";
-  return fmt::format("--tolerance {} m is not met everywhere: the full-detail error reaches {:.3f} m because {}",
-                     r.tolerance_m, r.leaf_error_max_m, why);
+  const std::string tolerance = r.tolerance_from_source ? fmt::format("the tolerance of {:.3g} m (from the source)", r.tolerance_m)
+                                                       : fmt::format("--tolerance {} m", r.tolerance_m);
+  return fmt::format("{} is not met everywhere: the full-detail error reaches {:.3f} m because {}", tolerance,
+                     r.leaf_error_max_m, why);
 }
 
 // The root grid and the data footprint, which the report states as the archive's metadata holds
@@ -96,6 +98,10 @@ uint64_t peak_rss_bytes() {
 
 }  // namespace
 
+double default_tolerance_m(double source_spacing_m) {
+  return std::max(0.5, source_spacing_m / 32.0);
+}
+
 // `inputs`: (path, description) of every raster read (a directory input stands for several).
 std::string cook_info(const CookOptions& o, const CookReport& r,
                       const std::vector<std::pair<std::string, std::string>>& descriptions) {
@@ -109,7 +115,9 @@ std::string cook_info(const CookOptions& o, const CookReport& r,
     if (i < r.input_height_units.size()) inputs.back()["heights"] = height_unit_json(r.input_height_units[i]);
   }
   j["inputs"] = inputs;
-  j["options"] = cook_info_options_json(o);
+  CookOptions recorded = o;
+  recorded.tolerance_m = r.tolerance_m;  // the tolerance in force, also when it came from the source
+  j["options"] = cook_info_options_json(recorded);
   j["frame_reason"] = r.frame_reason;
   j["reconstruction"] = "Catmull-Rom bicubic in source sample space; bilinear over valid taps next to nodata";
   j["finest_level"] = r.finest_level;
@@ -162,8 +170,8 @@ OverlayOptions overlay_options(const CookOptions& o, uint64_t memory_limit_bytes
 }
 
 Status open_inputs(const CookOptions& options, CookSession& s, bool files_checked) {
-  if (!(options.tolerance_m > 0) || !std::isfinite(options.tolerance_m))
-    return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres");
+  if (!(options.tolerance_m >= 0) || !std::isfinite(options.tolerance_m))
+    return Status::failure(Error::invalid_argument, "--tolerance must be a positive number of metres (0: from the source)");
   if (options.finest_level < -1 || options.finest_level > kRootLevel)
     return Status::failure(Error::invalid_argument, "--finest-level must be 0..5");
   if (!(options.height_step_m >= 0 && options.height_step_m <= 16))
@@ -311,7 +319,7 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   s.mapping.spacing_m(sx, sy);
   s.decided.source_spacing_m = std::min(sx, sy);
   ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(s.decided.source_spacing_m);
-  ctx.tolerance_m = options.tolerance_m;
+  ctx.tolerance_m = options.tolerance_m > 0 ? options.tolerance_m : default_tolerance_m(s.decided.source_spacing_m);
   ctx.source_spacing_m = s.decided.source_spacing_m;
   ctx.heights_only = options.heights_only;
   ctx.payload.zstd_level = options.zstd_level;
@@ -548,7 +556,8 @@ Status finish_archive(CookSession& s, const PyramidTotals& totals, const CookRep
 void report_decisions(const CookSession& s, CookReport& report) {
   report.threads = s.threads;
   report.memory_limit_bytes = s.decided.memory_limit_bytes;
-  report.tolerance_m = s.options.tolerance_m;
+  report.tolerance_m = s.ctx.tolerance_m;
+  report.tolerance_from_source = !(s.options.tolerance_m > 0);
   // The inputs (open_inputs).
   const Raster& header = s.source.header();
   report.source_samples = uint64_t(header.width) * uint64_t(header.height);
@@ -630,7 +639,7 @@ void report_archive(const CookSession& s, CookReport& report) {
   }
   for (int l = 0; l < kMaxLevels; ++l) report.level_nodes[size_t(l)] = sb.nodes_by_level[l];
   report.peak_rss_bytes = s.stats.peak_rss_bytes;
-  if (s.stats.archive_bytes > 0 && report.leaf_error_max_m > s.options.tolerance_m)
+  if (s.stats.archive_bytes > 0 && report.leaf_error_max_m > report.tolerance_m)
     report.warnings.push_back(unmet_tolerance_warning(report));
 }
 

@@ -399,6 +399,7 @@ void session_for_merge(const PlanData& data, CookSession& s) {
   s.ctx.step_log2 = data.steps;
   restore_overview_steps(data.world.overview_step_log2, s);
   s.ctx.finest_level = data.report.finest_level;
+  s.ctx.tolerance_m = data.report.tolerance_m;
   s.descriptions = data.descriptions;
 }
 

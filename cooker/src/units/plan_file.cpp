@@ -313,6 +313,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                {"roots_y", w.roots_y}, {"extent", {w.extent_min_x_m, w.extent_min_y_m, w.extent_max_x_m, w.extent_max_y_m}},
                {"unit_roots", s.units.side}};
   j["finest_level"] = s.ctx.finest_level;
+  j["tolerance_m"] = s.ctx.tolerance_m;  // in force (options.tolerance_m 0: the source's default)
   j["steps"] = s.ctx.step_log2;
   if (!w.overview_step_log2.empty()) j["overview_steps"] = w.overview_step_log2;
   json fills = json::array();
@@ -507,7 +508,8 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
     rep.finest_level = j.at("finest_level");
     rep.overview_levels = int(out.world.overview_step_log2.size());
     rep.overview_step_log2 = out.world.overview_step_log2.empty() ? 0 : out.world.overview_step_log2[0];
-    rep.tolerance_m = out.options.tolerance_m;
+    rep.tolerance_m = j.value("tolerance_m", out.options.tolerance_m);  // absent in plans written before it
+    rep.tolerance_from_source = !(out.options.tolerance_m > 0);
     rep.block_roots = out.unit_roots;
     rep.blocks = j.at("unit_count");
     for (const json& u : j.at("units")) {
