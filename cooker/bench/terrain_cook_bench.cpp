@@ -1215,6 +1215,109 @@ int steps_main(const std::string& tool, const std::vector<Dem>& dems, const std:
   return write_chart(c, chart_path) ? 0 : 1;
 }
 
+// --worlds: cooks of worlds made of several sources against the sources cooked apart (issue 51's
+// table). (a) the shared 1 m lidar tile inside a 30 m DEM made from it (make_lidar_in_coarse.py: its
+// mirrored copies averaged over 30 m blocks, +3 m), in both orders; (c) the shared SRTM tiles at the
+// default tolerance and at --tolerance 50. One thread per cook, CPU = the child's user + system time,
+// medians of `runs` rounds taken in turn.
+struct WorldCook {
+  std::string name;
+  std::vector<std::string> argv;  // inputs and flags after the tool
+  std::vector<double> cpu;
+  uint64_t nodes = 0, bytes = 0, valid_samples = 0;
+  double rms_m = 0, max_m = 0, tolerance_m = 0;
+  std::vector<std::pair<uint64_t, uint64_t>> samples;  // per input: read, used
+  std::string archive;
+};
+
+bool world_cook_once(const std::string& tool, WorldCook& c) {
+  std::vector<std::string> argv = {tool};
+  argv.insert(argv.end(), c.argv.begin(), c.argv.end());
+  argv.insert(argv.end(), {"-o", c.archive, "--json", "--threads", "1"});
+  const Run r = run(argv);
+  if (!r.ok) {
+    fmt::print(stderr, "terrain-cook-bench --worlds: terrain-cook failed: {}\n", fmt::join(c.argv, " "));
+    return false;
+  }
+  const auto j = nlohmann::json::parse(r.out);
+  c.cpu.push_back(r.cpu_s);
+  c.nodes = j["output"]["nodes"];
+  c.bytes = j["output"]["archive_bytes"];
+  c.valid_samples = j["source"]["valid_samples"];
+  c.rms_m = j["full_detail_error"]["rms_m"];
+  c.max_m = j["full_detail_error"]["max_m"];
+  c.tolerance_m = j["tolerance_m"];
+  c.samples.clear();
+  for (const auto& in : j["input_samples"]) c.samples.emplace_back(in["samples_read"], in["samples_used"]);
+  return true;
+}
+
+int worlds_main(const std::string& tool, const std::string& data, const std::string& python, const std::string& work,
+                int runs) {
+  const std::string lidar = data + "/slovenia_TM1_564_146.tif";
+  if (!std::filesystem::exists(lidar)) {
+    fmt::print("terrain-cook-bench --worlds: skipped: the shared lidar tile {} is not there (--data)\n", lidar);
+    return 0;
+  }
+  std::filesystem::create_directories(work);
+  const std::string coarse = work + "/coarse.tif";
+  if (!std::filesystem::exists(coarse)) {
+    const Run g = run({python, script_path("make_lidar_in_coarse.py"), "--lidar", lidar, "--out-dir", work});
+    if (!g.ok) {
+      fmt::print(stderr, "terrain-cook-bench --worlds: make_lidar_in_coarse.py failed\n");
+      return 1;
+    }
+    fmt::print("{}", g.out);
+  }
+  std::vector<WorldCook> cooks = {
+      {"lidar 1 m alone", {lidar}},
+      {"30 m DEM alone", {coarse}},
+      {"lidar, then 30 m", {lidar, coarse}},
+      {"30 m, then lidar", {coarse, lidar}},
+  };
+  const char* srtm[] = {"N22W160.hgt.zip", "N19W155.hgt.zip", "S46W066.hgt.gz"};
+  for (const char* f : srtm) {
+    const std::string path = data + "/" + f;
+    if (!std::filesystem::exists(path)) continue;
+    cooks.push_back({fmt::format("{} default", f), {path}});
+    cooks.push_back({fmt::format("{} --tolerance 50", f), {path, "--tolerance", "50"}});
+  }
+  for (size_t i = 0; i < cooks.size(); ++i) cooks[i].archive = fmt::format("{}/world-{}.terrain", work, i);
+  for (int round = 0; round < runs; ++round)
+    for (WorldCook& c : cooks)
+      if (!world_cook_once(tool, c)) return 1;
+  const auto cpu = [](const WorldCook& c) { return median(c.cpu); };
+  fmt::print("\nterrain-cook-bench --worlds: one thread per cook, CPU = user + system s of the process (median of {} "
+             "rounds taken in turn); samples used = per input, the mosaic samples it gave the archive.\n\n",
+             runs);
+  fmt::print("{:<30} {:>7} {:>8} {:>9} {:>10} {:>9} {:>9}  {}\n", "cook", "tol_m", "nodes", "MB", "CPU_s",
+             "ns/sample", "rms_mm", "samples used per input");
+  for (const WorldCook& c : cooks) {
+    std::string used;
+    for (const auto& [read, u] : c.samples) used += fmt::format("{}{} of {}", used.empty() ? "" : "; ", u, read);
+    fmt::print("{:<30} {:>7.3g} {:>8} {:>9.2f} {:>10.2f} {:>9.0f} {:>9.1f}  {}\n", c.name, c.tolerance_m, c.nodes,
+               double(c.bytes) / 1e6, cpu(c), 1e9 * cpu(c) / double(std::max<uint64_t>(c.valid_samples, 1)),
+               c.rms_m * 1000, used);
+  }
+  const WorldCook &l = cooks[0], &d = cooks[1];
+  const double apart_cpu = cpu(l) + cpu(d), apart_nodes = double(l.nodes + d.nodes);
+  fmt::print("\n(a) lidar inside a 30 m DEM, against the two cooked apart ({:.2f} CPU s, {} nodes); target at most "
+             "1.3x the CPU and 1.2x the nodes in either order:\n",
+             apart_cpu, l.nodes + d.nodes);
+  for (size_t i : {size_t(2), size_t(3)}) {
+    const WorldCook& c = cooks[i];
+    const double xc = cpu(c) / apart_cpu, xn = double(c.nodes) / apart_nodes;
+    // The lidar must hold its area: all but 1 % of its samples on the mosaic's grid are used.
+    const auto& lidar_samples = c.samples[i == 2 ? 0 : 1];
+    const bool lidar_used = lidar_samples.second >= lidar_samples.first - lidar_samples.first / 100;
+    fmt::print("  {:<18} CPU {:.2f}x, nodes {:.2f}x, lidar samples used {} of {}: {}\n", c.name, xc, xn,
+               lidar_samples.second, lidar_samples.first, xc <= 1.3 && xn <= 1.2 && lidar_used ? "met" : "NOT met");
+  }
+  fmt::print("  both orders give the same archive: {}\n", same_bytes(cooks[2].archive, cooks[3].archive) ? "yes" : "NO");
+  for (const WorldCook& c : cooks) std::filesystem::remove(c.archive);
+  return 0;
+}
+
 // --against BIN: the same default cooks with another terrain-cook (the previous commit's build) and
 // this one, in turn; per DEM the nodes per level, the CPU per node and per source sample of every
 // stage and part from the two cook reports, bytes per source sample per section, the error figures,
@@ -1390,7 +1493,7 @@ int main(int argc, char** argv) {
                  "(default 0: one tiled GeoTIFF)")
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--work", so.work,
-                 "--scale, --units: folder for the generated DEMs and the table (default: bench-scale in the build tree)");
+                 "--scale, --units, --worlds: folder for the generated DEMs and the table (default: bench-scale, bench-worlds in the build tree)");
   std::string lidar = "slovenia";
   app.add_option("--lidar", lidar,
                  "--scale, --units: the real tile the squares are mirrored from: slovenia (1 m, EPSG:3794), tahoe_bare "
@@ -1402,7 +1505,7 @@ int main(int argc, char** argv) {
   app.add_option("--source", source,
                  "--scale, --units: mirror this real DEM tile instead of --lidar's (a geographic one is warped to UTM "
                  "first)");
-  app.add_option("--python", so.python, "--scale, --units: Python with GDAL and numpy")->capture_default_str();
+  app.add_option("--python", so.python, "--scale, --units, --worlds: Python with GDAL and numpy")->capture_default_str();
   bool units = false;
   uint32_t unit_roots = 0;
   std::string units_dem;
@@ -1443,6 +1546,12 @@ int main(int argc, char** argv) {
                  "source sample per section, the errors, identical archives or not");
   app.add_option("--against-flags", against_flags, "--against: cook flags for both sides, e.g. --tolerance,0.05")
       ->delimiter(',');
+  bool worlds = false;
+  app.add_flag("--worlds", worlds,
+               "Instead of the sweep: worlds of several sources against the sources cooked apart: the shared 1 m "
+               "lidar tile inside a 30 m DEM made from it (make_lidar_in_coarse.py, in the --work folder), in both "
+               "orders, and the shared SRTM tiles at the default tolerance and at --tolerance 50 (--runs rounds, "
+               "default 3)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -1455,6 +1564,10 @@ int main(int argc, char** argv) {
   if (!std::filesystem::exists(tool)) {
     fmt::print(stderr, "terrain-cook-bench: {} not found (build the terrain-cook target)\n", tool);
     return 1;
+  }
+  if (worlds) {
+    const std::string work = so.work.empty() ? (self.parent_path() / "bench-worlds").string() : so.work;
+    return worlds_main(tool, std::filesystem::path(data).lexically_normal().string(), so.python, work, runs);
   }
   if (units || scale) {
     so.data = std::filesystem::path(data).lexically_normal().string();
