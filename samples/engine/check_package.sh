@@ -60,7 +60,9 @@ if [ -z "$archive" ]; then
   dem=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
   [ -e "$dem" ] || fail "$dem missing (scripts/setup.sh installs python-matplotlib-data)"
   archive="$work/jacksboro.terrain"
-  "$prefix/bin/terrain-cook" "$dem" -o "$archive" --crs EPSG:4326 --quiet
+  # --tolerance 0.5: the two levels the flight below needs (the default for its 75 m samples, 2.3 m,
+  # keeps the roots alone).
+  "$prefix/bin/terrain-cook" "$dem" -o "$archive" --crs EPSG:4326 --tolerance 0.5 --quiet
 fi
 # The installed terrain-inspect finds its image writer module in lib/terrain (tools/common/tool_module.h).
 "$prefix/bin/terrain-inspect" "$archive" --export 5/0/0 "$work/export" -q >/dev/null ||
