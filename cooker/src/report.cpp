@@ -83,7 +83,14 @@ std::string report_json(const CookReport& r) {
   // Per input, on the mosaic's grid: samples where it has a height, and those the archive is cooked from.
   nlohmann::ordered_json input_samples = nlohmann::ordered_json::array();
   for (const InputSamples& in : r.input_samples)
-    input_samples.push_back({{"path", in.path}, {"samples_read", in.read}, {"samples_used", in.used}});
+    input_samples.push_back({{"path", in.path},
+                             {"samples_read", in.read},
+                             {"samples_used", in.used},
+                             {"family", in.family},
+                             {"spacing_m", in.spacing_m},
+                             {"area_km2", in.area_km2},
+                             {"tolerance_m", in.tolerance_m},
+                             {"finest_level", in.finest_level}});
   j["input_samples"] = input_samples;
   j["source"] = {{"samples", r.source_samples},
                  {"valid_samples", r.source_valid_samples},
@@ -222,6 +229,11 @@ std::string report_summary(const CookReport& r) {
   if (r.input_samples.size() > 1) {
     s += "inputs: samples used of read (on the mosaic's grid):";
     for (const InputSamples& in : r.input_samples) s += fmt::format(" {} {} of {};", in.path, in.used, in.read);
+    s.back() = '\n';
+    s += "inputs: area owned, spacing, tolerance, finest level:";
+    for (const InputSamples& in : r.input_samples)
+      s += fmt::format(" {} {:.3g} km2, {:.3g} m, {:.3g} m, {};", in.path, in.area_km2, in.spacing_m, in.tolerance_m,
+                       in.finest_level);
     s.back() = '\n';
   }
   s += "level  spacing  nodes   step(mm)  err max(m)  err rms(m)  samples\n";

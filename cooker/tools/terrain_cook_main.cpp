@@ -119,7 +119,7 @@ int run(int argc, char** argv) {
   using terrain::cook::enum_name;
   std::string origin, spacing, raw_size, valid_range, memory_limit, report_path;
   std::string nodata = enum_name(o.nodata), quality = enum_name(o.surface_quality), error_checks = enum_name(o.error_checks);
-  std::string normals = enum_name(o.normals);
+  std::string normals = enum_name(o.normals), overlap = enum_name(o.overlap);
   std::optional<double> nodata_value;
   bool quiet = false, json = false;
 
@@ -128,7 +128,7 @@ int run(int argc, char** argv) {
   app.footer(std::string(cli::kExitCodes) +
              "\nOutputs (-o, --report) must not name an input, each other, a device, a FIFO or a directory; both are "
              "written beside their targets and replace them together at the end (or not at all).");
-  app.add_option("inputs", o.inputs, "Input DEM(s); several are mosaicked (same CRS and pixel grid, first listed wins)")
+  app.add_option("inputs", o.inputs, "Input DEM(s); several are mosaicked on one grid (any CRS and spacing: the others are resampled onto the grid of the one that wins overlaps, see --overlap)")
       ->required();
   auto* output_opt = app.add_option("-o,--output", o.output, "Archive to write (atomically)");
   if (!planning) output_opt->required();
@@ -240,6 +240,12 @@ int run(int argc, char** argv) {
                  "stored = the cooker's BC3 blocks, shaped by --bc-rdo")
       ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::NormalsMode>()))
       ->capture_default_str();
+  app.add_option("--overlap", overlap,
+                 "Which input wins where inputs overlap: finer = the finest ground sample spacing (its grid and CRS are "
+                 "the mosaic's; list order breaks ties), so the archive does not depend on the order of the inputs; "
+                 "list = the first listed (its grid and CRS are the mosaic's)")
+      ->check(CLI::IsMember(terrain::cook::enum_spellings<terrain::cook::OverlapRule>()))
+      ->capture_default_str();
   std::string overview = enum_name(o.overview_levels);
   app.add_option("--overview-levels", overview,
                  fmt::format("Overview levels above the 2048 m roots (format v2, SPEC section 19) so a streamer can "
@@ -302,6 +308,7 @@ int run(int argc, char** argv) {
   o.overview_levels = enum_of<terrain::cook::OverviewMode>(overview).value_or(o.overview_levels);
   o.error_checks = enum_of<terrain::cook::ErrorChecks>(error_checks).value_or(o.error_checks);
   o.normals = enum_of<terrain::cook::NormalsMode>(normals).value_or(o.normals);
+  o.overlap = enum_of<terrain::cook::OverlapRule>(overlap).value_or(o.overlap);
   o.surface_quality = enum_of<terrain::cook::SurfaceQuality>(quality).value_or(o.surface_quality);
 
   // ---- the files: refuse before any work ----

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # What each input gives the cook (issue 48 item 8): input_samples_cli.sh CASE BIN_DIR SCRATCH_PARENT DATA_DIR.
 # A 200 m cut of the Slovenian 1 m lidar DTM and a 10 m copy of it (gdalwarp -r average) covering
-# the same square, cooked in both orders: the input listed second contributes nothing (or under 1 %)
-# and is named in a warning on stderr and in the report; the report's input_samples give, per input,
-# the samples read and used on the mosaic's grid, the used ones adding up to source.valid_samples.
+# the same square. By default (--overlap finer) the 1 m input wins in either order and both orders
+# give the same archive; with --overlap list the input listed second contributes nothing (or under
+# 1 %). Such an input is named in a warning on stderr and in the report; the report's input_samples
+# give, per input in the order of precedence, the samples read and used on the mosaic's grid, the
+# used ones adding up to source.valid_samples.
 set -u
 case_name=$1 bin=$2 work=$3/input-samples-cli-$1 data=$4
 src=$data/slovenia_TM1_564_146.tif
@@ -41,14 +43,35 @@ case $case_name in
     jq -e '.warnings | map(select(startswith("coarse.tif: contributes"))) | length == 1' fine_first.json >/dev/null ||
       { echo "FAIL: the report's warnings"; exit 1; }
     echo "ok: fine first: fine 40000 of 40000, coarse $used1 of $read1" ;;
+  finer_wins)
+    # Listed second, the 1 m input still wins (issue 51) and sets the grid: the archive of the other order.
+    cook fine_first.json fine.tif coarse.tif
+    mv out.terrain fine_first.terrain
+    cook coarse_listed_first.json coarse.tif fine.tif
+    cmp -s out.terrain fine_first.terrain || { echo "FAIL: the two orders give different archives"; exit 1; }
+    [ "$(jq -c .input_samples coarse_listed_first.json)" = "$(jq -c .input_samples fine_first.json)" ] ||
+      { echo "FAIL: input_samples $(jq -c .input_samples coarse_listed_first.json) vs $(jq -c .input_samples fine_first.json)"; exit 1; }
+    [ "$(field coarse_listed_first.json 0 path)" = fine.tif ] && [ "$(field coarse_listed_first.json 0 samples_used)" = 40000 ] ||
+      { echo "FAIL: fine.tif does not take precedence: $(jq -c .input_samples coarse_listed_first.json)"; exit 1; }
+    grep -q "terrain-cook: warning: coarse\.tif: contributes" err.txt || { echo "FAIL: no warning for coarse.tif: $(cat err.txt)"; exit 1; }
+    grep -q "the finer wins" err.txt || { echo "FAIL: the warning does not state the rule: $(cat err.txt)"; exit 1; }
+    # Per input: its grid family, spacing, tolerance (1/32 of its spacing, at least 0.5 m), area
+    # owned (its used samples of 1 m2) and the finest level it reached.
+    jq -e '.input_samples[0] | .family == 0 and .spacing_m == 1 and .tolerance_m == 0.5 and (.area_km2 * 1e6 | round) == 40000' \
+      coarse_listed_first.json >/dev/null || { echo "FAIL: fine.tif's entry $(jq -c '.input_samples[0]' coarse_listed_first.json)"; exit 1; }
+    jq -e '.input_samples[1] | .family == 1 and .spacing_m == 10 and .tolerance_m == 0.5' coarse_listed_first.json >/dev/null ||
+      { echo "FAIL: coarse.tif's entry $(jq -c '.input_samples[1]' coarse_listed_first.json)"; exit 1; }
+    jq -e '.input_samples[0].finest_level >= 0 and .input_samples[0].finest_level <= 5' coarse_listed_first.json >/dev/null ||
+      { echo "FAIL: fine.tif's finest level $(jq -c '.input_samples[0]' coarse_listed_first.json)"; exit 1; }
+    echo "ok: coarse listed first, fine wins: $(jq -c .input_samples coarse_listed_first.json), same archive" ;;
   coarse_first)
-    cook coarse_first.json coarse.tif fine.tif
+    cook coarse_first.json coarse.tif fine.tif --overlap list
     [ "$(field coarse_first.json 0 samples_read)" = 400 ] || { echo "FAIL: coarse read $(field coarse_first.json 0 samples_read)"; exit 1; }
     [ "$(field coarse_first.json 0 samples_used)" = 400 ] || { echo "FAIL: coarse used"; exit 1; }
     read1=$(field coarse_first.json 1 samples_read) used1=$(field coarse_first.json 1 samples_used)
     [ "$read1" -gt 300 ] && [ "$used1" = 0 ] || { echo "FAIL: fine used $used1 of $read1"; exit 1; }
     check_sum coarse_first.json
-    grep -q "terrain-cook: warning: fine\.tif: contributes nothing to the archive: inputs listed before it have a height at each of its $read1 samples" err.txt ||
+    grep -q "terrain-cook: warning: fine\.tif: contributes nothing to the archive: inputs that take precedence have a height at each of its $read1 samples on the mosaic's grid (--overlap list" err.txt ||
       { echo "FAIL: no warning for fine.tif: $(cat err.txt)"; exit 1; }
     jq -e '.warnings | map(select(startswith("fine.tif: contributes nothing"))) | length == 1' coarse_first.json >/dev/null ||
       { echo "FAIL: the report's warnings"; exit 1; }
@@ -56,8 +79,8 @@ case $case_name in
   work_dir)
     # Through a plan and its work units: the plan records what each input gave; the merged report
     # says the same as the one-process cook's, warning included.
-    cook one.json coarse.tif fine.tif
-    cook units.json coarse.tif fine.tif --work-dir W
+    cook one.json coarse.tif fine.tif --overlap list
+    cook units.json coarse.tif fine.tif --overlap list --work-dir W
     [ "$(jq -c .input_samples one.json)" = "$(jq -c .input_samples units.json)" ] ||
       { echo "FAIL: one process $(jq -c .input_samples one.json), units $(jq -c .input_samples units.json)"; exit 1; }
     grep -q "warning: fine\.tif: contributes nothing" err.txt || { echo "FAIL: no warning through the units: $(cat err.txt)"; exit 1; }

@@ -24,12 +24,12 @@ using json = nlohmann::ordered_json;
 
 // Every field of CookOptions, in declaration order: the binding only compiles with all of them.
 auto options_fields(CookOptions& o) {
-  auto& [inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale, height_offset,
+  auto& [inputs, output, overlap, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale, height_offset,
          height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots, block_order, work_dir,
          unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata, fill_max_samples, materials_path,
          surface_quality, error_checks, normals, bc_rdo, albedo_path, holes_path, landcover_path, landcover_table_path,
          heights_only, force, overview_levels, zstd_level, surface_zstd_level] = o;
-  return std::tie(inputs, output, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale,
+  return std::tie(inputs, output, overlap, tolerance_m, finest_level, height_step_m, threads, crs, frame, origin, spacing, height_scale,
                   height_offset, height_scale_set, nodata_value, valid_range_m, memory_limit_bytes, block_roots,
                   block_order, work_dir, unit_roots, raw_size, raw_type, raw_big_endian, tile_encoding, nodata,
                   fill_max_samples, materials_path, surface_quality, error_checks, normals, bc_rdo, albedo_path, holes_path,
@@ -37,7 +37,7 @@ auto options_fields(CookOptions& o) {
                   surface_zstd_level);
 }
 const std::vector<std::string> kFieldNames = {
-    "inputs", "output", "tolerance_m", "finest_level", "height_step_m", "threads", "crs", "frame", "origin", "spacing", "height_scale",
+    "inputs", "output", "overlap", "tolerance_m", "finest_level", "height_step_m", "threads", "crs", "frame", "origin", "spacing", "height_scale",
     "height_offset", "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "block_roots",
     "block_order", "work_dir", "unit_roots", "raw_size", "raw_type", "raw_big_endian", "tile_encoding", "nodata",
     "fill_max_samples", "materials_path", "surface_quality", "error_checks", "normals", "bc_rdo", "albedo_path", "holes_path",
@@ -60,6 +60,7 @@ CookOptions set_every_field() {
   CookOptions o;
   o.inputs = {"a.tif", "dir/b.vrt"};
   o.output = "out.terrain";
+  o.overlap = OverlapRule::list;
   o.tolerance_m = 1.25;
   o.finest_level = 3;
   o.height_step_m = 0.0625;
@@ -128,8 +129,8 @@ TEST(CookOptionsTable, ListsEveryFieldOnce) {
       EXPECT_NE(r.info_put, nullptr) << r.field;
     }
   }
-  EXPECT_EQ(plan_keys.size(), 34u);  // the 40 fields less output, threads, work dir, unit size, block size and order
-  EXPECT_EQ(info_keys.size(), 22u);
+  EXPECT_EQ(plan_keys.size(), 35u);  // the 41 fields less output, threads, work dir, unit size, block size and order
+  EXPECT_EQ(info_keys.size(), 23u);
 }
 
 TEST(CookOptionsTable, EveryPlanOptionRoundTripsThroughAPlan) {
@@ -168,18 +169,20 @@ TEST(CookOptionsTable, PlanKeysKeepTheirOrderAndForms) {
       "height_scale_set", "nodata_value", "valid_range_m", "memory_limit_bytes", "raw_size", "raw_type",
       "raw_big_endian", "tile_encoding", "nodata", "fill_max_samples", "materials", "surface_quality", "bc_rdo",
       "error_checks", "albedo", "holes", "landcover", "landcover_table", "heights_only", "force", "zstd_level",
-      "surface_zstd_level", "overview_levels", "height_step_m", "normals"};  // new keys go last: plans already written
+      "surface_zstd_level", "overview_levels", "height_step_m", "normals", "overlap"};  // new keys go last: plans already written
   EXPECT_EQ(keys, expected);
   EXPECT_EQ(j.at("nodata"), "fill");
   EXPECT_EQ(j.at("surface_quality"), 2);
   EXPECT_EQ(j.at("error_checks"), "all");
   EXPECT_EQ(j.at("overview_levels"), 2);
   EXPECT_EQ(j.at("normals"), "stored");
+  EXPECT_EQ(j.at("overlap"), "list");
   // At their defaults, the options added after the first plans are left out or null.
   const json d = plan_options_json(CookOptions{});
   EXPECT_FALSE(d.contains("height_scale_set"));
   EXPECT_FALSE(d.contains("error_checks"));
   EXPECT_FALSE(d.contains("normals"));
+  EXPECT_FALSE(d.contains("overlap"));
   EXPECT_TRUE(d.at("origin").is_null());
   EXPECT_TRUE(d.at("nodata_value").is_null());
   EXPECT_EQ(d.at("bc_rdo"), 28.0);
@@ -226,6 +229,12 @@ TEST(CookOptionsTable, CookInfoRecordsItsOptionsInTheArchivesOrder) {
   const json n = cook_info_options_json(o);
   EXPECT_EQ(std::prev(n.end()).key(), "normals");
   EXPECT_EQ(n.at("normals"), "stored");
+  // --overlap list (issue 51: finer wins by default) likewise, after it.
+  EXPECT_FALSE(n.contains("overlap"));
+  o.overlap = OverlapRule::list;
+  const json v = cook_info_options_json(o);
+  EXPECT_EQ(std::prev(v.end()).key(), "overlap");
+  EXPECT_EQ(v.at("overlap"), "list");
 }
 
 TEST(CookOptionsTable, EnumNamesRoundTrip) {

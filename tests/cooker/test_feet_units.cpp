@@ -470,8 +470,9 @@ TEST(FeetFrameChoice, HoleMaskInTheSameFeetCrsLandsOnTheDem) {
 
 // Two inputs: the Tahoe box in UTM 11N metres, then the same in California zone 3 US feet: the
 // second is resampled onto the first's grid through GDAL's transformation, whose coordinates are
-// the CRS's own units. Cooked with the feet file first and the metre file only over its west
-// half, the east half comes from the feet file and must hold the metre source's heights.
+// the CRS's own units. Cooked with the metre file first (--overlap list: the 2 ft feet file is the
+// finer and would otherwise take precedence) and only over its west half, the east half comes from
+// the feet file and must hold the metre source's heights.
 TEST(FeetFrameChoice, FeetInputResampledOntoAMetreGridLandsInPlace) {
   TERRAIN_REQUIRE_DATA(data_file(kTahoe));
   std::filesystem::path utm, west, feet, archive;
@@ -487,8 +488,8 @@ TEST(FeetFrameChoice, FeetInputResampledOntoAMetreGridLandsInPlace) {
                    west, why))
       << why;
   archive = work_dir() / "mix.terrain";
-  ASSERT_TRUE(run_command(tool("terrain-cook") + " " + q(west) + " " + q(feet) + " -q --heights-only -o " + q(archive) +
-                              " 2>&1",
+  ASSERT_TRUE(run_command(tool("terrain-cook") + " " + q(west) + " " + q(feet) + " -q --heights-only --overlap list -o " +
+                              q(archive) + " 2>&1",
                           out))
       << out;
   std::vector<Point> pts, east;

@@ -20,6 +20,7 @@
 #include "inputs/inputs.h"
 #include "mosaic/mosaic.h"
 #include "mosaic/mosaic_source.h"
+#include "mosaic/precedence.h"
 #include "inputs/raster.h"
 #include "inputs/source_raster.h"
 #include "test_data.h"
@@ -157,6 +158,7 @@ TEST_P(MosaicLegacy, WindowsEqualTheWholeReadWhichEqualsTheOldMosaic) {
   o.height_scale = c.height_scale;
   o.height_offset = c.height_offset;
   o.valid_range_m = c.valid_range;
+  o.overlap = cook::OverlapRule::list;  // the old mosaic's rule (n19_kilauea: the finer Kilauea would win)
 
   cook::MosaicSource src;
   ASSERT_TRUE(cook::open_mosaic_source(cook::input_options(o), UINT64_MAX, src).ok());
@@ -466,6 +468,52 @@ TEST(MosaicSource, GdalCacheSize) {
 }
 
 // Refusals at open: a VRT naming a missing tile (before any window reaches it), and load_inputs'
+// The rule "finer wins" (precedence.h): by ground spacing in metres across CRSs; tiles of one grid
+// family keep list order among themselves at any latitude; and any order of the same inputs gives
+// the same precedence (their paths in the same order).
+TEST(Precedence, FinerFirstTilesInListOrderAndAnyInputOrder) {
+  auto raster = [](const char* path, cook::CrsKind kind, double dx, double dy, double x0, double y0) {
+    cook::Raster r;
+    r.path = path;
+    r.crs.kind = kind;  // local: same_crs needs nothing more; geographic: the default ellipsoid fields
+    r.width = r.height = 100;
+    r.geo.c[0] = x0;
+    r.geo.c[1] = dx;
+    r.geo.c[3] = y0;
+    r.geo.c[5] = -dy;
+    r.geo.valid = true;
+    return r;
+  };
+  using cook::CrsKind;
+  // Ground spacings: 1" of arc is 30.887 m on the mean sphere; at the tiles' centres (0.486 N and
+  // 60.486 N) 30.887 m and 30.887 x sqrt(cos 60.486) = 21.68 m; 25 m local; 1 m local.
+  const cook::Raster tile_equator = raster("tile_eq", CrsKind::geographic, 1 / 3600.0, 1 / 3600.0, 10, 0.5);
+  const cook::Raster tile_north = raster("tile_60n", CrsKind::geographic, 1 / 3600.0, 1 / 3600.0, 10, 60.5);
+  const cook::Raster dem25 = raster("dem25", CrsKind::local, 25, 25, 0, 0);
+  const cook::Raster lidar = raster("lidar", CrsKind::local, 1, 1, 100, 100);
+  const double arc_second_m = 6371008.8 * M_PI / 180 / 3600;
+  EXPECT_NEAR(cook::ground_spacing_m(tile_equator), arc_second_m * std::sqrt(std::cos(0.48625 * M_PI / 180)), 1e-9);
+  EXPECT_NEAR(cook::ground_spacing_m(tile_north), arc_second_m * std::sqrt(std::cos(60.48625 * M_PI / 180)), 1e-9);
+  EXPECT_NEAR(cook::ground_spacing_m(tile_north), 21.68, 0.01);
+  EXPECT_DOUBLE_EQ(cook::ground_spacing_m(dem25), 25.0);
+  auto order_of = [](std::vector<const cook::Raster*> rs) {
+    std::vector<std::string> paths;
+    for (size_t i : cook::finer_first_order(rs)) paths.push_back(rs[i]->path);
+    return paths;
+  };
+  // The tiles share the family key of the finest of them (21.7 m, finer than 25 m) and keep list order.
+  const std::vector<std::string> expected = {"lidar", "tile_eq", "tile_60n", "dem25"};
+  EXPECT_EQ(order_of({&tile_equator, &tile_north, &dem25, &lidar}), expected);
+  EXPECT_EQ(order_of({&dem25, &lidar, &tile_equator, &tile_north}), expected);
+  EXPECT_EQ(order_of({&tile_equator, &dem25, &tile_north, &lidar}), expected);
+  EXPECT_EQ(order_of({&tile_north, &tile_equator, &lidar, &dem25}),
+            (std::vector<std::string>{"lidar", "tile_60n", "tile_eq", "dem25"}));  // tiles: list order
+  // Two rasters of one family (same CRS and spacing, another origin) keep list order either way.
+  const cook::Raster dem25b = raster("dem25b", CrsKind::local, 25, 25, 2500, 0);
+  EXPECT_EQ(order_of({&dem25b, &lidar, &dem25}), (std::vector<std::string>{"lidar", "dem25b", "dem25"}));
+  EXPECT_EQ(order_of({&dem25, &dem25b, &lidar}), (std::vector<std::string>{"lidar", "dem25", "dem25b"}));
+}
+
 // own errors.
 TEST(MosaicSource, OpenRefusesWhatLoadInputsRefuses) {
   const fs::path dir = scratch_dir("mosaic_source_refusals");

@@ -29,6 +29,10 @@ enum class OverviewMode : uint8_t { automatic, on, off };
 // apron and AO and every reader rebuilds the texels from the heights (normals codec 4); stored =
 // the cooker's BC3 blocks (with --bc-rdo). Overview nodes above the roots keep stored normals.
 enum class NormalsMode : uint8_t { derived, stored };
+// Which input wins where inputs overlap, and whose grid and CRS the mosaic is read on (mosaic.h):
+// finer = the input with the finest ground sample spacing (precedence.h), list order breaking
+// ties, so the archive does not depend on the order of the inputs; list = the first listed.
+enum class OverlapRule : uint8_t { finer, list };
 
 // The tolerance a cook uses when none is given: the larger of 0.5 m and 1/32 of the source's
 // sample spacing (frame metres, the finer axis). 1 m lidar: 0.5 m; 30 m DEMs: 0.94 m; SRTM3 at
@@ -36,8 +40,9 @@ enum class NormalsMode : uint8_t { derived, stored };
 double default_tolerance_m(double source_spacing_m);
 
 struct CookOptions {
-  std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the first one's grid)
+  std::vector<std::string> inputs;  // one or more DEMs; several are mosaicked (mosaic.h: others resampled onto the finest one's grid)
   std::string output;               // archive path (written atomically)
+  OverlapRule overlap = OverlapRule::finer;  // --overlap
 
   // A node is refined while its geometric error exceeds this (metres); 0: from the source,
   // default_tolerance_m(source spacing).
@@ -136,14 +141,25 @@ inline constexpr uint64_t kMaxPlannedRoots = 1000000;
 // either side: cooker/README.md, "Figures behind the code").
 inline constexpr uint64_t kOverviewAutoRoots = 256;
 
-// What one input gave the cook, counted on the mosaic's grid (the first input's; a later input in
-// another CRS or at another spacing counts its samples resampled onto that grid): `read`, the grid
-// samples where it has a height; `used`, those of them the mosaic keeps (where inputs overlap, the
-// one listed first wins) and the archive is cooked from. The used counts of all inputs add up to
-// source_valid_samples.
+// What one input gave the cook, counted on the mosaic's grid (that of the input which takes
+// precedence, CookOptions::overlap; an input in another CRS or at another spacing counts its samples
+// resampled onto that grid): `read`, the grid samples where it has a height; `used`, those of them
+// the mosaic keeps (where inputs overlap, the one that takes precedence wins) and the archive is
+// cooked from. The used counts of all inputs add up to source_valid_samples. Listed in the order
+// of precedence (the order of the command line under `--overlap list`).
 struct InputSamples {
   std::string path;
   uint64_t read = 0, used = 0;
+  // Its grid family (MosaicSource::families: inputs on one grid, 0 = the mosaic's own) and that
+  // family's ground sample spacing (metres, the finer axis).
+  uint32_t family = 0;
+  double spacing_m = 0;
+  // The report's: the area it owns (used samples times the mosaic's sample area at its centre), the
+  // tolerance of its family (RefineRules) and the finest level of a node where its family takes
+  // precedence (the first family with a sample in the node; -1: none).
+  double area_km2 = 0;
+  double tolerance_m = 0;
+  int finest_level = -1;
 };
 
 struct CookReport {
@@ -159,6 +175,7 @@ struct CookReport {
   double void_fill_residual_m = 0;   // largest change of the last relaxation sweep of a filled void
   uint64_t implausible_samples = 0;  // outside valid_range_m or undeclared -9999 voids: made nodata
   double source_spacing_m = 0;       // finest source sample spacing, frame metres
+  double source_sample_area_m2 = 0;  // the mosaic's sample area in the frame at its centre
   // Per input (same order as input_descriptions): the unit its heights declare and the factor applied.
   std::vector<HeightUnit> input_height_units;
   // Per input (same order as input_descriptions): its samples read and used (InputSamples). An

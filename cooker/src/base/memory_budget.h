@@ -31,7 +31,8 @@ struct MemoryShares {
 };
 MemoryShares memory_shares(uint64_t limit_bytes);
 // Bytes per sample of a block's window: the heights (4), filled flags (1), the fill's visited flags
-// (1), the reader's copy with its one-sample ring (4, mosaic_source.cpp), rounded up (the steps
+// (1), the grid families of a mosaic of several (1), the reader's copy with its one-sample ring (4,
+// mosaic_source.cpp), rounded up (the steps
 // need no window: range_summary.h, at most ~7 MB plus one row of first-pass tiles).
 inline constexpr uint64_t kWindowBytesPerSample = 12;
 

@@ -40,9 +40,13 @@ struct SampleWindow {
   int source_width = 0, source_height = 0;
   LargeVector<float> values;    // resize() leaves new samples uninitialised: the reader fills them
   LargeVector<uint8_t> filled;  // 1 = a filled void sample (not source data); empty = none
+  // The grid family of the input that gave each sample (MosaicSource::read; 255 = none, a filled
+  // void among them); empty when the inputs form one family (every sample is family 0's).
+  LargeVector<uint8_t> family;
   size_t index(int c, int r) const { return size_t(r - rect.r0) * size_t(rect.width()) + size_t(c - rect.c0); }
   float at(int c, int r) const { return values[index(c, r)]; }
   bool is_filled(int c, int r) const { return !filled.empty() && filled[index(c, r)]; }
+  static constexpr uint8_t kNoFamily = 255;
 };
 
 }  // namespace terrain::cook

@@ -31,6 +31,9 @@ struct InputOptions {
   std::string raw_type;
   bool raw_big_endian = false;
   std::string tile_encoding;
+  // Where inputs overlap: true = the finest wins (CookOptions::overlap finer, precedence.h); false =
+  // the first listed. The winner's grid and CRS are the mosaic's (open_mosaic_source).
+  bool finer_wins = true;
 };
 
 // Raw sample values before scale/offset; the readers mark nodata themselves.

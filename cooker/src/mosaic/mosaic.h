@@ -19,7 +19,8 @@ namespace terrain::cook {
 // A single input is moved through unchanged. The mosaic (plus the inputs it copies from) is
 // checked against memory_limit_bytes before it is allocated (tiles far apart make a huge one).
 // Implemented as MosaicSource (mosaic_source.h) over the inputs held whole, read as one window: the
-// windowed cook's reader places and overlaps inputs with the same code.
+// windowed cook's reader places and overlaps inputs with the same code. The inputs are taken in the
+// order given: the cook's reader (open_mosaic_source) first puts them in its order of precedence.
 Status mosaic(std::vector<Raster>& inputs, Raster& out, uint64_t memory_limit_bytes = UINT64_MAX);
 
 }  // namespace terrain::cook

@@ -27,9 +27,36 @@ class MosaicSource {
   const Raster& header() const { return header_; }
 
   // Samples [c0, c0+w) x [r0, r0+h) of the mosaic into out (w*h, row-major); any rectangle, parts
-  // outside the mosaic are NaN. Heights after every rule load_inputs applies, first listed input
-  // wins. Called from one thread at a time (it reuses its scratch).
-  Status read(int c0, int r0, int w, int h, float* out);
+  // outside the mosaic are NaN. Heights after every rule load_inputs applies; where inputs
+  // overlap, the first in the order of precedence (open_mosaic_source) wins. `family`, when not
+  // null (w*h bytes): the grid family (family_of) of the input that gave each sample, kNoFamily
+  // where none did. Called from one thread at a time (it reuses its scratch).
+  Status read(int c0, int r0, int w, int h, float* out, uint8_t* family = nullptr);
+
+  // Grid families: inputs on one grid (same CRS and spacing, precedence.h) form one, numbered in
+  // the order of precedence from 0 (the mosaic's own grid); at most kMaxFamilies, later ones share
+  // the last number. spacing_m: the finer axis of its ground sample spacing (ground_spacing_axes_m)
+  // of its first input. One family: every sample is family 0.
+  static constexpr uint8_t kNoFamily = 255, kMaxFamilies = 254;
+  struct Family {
+    double spacing_m = 0;
+    std::vector<size_t> inputs;  // indices into inputs()
+  };
+  const std::vector<Family>& families() const { return families_; }
+
+  // Seam blend (open_mosaic_source with finer_wins): where a family's data end inside a coarser
+  // family's, its samples within seam_band_m(f) of that end become
+  //   coarser + (d / band) (own - coarser),
+  // d the ground distance (metres, on the mosaic's grid) to the nearest sample a coarser family
+  // holds (where the coarser data take over; edges with no data beyond are no seam), `coarser` the
+  // value of the first coarser input under the sample. The band is twice
+  // the spacing of the finest coarser family (60 m for 1 m lidar in a 30 m DEM). So a step between
+  // the sources becomes a ramp; a family's samples change by at most (1 - d / band) |own - coarser|
+  // inside the band, not at all beyond it, and the coarser family's own samples never. A function
+  // of the sample's position and the inputs only (any window gives the same bits). 0: no blend
+  // (one family, the coarsest family, or --overlap list).
+  void enable_seam_blend();
+  double seam_band_m(size_t family) const { return family < seam_band_m_.size() ? seam_band_m_[family] : 0.0; }
 
   struct InputStat {
     std::string path, description;  // description as load_inputs' Raster::description (before resampling)
@@ -70,9 +97,22 @@ class MosaicSource {
                          uint64_t memory_limit_bytes, MosaicSource& out);
 
  private:
+  // read() without the seam blend: first-wins composition; `next` (optional, with family): the
+  // first coarser family's value under each sample; count: the stats of set_count_implausible.
+  Status compose(int c0, int r0, int w, int h, float* out, uint8_t* family, float* next, bool count);
+  Status blend_seams(int c0, int r0, int w, int h, const uint8_t* family, float* out);
+
   Raster header_;
   std::vector<Layer> layers_;
   std::vector<InputStat> stats_;
+  std::vector<Family> families_;
+  std::vector<uint8_t> family_of_layer_;
+  std::vector<double> seam_band_m_;  // per family; empty: no blend
+  int seam_radius_ = 0;              // the widest band in samples (rounded up): blend_seams' margin
+  double seam_sx_ = 1, seam_sy_ = 1; // the mosaic's sample spacing, ground metres
+  std::vector<float> tile_values_, tile_next_;
+  std::vector<uint8_t> tile_family_, own_family_;
+  std::vector<double> seam_d2_, seam_col_;
   std::vector<float> window_, scratch_;
   bool count_implausible_ = false;
 };
@@ -80,11 +120,14 @@ class MosaicSource {
 // Opens every input of `options` (the errors and messages of load_inputs: missing files, no CRS,
 // unsupported CRS, too small, ...; a VRT naming a missing tile is refused here already). GDAL-
 // readable inputs (and web tiles) stay OPEN and are read by windows through
-// SourceRaster::read_window, as are SRTM HGT tiles (open_hgt_source); .npz, PNG/EXR and raw inputs are read whole. An input that needs
-// resampling (another CRS or spacing than the first) is seen on the first input's grid through a
-// ResampledInput, read by windows like the others. memory_limit_bytes: budget for what this source
-// itself holds (inputs held whole at 4 B per sample, the resampled inputs' anchors).
-// files_checked: ReadOptions::files_checked (a work unit, whose plan's files were stat'ed).
+// SourceRaster::read_window, as are SRTM HGT tiles (open_hgt_source); .npz, PNG/EXR and raw inputs
+// are read whole. The inputs are taken in the order of precedence: with options.finer_wins finest
+// first (finer_first_order, precedence.h), else in list order; inputs() lists them so. The first
+// sets the mosaic's grid and CRS; an input that needs resampling (another CRS or spacing) is seen
+// on that grid through a ResampledInput, read by windows like the others. memory_limit_bytes:
+// budget for what this source itself holds (inputs held whole at 4 B per sample, the resampled
+// inputs' anchors). files_checked: ReadOptions::files_checked (a work unit, whose plan's files
+// were stat'ed).
 Status open_mosaic_source(const InputOptions& options, uint64_t memory_limit_bytes, MosaicSource& out,
                           bool files_checked = false);
 

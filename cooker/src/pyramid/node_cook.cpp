@@ -265,6 +265,34 @@ void node_sample_bounds(const CookContext& ctx, const NodeKey& key, double& cmin
     }
 }
 
+RefineRules node_refine_rules(const CookContext& ctx, const NodeKey& key, uint64_t* families) {
+  const RefineRules own{ctx.tolerance_m, ctx.source_spacing_m, ctx.finest_level};
+  if (families) *families = 0;
+  const SampleWindow& src = *ctx.window;
+  if (ctx.family_rules.empty() || src.family.empty()) return own;
+  double cmin = 0, cmax = 0, rmin = 0, rmax = 0;
+  node_sample_bounds(ctx, key, cmin, rmin, cmax, rmax);
+  const int c0 = std::max(src.rect.c0, int(std::floor(cmin)) - 1), c1 = std::min(src.rect.c1, int(std::ceil(cmax)) + 1);
+  const int r0 = std::max(src.rect.r0, int(std::floor(rmin)) - 1), r1 = std::min(src.rect.r1, int(std::ceil(rmax)) + 1);
+  std::array<bool, 256> present{};
+  for (int r = r0; r <= r1 && c0 <= c1; ++r) {
+    const uint8_t* f = &src.family[src.index(c0, r)];
+    for (int c = 0; c <= c1 - c0; ++c) present[f[c]] = true;
+  }
+  RefineRules rules{INFINITY, INFINITY, kLevelCount};
+  bool any = false;
+  for (size_t f = 0; f < ctx.family_rules.size() && f < SampleWindow::kNoFamily; ++f)
+    if (present[f]) {
+      const RefineRules& fr = ctx.family_rules[f];
+      rules.tolerance_m = std::min(rules.tolerance_m, fr.tolerance_m);
+      rules.source_spacing_m = std::min(rules.source_spacing_m, fr.source_spacing_m);
+      rules.finest_level = std::min(rules.finest_level, fr.finest_level);
+      if (families && !any && f < 64) *families = uint64_t(1) << f;
+      any = true;
+    }
+  return any ? rules : own;
+}
+
 bool node_has_terrain(const CookContext& ctx, const NodeKey& key) {
   std::array<double, kHeightSamples> xs, cols, rows;
   for (int i = 0; i < kHeightSamples; ++i) xs[size_t(i)] = ctx.lattice_x(lattice_index(key.x, i, key.level));
@@ -653,10 +681,12 @@ void cook_node(const CookContext& ctx, const NodeKey& key, NodeResult& out) {
   // samples along a data edge while the vertices are coarser than half the source spacing: from
   // there on every vertex of a triangle holding an edge sample lies within that sample's pixel,
   // whose nearest sample is valid, so the triangle is drawn.
+  // A mosaic of several grid families: each part by its own source's rules (node_refine_rules).
+  const RefineRules rules = node_refine_rules(ctx, key, &out.families);
   const bool refine =
-      int(key.level) > ctx.finest_level &&
-      (out.error.total.max_m > ctx.tolerance_m ||
-       (out.error.total.uncovered > 0 && vertex_spacing_m(int(key.level)) > 0.5 * ctx.source_spacing_m));
+      int(key.level) > rules.finest_level &&
+      (out.error.total.max_m > rules.tolerance_m ||
+       (out.error.total.uncovered > 0 && vertex_spacing_m(int(key.level)) > 0.5 * rules.source_spacing_m));
   if (refine) {
     for (int c = 0; c < 4; ++c) {
       // Parent vertices inside the quadrant are child vertices too: any with terrain decides it.

@@ -18,6 +18,14 @@
 
 namespace terrain::cook {
 
+// When to refine a node: while its error exceeds tolerance_m, or hole triangles drop source samples
+// and its vertices are further apart than half of source_spacing_m; never below finest_level.
+struct RefineRules {
+  double tolerance_m = 0;
+  double source_spacing_m = 0;
+  int finest_level = 0;
+};
+
 struct CookContext {
   // The source samples of the block being cooked (sample_window.h): every node of the block reads
   // only inside it; `surface` evaluates them. Set per block by set_window().
@@ -33,6 +41,10 @@ struct CookContext {
   int finest_level = 0;
   double tolerance_m = 0;
   double source_spacing_m = 0;  // finest source sample spacing in frame metres
+  // A mosaic of several grid families (SampleWindow::family): the rules of each, from its own
+  // spacing (family 0's are the three fields above). A node follows the finest family with a sample
+  // in it (node_refine_rules). Empty: one family, the fields above everywhere.
+  std::vector<RefineRules> family_rules;
   bool heights_only = false;
   const MaterialRules* rules = nullptr;
   BcQuality bc_quality = BcQuality::balanced;
@@ -72,6 +84,12 @@ Status compute_window(const CookContext& ctx, const NodeKey& key, NodeWindow& w)
 // midpoints (a projected square bends by far less than a sample over one node).
 void node_sample_bounds(const CookContext& ctx, const NodeKey& key, double& cmin, double& rmin, double& cmax,
                         double& rmax);
+// The rules that decide whether the node is refined: ctx's, or with family_rules the smallest
+// tolerance, spacing and finest level among the families with a sample in the node's sample bounds
+// (one sample around; ctx's when it has none: nodata and filled voids only).
+// `families`, when not null: bit f set for the first family f < 64 with a sample there, the one
+// that takes precedence in the node (0 without family_rules or with no family there).
+RefineRules node_refine_rules(const CookContext& ctx, const NodeKey& key, uint64_t* families = nullptr);
 // Whether any of the node's 129x129 vertices has terrain (cheap: coverage test only).
 bool node_has_terrain(const CookContext& ctx, const NodeKey& key);
 
@@ -104,6 +122,7 @@ struct NodeResult {
   std::vector<uint8_t> payload;
   NodeError error;
   uint64_t vertices = 0;  // non-hole vertices
+  uint64_t families = 0;  // node_refine_rules' families (bit f: grid family f takes precedence in the node)
   double cpu_heights = 0, cpu_error = 0, cpu_surface = 0, cpu_encode = 0;
   SurfaceStats surface;
 };

@@ -1,5 +1,7 @@
 #include "pyramid/pyramid.h"
 
+#include <bit>
+
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
@@ -152,6 +154,7 @@ Status cook_block(const CookContext& ctx, const RootBlock& b, int threads, const
         if (!r.status.ok()) return r.status;
         ++ls.nodes;
         ls.vertices += r.vertices;
+        for (uint64_t f = r.families; f; f &= f - 1) totals.reach_family_level(size_t(std::countr_zero(f)), level);
         le.add(r.error.total);
         for (int c = 0; c < 4; ++c) {
           if (r.record.child_mask & (1u << c)) next.push_back(child_of(r.record.key, c));

@@ -12,8 +12,10 @@
 //     asks for), nodes in parallel batches; results in key order (level 5 first, then y, x)
 //     within the block. The caller restores the global key order (node_spool.h).
 #pragma once
+#include <algorithm>
 #include <array>
 #include <functional>
+#include <vector>
 
 #include "pyramid/node_cook.h"
 #include "voids/range_summary.h"
@@ -78,6 +80,13 @@ struct PyramidTotals {
   // largest window (samples).
   double void_fill_residual_m = 0;
   uint64_t window_samples_max = 0;
+  // A mosaic of several grid families (CookContext::family_rules): per family, the finest level of
+  // a node where it takes precedence (kLevelCount: none yet); empty for one family.
+  std::vector<int> family_finest_level;
+  void reach_family_level(size_t family, int level) {
+    if (family_finest_level.size() <= family) family_finest_level.resize(family + 1, kLevelCount);
+    family_finest_level[family] = std::min(family_finest_level[family], level);
+  }
 };
 
 // Pass 2 for one block (ctx's window covering block_cook_rect()): cooks its nodes and hands each

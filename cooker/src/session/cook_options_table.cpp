@@ -149,6 +149,8 @@ const CookOptionRow kRows[] = {
      put_if_positive<&O::height_step_m>, get_or_zero<&O::height_step_m>, put_if_positive<&O::height_step_m>},
     {"normals", "--normals", kPlan, "normals", "normals", 21, false, put_name_unless_first<&O::normals>,
      get_name_or_first<&O::normals>, put_name_unless_first<&O::normals>},
+    {"overlap", "--overlap", kPlan, "overlap", "overlap", 22, false, put_name_unless_first<&O::overlap>,
+     get_name_or_first<&O::overlap>, put_name_unless_first<&O::overlap>},
 };
 
 constexpr EnumName<NodataPolicy> kNodataNames[] = {
@@ -157,6 +159,7 @@ constexpr EnumName<SurfaceQuality> kQualityNames[] = {
     {SurfaceQuality::fast, "fast"}, {SurfaceQuality::balanced, "balanced"}, {SurfaceQuality::best, "best"}};
 constexpr EnumName<ErrorChecks> kErrorCheckNames[] = {{ErrorChecks::sample, "sample"}, {ErrorChecks::all, "all"}};
 constexpr EnumName<NormalsMode> kNormalsNames[] = {{NormalsMode::derived, "derived"}, {NormalsMode::stored, "stored"}};
+constexpr EnumName<OverlapRule> kOverlapNames[] = {{OverlapRule::finer, "finer"}, {OverlapRule::list, "list"}};
 constexpr EnumName<OverviewMode> kOverviewNames[] = {
     {OverviewMode::automatic, "auto"}, {OverviewMode::on, "on"}, {OverviewMode::off, "off"}};
 
@@ -217,6 +220,10 @@ std::span<const EnumName<ErrorChecks>> enum_names<ErrorChecks>() {
 template <>
 std::span<const EnumName<NormalsMode>> enum_names<NormalsMode>() {
   return kNormalsNames;
+}
+template <>
+std::span<const EnumName<OverlapRule>> enum_names<OverlapRule>() {
+  return kOverlapNames;
 }
 template <>
 std::span<const EnumName<OverviewMode>> enum_names<OverviewMode>() {

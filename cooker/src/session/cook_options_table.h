@@ -79,6 +79,8 @@ std::span<const EnumName<ErrorChecks>> enum_names<ErrorChecks>();
 template <>
 std::span<const EnumName<NormalsMode>> enum_names<NormalsMode>();
 template <>
+std::span<const EnumName<OverlapRule>> enum_names<OverlapRule>();
+template <>
 std::span<const EnumName<OverviewMode>> enum_names<OverviewMode>();
 
 template <class E>

@@ -155,6 +155,7 @@ InputOptions input_options(const CookOptions& o) {
   in.raw_type = o.raw_type;
   in.raw_big_endian = o.raw_big_endian;
   in.tile_encoding = o.tile_encoding;
+  in.finer_wins = o.overlap == OverlapRule::finer;
   return in;
 }
 
@@ -227,24 +228,33 @@ Status first_pass(CookSession& s, const ProgressFn& progress) {
       s.stats.warnings.push_back(implausible_heights_warning(named, s.options.valid_range_m));
     }
   // What each input gave (InputSamples, cook.h): one that the inputs before it cover is named.
+  const char* overlap_rule =
+      s.options.overlap == OverlapRule::finer
+          ? "where inputs overlap, the finer wins, then the one listed first; the finest input's grid is the mosaic's"
+          : "--overlap list: where inputs overlap, the one listed first wins; its grid is the mosaic's: list it first "
+            "to prefer it";
   s.stats.input_samples.clear();
   for (const MosaicSource::InputStat& in : s.source.inputs()) {
-    s.stats.input_samples.push_back(InputSamples{in.path, in.samples_read, in.samples_used});
+    s.stats.input_samples.push_back(InputSamples{.path = in.path, .read = in.samples_read, .used = in.samples_used});
     if (in.samples_used > 0 && in.samples_used * 100 >= in.samples_read) continue;
     if (in.samples_read == 0)
       s.stats.warnings.push_back(fmt::format("{}: contributes nothing to the archive: it has no height on the mosaic's "
                                              "grid (every sample nodata or implausible)", in.path));
     else if (in.samples_used == 0)
       s.stats.warnings.push_back(fmt::format(
-          "{}: contributes nothing to the archive: inputs listed before it have a height at each of its {} samples on "
-          "the mosaic's grid (the first input's; where inputs overlap, the one listed first wins: list it first to "
-          "prefer it)", in.path, in.samples_read));
+          "{}: contributes nothing to the archive: inputs that take precedence have a height at each of its {} samples "
+          "on the mosaic's grid ({})", in.path, in.samples_read, overlap_rule));
     else
       s.stats.warnings.push_back(fmt::format(
-          "{}: contributes only {} of its {} samples on the mosaic's grid ({:.2f} %) to the archive: inputs listed "
-          "before it have heights at the others (where inputs overlap, the one listed first wins: list it first to "
-          "prefer it)", in.path, in.samples_used, in.samples_read, 100.0 * double(in.samples_used) / double(in.samples_read)));
+          "{}: contributes only {} of its {} samples on the mosaic's grid ({:.2f} %) to the archive: inputs that take "
+          "precedence have heights at the others ({})", in.path, in.samples_used, in.samples_read,
+          100.0 * double(in.samples_used) / double(in.samples_read), overlap_rule));
   }
+  for (size_t f = 0; f < s.source.families().size(); ++f)
+    for (size_t i : s.source.families()[f].inputs) {
+      s.stats.input_samples[i].family = uint32_t(f);
+      s.stats.input_samples[i].spacing_m = s.source.families()[f].spacing_m;
+    }
   if (s.voids.valid_samples == 0)
     return Status::failure(Error::no_data, fmt::format("{}: every sample is nodata; nothing to cook", header.path));
   return Status::success();
@@ -318,9 +328,19 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   double sx = 0, sy = 0;
   s.mapping.spacing_m(sx, sy);
   s.decided.source_spacing_m = std::min(sx, sy);
-  ctx.finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(s.decided.source_spacing_m);
-  ctx.tolerance_m = options.tolerance_m > 0 ? options.tolerance_m : default_tolerance_m(s.decided.source_spacing_m);
-  ctx.source_spacing_m = s.decided.source_spacing_m;
+  s.decided.source_sample_area_m2 = sx * sy;
+  {
+    const RefineRules own = family_refine_rules(options, s.decided.source_spacing_m, 0, 0);
+    ctx.finest_level = own.finest_level;
+    ctx.tolerance_m = own.tolerance_m;
+    ctx.source_spacing_m = own.source_spacing_m;
+  }
+  // Several grid families: each refines by its own spacing (family 0 is the mosaic's grid: the
+  // rules above); an explicit --tolerance or --finest-level holds for all of them.
+  ctx.family_rules.clear();
+  if (const auto& families = s.source.families(); families.size() > 1)
+    for (size_t f = 0; f < families.size(); ++f)
+      ctx.family_rules.push_back(family_refine_rules(options, ctx.source_spacing_m, families[f].spacing_m, f));
   ctx.heights_only = options.heights_only;
   ctx.payload.zstd_level = options.zstd_level;
   ctx.payload.surface_zstd_level = options.surface_zstd_level;
@@ -341,6 +361,14 @@ Status frame_and_grid(CookSession& s, const FrameCrs* planned) {
   s.grid = BlockGrid{rx, ry, side};
   s.units = BlockGrid{rx, ry, unit_side};
   return Status::success();
+}
+
+RefineRules family_refine_rules(const CookOptions& options, double mosaic_spacing_m, double family_spacing_m,
+                                size_t family) {
+  const double spacing = family == 0 ? mosaic_spacing_m : std::max(mosaic_spacing_m, family_spacing_m);
+  return RefineRules{.tolerance_m = options.tolerance_m > 0 ? options.tolerance_m : default_tolerance_m(spacing),
+                     .source_spacing_m = spacing,
+                     .finest_level = options.finest_level >= 0 ? options.finest_level : finest_level_for(spacing)};
 }
 
 uint32_t default_unit_roots(uint32_t block_side, double spacing_x_m, double spacing_y_m, int finest_level,
@@ -417,15 +445,22 @@ Status read_window(CookSession& s, const SampleRect& need, PyramidTotals& totals
     }
     w.values = LargeVector<float>();
     w.filled = LargeVector<uint8_t>();
+    w.family = LargeVector<uint8_t>();
     w.values.reserve(size_t(most));
     w.filled.reserve(size_t(most));
+    if (s.source.families().size() > 1) w.family.reserve(size_t(most));
   }
   w.rect = rect;
   w.source_width = s.ctx.source_width;
   w.source_height = s.ctx.source_height;
   w.values.resize(size_t(rect.samples()));
   w.filled.resize(size_t(rect.samples()));
-  if (Status st = s.source.read(rect.c0, rect.r0, rect.width(), rect.height(), w.values.data()); !st.ok()) return st;
+  const bool families = s.source.families().size() > 1;
+  w.family.resize(families ? size_t(rect.samples()) : 0);
+  if (Status st = s.source.read(rect.c0, rect.r0, rect.width(), rect.height(), w.values.data(),
+                                families ? w.family.data() : nullptr);
+      !st.ok())
+    return st;
   double residual = 0;
   if (Status st = fill_voids_window(s.voids, rect, w.values.data(), w.filled.data(), residual, s.decided.memory_limit_bytes);
       !st.ok())
@@ -582,6 +617,7 @@ void report_decisions(const CookSession& s, CookReport& report) {
   report.frame_reason = s.decided.frame_reason;
   grid_of(report) = grid_of(s.world);
   report.source_spacing_m = s.decided.source_spacing_m;
+  report.source_sample_area_m2 = s.decided.source_sample_area_m2;
   report.finest_level = s.ctx.finest_level;
   report.block_roots = s.grid.side;
   report.blocks = s.grid.count();
@@ -627,6 +663,22 @@ void report_blocks(const CookSession& s, const PyramidTotals& totals, CookReport
   report.block_window_samples_max = totals.window_samples_max;
   report.height_samples_per_cpu_second =
       report.cpu_heights > 0 ? double(report.output_vertices) / report.cpu_heights : 0;
+  // Per input: the area it owns, its family's tolerance and the finest level it reached (one
+  // family: the finest level of any node).
+  int finest_any = -1;
+  for (int l = 0; l < kLevelCount; ++l)
+    if (totals.levels[size_t(l)].nodes) {
+      finest_any = l;
+      break;
+    }
+  for (InputSamples& in : report.input_samples) {
+    in.area_km2 = double(in.used) * report.source_sample_area_m2 * 1e-6;
+    in.tolerance_m = family_refine_rules(s.options, report.source_spacing_m, in.spacing_m, in.family).tolerance_m;
+    in.finest_level = in.family < totals.family_finest_level.size() ? totals.family_finest_level[in.family]
+                      : totals.family_finest_level.empty()          ? finest_any
+                                                                    : -1;
+    if (in.finest_level >= kLevelCount) in.finest_level = -1;
+  }
 }
 
 void report_archive(const CookSession& s, CookReport& report) {

@@ -44,6 +44,7 @@ struct SessionDecisions {
   uint64_t memory_limit_bytes = 0;  // open_inputs: the budget in force (memory_limit_of)
   std::string frame_reason;         // frame_and_grid: why this frame (empty for a planned frame)
   double source_spacing_m = 0;      // frame_and_grid: the finest source sample spacing, frame metres
+  double source_sample_area_m2 = 0; // frame_and_grid: the mosaic's sample area in the frame at its centre
   std::array<double, kLevelCount> range_bound_m{};  // choose_session_steps: each level's worst range bound
   double overview_range_bound_m = 0;                // choose_session_steps: the overview levels' (0: none)
 };
@@ -150,6 +151,11 @@ Status finish_archive(CookSession& s, const PyramidTotals& totals, const CookRep
 // bytes read: the one-process cook's whole report, filled once at the end.
 // report_decisions: inputs, first pass, frame, grid, finest level, steps' bounds, memory limit, threads.
 void report_decisions(const CookSession& s, CookReport& report);
+// The refinement rules of grid family `family` (MosaicSource::families) of ground spacing
+// family_spacing_m in a mosaic of spacing mosaic_spacing_m (family 0's: the mosaic's own): the
+// default tolerance and finest level of its spacing (at least the mosaic's), or the options'.
+RefineRules family_refine_rules(const CookOptions& options, double mosaic_spacing_m, double family_spacing_m,
+                                size_t family);
 // report_blocks: per level counts, errors and steps, nodes, CPU seconds, surface and window statistics.
 void report_blocks(const CookSession& s, const PyramidTotals& totals, CookReport& report);
 // report_archive (after finish_archive and the other two): bytes, peak RSS, the unmet tolerance warning.

@@ -31,15 +31,23 @@ using json = nlohmann::ordered_json;
 json rect_json(const SampleRect& r) { return json::array({r.c0, r.r0, r.c1, r.r1}); }
 SampleRect rect_of(const json& j) { return {j.at(0).get<int>(), j.at(1).get<int>(), j.at(2).get<int>(), j.at(3).get<int>()}; }
 bool meets(const SampleRect& a, const SampleRect& b) { return !a.empty() && !b.empty() && !intersect(a, b).empty(); }
-// The plan's record of what each input gave (CookReport::input_samples): [path, read, used] each.
+// The plan's record of what each input gave (CookReport::input_samples): [path, read, used,
+// family, spacing_m] each (plans written before the grid families: the first three, family 0).
 json input_samples_json(const std::vector<InputSamples>& v) {
   json a = json::array();
-  for (const InputSamples& i : v) a.push_back(json::array({i.path, i.read, i.used}));
+  for (const InputSamples& i : v) a.push_back(json::array({i.path, i.read, i.used, i.family, i.spacing_m}));
   return a;
 }
 std::vector<InputSamples> input_samples_of(const json& a) {
   std::vector<InputSamples> v;
-  for (const json& i : a) v.push_back(InputSamples{i.at(0).get<std::string>(), i.at(1).get<uint64_t>(), i.at(2).get<uint64_t>()});
+  for (const json& i : a) {
+    InputSamples s{.path = i.at(0).get<std::string>(), .read = i.at(1).get<uint64_t>(), .used = i.at(2).get<uint64_t>()};
+    if (i.size() >= 5) {
+      s.family = i.at(3).get<uint32_t>();
+      s.spacing_m = i.at(4).get<double>();
+    }
+    v.push_back(std::move(s));
+  }
   return v;
 }
 
@@ -331,6 +339,7 @@ Status write_plan(const CookSession& s, const CookReport& report, const PlanFile
                  {"frame_reason", report.frame_reason},
                  {"source_samples", report.source_samples},
                  {"source_spacing_m", report.source_spacing_m},
+                 {"source_sample_area_m2", report.source_sample_area_m2},
                  {"implausible_samples", report.implausible_samples},
                  {"warnings", report.warnings},
                  {"input_samples", input_samples_json(report.input_samples)}};
@@ -486,6 +495,7 @@ Status read_plan(const std::string& work_dir, PlanData& out, std::optional<uint3
     rep.frame_reason = r.at("frame_reason");
     rep.source_samples = r.at("source_samples");
     rep.source_spacing_m = r.at("source_spacing_m");
+    rep.source_sample_area_m2 = r.value("source_sample_area_m2", 0.0);  // absent in older plans
     rep.implausible_samples = r.at("implausible_samples");
     rep.warnings = r.at("warnings").get<std::vector<std::string>>();
     if (r.contains("input_height_units"))  // absent in plans written before it

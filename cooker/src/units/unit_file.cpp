@@ -67,7 +67,8 @@ json stats_json(const UnitStats& u) {
           {"surface_nodes", {t.nodes, t.checked_nodes}},  // ditto
           {"void_fill_residual_m", r.void_fill_residual_m},
           {"window_samples", r.block_window_samples_max},
-          {"input_bytes_read", r.input_bytes_read}};
+          {"input_bytes_read", r.input_bytes_read},
+          {"family_levels", u.totals.family_finest_level}};  // absent in units of older tools: none
 }
 
 // Adds one unit's stats to the cook's (the sums cook_block and the window reads make, in unit
@@ -122,6 +123,10 @@ void add_stats(const json& j, PyramidTotals& totals, CookReport& r) {
   }
   totals.void_fill_residual_m = std::max(totals.void_fill_residual_m, j.at("void_fill_residual_m").get<double>());
   totals.window_samples_max = std::max(totals.window_samples_max, j.at("window_samples").get<uint64_t>());
+  if (j.contains("family_levels")) {
+    const auto levels = j.at("family_levels").get<std::vector<int>>();
+    for (size_t f = 0; f < levels.size(); ++f) totals.reach_family_level(f, levels[f]);
+  }
   const auto bytes = j.at("input_bytes_read").get<std::vector<uint64_t>>();
   if (r.input_bytes_read.size() < bytes.size()) r.input_bytes_read.resize(bytes.size());
   for (size_t i = 0; i < bytes.size(); ++i) r.input_bytes_read[i] += bytes[i];
