@@ -552,3 +552,131 @@ TEST(MosaicSource, OpenRefusesWhatLoadInputsRefuses) {
 }
 
 }  // namespace
+
+namespace {
+
+// The tent filter of resample_inputs.h at input position (a, b) of `dem`, in doubles: taps with
+// |p - k| < rad weigh 1 - |p - k| / rad; NaN when a tap is outside the input or a hole.
+double tent_reference(const SyntheticDem& dem, double a, double b, double rad) {
+  double sum = 0, wsum = 0;
+  for (int kb = int(std::floor(b - rad)) + 1; kb <= int(std::ceil(b + rad)) - 1; ++kb)
+    for (int ka = int(std::floor(a - rad)) + 1; ka <= int(std::ceil(a + rad)) - 1; ++ka) {
+      const double w = (1 - std::fabs(a - ka) / rad) * (1 - std::fabs(b - kb) / rad);
+      if (!(w > 0)) continue;
+      if (ka < 0 || kb < 0 || ka >= dem.width || kb >= dem.height) return NAN;
+      const double z = dem.values[size_t(kb) * size_t(dem.width) + size_t(ka)];
+      if (std::isnan(z)) return NAN;
+      sum += w * z;
+      wsum += w;
+    }
+  return wsum > 0 ? sum / wsum : NAN;
+}
+
+// `second` seen on `first`'s grid (--overlap list: the first listed sets the grid), read whole, is
+// the tent reference at each sample's exact position in `second` within `bound_m`, wherever
+// `first` has no data (first's box); NaN exactly where the reference is. Any window of the mosaic is
+// bit-identical to the same rectangle of the whole read. Returns the samples compared, and the
+// holes among them.
+void expect_resampled_matches_reference(const fs::path& dir, const SyntheticDem& first, const SyntheticDem& second,
+                                        double rad, double bound_m, uint64_t& compared, uint64_t& holes) {
+  std::string error;
+  ASSERT_TRUE(write_geotiff((dir / "first.tif").string(), first, true, error)) << error;
+  ASSERT_TRUE(write_geotiff((dir / "second.tif").string(), second, true, error)) << error;
+  cook::InputOptions io = cook::input_options(options_for({(dir / "first.tif").string(), (dir / "second.tif").string()}));
+  io.finer_wins = false;
+  cook::MosaicSource src;
+  const Status st = cook::open_mosaic_source(io, UINT64_MAX, src);
+  ASSERT_TRUE(st.ok()) << st.message;
+  const cook::Raster& h = src.header();
+  std::vector<float> whole(size_t(h.width) * size_t(h.height));
+  ASSERT_TRUE(src.read(0, 0, h.width, h.height, whole.data()).ok());
+  compared = holes = 0;
+  double worst = 0;
+  for (int r = 0; r < h.height; ++r)
+    for (int c = 0; c < h.width; ++c) {
+      const double x = h.geo.c[0] + h.geo.c[1] * c, y = h.geo.c[3] + h.geo.c[5] * r;
+      const double fa = (x - first.x0) / first.dx, fb = (first.y0 - y) / first.dy;
+      if (fa > -0.5 && fb > -0.5 && fa < first.width - 0.5 && fb < first.height - 0.5) continue;  // first's own
+      const double ref = tent_reference(second, (x - second.x0) / second.dx, (second.y0 - y) / second.dy, rad);
+      const float got = whole[size_t(r) * size_t(h.width) + size_t(c)];
+      ASSERT_EQ(std::isnan(ref), std::isnan(got)) << "sample " << c << ", " << r << ": reference " << ref << ", got "
+                                                  << got;
+      ++compared;
+      if (std::isnan(ref)) {
+        ++holes;
+        continue;
+      }
+      worst = std::max(worst, std::fabs(got - ref));
+    }
+  EXPECT_LE(worst, bound_m);
+  std::mt19937 rng(7);
+  for (int k = 0; k < 24; ++k) {
+    const int w = 1 + int(rng() % 700), hh = 1 + int(rng() % 300);
+    const int c0 = int(rng() % uint32_t(h.width + 40)) - 20, r0 = int(rng() % uint32_t(h.height + 40)) - 20;
+    std::vector<float> part(size_t(w) * size_t(hh));
+    ASSERT_TRUE(src.read(c0, r0, w, hh, part.data()).ok());
+    for (int j = 0; j < hh; ++j)
+      for (int i = 0; i < w; ++i) {
+        const int c = c0 + i, r = r0 + j;
+        const float want = c < 0 || r < 0 || c >= h.width || r >= h.height ? NAN : whole[size_t(r) * size_t(h.width) + size_t(c)];
+        const float got = part[size_t(j) * size_t(w) + size_t(i)];
+        ASSERT_TRUE((std::isnan(want) && std::isnan(got)) || std::memcmp(&want, &got, sizeof(float)) == 0)
+            << "window " << k << " at " << c << ", " << r;
+      }
+  }
+}
+
+SyntheticDem wavy_dem(int width, int height, double x0, double y0, double spacing, int hole_col, int hole_row) {
+  SyntheticDem d;
+  d.width = width;
+  d.height = height;
+  d.x0 = x0;
+  d.y0 = y0;
+  d.dx = d.dy = spacing;
+  d.epsg_projected = 32633;
+  d.nodata = -9999;
+  d.values.resize(size_t(width) * size_t(height));
+  for (int r = 0; r < height; ++r)
+    for (int c = 0; c < width; ++c) d.at(c, r) = 300 + 200 * std::sin(c * 0.37) * std::cos(r * 0.23) - 0.5 * r;
+  d.at(hole_col, hole_row) = NAN;
+  return d;
+}
+
+}  // namespace
+
+// A 30 m DEM seen on a 1 m grid of the same CRS (a lidar tile's, listed first): the tent of radius
+// one (bilinear) at each sample's exact position, within 1e-4 m (float32 output of values up to
+// 700 m: half an ulp is 3e-5 m); a 30 m hole makes exactly the 1 m samples within one 30 m sample of
+// it holes; every window gives the same bits.
+TEST(ResampledGrid, ACoarserInputIsBilinearAtItsExactPositions) {
+  const fs::path dir = scratch_dir("resampled_coarser");
+  SyntheticDem fine;
+  fine.width = fine.height = 40;
+  fine.x0 = 500600.5;
+  fine.y0 = 4990399.5 - 600;
+  fine.epsg_projected = 32633;
+  fine.values.assign(40 * 40, 50.0);
+  const SyntheticDem coarse = wavy_dem(40, 30, 500015 + 3.25, 4990385 - 7.5, 30, 21, 12);
+  uint64_t compared = 0, holes = 0;
+  ASSERT_NO_FATAL_FAILURE(expect_resampled_matches_reference(dir, fine, coarse, 1.0, 1e-4, compared, holes));
+  EXPECT_GT(compared, uint64_t(1000000));
+  EXPECT_GT(holes, uint64_t(59 * 59 - 1));  // the hole's (2 x 30 - 1)^2 samples at least, plus the margins
+}
+
+// A 0.5 m input seen on a 2 m grid (a coarser input listed first): the area filter, a tent of
+// radius 4 input samples, within 1e-4 m; a 0.5 m hole removes the 2 m samples whose tent reaches it.
+TEST(ResampledGrid, AFinerInputIsTheTentAreaFilter) {
+  const fs::path dir = scratch_dir("resampled_finer");
+  SyntheticDem grid;
+  grid.width = grid.height = 10;
+  grid.x0 = 500001;
+  grid.y0 = 4990399;
+  grid.dx = grid.dy = 2;
+  grid.epsg_projected = 32633;
+  grid.values.assign(100, 50.0);
+  const SyntheticDem fine = wavy_dem(600, 500, 500000.25 + 0.125, 4990399.75 - 0.5, 0.5, 300, 250);
+  uint64_t compared = 0, holes = 0;
+  ASSERT_NO_FATAL_FAILURE(expect_resampled_matches_reference(dir, grid, fine, 4.0, 1e-4, compared, holes));
+  EXPECT_GT(compared, uint64_t(18000));  // 300 x 250 m: 150 x 125 samples of 2 m, plus the margins
+  EXPECT_GE(holes, uint64_t(16));  // 2 m samples within 2 m of the hole on both axes: 4 x 4
+}

@@ -19,11 +19,14 @@ bool needs_resampling(const Raster& ref, const Raster& r);
 // `in` on `ref`'s pixel grid (same CRS, spacing and sample phase), over the part of that grid that
 // covers in's footprint. A grid sample's input position comes from an exact CRS transform (PROJ,
 // through OGR) at anchors every `anchor_step` grid samples, Catmull-Rom interpolated between
-// them (anchor_grid.h); its height is a tent filter over the input samples around that position,
-// of radius max(1, input samples per grid sample): bilinear when the input is as fine as the grid
-// or coarser, an area filter when it is finer. A grid sample gets data only where every input
-// sample with a non-zero weight has it. Each sample depends on its own position and the input's
-// heights only, so any window gives the bits of the same rectangle of any other window.
+// them (anchor_grid.h); in the same CRS with both grids north-up, from the two affine maps (exact;
+// a column's position depends on the column only, a row's on the row). Its height is a tent
+// filter over the input samples around that position, of radius max(1, input samples per grid
+// sample): bilinear when the input is as fine as the grid or coarser, an area filter when it is
+// finer (separable where the positions are: a vertical, then a horizontal pass). A grid sample
+// gets data only where every input sample with a non-zero weight has it. Each sample depends on
+// its own position and the input's heights only, so any window gives the bits of the same
+// rectangle of any other window.
 class ResampledInput {
  public:
   ResampledInput();
