@@ -6,6 +6,10 @@ find_package(nlohmann_json CONFIG REQUIRED)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(Threads REQUIRED)
 find_package(PkgConfig REQUIRED)
+# libcurl (libcurl4-openssl-dev): archives read from http(s):// URLs (format/remote).
+if(TERRAIN_HTTP)
+  find_package(CURL REQUIRED)
+endif()
 
 # OpenImageIO: its config lists /usr/include/opencv4 (needs libopencv-core-dev); strip it if absent.
 find_package(OpenImageIO CONFIG REQUIRED)

@@ -11,6 +11,8 @@ packages=(
   libglfw3-dev xvfb xauth
   gdal-bin python3-gdal python3-numpy python-matplotlib-data
   slurm-wlm munge  # tests/cluster: a single-node Slurm cluster (daemons started by the test, not by init)
+  libcurl4-openssl-dev  # format/remote: archives read from http(s):// URLs with range requests
+  nginx-light openssl   # tests/format: the web server (and its certificate) the HTTP tests start themselves
 )
 missing=()
 for p in "${packages[@]}"; do

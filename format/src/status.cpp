@@ -17,6 +17,7 @@ const char* error_name(Error code) {
     case Error::io_read: return "io_read";
     case Error::io_write: return "io_write";
     case Error::io_rename: return "io_rename";
+    case Error::io_changed: return "io_changed";
     case Error::bad_magic: return "bad_magic";
     case Error::unsupported_version: return "unsupported_version";
     case Error::truncated: return "truncated";

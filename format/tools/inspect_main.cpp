@@ -10,6 +10,7 @@
 #include "inspect.h"
 #include "terminal_progress.h"
 #include "terrain/output_paths.h"
+#include "terrain/remote_source.h"
 
 namespace {
 
@@ -36,7 +37,7 @@ int run(int argc, char** argv) {
   std::string path, export_key, export_dir, sample_file, lonlat_crs;
   std::vector<std::string> samples, samples_lonlat, export_args;
   bool json = false, do_verify = false, lonlat = false, quiet = false;
-  app.add_option("archive", path, "archive file")->required();
+  app.add_option("archive", path, "archive file, or an http:// or https:// URL (read with range requests)")->required();
   app.add_flag("--json", json, "machine-readable output (summary, verification, samples)");
   app.add_flag("--verify", do_verify, "check everything; exit 0 only when the archive is fully valid");
   app.add_option("--sample", samples, "height at frame point X,Y (metres); repeatable")->type_name("X,Y");
@@ -97,7 +98,7 @@ int run(int argc, char** argv) {
     if (terrain::Status s = check_export_dir(path, export_args[1]); !s.ok()) return fail(s);
 
   terrain::ArchiveReader reader;
-  if (terrain::Status s = reader.open(path); !s.ok()) {
+  if (terrain::Status s = terrain::open_archive(reader, path); !s.ok()) {
     // --json --verify promises its document for every file, an unreadable or foreign one too.
     if (json && do_verify) {
       const nlohmann::json doc = {{"file", path}, {"valid", false}, {"nodes", 0},

@@ -22,6 +22,7 @@
 #include "terrain/queries.h"
 #include "terrain/sample.h"
 #include "terrain/cpu_clock.h"
+#include "terrain/remote_source.h"
 #include "terrain/streamer.h"
 
 namespace {
@@ -222,7 +223,7 @@ int main(int argc, char** argv) {
   }
   const WorldInfo& w = streamer.world();
   ArchiveReader reader;
-  if (Status s = reader.open(opt.archive); !s.ok()) {
+  if (Status s = open_archive(reader, opt.archive); !s.ok()) {
     std::fprintf(stderr, "terrain-query-bench: %s\n", s.to_string().c_str());
     return 1;
   }

@@ -27,6 +27,7 @@
 #include "terrain/archive_reader.h"
 #include "terrain/sample.h"
 #include "terrain/cpu_clock.h"
+#include "terrain/remote_source.h"
 #include "terrain/streamer.h"
 
 namespace terrain::bench {
@@ -481,7 +482,7 @@ std::string fmt(const char* f, double v) {
 
 int bench_archive(const std::string& archive, const Options& o, nlohmann::json& json_out) {
   ArchiveReader reader;
-  if (Status s = reader.open(archive); !s.ok()) {
+  if (Status s = open_archive(reader, archive); !s.ok()) {
     std::fprintf(stderr, "terrain-stream-bench: %s\n", s.to_string().c_str());
     return 1;
   }
@@ -717,7 +718,7 @@ int main(int argc, char** argv) {
   using namespace terrain;
   bench::Options o;
   CLI::App app{"terrain-stream-bench: camera paths through the streamer and a naive synchronous loader"};
-  app.add_option("archives", o.archives, "archives to replay (.terrain)");
+  app.add_option("archives", o.archives, "archives to replay (.terrain files or http(s):// URLs)");
   app.add_option("--make-synthetic", o.make_synthetic,
                  "write a synthetic archive (fractal heights, 9 roots, deep sparse trees, ~6000 nodes) to this path if it does not "
                  "exist, and benchmark it too");

@@ -11,6 +11,7 @@
 #include "load_queue.h"
 #include "resident_surface.h"
 #include "terrain/queries.h"
+#include "terrain/remote_source.h"
 #include "wanted_set.h"
 
 namespace terrain {
@@ -151,7 +152,9 @@ struct Streamer::Impl {
 
   Status open(const std::string& path, const StreamerConfig& cfg) {
     config = cfg;
-    TERRAIN_TRY(reader.open(path));
+    std::unique_ptr<ByteSource> source;
+    TERRAIN_TRY(open_location(path, source));
+    TERRAIN_TRY(reader.open(std::move(source)));
     records = reader.nodes();
     const WorldInfo& world = reader.world();
     if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||

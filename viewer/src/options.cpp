@@ -28,7 +28,7 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
       "set VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json for lavapipe.\n"
       "Window keys: WASD move, Q/E down/up, drag to look, wheel = speed, 0-8 debug views, C print camera.");
   std::string camera, look_at, size = "1280x720", clear, debug = "none";
-  app.add_option("archive", o.archive, "terrain archive (.terrain)")->required();
+  app.add_option("archive", o.archive, "terrain archive (.terrain), or its http:// or https:// URL")->required();
   app.add_flag("--headless", o.headless, "render offscreen (no window); needs --out or --stats");
   app.add_option("--out", o.out_png, "PNG of the last frame (headless)");
   app.add_option("--camera", camera, "camera position X,Y,Z (frame metres)");

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "terrain/archive_reader.h"
+#include "terrain/remote_source.h"
 
 namespace terrain::view {
 namespace {
@@ -20,7 +21,7 @@ class StreamSource final : public NodeSource {
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
     {
       ArchiveReader reader;
-      TERRAIN_TRY(reader.open(path));
+      TERRAIN_TRY(open_archive(reader, path));
       // The streamer keeps the top level resident: at most 16 overview nodes (format/SPEC.md
       // section 19), or every root of an archive without overview levels. Budget 0 (the default)
       // = 512, raised for such an archive to its roots + 512 so that it opens too.
@@ -105,7 +106,7 @@ class StreamSource final : public NodeSource {
 class LoadAllSource final : public NodeSource {
  public:
   Status open(const std::string& path, uint32_t max_nodes) {
-    TERRAIN_TRY(reader_.open(path));
+    TERRAIN_TRY(open_archive(reader_, path));
     const auto nodes = reader_.nodes();
     if (nodes.size() > max_nodes)
       return Status::failure(Error::invalid_argument,

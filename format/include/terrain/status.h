@@ -13,6 +13,7 @@ enum class Error : uint16_t {
   io_read = 101,
   io_write = 102,
   io_rename = 103,
+  io_changed = 104,  // the source changed since it was opened (a file replaced on a server)
   // 2xx: header
   bad_magic = 200,
   unsupported_version = 201,

@@ -57,7 +57,10 @@
 //    and never requested again; its parent keeps covering its area. Failing to load covers a bad
 //    payload (checksum, section table, zstd) and a failed read: the workers read payloads with
 //    pread, so a file truncated or replaced after open() fails the nodes whose bytes are gone
-//    (`truncated`, naming the node and the file's new size) instead of raising SIGBUS.
+//    (`truncated`, naming the node and the file's new size) instead of raising SIGBUS. Over HTTP
+//    (an http(s):// location) a read fails only after its transient errors (timeouts, resets,
+//    5xx) were retried (HttpOptions' defaults, terrain/remote_source.h); an archive replaced on
+//    the server fails its nodes with `io_changed`.
 //
 // The wanted set (recomputed by every update(), deterministic for the same views and state):
 //  - projected error of node N from view V, in pixels:
@@ -247,7 +250,8 @@ class Streamer {
   Streamer(const Streamer&) = delete;
   Streamer& operator=(const Streamer&) = delete;
 
-  // Opens the archive (read with pread; validated by ArchiveReader::open), checks the config,
+  // Opens the archive, a path (read with pread) or an http:// or https:// URL (range requests,
+  // terrain/remote_source.h), validated by ArchiveReader::open; checks the config,
   // starts the workers and has them load every top node; returns when they are decoded (the
   // caller's thread waits, it does not decode). Any root count opens when the archive has
   // overview levels (their top level holds at most 16 nodes). Errors: the archive's own (io_open,

@@ -1,0 +1,240 @@
+// Archives read over HTTP range requests (format/remote, terrain/remote_source.h) from a real nginx
+// started by the test (tests/common/nginx_server.h): the bytes by URL are the file's, every fault
+// is a Status naming the URL (never a crash), transient ones are retried, and a file replaced on
+// the server fails its reads instead of mixing two archives.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+#include <utime.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "nginx_server.h"
+#include "synthetic_archive.h"
+#include "terrain/archive_reader.h"
+#include "terrain/remote_source.h"
+#include "test_data.h"
+
+using namespace terrain;
+using namespace terrain::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Moves the file's modification time `seconds` ahead (nginx's ETag is mtime + size).
+void touch_ahead(const fs::path& p, int seconds) {
+  struct stat st {};
+  ASSERT_EQ(::stat(p.c_str(), &st), 0);
+  utimbuf t{st.st_atime, st.st_mtime + seconds};
+  ASSERT_EQ(::utime(p.c_str(), &t), 0);
+}
+
+class HttpArchive : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (nginx_binary().empty()) GTEST_SKIP() << "nginx is not installed (scripts/setup.sh installs nginx-light)";
+    dir_ = scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::string error;
+    ASSERT_TRUE(server_.start(dir_ / "nginx", error)) << error;
+    ASSERT_FALSE(archive_.empty()) << "SetUpTestSuite wrote no archive";
+    local_ = (server_.root() / "a.terrain").string();
+    fs::copy_file(archive_, local_);
+  }
+  // The analytic surface (a valid archive: verify() passes), 2 x 2 roots down to level 3: 84 nodes.
+  static void SetUpTestSuite() {
+    const fs::path dir = scratch_dir("http_archive_source");
+    synthetic::Spec spec = synthetic::analytic_surface();
+    spec.keep = [](const NodeKey& k) { return k.level >= 3; };
+    if (synthetic::write_archive((dir / "a.terrain").string(), spec).ok()) archive_ = (dir / "a.terrain").string();
+  }
+  static inline std::string archive_;
+  HttpOptions quick() const {
+    HttpOptions o;
+    o.timeout_ms = 2000;
+    o.retries = 2;
+    o.backoff_ms = 10;
+    return o;
+  }
+  fs::path dir_;
+  NginxServer server_;
+  std::string local_;
+};
+
+// Every payload by URL is byte-identical to the file's; the reader's full verification passes over
+// HTTP; the counters add up (one request per payload read at least, bytes at least the payloads').
+TEST_F(HttpArchive, PayloadsByUrlAreTheFileBytes) {
+  ArchiveReader file, web;
+  ASSERT_TRUE(file.open(local_).ok());
+  const Status st = open_archive(web, server_.url("a.terrain"), quick());
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  ASSERT_EQ(web.file_size(), file.file_size());
+  ASSERT_EQ(web.nodes().size(), file.nodes().size());
+  ASSERT_GT(file.nodes().size(), size_t(16));
+  HttpStats before;
+  ASSERT_TRUE(http_stats(*web.source(), before));
+  uint64_t payload_bytes = 0;
+  std::vector<uint8_t> a, b;
+  for (size_t i = 0; i < file.nodes().size(); ++i) {
+    ASSERT_EQ(file.nodes()[i].key.level, web.nodes()[i].key.level);
+    ASSERT_TRUE(file.read_payload(i, a).ok());
+    const Status r = web.read_payload(i, b);
+    ASSERT_TRUE(r.ok()) << r.to_string();
+    ASSERT_EQ(a, b) << "node " << i;
+    payload_bytes += b.size();
+  }
+  HttpStats after;
+  ASSERT_TRUE(http_stats(*web.source(), after));
+  EXPECT_GE(after.requests - before.requests, uint64_t(file.nodes().size()));
+  EXPECT_GE(after.bytes - before.bytes, payload_bytes);
+  EXPECT_EQ(after.retries, uint64_t(0));
+  EXPECT_EQ(after.failures, uint64_t(0));
+  const Status v = web.verify();
+  EXPECT_TRUE(v.ok()) << v.to_string();
+  HttpStats none;
+  EXPECT_FALSE(http_stats(*file.source(), none));  // a file is no HTTP source
+}
+
+// A missing file fails open with io_open, naming the URL and the status.
+TEST_F(HttpArchive, AMissingFileIsANamedError) {
+  ArchiveReader web;
+  const std::string url = server_.url("none.terrain");
+  const Status st = open_archive(web, url, quick());
+  EXPECT_EQ(st.code, Error::io_open);
+  EXPECT_NE(st.message.find(url), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("404"), std::string::npos) << st.message;
+}
+
+// An archive replaced on the server after open (another ETag) fails its reads with io_changed, and
+// so does one truncated there; neither is read as the old archive's bytes.
+TEST_F(HttpArchive, AFileChangedOnTheServerFailsItsReads) {
+  ArchiveReader web;
+  ASSERT_TRUE(open_archive(web, server_.url("a.terrain"), quick()).ok());
+  std::vector<uint8_t> payload;
+  ASSERT_TRUE(web.read_payload(0, payload).ok());
+  synthetic::Spec other;  // another archive (a sparse tree of 2 x 2 roots)
+  other.roots_x = other.roots_y = 2;
+  ASSERT_TRUE(synthetic::write_archive(local_, other).ok());
+  ASSERT_NO_FATAL_FAILURE(touch_ahead(local_, 100));
+  Status st = web.read_payload(1, payload);
+  EXPECT_EQ(st.code, Error::io_changed) << st.to_string();
+  EXPECT_NE(st.message.find("changed on the server"), std::string::npos) << st.message;
+
+  ArchiveReader again;
+  ASSERT_TRUE(open_archive(again, server_.url("a.terrain"), quick()).ok());
+  fs::resize_file(local_, again.file_size() / 2);
+  ASSERT_NO_FATAL_FAILURE(touch_ahead(local_, 200));
+  st = again.read_payload(again.nodes().size() - 1, payload);
+  EXPECT_EQ(st.code, Error::io_changed) << st.to_string();
+  HttpStats s;
+  ASSERT_TRUE(http_stats(*again.source(), s));
+  EXPECT_EQ(s.retries, uint64_t(0));  // a changed file is no transient fault
+  EXPECT_EQ(s.failures, uint64_t(1));
+}
+
+// A server that goes away: the read is retried `retries` times with backoff, then fails io_read.
+TEST_F(HttpArchive, AServerGoneIsRetriedThenFails) {
+  ArchiveReader web;
+  ASSERT_TRUE(open_archive(web, server_.url("a.terrain"), quick()).ok());
+  server_.stop();
+  std::vector<uint8_t> payload;
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status st = web.read_payload(0, payload);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(st.code, Error::io_read) << st.to_string();
+  EXPECT_NE(st.message.find("after 2 retries"), std::string::npos) << st.message;
+  HttpStats stats;
+  ASSERT_TRUE(http_stats(*web.source(), stats));
+  EXPECT_EQ(stats.retries, uint64_t(2));
+  EXPECT_EQ(stats.failures, uint64_t(1));
+  EXPECT_GE(s, 0.030);  // backoff 10 ms + 20 ms
+  EXPECT_LT(s, 5.0);
+}
+
+// A server slower than the timeout: the read fails (io_read, "timed out") after its retries, within
+// (retries + 1) x timeout + backoff, not when the transfer would end (64 KB at 2 KB/s: 32 s).
+TEST_F(HttpArchive, AServerSlowerThanTheTimeoutFails) {
+  fs::copy_file(local_, server_.root() / "slow" / "a.terrain");
+  HttpOptions o = quick();
+  o.timeout_ms = 400;
+  o.retries = 1;
+  std::unique_ptr<ByteSource> src;
+  const Status open = open_location(server_.url("slow/a.terrain"), src, o);
+  ASSERT_TRUE(open.ok()) << open.to_string();
+  ASSERT_GT(src->size(), uint64_t(65536));
+  std::vector<uint8_t> bytes(65536);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status st = src->read(0, bytes);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(st.code, Error::io_read) << st.to_string();
+  EXPECT_NE(st.message.find("imed out"), std::string::npos) << st.message;
+  EXPECT_LT(s, 3.0);
+}
+
+// 5xx answers are transient: retried, then a failure naming the status.
+TEST_F(HttpArchive, ServerErrorsAreRetriedThenNamed) {
+  std::unique_ptr<ByteSource> src;
+  const Status st = open_location(server_.url("broken/a.terrain"), src, quick());
+  EXPECT_EQ(st.code, Error::io_open);
+  EXPECT_NE(st.message.find("HTTP 503"), std::string::npos) << st.message;
+}
+
+// https with a certificate the test makes: trusted through HttpOptions::ca_file, the same bytes;
+// without it the certificate is refused by name.
+TEST(HttpsArchive, TheTestsCertificateIsTrustedOnlyWhenGiven) {
+  if (nginx_binary().empty()) GTEST_SKIP() << "nginx is not installed (scripts/setup.sh installs nginx-light)";
+  const fs::path dir = scratch_dir("https_archive");
+  std::string error;
+  ASSERT_TRUE(make_test_certificate(dir / "tls", error)) << error;
+  NginxServer server;
+  ASSERT_TRUE(server.start(dir / "nginx", error, dir / "tls")) << error;
+  synthetic::Spec spec;
+  spec.roots_x = spec.roots_y = 2;
+  const std::string local = (server.root() / "b.terrain").string();
+  ASSERT_TRUE(synthetic::write_archive(local, spec).ok());
+  HttpOptions o;
+  o.ca_file = (dir / "tls" / "cert.pem").string();
+  ArchiveReader file, web;
+  ASSERT_TRUE(file.open(local).ok());
+  const Status st = open_archive(web, server.https_url("b.terrain"), o);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  std::vector<uint8_t> a, b;
+  for (size_t i = 0; i < file.nodes().size(); ++i) {
+    ASSERT_TRUE(file.read_payload(i, a).ok());
+    ASSERT_TRUE(web.read_payload(i, b).ok());
+    ASSERT_EQ(a, b);
+  }
+  ArchiveReader untrusted;
+  const Status refused = open_archive(untrusted, server.https_url("b.terrain"), HttpOptions{.retries = 0});
+  EXPECT_EQ(refused.code, Error::io_open);
+  EXPECT_NE(refused.message.find("certificate"), std::string::npos) << refused.message;
+}
+
+// terrain-inspect takes a URL wherever it takes a file: the same JSON summary but for "file".
+TEST_F(HttpArchive, InspectTakesAUrl) {
+  auto run = [&](const std::string& where, std::string& out) {
+    const std::string cmd = (bin_dir() / "terrain-inspect").string() + " --json '" + where + "' 2>&1";
+    FILE* p = ::popen(cmd.c_str(), "r");
+    ASSERT_NE(p, nullptr);
+    char buf[4096];
+    size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof(buf), p)) > 0) out.append(buf, n);
+    ASSERT_EQ(::pclose(p), 0) << out;
+  };
+  std::string by_file, by_url;
+  ASSERT_NO_FATAL_FAILURE(run(local_, by_file));
+  ASSERT_NO_FATAL_FAILURE(run(server_.url("a.terrain"), by_url));
+  const auto without_file = [](std::string s) {
+    const size_t a = s.find("\"file\"");
+    if (a != std::string::npos) s.erase(a, s.find('\n', a) - a);
+    return s;
+  };
+  EXPECT_NE(by_url.find(server_.url("a.terrain")), std::string::npos) << by_url;
+  EXPECT_EQ(without_file(by_file), without_file(by_url));
+}
+
+}  // namespace
