@@ -101,7 +101,12 @@ std::vector<Camera> views_over_data(const Session& s) {
 
 // `streams`: the archive has levels below the roots, so some frames render before nodes arrive.
 // `decimates`: the views draw decimated root patches (config.h "Patch decimation").
-void check_archive_without_cracks(const std::string& name, size_t min_levels, bool streams, bool decimates = false) {
+// `control`: each settled view drawn again without stitching must show cracks somewhere (a crack
+// test whose control never cracks could not fail).
+// `make_views`: the views (default: down over the data's footprint).
+void check_archive_without_cracks(const std::string& name, size_t min_levels, bool streams, bool decimates = false,
+                                  bool control = false,
+                                  std::vector<Camera> (*make_views)(const Session&) = views_over_data) {
   const auto path = archive(name);
   REQUIRE_ARCHIVE(path);
   bool skip = false;
@@ -111,8 +116,8 @@ void check_archive_without_cracks(const std::string& name, size_t min_levels, bo
   s->capture_lists = true;
   std::set<uint32_t> levels;
   size_t decimated = 0;
-  size_t frames = 0, compared = 0, frontier = 0, cone_culled = 0;
-  const auto views = views_over_data(*s);
+  size_t frames = 0, compared = 0, frontier = 0, cone_culled = 0, unstitched_cracks = 0;
+  const auto views = make_views(*s);
   for (size_t v = 0; v < views.size(); ++v) {
     // Every frame after the jump, from the first (coarse nodes only, the streaming frontier) until
     // the streamer settles.
@@ -162,6 +167,18 @@ void check_archive_without_cracks(const std::string& name, size_t min_levels, bo
     read_color(s->target, unculled);
     EXPECT_EQ(rgba, unculled) << name << " view " << v << ": cone culling changed the image";
     s->options.settings.cone_cull = true;
+    if (control) {
+      s->options.settings.stitch = false;
+      ASSERT_TRUE(render_frame(*s, views[v], true, rec).ok());
+      std::vector<uint8_t> unstitched;
+      read_color(s->target, unstitched);
+      unstitched_cracks += magenta(unstitched);
+      dump_ppm(s->target, unstitched, "view_" + name + "_" + std::to_string(v) + "_unstitched");
+      s->options.settings.stitch = true;
+    }
+  }
+  if (control) {
+    EXPECT_GT(unstitched_cracks, 0u) << name << ": the unstitched control shows no crack: the views test nothing";
   }
   EXPECT_GE(levels.size(), min_levels) << name << ": the views should cross LOD boundaries";
   if (decimates) {
@@ -171,14 +188,43 @@ void check_archive_without_cracks(const std::string& name, size_t min_levels, bo
     EXPECT_GT(frontier, 0u) << name << ": some frames should render while required nodes are still loading";
   }
   std::printf("%s: %zu frames without cracks (%zu at the streaming frontier), %zu compared with the CPU reference, "
-              "%zu geometric levels drawn, %zu patches cone-culled without changing a pixel, %zu decimated patches drawn\n",
-              name.c_str(), frames, frontier, compared, levels.size(), cone_culled, decimated);
+              "%zu geometric levels drawn, %zu patches cone-culled without changing a pixel, %zu decimated patches drawn, "
+              "%zu magenta pixels unstitched\n",
+              name.c_str(), frames, frontier, compared, levels.size(), cone_culled, decimated, unstitched_cracks);
 }
 
 // Kilauea (30 m data) is mostly roots: its LOD boundaries are root coarsenings and decimated root patches.
 TEST(ViewerArchives, KilaueaHasNoCracks) { check_archive_without_cracks("kilauea", 2, false, true); }
 TEST(ViewerArchives, SloveniaHasNoCracks) { check_archive_without_cracks("slovenia", 4, true); }
 TEST(ViewerArchives, TahoeHasNoCracks) { check_archive_without_cracks("tahoe", 4, true); }
+// Issue 51: the 1 m lidar tile inside a 30 m DEM, cooked as one world (two grid families, the seam
+// blended over 60 m, each family refined by its own rules): no crack anywhere, across the seam
+// either, from the first frame after each jump; without stitching the same views crack.
+// From 150 m inside each edge of the lidar tile (1 km square at the middle of the 4.95 km world),
+// 100 m above the highest ground, looking out across the seam and its 60 m blend band.
+std::vector<Camera> views_across_the_lidar_edges(const Session& s) {
+  const WorldInfo& w = s.source->world();
+  int32_t lo = 0, hi = 0;
+  s.source->height_range(lo, hi);
+  const double cx = 0.5 * (w.extent_min_x_m + w.extent_max_x_m), cy = 0.5 * (w.extent_min_y_m + w.extent_max_y_m);
+  std::vector<Camera> out;
+  for (int k = 0; k < 4; ++k) {
+    const double yaw = k * M_PI / 2;  // north, east, south, west
+    Camera c;
+    c.position[0] = cx + 350 * std::sin(yaw);
+    c.position[1] = cy + 350 * std::cos(yaw);
+    c.position[2] = hi / 1024.0 + 100;
+    c.yaw = yaw;
+    c.pitch = -(55 + 4 * k) * M_PI / 180;  // the top edge 25-37 degrees down: ground, no sky
+    c.near_m = 0.5;
+    out.push_back(c);
+  }
+  return out;
+}
+
+TEST(ViewerArchives, LidarInsideA30mDemHasNoCracksAcrossTheSeam) {
+  check_archive_without_cracks("lidar_world", 4, true, false, true, views_across_the_lidar_edges);
+}
 
 // Low, level views over real relief: the cooker's patch cones cull back-facing patches, and the
 // image is byte for byte the one drawn without cone culling.
