@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "latency_proxy.h"
 #include "naive_loader.h"
 #include "synthetic_archive.h"
 #include "terrain/archive_reader.h"
@@ -55,6 +56,8 @@ struct Options {
   uint64_t seed = 1;
   bool json = false;
   bool quiet = false;
+  std::vector<double> rtt_ms;  // --rtt-ms: round trips to add (an http:// archive through a LatencyProxy)
+  std::vector<double> mbit;    // --mbit: link bandwidths (0: unlimited)
 };
 
 // ---- Memory ----------------------------------------------------------------------------------
@@ -711,6 +714,126 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   return invariants && failed_loads == 0 && error.empty() ? 0 : 1;
 }
 
+
+// ---- Over a link: the streamer reading an http:// archive through a LatencyProxy ---------------
+// Per round trip and bandwidth: the open (time, requests, bytes), the teleports (time until the
+// wanted set and until the required set are resident; the physical limit: the bytes that crossed
+// the link divided by its bandwidth plus one round trip, as if every request went out at once),
+// and the 300 m/s flight paced at --fps (gap frames: a required node not resident). Columns:
+// settle_ms / req_ms: until the wanted / required set is resident; x: settle_ms over limit_ms
+// (teleports that fetched anything); reqs and KB: HTTP requests and bytes per teleport.
+int bench_links(const std::string& url, const Options& o, nlohmann::json& json_out) {
+  std::string host, path;
+  int port = 0;
+  if (!tools::parse_http_url(url, host, port, path)) {
+    std::fprintf(stderr, "terrain-stream-bench: --rtt-ms needs http:// archives (the proxy speaks plain TCP): %s\n",
+                 url.c_str());
+    return 2;
+  }
+  ArchiveReader reader;
+  if (Status s = open_archive(reader, url); !s.ok()) {
+    std::fprintf(stderr, "terrain-stream-bench: %s\n", s.to_string().c_str());
+    return 1;
+  }
+  const std::vector<Path> paths = make_paths(reader, o);
+  const Path& teleports = paths[0];
+  const Path& flight = paths[2];  // flight 300 m/s
+  StreamerConfig config;
+  config.budget_nodes = o.budget;
+  config.worker_threads = o.threads;
+  config.error_target_px = o.target_px;
+  config.max_deliveries_per_frame = o.max_deliveries;
+  if (!o.json)
+    std::printf("\n%s over a link (LatencyProxy: rtt/2 each way, one link per direction shared by the connections), "
+                "%u workers, budget %u, %d teleports (medians), %s paced at %.0f fps for %.0f s\n\n"
+                "%6s %6s | %8s %5s %8s | %9s %9s %9s %6s %6s %8s | %10s\n",
+                url.c_str(), o.threads, o.budget, o.teleports, flight.name.c_str(), o.fps, o.seconds, "rtt_ms", "Mbit",
+                "open_ms", "reqs", "open_KB", "settle_ms", "req_ms", "limit_ms", "x", "reqs", "KB", "gap frames");
+  int rc = 0;
+  for (const double rtt : o.rtt_ms)
+    for (const double mbit : o.mbit) {
+      tools::LatencyProxy proxy;
+      std::string error;
+      if (!proxy.start(host, port, tools::LinkModel{rtt, mbit}, error)) {
+        std::fprintf(stderr, "terrain-stream-bench: %s\n", error.c_str());
+        return 1;
+      }
+      const std::string through = proxy.proxied(url);
+      Streamer s;
+      const auto t0 = Clock::now();
+      if (Status st = s.open(through, config); !st.ok()) {
+        std::fprintf(stderr, "terrain-stream-bench: %s\n", st.to_string().c_str());
+        return 1;
+      }
+      const double open_ms = ms_since(t0);
+      const tools::ProxyStats opened = proxy.stats();
+      std::vector<double> settle, required, limit, ratio, reqs, kb;
+      bool ok = true;
+      for (const View& v : teleports.views) {
+        const tools::ProxyStats before = proxy.stats();
+        const auto t1 = Clock::now();
+        double req = -1;
+        for (int f = 0;; ++f) {
+          s.update({&v, 1});
+          const StreamerStats st = s.stats();
+          if (req < 0 && st.required_missing == 0) req = ms_since(t1);
+          if (st.wanted_missing == 0) break;
+          if (ms_since(t1) > 120000) {
+            ok = false;
+            break;
+          }
+          std::this_thread::sleep_for(std::chrono::microseconds(500));
+        }
+        const double ms = ms_since(t1);
+        const tools::ProxyStats after = proxy.stats();
+        const double bytes = double(after.bytes_down - before.bytes_down);
+        const double lim = (mbit > 0 ? bytes * 8 / (mbit * 1e6) * 1e3 : 0.0) + rtt;
+        settle.push_back(ms);
+        required.push_back(req);
+        limit.push_back(lim);
+        if (after.requests > before.requests && lim > 0) ratio.push_back(ms / lim);  // teleports that fetched something
+        reqs.push_back(double(after.requests - before.requests));
+        kb.push_back(bytes / 1024);
+      }
+      // The flight, paced: from a settled start.
+      int gaps = 0, frames = 0;
+      {
+        const View& start = flight.views.front();
+        for (int i = 0; i < 200000; ++i) {
+          s.update({&start, 1});
+          if (s.stats().wanted_missing == 0) break;
+          std::this_thread::sleep_for(std::chrono::microseconds(500));
+        }
+        Pacer pacer(o.fps);
+        pacer.reset();
+        for (const View& v : flight.views) {
+          s.update({&v, 1});
+          gaps += s.stats().required_missing > 0;
+          ++frames;
+          pacer.wait();
+        }
+      }
+      const StreamerStats final_stats = s.stats();
+      s.close();
+      proxy.stop();
+      if (!ok || final_stats.failed > 0) rc = 1;
+      if (!o.json)
+        std::printf("%6.0f %6s | %8.1f %5llu %8.1f | %9.1f %9.1f %9.1f %6.1f %6.0f %8.0f | %4d of %d%s\n", rtt,
+                    mbit > 0 ? fmt("%.0f", mbit).c_str() : "inf", open_ms, (unsigned long long)opened.requests,
+                    double(opened.bytes_down) / 1024, median(settle), median(required), median(limit), ratio.empty() ? 0.0 : median(ratio),
+                    median(reqs), median(kb), gaps, frames,
+                    !ok ? "  (a teleport did not settle in 120 s)"
+                        : final_stats.failed ? "  (failed nodes)" : "");
+      json_out.push_back({{"archive", url}, {"rtt_ms", rtt}, {"mbit", mbit}, {"open_ms", open_ms},
+                          {"open_requests", opened.requests}, {"open_bytes", opened.bytes_down},
+                          {"settle_ms", median(settle)}, {"required_ms", median(required)},
+                          {"limit_ms", median(limit)}, {"settle_over_limit", ratio.empty() ? 0.0 : median(ratio)},
+                          {"requests_per_teleport", median(reqs)}, {"kb_per_teleport", median(kb)},
+                          {"flight_gap_frames", gaps}, {"flight_frames", frames}, {"failed", final_stats.failed}});
+    }
+  return rc;
+}
+
 }  // namespace
 }  // namespace terrain::bench
 
@@ -733,6 +856,12 @@ int main(int argc, char** argv) {
   app.add_option("--seed", o.seed, "camera path seed")->capture_default_str();
   app.add_flag("--json", o.json, "print JSON on stdout instead of the table");
   app.add_flag("--quiet", o.quiet, "no progress on stderr");
+  app.add_option("--rtt-ms", o.rtt_ms,
+                 "instead of the paths: read each http:// archive through a proxy adding these round trips (ms, "
+                 "comma-separated): open, teleports against the link's physical limit, the 300 m/s flight")
+      ->delimiter(',');
+  app.add_option("--mbit", o.mbit, "with --rtt-ms: the link's bandwidths, Mbit/s (comma-separated; 0 = unlimited)")
+      ->delimiter(',');
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -768,7 +897,9 @@ int main(int argc, char** argv) {
   }
   nlohmann::json all = nlohmann::json::array();
   int rc = 0;
-  for (const std::string& a : o.archives) rc = std::max(rc, bench::bench_archive(a, o, all));
+  if (!o.rtt_ms.empty() && o.mbit.empty()) o.mbit = {0};
+  for (const std::string& a : o.archives)
+    rc = std::max(rc, o.rtt_ms.empty() ? bench::bench_archive(a, o, all) : bench::bench_links(a, o, all));
   if (o.json) std::printf("%s\n", all.dump(2).c_str());
   return rc;
 }
