@@ -187,7 +187,8 @@ class HttpSource final : public ByteSource {
     idle_.push_back(h);
   }
 
-  // One request for [offset, offset + dst.size()). `opening`: learn size_ and the validator.
+  // One request for [offset, offset + dst.size()). `validate`: send the validator and check the
+  // answer against what open() learnt; false (open() itself): learn the size and the validator.
   Outcome fetch(uint64_t offset, std::span<uint8_t> dst, bool validate) const {
     const std::string what = url_ + ": " + range_text(offset, dst.size());
     CURL* h = acquire();
