@@ -112,7 +112,7 @@ class MosaicSource {
   double seam_sx_ = 1, seam_sy_ = 1; // the mosaic's sample spacing, ground metres
   std::vector<float> tile_values_, tile_next_;
   std::vector<uint8_t> tile_family_, own_family_;
-  std::vector<double> seam_d2_, seam_col_;
+  std::vector<double> seam_d2_;
   std::vector<float> window_, scratch_;
   bool count_implausible_ = false;
 };
