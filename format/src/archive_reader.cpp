@@ -34,13 +34,16 @@ struct ArchiveReader::Impl {
     std::vector<uint8_t> head(size_t(std::min<uint64_t>(size, layout::kHeaderSize)));
     TERRAIN_TRY(source->read(0, head));
     TERRAIN_TRY(detail::decode_header(head, size, header));
-    std::vector<uint8_t> metadata, directory;
-    TERRAIN_TRY(read_section(header.metadata_offset, header.metadata_size, metadata));
+    // The directory and the metadata end the file back to back (decode_header checked it): one read,
+    // so that a remote source opens in two round trips, this and the header's.
+    std::vector<uint8_t> tail;
+    TERRAIN_TRY(read_section(header.directory_offset, header.directory_size + header.metadata_size, tail));
+    const auto directory = std::span<const uint8_t>(tail).first(size_t(header.directory_size));
+    const auto metadata = std::span<const uint8_t>(tail).subspan(size_t(header.directory_size));
     if (detail::crc32_of(metadata) != header.metadata_crc32)
       return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
                                                            std::to_string(header.metadata_offset) + ")");
     TERRAIN_TRY(detail::decode_metadata(metadata, header.format_version, world));
-    TERRAIN_TRY(read_section(header.directory_offset, header.directory_size, directory));
     if (detail::crc32_of(directory) != header.directory_crc32)
       return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +
                                                             std::to_string(header.directory_offset) + ")");
@@ -54,6 +57,21 @@ struct ArchiveReader::Impl {
 
   std::string where(const NodeRecord& r) const {
     return "node " + node_name(r.key) + " at offset " + std::to_string(r.payload_offset) + ": ";
+  }
+
+  // Decodes stored bytes whose CRC-32 was checked. Errors name the node.
+  Status decode_checked(size_t index, std::span<const uint8_t> bytes, unsigned sections, NodeData& out) const {
+    // Normals codec 4 is legal only in archives that declare it (SPEC 6.5, 16.7).
+    constexpr size_t kNormalsCodecByte = 4 + size_t(layout::SectionId::normals) * layout::kPayloadTableEntrySize + 1;
+    if (!world.derived_normals && bytes.size() > kNormalsCodecByte &&
+        bytes[kNormalsCodecByte] == uint8_t(layout::Codec::normals_derived))
+      return Status::failure(Error::payload_invalid,
+                             where(nodes[index]) + "normals section uses codec 4 (derived) but the archive has no derived_normals record");
+    if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
+      s.message = where(nodes[index]) + s.message;
+      return s;
+    }
+    return Status::success();
   }
 
   // The stored bytes of nodes[index] into out, CRC-32 checked unless `check_crc` is false. Errors
@@ -155,17 +173,54 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
   // One payload buffer per thread, reused: the largest payload is 1 MiB (SPEC 12).
   thread_local std::vector<uint8_t> bytes;
   TERRAIN_TRY(read_payload(index, bytes));
-  // Normals codec 4 is legal only in archives that declare it (SPEC 6.5, 16.7).
-  constexpr size_t kNormalsCodecByte = 4 + size_t(layout::SectionId::normals) * layout::kPayloadTableEntrySize + 1;
-  if (!impl_->world.derived_normals && bytes.size() > kNormalsCodecByte &&
-      bytes[kNormalsCodecByte] == uint8_t(layout::Codec::normals_derived))
-    return Status::failure(Error::payload_invalid, impl_->where(impl_->nodes[index]) +
-                                                       "normals section uses codec 4 (derived) but the archive has no derived_normals record");
-  if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
-    s.message = impl_->where(impl_->nodes[index]) + s.message;
+  return impl_->decode_checked(index, bytes, sections, out);
+}
+
+Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  const std::vector<NodeRecord>& nodes = impl_->nodes;
+  if (run.empty()) return Status::failure(Error::invalid_argument, "empty payload run");
+  uint64_t bytes = 0;
+  for (size_t i = 0; i < run.size(); ++i) {
+    if (run[i] >= nodes.size())
+      return Status::failure(Error::node_not_found, "node index " + std::to_string(run[i]) + " out of range (" +
+                                                        std::to_string(nodes.size()) + " nodes)");
+    if (i > 0 && !payloads_adjacent(run[i - 1], run[i]))
+      return Status::failure(Error::invalid_argument, "payload run: node " + node_name(nodes[run[i]].key) +
+                                                          " does not follow node " + node_name(nodes[run[i - 1]].key));
+    bytes += nodes[run[i]].payload_size;
+  }
+  out.resize(size_t(bytes));
+  if (Status s = impl_->source->read(nodes[run[0]].payload_offset, out); !s.ok()) {
+    const std::string more = run.size() > 1 ? "(and the " + std::to_string(run.size() - 1) + " nodes after it, " +
+                                                  std::to_string(bytes) + " bytes) "
+                                            : "";
+    s.message = impl_->where(nodes[run[0]]) + more + s.message;
     return s;
   }
   return Status::success();
+}
+
+Status ArchiveReader::decode_payload(size_t index, std::span<const uint8_t> stored, NodeData& out,
+                                     unsigned sections) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (index >= impl_->nodes.size())
+    return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
+                                                      std::to_string(impl_->nodes.size()) + " nodes)");
+  const NodeRecord& r = impl_->nodes[index];
+  if (stored.size() != r.payload_size)
+    return Status::failure(Error::invalid_argument, impl_->where(r) + std::to_string(stored.size()) +
+                                                        " stored bytes given, the directory says " +
+                                                        std::to_string(r.payload_size));
+  if (detail::crc32_of(stored) != r.payload_crc32)
+    return Status::failure(Error::payload_checksum, impl_->where(r) + "payload CRC-32 mismatch");
+  return impl_->decode_checked(index, stored, sections, out);
+}
+
+bool ArchiveReader::payloads_adjacent(size_t a, size_t b) const {
+  if (!impl_ || a >= impl_->nodes.size() || b >= impl_->nodes.size()) return false;
+  const NodeRecord& ra = impl_->nodes[a];
+  return impl_->nodes[b].payload_offset == ra.payload_offset + ra.payload_size;
 }
 
 Status ArchiveReader::section_bytes(SectionBytes& out) const {

@@ -48,6 +48,7 @@ struct Options {
   std::string make_synthetic;
   uint32_t budget = 512;
   uint32_t threads = 2;
+  uint32_t fetches = 0;  // StreamerConfig::max_fetches (0: automatic)
   uint32_t max_deliveries = 128;
   double fps = 60;
   double seconds = 6;
@@ -494,6 +495,7 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   StreamerConfig config;
   config.budget_nodes = o.budget;
   config.worker_threads = o.threads;
+  config.max_fetches = o.fetches;
   config.error_target_px = o.target_px;
   config.max_deliveries_per_frame = o.max_deliveries;
   const bool progress = !o.quiet && isatty(2);
@@ -741,14 +743,16 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
   StreamerConfig config;
   config.budget_nodes = o.budget;
   config.worker_threads = o.threads;
+  config.max_fetches = o.fetches;
   config.error_target_px = o.target_px;
   config.max_deliveries_per_frame = o.max_deliveries;
+  const std::string reads_in_flight = o.fetches ? std::to_string(o.fetches) : std::to_string(kRemoteFetches) + " (automatic)";
   if (!o.json)
     std::printf("\n%s over a link (LatencyProxy: rtt/2 each way, one link per direction shared by the connections), "
-                "%u workers, budget %u, %d teleports (medians), %s paced at %.0f fps for %.0f s\n\n"
-                "%6s %6s | %8s %5s %8s | %9s %9s %9s %6s %6s %8s | %10s\n",
-                url.c_str(), o.threads, o.budget, o.teleports, flight.name.c_str(), o.fps, o.seconds, "rtt_ms", "Mbit",
-                "open_ms", "reqs", "open_KB", "settle_ms", "req_ms", "limit_ms", "x", "reqs", "KB", "gap frames");
+                "%u workers, %s reads in flight, budget %u, %d teleports (medians), %s paced at %.0f fps for %.0f s\n\n"
+                "%6s %6s | %8s %5s %8s | %9s %9s %9s %6s %6s %8s %5s | %10s\n",
+                url.c_str(), o.threads, reads_in_flight.c_str(), o.budget, o.teleports, flight.name.c_str(), o.fps, o.seconds, "rtt_ms", "Mbit",
+                "open_ms", "reqs", "open_KB", "settle_ms", "req_ms", "limit_ms", "x", "reqs", "KB", "amp", "gap frames");
   int rc = 0;
   for (const double rtt : o.rtt_ms)
     for (const double mbit : o.mbit) {
@@ -768,6 +772,9 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
       const double open_ms = ms_since(t0);
       const tools::ProxyStats opened = proxy.stats();
       std::vector<double> settle, required, limit, ratio, reqs, kb;
+      // Read amplification over the teleports: bytes that crossed the link (HTTP headers included)
+      // per stored payload byte the streamer read.
+      const uint64_t payload_before = s.stats().bytes_read, link_before = proxy.stats().bytes_down;
       bool ok = true;
       for (const View& v : teleports.views) {
         const tools::ProxyStats before = proxy.stats();
@@ -795,6 +802,9 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
         reqs.push_back(double(after.requests - before.requests));
         kb.push_back(bytes / 1024);
       }
+      const uint64_t payload_bytes = s.stats().bytes_read - payload_before;
+      const double amplification =
+          payload_bytes ? double(proxy.stats().bytes_down - link_before) / double(payload_bytes) : 0.0;
       // The flight, paced: from a settled start.
       int gaps = 0, frames = 0;
       {
@@ -814,14 +824,15 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
         }
       }
       const StreamerStats final_stats = s.stats();
+      const uint32_t fetches_used = s.config().max_fetches;
       s.close();
       proxy.stop();
       if (!ok || final_stats.failed > 0) rc = 1;
       if (!o.json)
-        std::printf("%6.0f %6s | %8.1f %5llu %8.1f | %9.1f %9.1f %9.1f %6.1f %6.0f %8.0f | %4d of %d%s\n", rtt,
+        std::printf("%6.0f %6s | %8.1f %5llu %8.1f | %9.1f %9.1f %9.1f %6.1f %6.0f %8.0f %5.2f | %4d of %d%s\n", rtt,
                     mbit > 0 ? fmt("%.0f", mbit).c_str() : "inf", open_ms, (unsigned long long)opened.requests,
                     double(opened.bytes_down) / 1024, median(settle), median(required), median(limit), ratio.empty() ? 0.0 : median(ratio),
-                    median(reqs), median(kb), gaps, frames,
+                    median(reqs), median(kb), amplification, gaps, frames,
                     !ok ? "  (a teleport did not settle in 120 s)"
                         : final_stats.failed ? "  (failed nodes)" : "");
       json_out.push_back({{"archive", url}, {"rtt_ms", rtt}, {"mbit", mbit}, {"open_ms", open_ms},
@@ -829,6 +840,7 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
                           {"settle_ms", median(settle)}, {"required_ms", median(required)},
                           {"limit_ms", median(limit)}, {"settle_over_limit", ratio.empty() ? 0.0 : median(ratio)},
                           {"requests_per_teleport", median(reqs)}, {"kb_per_teleport", median(kb)},
+                          {"read_amplification", amplification}, {"max_fetches", fetches_used},
                           {"flight_gap_frames", gaps}, {"flight_frames", frames}, {"failed", final_stats.failed}});
     }
   return rc;
@@ -847,6 +859,8 @@ int main(int argc, char** argv) {
                  "exist, and benchmark it too");
   app.add_option("--budget", o.budget, "resident node budget")->capture_default_str();
   app.add_option("--threads", o.threads, "streamer worker threads")->capture_default_str();
+  app.add_option("--fetches", o.fetches, "streamer reads in flight (StreamerConfig::max_fetches; 0: automatic, 16 for a URL, the worker count for a file)")
+      ->capture_default_str();
   app.add_option("--max-deliveries", o.max_deliveries, "streamer deliveries per frame (per-frame upload bound)")
       ->capture_default_str();
   app.add_option("--fps", o.fps, "frame rate of the replay (camera time step and pacing)")->capture_default_str();

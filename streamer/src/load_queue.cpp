@@ -1,17 +1,20 @@
 #include "load_queue.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "terrain/cpu_clock.h"
 
 namespace terrain::detail {
 
-LoadQueue::LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity)
+LoadQueue::LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t fetch_threads, uint32_t decode_threads,
+                     uint32_t capacity)
     : reader_(reader), sections_(sections), surfaces_((sections & kSectionHeights) != 0), capacity_(capacity) {
   publish_mark_.assign(reader.nodes().size(), 0);
   taken_.assign(reader.nodes().size(), 0);
-  workers_.reserve(threads);
-  for (uint32_t i = 0; i < threads; ++i) workers_.emplace_back([this] { worker_main(); });
+  workers_.reserve(size_t(fetch_threads) + decode_threads);
+  for (uint32_t i = 0; i < fetch_threads; ++i) workers_.emplace_back([this] { fetch_main(); });
+  for (uint32_t i = 0; i < decode_threads; ++i) workers_.emplace_back([this] { decode_main(); });
 }
 
 LoadQueue::~LoadQueue() {
@@ -20,6 +23,7 @@ LoadQueue::~LoadQueue() {
     stop_ = true;
   }
   work_ready_.notify_all();
+  fetched_ready_.notify_all();
   for (std::thread& t : workers_) t.join();
 }
 
@@ -39,7 +43,7 @@ void LoadQueue::publish(const std::vector<uint32_t>& requests, std::vector<uint3
       next.push_back(node);
     }
     for (size_t i = queue_pos_; i < queue_.size(); ++i)
-      if (publish_mark_[queue_[i]] != generation_) dropped.push_back(queue_[i]);
+      if (queue_[i] != kTakenEntry && publish_mark_[queue_[i]] != generation_) dropped.push_back(queue_[i]);
     queue_ = std::move(next);
     queue_pos_ = 0;
   }
@@ -86,17 +90,92 @@ LoadQueue::Counters LoadQueue::counters() const {
   return counters_;
 }
 
-void LoadQueue::worker_main() {
-  std::unique_lock lock(mutex_);
-  for (;;) {
-    work_ready_.wait(lock, [&] {
-      return stop_ || (queue_pos_ < queue_.size() && counters_.in_flight < capacity_);
-    });
-    if (stop_) return;
-    const uint32_t node = queue_[queue_pos_++];
+bool LoadQueue::next_request() {
+  while (queue_pos_ < queue_.size() && queue_[queue_pos_] == kTakenEntry) ++queue_pos_;
+  return queue_pos_ < queue_.size();
+}
+
+std::vector<uint32_t> LoadQueue::take_run() {
+  auto take = [&](uint32_t node) {
     taken_[node] = 1;
     ++counters_.in_flight;
     ++counters_.loads_started;
+  };
+  std::vector<uint32_t> run{queue_[queue_pos_++]};
+  take(run[0]);
+  uint64_t bytes = reader_.nodes()[run[0]].payload_size;
+  // Queued requests whose payloads continue the run at either end join it while the room lasts.
+  const size_t end = std::min(queue_.size(), queue_pos_ + kRunLookahead);
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (size_t i = queue_pos_; i < end && run.size() < kMaxRunNodes && counters_.in_flight < capacity_; ++i) {
+      const uint32_t node = queue_[i];
+      if (node == kTakenEntry) continue;
+      const uint64_t size = reader_.nodes()[node].payload_size;
+      if (bytes + size > kMaxRunBytes) continue;
+      if (reader_.payloads_adjacent(run.back(), node))
+        run.push_back(node);
+      else if (reader_.payloads_adjacent(node, run.front()))
+        run.insert(run.begin(), node);
+      else
+        continue;
+      take(node);
+      bytes += size;
+      queue_[i] = kTakenEntry;
+      grew = true;
+    }
+  }
+  ++counters_.fetches;
+  counters_.bytes_read += bytes;
+  return run;
+}
+
+void LoadQueue::fetch_main() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    work_ready_.wait(lock, [&] { return stop_ || (counters_.in_flight < capacity_ && next_request()); });
+    if (stop_) return;
+    const std::vector<uint32_t> run = take_run();
+    lock.unlock();
+
+    // All source access (pread, or a range request) happens here, off the owner's thread.
+    auto bytes = std::make_shared<std::vector<uint8_t>>();
+    const auto t0 = std::chrono::steady_clock::now();
+    const Status status = reader_.read_payload_run(run, *bytes);
+
+    // A run that failed is read again node by node, so only the nodes whose bytes are unreadable
+    // (past a truncated file's end, say) fail.
+    std::vector<Fetched> done;
+    if (status.ok() || run.size() == 1) {
+      size_t offset = 0;
+      for (uint32_t node : run) {
+        done.push_back({node, bytes, offset, status});
+        offset += reader_.nodes()[node].payload_size;
+      }
+    } else {
+      for (uint32_t node : run) {
+        auto one = std::make_shared<std::vector<uint8_t>>();
+        Status s = reader_.read_payload_run({&node, 1}, *one);
+        done.push_back({node, std::move(one), 0, std::move(s)});
+      }
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    lock.lock();
+    counters_.fetch_seconds += seconds;
+    if (!(status.ok() || run.size() == 1)) counters_.fetches += run.size();
+    for (Fetched& f : done) fetched_.push_back(std::move(f));
+    fetched_ready_.notify_all();
+  }
+}
+
+void LoadQueue::decode_main() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    fetched_ready_.wait(lock, [&] { return stop_ || !fetched_.empty(); });
+    if (stop_) return;
+    Fetched f = std::move(fetched_.front());
+    fetched_.pop_front();
     NodeData* data = nullptr;
     if (!free_buffers_.empty()) {
       data = free_buffers_.back();
@@ -104,7 +183,6 @@ void LoadQueue::worker_main() {
     }
     lock.unlock();
 
-    // All file access (pread of the payload) and decompression happen here, off the owner's thread.
     std::unique_ptr<NodeData> fresh;
     if (!data) {
       fresh = std::make_unique<NodeData>();
@@ -112,22 +190,25 @@ void LoadQueue::worker_main() {
     }
     const auto t0 = std::chrono::steady_clock::now();
     const double c0 = thread_cpu_seconds();
-    Status status = reader_.decode_node(node, *data, sections_);
+    const uint64_t bytes = reader_.nodes()[f.node].payload_size;
+    Status status = f.status;
+    if (status.ok())
+      status = reader_.decode_payload(f.node, std::span<const uint8_t>(*f.run).subspan(f.offset, size_t(bytes)), *data,
+                                      sections_);
+    f.run.reset();  // the read's buffer goes when its last node is decoded
     std::shared_ptr<const NodeSurface> surface;
-    if (status.ok() && surfaces_) surface = make_node_surface(reader_, node, *data, (sections_ & kSectionAlbedo) != 0);
+    if (status.ok() && surfaces_) surface = make_node_surface(reader_, f.node, *data, (sections_ & kSectionAlbedo) != 0);
     const double cpu_seconds = thread_cpu_seconds() - c0;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const uint64_t bytes = reader_.nodes()[node].payload_size;
 
     lock.lock();
     if (fresh) {
       buffers_.push_back(std::move(fresh));
       ++counters_.buffers_allocated;
     }
-    counters_.bytes_read += bytes;
     counters_.decode_seconds += seconds;
     counters_.decode_cpu_seconds += cpu_seconds;
-    results_.push_back({node, data, std::move(surface), std::move(status), bytes, seconds});
+    results_.push_back({f.node, data, std::move(surface), std::move(status), bytes, seconds});
     result_ready_.notify_one();
   }
 }

@@ -1,9 +1,14 @@
-// Background loading: worker threads take requests in priority order, read and decode payloads
-// into pooled buffers and hand back results. The owner thread replaces the whole request list
-// each frame, so requests that are no longer wanted are dropped before any work is done.
+// Background loading in two stages. Fetch threads take requests in priority order and read the
+// stored payload bytes (pread of a file, or a range request over HTTP: the bound on reads in flight
+// is the number of fetch threads, apart from the decoders, so round trips overlap without more
+// decoding), taking queued requests whose payloads lie back to back in the file along in the same
+// read. Decode threads check and decode fetched payloads into pooled buffers and hand back results.
+// The owner thread replaces the whole request list each frame, so requests that are no longer
+// wanted are dropped before any work is done.
 #pragma once
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -30,17 +35,27 @@ class LoadQueue {
   };
   struct Counters {
     uint64_t loads_started = 0;
+    uint64_t fetches = 0;           // source reads issued (one per run of adjacent payloads)
     uint64_t bytes_read = 0;
+    double fetch_seconds = 0;       // wall clock of the reads, summed over fetch threads
     double decode_seconds = 0;      // wall clock, summed over workers
     double decode_cpu_seconds = 0;  // CPU time of the workers' threads in decode (excludes waiting for a core)
     uint64_t buffers_allocated = 0;
     uint32_t in_flight = 0;
   };
 
-  // Starts `threads` workers decoding `sections` of nodes of `reader` (which must outlive this).
-  // At most `capacity` requests are taken and not yet released at any time (see set_capacity).
-  LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t threads, uint32_t capacity);
-  ~LoadQueue();  // stops the workers after their current decode and joins them
+  // The most nodes and stored bytes one fetch takes together, and how far down the request list it
+  // looks for payloads adjacent to the one it took.
+  static constexpr size_t kMaxRunNodes = 32;
+  static constexpr uint64_t kMaxRunBytes = 2u << 20;
+  static constexpr size_t kRunLookahead = 64;
+
+  // Starts `fetch_threads` readers and `decode_threads` decoders of `sections` of nodes of `reader`
+  // (which must outlive this). At most `capacity` requests are taken and not yet released at any
+  // time (see set_capacity).
+  LoadQueue(const ArchiveReader& reader, unsigned sections, uint32_t fetch_threads, uint32_t decode_threads,
+            uint32_t capacity);
+  ~LoadQueue();  // stops the threads after their current read or decode and joins them
   LoadQueue(const LoadQueue&) = delete;
   LoadQueue& operator=(const LoadQueue&) = delete;
 
@@ -59,15 +74,28 @@ class LoadQueue {
   Counters counters() const;
 
  private:
-  void worker_main();
+  static constexpr uint32_t kTakenEntry = UINT32_MAX;  // a queue entry a fetch took out of order
+
+  struct Fetched {
+    uint32_t node = 0;
+    std::shared_ptr<const std::vector<uint8_t>> run;  // the read holding this node's bytes
+    size_t offset = 0;                                // where they start in it
+    Status status;                                    // the read's
+  };
+
+  void fetch_main();
+  void decode_main();
+  bool next_request();  // advances queue_pos_ past entries taken out of order; true when one is left
+  std::vector<uint32_t> take_run();  // under the lock: the next request and adjacent queued ones
 
   const ArchiveReader& reader_;
   const unsigned sections_;
   const bool surfaces_;  // the sections hold heights: make each node's query surface
 
   mutable std::mutex mutex_;
-  std::condition_variable work_ready_;    // workers wait here
-  std::condition_variable result_ready_;  // collect(wait) waits here
+  std::condition_variable work_ready_;     // fetch threads wait here
+  std::condition_variable fetched_ready_;  // decode threads wait here
+  std::condition_variable result_ready_;   // collect(wait) waits here
   bool stop_ = false;
   std::vector<uint32_t> queue_;           // current request list
   size_t queue_pos_ = 0;                  // next request to take
@@ -75,6 +103,7 @@ class LoadQueue {
   std::vector<uint8_t> taken_;            // per node: a worker took it, result not collected
   uint32_t generation_ = 0;
   uint32_t capacity_ = 0;
+  std::deque<Fetched> fetched_;           // read, waiting for a decoder (in the order read)
   std::vector<Result> results_;
   std::vector<std::unique_ptr<NodeData>> buffers_;  // every buffer ever allocated
   std::vector<NodeData*> free_buffers_;

@@ -116,7 +116,7 @@ struct Streamer::Impl {
     loader.reset();  // joins workers before buffers and the reader go away
   }
 
-  Status validate_config(uint32_t tops, int top) {
+  Status validate_config(uint32_t tops, int top, bool remote) {
     StreamerConfig& c = config;
     auto bad = [](const std::string& what) { return Status::failure(Error::invalid_argument, "streamer config: " + what); };
     if (c.budget_nodes < 1 || c.budget_nodes > kMaxSlots)
@@ -147,14 +147,18 @@ struct Streamer::Impl {
     if (c.slot_count < c.budget_nodes || c.slot_count > kMaxSlots)
       return bad("slot_count " + std::to_string(c.slot_count) + " must be in budget_nodes.." + std::to_string(kMaxSlots));
     if (c.max_in_flight == 0) c.max_in_flight = std::max(2 * c.worker_threads, c.budget_nodes / 32);
+    if (c.max_fetches == 0) c.max_fetches = remote ? kRemoteFetches : c.worker_threads;
+    if (c.max_fetches > 256) return bad("max_fetches above 256");
     return Status::success();
   }
 
-  Status open(const std::string& path, const StreamerConfig& cfg) {
+  Status open(ArchiveReader&& opened, const StreamerConfig& cfg) {
     config = cfg;
-    std::unique_ptr<ByteSource> source;
-    TERRAIN_TRY(open_location(path, source));
-    TERRAIN_TRY(reader.open(std::move(source)));
+    reader = std::move(opened);
+    if (!reader.is_open()) return Status::failure(Error::invalid_argument, "streamer: the archive reader is not open");
+    const std::string path = reader.source()->name();
+    HttpStats http;
+    const bool remote = http_stats(*reader.source(), http);
     records = reader.nodes();
     const WorldInfo& world = reader.world();
     if (world.roots_x == 0 || world.roots_y == 0 || world.roots_x > kStreamerMaxRootsPerSide ||
@@ -167,7 +171,7 @@ struct Streamer::Impl {
     tree = detail::build_node_tree(reader);
     top_count = uint32_t(tree.tops.size());
     if (top_count == 0) return Status::failure(Error::no_data, "streamer: " + path + " has no root nodes");
-    TERRAIN_TRY(validate_config(top_count, reader.top_level()));
+    TERRAIN_TRY(validate_config(top_count, reader.top_level(), remote));
     wanted_params = detail::make_wanted_params(config, top_count);
 
     const size_t n = records.size();
@@ -187,7 +191,7 @@ struct Streamer::Impl {
 
     // Top nodes (roots without overview levels): loaded by the workers while this thread waits
     // (it never decodes).
-    loader = std::make_unique<detail::LoadQueue>(reader, config.sections, config.worker_threads,
+    loader = std::make_unique<detail::LoadQueue>(reader, config.sections, config.max_fetches, config.worker_threads,
                                                  config.budget_nodes + config.max_in_flight);
     std::vector<uint32_t> dropped;
     loader->publish(tree.tops, dropped);
@@ -219,6 +223,7 @@ struct Streamer::Impl {
       }
     }
     if (first_error) return *first_error;
+    fill_stats();  // stats() after open() counts the top nodes' loads
     return Status::success();
   }
 
@@ -384,6 +389,8 @@ struct Streamer::Impl {
     s.loads_delivered = loads_delivered;
     s.loads_discarded = loads_discarded;
     s.requests_dropped = requests_dropped;
+    s.fetches = c.fetches;
+    s.fetch_seconds = c.fetch_seconds;
     s.bytes_read = c.bytes_read;
     s.bytes_decoded = bytes_decoded;
     s.decode_seconds = c.decode_seconds;
@@ -436,8 +443,15 @@ Streamer::~Streamer() = default;
 
 Status Streamer::open(const std::string& archive_path, const StreamerConfig& config) {
   close();
+  ArchiveReader reader;
+  TERRAIN_TRY(open_archive(reader, archive_path));
+  return open(std::move(reader), config);
+}
+
+Status Streamer::open(ArchiveReader&& reader, const StreamerConfig& config) {
+  close();
   auto impl = std::make_unique<Impl>();
-  TERRAIN_TRY(impl->open(archive_path, config));
+  TERRAIN_TRY(impl->open(std::move(reader), config));
   impl_ = std::move(impl);
   return Status::success();
 }

@@ -14,6 +14,8 @@
 #include <thread>
 #include <vector>
 
+#include "test_data.h"
+
 namespace terrain::test {
 namespace {
 
@@ -155,6 +157,13 @@ std::string NginxServer::url(const std::string& path) const {
 
 std::string NginxServer::https_url(const std::string& path) const {
   return "https://127.0.0.1:" + std::to_string(tls_port_) + "/" + path;
+}
+
+void NginxTest::SetUp() {
+  if (nginx_binary().empty()) GTEST_SKIP() << "nginx is not installed (scripts/setup.sh installs nginx-light)";
+  dir_ = scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::string error;
+  ASSERT_TRUE(server_.start(dir_ / "nginx", error)) << error;
 }
 
 }  // namespace terrain::test

@@ -4,6 +4,7 @@
 // destructor. It serves `root()`; /slow/ is throttled (limit_rate) and /broken/ answers 503, for
 // the fault tests. With a certificate (make_test_certificate) it serves https on a second port.
 #pragma once
+#include <gtest/gtest.h>
 #include <sys/types.h>
 
 #include <filesystem>
@@ -40,6 +41,17 @@ class NginxServer {
   pid_t pid_ = -1;
   int port_ = 0, tls_port_ = 0;
   std::filesystem::path dir_, root_;
+};
+
+// A fixture whose every test has its own scratch folder (dir_, named after the test) and a running
+// server (server_, its files under dir_/nginx). Where nginx is not installed the test is skipped,
+// naming the package. A derived SetUp() calls this one first and returns when IsSkipped() or
+// HasFatalFailure().
+class NginxTest : public ::testing::Test {
+ protected:
+  void SetUp() override;
+  std::filesystem::path dir_;
+  NginxServer server_;
 };
 
 }  // namespace terrain::test

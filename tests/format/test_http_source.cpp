@@ -34,13 +34,11 @@ void touch_ahead(const fs::path& p, int seconds) {
   ASSERT_EQ(::utime(p.c_str(), &t), 0);
 }
 
-class HttpArchive : public ::testing::Test {
+class HttpArchive : public NginxTest {
  protected:
   void SetUp() override {
-    if (nginx_binary().empty()) GTEST_SKIP() << "nginx is not installed (scripts/setup.sh installs nginx-light)";
-    dir_ = scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::string error;
-    ASSERT_TRUE(server_.start(dir_ / "nginx", error)) << error;
+    NginxTest::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
     ASSERT_FALSE(archive_.empty()) << "SetUpTestSuite wrote no archive";
     local_ = (server_.root() / "a.terrain").string();
     fs::copy_file(archive_, local_);
@@ -60,8 +58,6 @@ class HttpArchive : public ::testing::Test {
     o.backoff_ms = 10;
     return o;
   }
-  fs::path dir_;
-  NginxServer server_;
   std::string local_;
 };
 
@@ -75,8 +71,19 @@ TEST_F(HttpArchive, PayloadsByUrlAreTheFileBytes) {
   ASSERT_EQ(web.file_size(), file.file_size());
   ASSERT_EQ(web.nodes().size(), file.nodes().size());
   ASSERT_GT(file.nodes().size(), size_t(16));
+  // Opening is two requests: the header (which also gives the size and the validator), then the
+  // directory and metadata together; the header's bytes are not fetched again.
   HttpStats before;
   ASSERT_TRUE(http_stats(*web.source(), before));
+  EXPECT_EQ(before.requests, uint64_t(2));
+  uint64_t payloads_end = 0;
+  for (const NodeRecord& r : file.nodes()) payloads_end = std::max<uint64_t>(payloads_end, r.payload_offset + r.payload_size);
+  EXPECT_EQ(before.bytes, 128 + (file.file_size() - payloads_end)) << "the header, directory and metadata: nothing else";
+  std::vector<uint8_t> header(128);
+  ASSERT_TRUE(web.source()->read(0, header).ok());
+  HttpStats same;
+  ASSERT_TRUE(http_stats(*web.source(), same));
+  EXPECT_EQ(same.requests, before.requests);
   uint64_t payload_bytes = 0;
   std::vector<uint8_t> a, b;
   for (size_t i = 0; i < file.nodes().size(); ++i) {

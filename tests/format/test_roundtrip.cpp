@@ -1,7 +1,9 @@
 // Round trip of every section and metadata field, sparse lookups, determinism, atomic writes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -238,6 +240,82 @@ TEST_F(ArchiveRoundTrip, SameInputsGiveIdenticalBytesAtAnyThreadCount) {
     ASSERT_TRUE(b.read_payload(i, pb).ok());
     EXPECT_EQ(pa, pb);
   }
+}
+
+// Counts the reads that reach a file source.
+class CountingSource : public ByteSource {
+ public:
+  explicit CountingSource(std::unique_ptr<ByteSource> inner) : inner_(std::move(inner)) {}
+  uint64_t size() const override { return inner_->size(); }
+  Status read(uint64_t offset, std::span<uint8_t> dst) const override {
+    ++reads;
+    return inner_->read(offset, dst);
+  }
+  const std::string& name() const override { return inner_->name(); }
+  mutable std::atomic<int> reads{0};
+
+ private:
+  std::unique_ptr<ByteSource> inner_;
+};
+
+TEST_F(ArchiveRoundTrip, APayloadRunIsOneReadAndDecodesLikeEachNode) {
+  ASSERT_TRUE(test::write_synthetic_archive(path_, make_world(), test::sparse_keys()).ok());
+  std::unique_ptr<ByteSource> file;
+  ASSERT_TRUE(open_file_source(path_, file).ok());
+  auto counting = std::make_unique<CountingSource>(std::move(file));
+  const CountingSource& source = *counting;
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(std::move(counting)).ok());
+  const size_t n = reader.nodes().size();
+
+  // The longest run of nodes whose payloads follow each other in the file, found by offsets alone.
+  std::vector<uint32_t> order(n);
+  for (uint32_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t a, uint32_t b) { return reader.nodes()[a].payload_offset < reader.nodes()[b].payload_offset; });
+  std::vector<uint32_t> run{order[0]};
+  for (size_t i = 1; i < n && run.size() < 6; ++i) {
+    const NodeRecord& prev = reader.nodes()[order[i - 1]];
+    if (reader.nodes()[order[i]].payload_offset != prev.payload_offset + prev.payload_size) break;
+    EXPECT_TRUE(reader.payloads_adjacent(order[i - 1], order[i]));
+    run.push_back(order[i]);
+  }
+  ASSERT_GE(run.size(), 3u);
+
+  std::vector<uint8_t> bytes, one;
+  const int before = source.reads.load();
+  ASSERT_TRUE(reader.read_payload_run(run, bytes).ok());
+  EXPECT_EQ(source.reads.load() - before, 1) << "a run is one read";
+  size_t at = 0;
+  auto got = std::make_unique<NodeData>(), want = std::make_unique<NodeData>();
+  for (uint32_t node : run) {
+    ASSERT_TRUE(reader.read_payload(node, one).ok());
+    const std::span<const uint8_t> stored = std::span<const uint8_t>(bytes).subspan(at, one.size());
+    EXPECT_TRUE(std::equal(one.begin(), one.end(), stored.begin()));
+    ASSERT_TRUE(reader.decode_payload(node, stored, *got).ok());
+    ASSERT_TRUE(reader.decode_node(node, *want).ok());
+    EXPECT_EQ(std::memcmp(got.get(), want.get(), sizeof(NodeData)), 0) << node_name(reader.nodes()[node].key);
+    at += one.size();
+  }
+  EXPECT_EQ(at, bytes.size());
+
+  // Nodes out of file order are refused by name before anything is read.
+  const std::vector<uint32_t> backwards{run[1], run[0]};
+  const Status refused = reader.read_payload_run(backwards, bytes);
+  EXPECT_EQ(refused.code, Error::invalid_argument);
+  EXPECT_NE(refused.message.find("node " + node_name(reader.nodes()[run[0]].key) + " does not follow node " +
+                                 node_name(reader.nodes()[run[1]].key)),
+            std::string::npos)
+      << refused.to_string();
+  // decode_payload checks what it is given: the size the directory states, then the CRC-32.
+  ASSERT_TRUE(reader.read_payload(run[0], one).ok());
+  const Status short_bytes = reader.decode_payload(run[0], std::span<const uint8_t>(one).first(one.size() - 1), *got);
+  EXPECT_EQ(short_bytes.code, Error::invalid_argument);
+  EXPECT_NE(short_bytes.message.find(node_name(reader.nodes()[run[0]].key)), std::string::npos);
+  one[one.size() / 2] ^= 0x10;
+  const Status flipped = reader.decode_payload(run[0], one, *got);
+  EXPECT_EQ(flipped.code, Error::payload_checksum);
+  EXPECT_NE(flipped.message.find("node " + node_name(reader.nodes()[run[0]].key)), std::string::npos);
 }
 
 TEST_F(ArchiveRoundTrip, FailedOrAbortedWriteLeavesTheEarlierArchiveIntact) {

@@ -62,7 +62,28 @@ TEST(StreamerOpen, RejectsBadConfigurations) {
   EXPECT_EQ(try_config([](StreamerConfig& c) { c.sections = 0; }), Error::invalid_argument);
   EXPECT_EQ(try_config([](StreamerConfig& c) { c.sections = 0x40; }), Error::invalid_argument);
   EXPECT_EQ(try_config([](StreamerConfig& c) { c.outside_frustum_error_scale = 2; }), Error::invalid_argument);
+  EXPECT_EQ(try_config([](StreamerConfig& c) { c.max_fetches = 257; }), Error::invalid_argument);
+  EXPECT_EQ(try_config([](StreamerConfig& c) { c.max_fetches = 256; }), Error::ok);
   EXPECT_EQ(try_config([](StreamerConfig&) {}), Error::ok);
+}
+
+// A caller who opened the archive hands the reader over; the streamer opens nothing again.
+TEST(StreamerOpen, TakesAReaderTheCallerOpened) {
+  const std::string path = synthetic_archive(many_roots_spec());
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path).ok());
+  const size_t nodes = reader.nodes().size();
+  Streamer streamer;
+  const Status st = streamer.open(std::move(reader), with_workers(2));
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  EXPECT_EQ(streamer.archive().nodes().size(), nodes);
+  EXPECT_EQ(streamer.config().max_fetches, 2u);
+  const FrameUpdate& u = streamer.update(std::vector<View>{view_at(0, 0, 500)});
+  EXPECT_FALSE(u.delivered.empty());
+  ArchiveReader closed;
+  Streamer other;
+  EXPECT_EQ(other.open(std::move(closed)).code, Error::invalid_argument);
+  EXPECT_FALSE(other.is_open());
 }
 
 TEST(StreamerOpen, MissingFileIsAnError) {

@@ -164,6 +164,39 @@ TEST(StreamerPaths, DeliveredDataEqualsADirectDecode) {
   EXPECT_GE(compared, 60);
 }
 
+// One read takes queued requests whose payloads follow each other in the file along; what they
+// deliver is byte for byte a direct decode, and every invariant holds meanwhile.
+TEST(StreamerPaths, ReadsTakeAdjacentPayloadsAlongAndDeliverTheSameBytes) {
+  const synthetic::Spec spec = deep_sparse_spec();
+  const std::string path = synthetic_archive(spec);
+  Streamer streamer;
+  StreamerConfig config = with_workers(2);
+  config.max_fetches = 1;  // one reader: requests queue up behind it, so neighbours are there to take
+  ASSERT_TRUE(streamer.open(path, config).ok());
+  EXPECT_EQ(streamer.config().max_fetches, 1u);
+  ArchiveReader reader;
+  ASSERT_TRUE(reader.open(path).ok());
+  StreamChecker checker(streamer, /*check_markers=*/true);
+  std::mt19937_64 rng(6);
+  for (int jump = 0; jump < 3; ++jump) {
+    View v = random_view(rng, spec);
+    ASSERT_EQ(settle(streamer, checker, {&v, 1}), "");
+  }
+  const StreamerStats st = streamer.stats();
+  EXPECT_GT(st.loads_started, 100u);
+  EXPECT_LT(st.fetches, st.loads_started) << "no read took a neighbour along";
+  EXPECT_GT(st.fetch_seconds, 0.0);
+  auto expected = std::make_unique<NodeData>();
+  for (const NodeKey& k : streamer.resident_nodes()) {
+    ASSERT_TRUE(reader.decode_node(size_t(reader.find(k)), *expected).ok());
+    EXPECT_EQ(std::memcmp(expected.get(), streamer.resident_data(k), sizeof(NodeData)), 0) << "node " << node_name(k);
+  }
+  // Automatic: the worker count for a file.
+  Streamer automatic;
+  ASSERT_TRUE(automatic.open(path, with_workers(3)).ok());
+  EXPECT_EQ(automatic.config().max_fetches, 3u);
+}
+
 TEST(StreamerPaths, OnlyTheConfiguredSectionsAreDecoded) {
   const synthetic::Spec spec = deep_sparse_spec();
   const std::string path = synthetic_archive(spec);

@@ -19,9 +19,9 @@ class StreamSource final : public NodeSource {
     config.error_target_px = o.error_target_px;
     config.worker_threads = o.worker_threads;
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
+    ArchiveReader reader;  // opened once: the streamer takes it over
+    TERRAIN_TRY(open_archive(reader, path));
     {
-      ArchiveReader reader;
-      TERRAIN_TRY(open_archive(reader, path));
       // The streamer keeps the top level resident: at most 16 overview nodes (format/SPEC.md
       // section 19), or every root of an archive without overview levels. Budget 0 (the default)
       // = 512, raised for such an archive to its roots + 512 so that it opens too.
@@ -35,7 +35,7 @@ class StreamSource final : public NodeSource {
                                    std::to_string(roots) + " roots, which stay resident (it has no overview levels, "
                                    "format/SPEC.md section 19): use --budget " + std::to_string(roots) + " or more, or 0");
     }
-    return streamer_.open(path, config);
+    return streamer_.open(std::move(reader), config);
   }
   const WorldInfo& world() const override { return streamer_.world(); }
   uint32_t slot_count() const override { return streamer_.slot_count(); }

@@ -67,6 +67,17 @@ class ArchiveReader {
   // read_payload() into a buffer of the calling thread, then decodes the requested sections into
   // `out`. Errors name the node as above. On failure `out` holds unspecified data.
   Status decode_node(size_t index, NodeData& out, unsigned sections = kSectionAll) const;
+  // The two halves of decode_node() for a caller that reads payloads itself, e.g. several nodes in
+  // one range request. read_payload_run() reads the stored bytes of `run` (node indices whose
+  // payloads lie back to back in the file, in file order: payloads_adjacent()) with one source read
+  // into `out`, checking nothing; errors name the run's first node, its length and the range.
+  // decode_payload() checks one node's stored bytes (size, CRC-32) and decodes `sections` into `out`;
+  // errors name the node as above.
+  Status read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out) const;
+  Status decode_payload(size_t index, std::span<const uint8_t> stored, NodeData& out,
+                        unsigned sections = kSectionAll) const;
+  // True when node b's payload starts where node a's ends.
+  bool payloads_adjacent(size_t a, size_t b) const;
 
   // Reads and checks everything: every payload checksum and decode, child masks against the
   // directory, heights inside [min, max], parent presence. Returns the first problem.

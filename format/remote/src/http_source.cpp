@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "terrain/archive_layout.h"
 #include "terrain/remote_source.h"
 
 namespace terrain {
@@ -135,6 +136,10 @@ class HttpSource final : public ByteSource {
     if (offset > size_ || dst.size() > size_ - offset)
       return Status::failure(Error::truncated, url_ + ": " + range_text(offset, dst.size()) + " lies beyond its " +
                                                    std::to_string(size_) + " bytes");
+    if (offset + dst.size() <= head_.size()) {  // the bytes open() fetched: no request
+      std::memcpy(dst.data(), head_.data() + offset, dst.size());
+      return Status::success();
+    }
     for (uint32_t attempt = 0;; ++attempt) {
       Outcome o = fetch(offset, dst, true);
       if (o.status.ok()) return o.status;
@@ -150,12 +155,17 @@ class HttpSource final : public ByteSource {
     }
   }
 
-  // The size and validator, from a request for the first byte (retried as reads are).
+  // The size and validator, from a request for the file's first bytes (retried as reads are):
+  // as many as an archive header holds (format/SPEC.md section 5), which an ArchiveReader reads
+  // first and so gets without another round trip.
   Status open() {
-    uint8_t first = 0;
+    head_.assign(layout::kHeaderSize, 0);
     for (uint32_t attempt = 0;; ++attempt) {
-      Outcome o = fetch(0, std::span<uint8_t>(&first, 1), false);
-      if (o.status.ok()) return Status::success();
+      Outcome o = fetch(0, head_, false);
+      if (o.status.ok()) {
+        head_.resize(size_t(std::min<uint64_t>(head_received_, size_)));
+        return Status::success();
+      }
       if (o.transient && attempt < options_.retries) {
         retries_.fetch_add(1, std::memory_order_relaxed);
         std::this_thread::sleep_for(std::chrono::milliseconds(uint64_t(options_.backoff_ms) << std::min(attempt, 16u)));
@@ -252,7 +262,10 @@ class HttpSource final : public ByteSource {
         return {Status::failure(Error::io_read, url_ + ": the server does not answer range requests (" + http +
                                                     " without a Content-Range total)"), false};
       if (r.total == 0) return {Status::failure(Error::truncated, url_ + ": the file is empty"), false};
+      if (r.first != 0 || r.received != std::min<uint64_t>(dst.size(), r.total))
+        return {Status::failure(Error::io_read, what + ": short answer of " + std::to_string(r.received) + " bytes"), true};
       size_ = r.total;
+      head_received_ = r.received;
       etag_ = r.etag;
       if_match_ = r.etag.starts_with("W/") ? std::string() : r.etag;  // If-Match compares strong tags only
       last_modified_ = r.last_modified;
@@ -275,6 +288,8 @@ class HttpSource final : public ByteSource {
   std::string url_;
   HttpOptions options_;
   mutable uint64_t size_ = 0;  // set by open(), then constant
+  std::vector<uint8_t> head_;  // the file's first bytes, fetched by open(), then constant
+  mutable size_t head_received_ = 0;
   mutable std::string etag_, if_match_, last_modified_;
   mutable std::mutex mutex_;
   mutable std::vector<CURL*> idle_;

@@ -97,6 +97,10 @@ class ResidentSurface;  // terrain/queries.h
 
 // ---- Configuration ----------------------------------------------------------------------------
 
+// Automatic StreamerConfig::max_fetches over HTTP: 32 reads in flight make up to 640 requests a
+// second at 50 ms round trips (streamer/README.md, "Over HTTP", measures what that buys).
+inline constexpr uint32_t kRemoteFetches = 32;
+
 struct StreamerConfig {
   // Most nodes resident at once, top nodes included. open() fails (invalid_argument) when the
   // archive has more top nodes than this (roots, when it has no overview levels). At most kMaxSlots.
@@ -137,9 +141,17 @@ struct StreamerConfig {
   // the budget, workers can decode a whole new wanted set ahead of the per-frame delivery cap.
   // 0 = automatic: max(2 * worker_threads, budget_nodes / 32). Requests beyond the room wait in
   // the priority queue, which is rebuilt each update(): requests that are no longer wanted are
-  // dropped there without any work done, and a worker holds at most one decode in progress, so a
-  // teleport never waits behind the old position's requests.
+  // dropped there without any work done, and a fetch thread holds at most one read and a worker
+  // one decode in progress, so a teleport waits behind at most max_fetches reads of the old
+  // position (a read already sent is not cancelled).
   uint32_t max_in_flight = 0;
+  // Payload reads in flight at once: threads that only read (pread, or one HTTP range request each,
+  // so round trips overlap), apart from the worker_threads that decode. A read takes along queued
+  // requests whose payloads follow each other in the file (up to 32 nodes, 2 MiB). Reads share the
+  // max_in_flight room with decodes: a node read and waiting for a decoder holds its stored bytes
+  // (at most 1 MiB, format/SPEC.md section 12) and counts as in flight. 0 = automatic:
+  // kRemoteFetches for an HTTP source, worker_threads for a file. At most 256.
+  uint32_t max_fetches = 0;
   // Payload sections decoded for the caller (terrain::Section bits); others stay untouched.
   unsigned sections = kSectionAll;
 };
@@ -226,7 +238,9 @@ struct StreamerStats {
   uint64_t loads_delivered = 0;
   uint64_t loads_discarded = 0;      // decoded, but no longer wanted when they finished
   uint64_t requests_dropped = 0;     // queued requests dropped (no longer wanted) before any work
-  uint64_t bytes_read = 0;           // stored (compressed) payload bytes decoded by workers
+  uint64_t fetches = 0;              // source reads (a run of adjacent payloads is one)
+  double fetch_seconds = 0;          // wall clock of those reads, summed over the fetch threads
+  uint64_t bytes_read = 0;           // stored (compressed) payload bytes read
   uint64_t bytes_decoded = 0;        // raw bytes produced (requested sections)
   double decode_seconds = 0;         // sum over workers of time spent in decode (wall clock)
   double decode_cpu_seconds = 0;     // ... CPU time of those threads (the decode work itself)
@@ -259,6 +273,11 @@ class Streamer {
   // bad config; a top node whose payload is corrupt fails open() (there is no parent to cover it).
   // Reopening closes first.
   Status open(const std::string& archive_path, const StreamerConfig& config = {});
+  // The same on an archive the caller opened (terrain::remote's open_archive(), or any ByteSource),
+  // so that a caller who reads the directory first does not open it twice (over a URL, twice the
+  // round trips). The streamer takes the reader over. Automatic max_fetches counts it as remote
+  // when its source is an HTTP one.
+  Status open(ArchiveReader&& reader, const StreamerConfig& config = {});
   void close();
   bool is_open() const;
 

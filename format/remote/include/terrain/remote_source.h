@@ -3,7 +3,8 @@
 // default). Either is a ByteSource the reader and the streamer read as they read a file.
 //
 // An HTTP source learns the archive's size and the server's validator (ETag, else Last-Modified)
-// with one request at open, and sends that validator with every later range (If-Match or
+// with one request at open, for the file's first 128 bytes (an archive's header, kept: reading them
+// again costs no request), and sends that validator with every later range (If-Match or
 // If-Unmodified-Since): a file changed on the server since open fails its reads (io_changed),
 // never mixes two archives' bytes; the payload CRC stays the final guard. Failures are Statuses
 // naming the URL and the range, never crashes:
