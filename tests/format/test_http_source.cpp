@@ -244,4 +244,147 @@ TEST_F(HttpArchive, InspectTakesAUrl) {
   EXPECT_EQ(without_file(by_file), without_file(by_url));
 }
 
+// ---- The local cache folder (HttpOptions::cache_dir) ----
+
+// Reads every payload of `reader` and compares it with the file's.
+void expect_payloads_equal(const ArchiveReader& reader, const ArchiveReader& file) {
+  ASSERT_EQ(reader.nodes().size(), file.nodes().size());
+  std::vector<uint8_t> a, b;
+  for (size_t i = 0; i < file.nodes().size(); ++i) {
+    ASSERT_TRUE(file.read_payload(i, a).ok());
+    const Status st = reader.read_payload(i, b);
+    ASSERT_TRUE(st.ok()) << st.to_string();
+    ASSERT_EQ(a, b) << "node " << i;
+  }
+}
+
+HttpStats stats_of(const ArchiveReader& reader) {
+  HttpStats s;
+  EXPECT_TRUE(http_stats(*reader.source(), s));
+  return s;
+}
+
+// The file, a cache folder and a first run that read every payload through it.
+class HttpCache : public HttpArchive {
+ protected:
+  void SetUp() override {
+    HttpArchive::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
+    ASSERT_TRUE(file_.open(local_).ok());
+    options_ = quick();
+    options_.cache_dir = (dir_ / "cache").string();
+    url_ = server_.url("a.terrain");
+    ArchiveReader first;
+    ASSERT_TRUE(open_archive(first, url_, options_).ok());
+    ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(first, file_));
+    first_ = stats_of(first);
+  }
+  ArchiveReader file_;
+  HttpOptions options_;
+  std::string url_;
+  HttpStats first_;
+};
+
+// A second run reads what the first read from the cache folder: its open costs the one request
+// that learns the size and validator, and its payloads none. A second process (here: a second
+// source) on the same version meanwhile reads without the cache.
+TEST_F(HttpCache, TheNextRunReadsWithoutRequests) {
+  EXPECT_TRUE(first_.cached);
+  EXPECT_EQ(first_.cache_hits, 0u);
+  EXPECT_EQ(first_.requests, 2 + file_.nodes().size());
+  ArchiveReader second;
+  ASSERT_TRUE(open_archive(second, url_, options_).ok());
+  EXPECT_EQ(stats_of(second).requests, 1u) << "the directory and metadata come from the cache";
+  ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(second, file_));
+  const HttpStats s = stats_of(second);
+  EXPECT_EQ(s.requests, 1u);
+  EXPECT_EQ(s.cache_hits, 1 + file_.nodes().size());
+  EXPECT_TRUE(second.verify().ok());
+
+  ArchiveReader meanwhile;  // the version is held by `second`
+  ASSERT_TRUE(open_archive(meanwhile, url_, options_).ok());
+  EXPECT_FALSE(stats_of(meanwhile).cached);
+  ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(meanwhile, file_));
+}
+
+// Bytes changed in the cache, or a journal cut in the middle of a record, are never served: the
+// range is fetched again and kept again.
+TEST_F(HttpCache, ARangeThatFailsItsCheckIsFetchedAgain) {
+  std::vector<fs::path> versions;
+  for (const auto& e : fs::directory_iterator(dir_ / "cache")) versions.push_back(e.path());
+  ASSERT_EQ(versions.size(), 1u);
+  const NodeRecord& victim = file_.nodes()[3];
+  {
+    std::fstream data(versions[0] / "data", std::ios::binary | std::ios::in | std::ios::out);
+    data.seekg(std::streamoff(victim.payload_offset + victim.payload_size / 2));
+    char c = 0;
+    data.read(&c, 1);
+    c = char(c ^ 0x21);
+    data.seekp(std::streamoff(victim.payload_offset + victim.payload_size / 2));
+    data.write(&c, 1);
+    std::ofstream journal(versions[0] / "ranges", std::ios::binary | std::ios::app);
+    journal.write("half a record", 13);
+  }
+  {
+    ArchiveReader second;
+    ASSERT_TRUE(open_archive(second, url_, options_).ok());
+    EXPECT_EQ(fs::file_size(versions[0] / "ranges") % 24, 0u) << "the cut record is dropped";
+    ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(second, file_));
+    EXPECT_EQ(stats_of(second).requests, 2u) << "the open's, and the changed payload's again";
+  }
+  ArchiveReader third;
+  ASSERT_TRUE(open_archive(third, url_, options_).ok());
+  ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(third, file_));
+  EXPECT_EQ(stats_of(third).requests, 1u) << "the payload fetched again was kept again";
+}
+
+// A new version on the server is a new cache entry: none of the old one's bytes are served. The
+// limit evicts the old version once both do not fit, and the folder stays within it.
+TEST_F(HttpCache, ANewVersionIsCachedApartAndTheLimitEvictsTheOld) {
+  const uint64_t old_size = fs::file_size(local_);
+  synthetic::Spec other;  // another archive in its place
+  other.roots_x = other.roots_y = 2;
+  ASSERT_TRUE(synthetic::write_archive(local_, other).ok());
+  ASSERT_NO_FATAL_FAILURE(touch_ahead(local_, 100));
+  const uint64_t new_size = fs::file_size(local_);
+  options_.cache_limit_bytes = new_size + 64 * 1024 + old_size / 2;  // room for the new version, not both
+  ArchiveReader file, second;
+  ASSERT_TRUE(file.open(local_).ok());
+  ASSERT_TRUE(open_archive(second, url_, options_).ok());
+  ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(second, file));
+  const HttpStats s = stats_of(second);
+  EXPECT_EQ(s.cache_hits, 0u);
+  EXPECT_EQ(s.cache_refused, 0u);
+  uint64_t disk = 0;
+  int versions = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "cache")) {
+    ++versions;
+    struct stat st {};
+    ASSERT_EQ(::stat((e.path() / "data").c_str(), &st), 0);
+    disk += uint64_t(st.st_blocks) * 512;
+  }
+  EXPECT_EQ(versions, 1) << "the old version was evicted";
+  EXPECT_LE(disk, options_.cache_limit_bytes);
+
+  // A limit below one range keeps nothing, and says so.
+  options_.cache_dir = (dir_ / "tiny").string();
+  options_.cache_limit_bytes = 1024;
+  ArchiveReader tiny;
+  ASSERT_TRUE(open_archive(tiny, url_, options_).ok());
+  ASSERT_NO_FATAL_FAILURE(expect_payloads_equal(tiny, file));
+  EXPECT_GT(stats_of(tiny).cache_refused, 0u);
+}
+
+// A cache folder that cannot be made fails the open, naming it.
+TEST_F(HttpArchive, AnUnusableCacheFolderIsANamedError) {
+  HttpOptions options = quick();
+  fs::create_directories(dir_);
+  std::ofstream(dir_ / "plain-file") << "x";
+  options.cache_dir = (dir_ / "plain-file" / "cache").string();
+  ArchiveReader web;
+  const Status st = open_archive(web, server_.url("a.terrain"), options);
+  EXPECT_EQ(st.code, Error::io_open);
+  EXPECT_NE(st.message.find("cache folder " + options.cache_dir), std::string::npos) << st.message;
+}
+
 }  // namespace

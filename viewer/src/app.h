@@ -29,6 +29,8 @@ struct ViewerOptions {
   uint32_t worker_threads = 0;
   uint32_t upload_threads = 0;     // RendererConfig::upload_threads
   uint32_t max_deliveries = 128;  // nodes the streamer hands over per frame
+  std::string cache_dir;           // an http(s) archive's ranges kept here across runs (HttpOptions::cache_dir)
+  uint64_t cache_limit_mb = 1024;
   bool load_all = false;       // decode every node up front instead of streaming
   std::string atlas = "auto";      // bc | rgba8 | auto (rgba8 on CPU devices: see RendererConfig::decode_bc)
   std::string far_light = "auto";  // texel | pixel | auto (texel on CPU devices: see RendererConfig::prelit_far)

@@ -50,6 +50,11 @@ bool parse_viewer_options(int argc, char** argv, ViewerOptions& o, int& exit_cod
   app.add_option("--budget", o.budget_nodes, "resident node budget of the streamer; 0 = automatic (512, or roots + 512 for an archive without overview levels)")
       ->capture_default_str()->check(terrain::cli::int_range(1, 65534));
   app.add_option("--threads", o.worker_threads, "streamer worker threads (0 = all cores)")->check(terrain::cli::int_range(0, 256));
+  app.add_option("--cache-dir", o.cache_dir,
+                 "an http(s):// archive: keep the ranges read in this folder (made when absent), so the next run reads "
+                 "them from disk; versions least recently opened are evicted to stay within --cache-limit-mb");
+  app.add_option("--cache-limit-mb", o.cache_limit_mb, "disk the --cache-dir folder may take, MB")
+      ->capture_default_str()->check(CLI::Range(uint64_t(1), uint64_t(1) << 30));
   app.add_option("--upload-threads", o.upload_threads,
                  "threads that prepare delivered nodes for upload: decoding, lighting, patch bounds and errors (0 = all cores)")
       ->check(terrain::cli::int_range(0, 256));

@@ -56,6 +56,8 @@ Status open_session(const ViewerOptions& o, const std::vector<const char*>& inst
     so.error_target_px = o.settings.error_target_px;
     so.worker_threads = o.worker_threads;
     so.max_deliveries_per_frame = o.max_deliveries;
+    so.http.cache_dir = o.cache_dir;
+    so.http.cache_limit_bytes = o.cache_limit_mb << 20;
     TERRAIN_TRY(open_stream_source(o.archive, so, s->source));
   }
   // Hole method: the NaN clip position where it is known to work (lavapipe: ViewerGpu tests).

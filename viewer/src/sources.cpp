@@ -20,7 +20,7 @@ class StreamSource final : public NodeSource {
     config.worker_threads = o.worker_threads;
     config.max_deliveries_per_frame = std::max(o.max_deliveries_per_frame, 1u);
     ArchiveReader reader;  // opened once: the streamer takes it over
-    TERRAIN_TRY(open_archive(reader, path));
+    TERRAIN_TRY(open_archive(reader, path, o.http));
     {
       // The streamer keeps the top level resident: at most 16 overview nodes (format/SPEC.md
       // section 19), or every root of an archive without overview levels. Budget 0 (the default)

@@ -8,6 +8,7 @@
 #include "camera.h"
 #include "residency.h"
 #include "terrain/archive_reader.h"
+#include "terrain/remote_source.h"
 #include "terrain/streamer.h"
 #include "terrain_state.h"
 
@@ -42,6 +43,7 @@ struct StreamSourceOptions {
   double error_target_px = 2.0;
   uint32_t worker_threads = 0;
   uint32_t max_deliveries_per_frame = 128;
+  HttpOptions http;  // for an http(s):// archive (the cache folder among them)
 };
 Status open_stream_source(const std::string& archive, const StreamSourceOptions& options, std::unique_ptr<NodeSource>& out);
 

@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "range_cache.h"
 #include "terrain/archive_layout.h"
 #include "terrain/remote_source.h"
 
@@ -140,9 +141,13 @@ class HttpSource final : public ByteSource {
       std::memcpy(dst.data(), head_.data() + offset, dst.size());
       return Status::success();
     }
+    if (cache_ && cache_->read(offset, dst)) return Status::success();
     for (uint32_t attempt = 0;; ++attempt) {
       Outcome o = fetch(offset, dst, true);
-      if (o.status.ok()) return o.status;
+      if (o.status.ok()) {
+        if (cache_) cache_->write(offset, dst);
+        return o.status;
+      }
       if (o.transient && attempt < options_.retries) {
         retries_.fetch_add(1, std::memory_order_relaxed);
         std::this_thread::sleep_for(std::chrono::milliseconds(uint64_t(options_.backoff_ms) << std::min(attempt, 16u)));
@@ -164,7 +169,7 @@ class HttpSource final : public ByteSource {
       Outcome o = fetch(0, head_, false);
       if (o.status.ok()) {
         head_.resize(size_t(std::min<uint64_t>(head_received_, size_)));
-        return Status::success();
+        return open_cache();
       }
       if (o.transient && attempt < options_.retries) {
         retries_.fetch_add(1, std::memory_order_relaxed);
@@ -175,9 +180,25 @@ class HttpSource final : public ByteSource {
     }
   }
 
+  // The cache of this version, when options_.cache_dir names one and the server tells versions apart.
+  Status open_cache() {
+    if (options_.cache_dir.empty() || (etag_.empty() && last_modified_.empty())) return Status::success();
+    bool busy = false;
+    return detail::RangeCache::open(options_.cache_dir, options_.cache_limit_bytes, url_, size_,
+                                    etag_.empty() ? "Last-Modified " + last_modified_ : "ETag " + etag_, cache_, busy);
+  }
+
   HttpStats stats() const {
-    return HttpStats{.requests = requests_.load(), .bytes = bytes_.load(), .retries = retries_.load(),
-                     .failures = failures_.load()};
+    HttpStats s{.requests = requests_.load(), .bytes = bytes_.load(), .retries = retries_.load(),
+                .failures = failures_.load()};
+    if (cache_) {
+      const detail::RangeCache::Stats c = cache_->stats();
+      s.cached = true;
+      s.cache_hits = c.hits;
+      s.cache_bytes = c.hit_bytes;
+      s.cache_refused = c.refused;
+    }
+    return s;
   }
 
  private:
@@ -289,6 +310,7 @@ class HttpSource final : public ByteSource {
   HttpOptions options_;
   mutable uint64_t size_ = 0;  // set by open(), then constant
   std::vector<uint8_t> head_;  // the file's first bytes, fetched by open(), then constant
+  std::unique_ptr<detail::RangeCache> cache_;  // set by open() (or null), then constant
   mutable size_t head_received_ = 0;
   mutable std::string etag_, if_match_, last_modified_;
   mutable std::mutex mutex_;

@@ -33,6 +33,14 @@ struct HttpOptions {
   uint32_t retries = 3;                // transient failures retried this many times per read
   uint32_t backoff_ms = 50;            // wait before the k-th retry: backoff_ms * 2^(k-1)
   std::string ca_file;                 // https: a CA bundle (PEM) to trust instead of the system's
+  // A local folder that keeps the ranges read (made when absent), so that the next run reads them
+  // from disk: one folder per file version (URL, size, ETag or Last-Modified), every range's bytes
+  // CRC-checked before they are served, versions least recently opened evicted to stay within
+  // cache_limit_bytes of disk. "" = none. A folder that cannot be made or written fails the open;
+  // a version another process holds is read without the cache. Not for a server that gives
+  // neither ETag nor Last-Modified (nothing would tell its versions apart): read without it.
+  std::string cache_dir;
+  uint64_t cache_limit_bytes = uint64_t(1) << 30;
 };
 
 // What an HTTP source has done since open (counters; any thread may read them).
@@ -41,6 +49,10 @@ struct HttpStats {
   uint64_t bytes = 0;     // body bytes received
   uint64_t retries = 0;   // requests repeated after a transient failure
   uint64_t failures = 0;  // reads that failed after their retries
+  bool cached = false;         // reads go through HttpOptions::cache_dir
+  uint64_t cache_hits = 0;     // reads answered from it, without a request
+  uint64_t cache_bytes = 0;    // ... their bytes
+  uint64_t cache_refused = 0;  // ranges it did not keep (its limit, a failed write)
 };
 
 // True for "http://..." and "https://..." (case-insensitive scheme).
