@@ -176,7 +176,8 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
   return impl_->decode_checked(index, bytes, sections, out);
 }
 
-Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out) const {
+Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out,
+                                       const std::atomic<bool>* cancel) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
   const std::vector<NodeRecord>& nodes = impl_->nodes;
   if (run.empty()) return Status::failure(Error::invalid_argument, "empty payload run");
@@ -191,7 +192,8 @@ Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vecto
     bytes += nodes[run[i]].payload_size;
   }
   out.resize(size_t(bytes));
-  if (Status s = impl_->source->read(nodes[run[0]].payload_offset, out); !s.ok()) {
+  const uint64_t at = nodes[run[0]].payload_offset;
+  if (Status s = cancel ? impl_->source->read_cancellable(at, out, *cancel) : impl_->source->read(at, out); !s.ok()) {
     const std::string more = run.size() > 1 ? "(and the " + std::to_string(run.size() - 1) + " nodes after it, " +
                                                   std::to_string(bytes) + " bytes) "
                                             : "";

@@ -38,9 +38,13 @@ void LoadQueue::publish(const std::vector<uint32_t>& requests, std::vector<uint3
     std::vector<uint32_t> next;
     next.reserve(requests.size());
     for (uint32_t node : requests) {
-      if (taken_[node]) continue;
       publish_mark_[node] = generation_;
-      next.push_back(node);
+      if (!taken_[node]) next.push_back(node);
+    }
+    for (ActiveRead* read : active_) {
+      const bool wanted = std::any_of(read->run.begin(), read->run.end(),
+                                      [&](uint32_t node) { return publish_mark_[node] == generation_; });
+      if (!wanted) read->cancel.store(true);
     }
     for (size_t i = queue_pos_; i < queue_.size(); ++i)
       if (queue_[i] != kTakenEntry && publish_mark_[queue_[i]] != generation_) dropped.push_back(queue_[i]);
@@ -135,18 +139,21 @@ void LoadQueue::fetch_main() {
   for (;;) {
     work_ready_.wait(lock, [&] { return stop_ || (counters_.in_flight < capacity_ && next_request()); });
     if (stop_) return;
-    const std::vector<uint32_t> run = take_run();
+    ActiveRead read;
+    read.run = take_run();
+    const std::vector<uint32_t>& run = read.run;
+    active_.push_back(&read);
     lock.unlock();
 
     // All source access (pread, or a range request) happens here, off the owner's thread.
     auto bytes = std::make_shared<std::vector<uint8_t>>();
     const auto t0 = std::chrono::steady_clock::now();
-    const Status status = reader_.read_payload_run(run, *bytes);
+    const Status status = reader_.read_payload_run(run, *bytes, &read.cancel);
 
     // A run that failed is read again node by node, so only the nodes whose bytes are unreadable
     // (past a truncated file's end, say) fail.
     std::vector<Fetched> done;
-    if (status.ok() || run.size() == 1) {
+    if (status.ok() || run.size() == 1 || status.code == Error::cancelled) {
       size_t offset = 0;
       for (uint32_t node : run) {
         done.push_back({node, bytes, offset, status});
@@ -162,9 +169,21 @@ void LoadQueue::fetch_main() {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     lock.lock();
+    active_.erase(std::find(active_.begin(), active_.end(), &read));
     counters_.fetch_seconds += seconds;
-    if (!(status.ok() || run.size() == 1)) counters_.fetches += run.size();
-    for (Fetched& f : done) fetched_.push_back(std::move(f));
+    if (status.code == Error::cancelled)
+      ++counters_.reads_cancelled;
+    else if (!(status.ok() || run.size() == 1))
+      counters_.fetches += run.size();
+    // Failed and cancelled reads skip the decoders: their results carry no data.
+    for (Fetched& f : done) {
+      if (f.status.ok()) {
+        fetched_.push_back(std::move(f));
+      } else {
+        results_.push_back({f.node, nullptr, {}, std::move(f.status), 0, 0});
+        result_ready_.notify_one();
+      }
+    }
     fetched_ready_.notify_all();
   }
 }

@@ -6,6 +6,7 @@
 // The owner thread replaces the whole request list each frame, so requests that are no longer
 // wanted are dropped before any work is done.
 #pragma once
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -36,6 +37,7 @@ class LoadQueue {
   struct Counters {
     uint64_t loads_started = 0;
     uint64_t fetches = 0;           // source reads issued (one per run of adjacent payloads)
+    uint64_t reads_cancelled = 0;   // reads stopped because none of their nodes was wanted any more
     uint64_t bytes_read = 0;
     double fetch_seconds = 0;       // wall clock of the reads, summed over fetch threads
     double decode_seconds = 0;      // wall clock, summed over workers
@@ -61,7 +63,8 @@ class LoadQueue {
 
   // Replaces the request list (highest priority first). Requests of the previous list not yet
   // taken and absent from the new one are appended to `dropped`. Nodes already taken by a worker
-  // are skipped (their result is on its way).
+  // are skipped (their result is on its way); a read in progress none of whose nodes is in the new
+  // list is stopped, and its nodes come back as results with status `cancelled` (no data).
   void publish(const std::vector<uint32_t>& requests, std::vector<uint32_t>& dropped);
   // Moves finished results into `out` (appended). With `wait`, blocks until there is one.
   void collect(std::vector<Result>& out, bool wait);
@@ -75,6 +78,12 @@ class LoadQueue {
 
  private:
   static constexpr uint32_t kTakenEntry = UINT32_MAX;  // a queue entry a fetch took out of order
+
+  // A read in progress: its nodes, and the flag that stops it when none of them is wanted any more.
+  struct ActiveRead {
+    std::vector<uint32_t> run;
+    std::atomic<bool> cancel{false};
+  };
 
   struct Fetched {
     uint32_t node = 0;
@@ -103,6 +112,7 @@ class LoadQueue {
   std::vector<uint8_t> taken_;            // per node: a worker took it, result not collected
   uint32_t generation_ = 0;
   uint32_t capacity_ = 0;
+  std::vector<ActiveRead*> active_;       // reads in progress (owned by their fetch threads)
   std::deque<Fetched> fetched_;           // read, waiting for a decoder (in the order read)
   std::vector<Result> results_;
   std::vector<std::unique_ptr<NodeData>> buffers_;  // every buffer ever allocated

@@ -237,6 +237,11 @@ struct Streamer::Impl {
     std::vector<detail::LoadQueue::Result> results;
     loader->collect(results, /*wait=*/false);
     for (auto& r : results) {
+      if (r.status.code == Error::cancelled) {  // no longer wanted when its read was stopped: not a failure
+        ++to_release;
+        phase[r.node] = Phase::idle;
+        continue;
+      }
       if (!r.status.ok()) {
         to_free.push_back(r.data);
         ++to_release;
@@ -390,6 +395,7 @@ struct Streamer::Impl {
     s.loads_discarded = loads_discarded;
     s.requests_dropped = requests_dropped;
     s.fetches = c.fetches;
+    s.reads_cancelled = c.reads_cancelled;
     s.fetch_seconds = c.fetch_seconds;
     s.bytes_read = c.bytes_read;
     s.bytes_decoded = bytes_decoded;

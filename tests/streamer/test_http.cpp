@@ -89,6 +89,40 @@ TEST_F(StreamerHttp, AnArchiveReplacedOnTheServerFailsItsNodesAsChanged) {
   for (const NodeKey& k : web.resident_nodes()) EXPECT_EQ(k.level, uint32_t(kRootLevel));
 }
 
+// A read in progress whose nodes are no longer wanted is stopped: over a slow link (1 Mbit/s), a
+// jump away while the first position's reads are on their way stops them (their transfers end);
+// those nodes become idle, never failed, and the streamer settles at the new position to the
+// reference, every invariant checked each frame.
+TEST_F(StreamerHttp, ReadsOfNodesNoLongerWantedAreStopped) {
+  const synthetic::Spec s = deep_sparse_spec();
+  const double cx = s.origin_x_m + 3000, cy = s.origin_y_m + 4100;
+  const View here = view_at(cx, cy, synthetic::surface_height_m(s, cx, cy) + 15);
+  const View away = view_at(s.origin_x_m + 9000, s.origin_y_m + 500, 900);
+  tools::LatencyProxy proxy;
+  std::string error, host, path;
+  int port = 0;
+  ASSERT_TRUE(tools::parse_http_url(server_.url("deep.terrain"), host, port, path));
+  ASSERT_TRUE(proxy.start(host, port, tools::LinkModel{20, 1}, error)) << error;
+  Streamer web;
+  const Status opened = web.open(proxy.proxied(server_.url("deep.terrain")), with_workers(2));
+  ASSERT_TRUE(opened.ok()) << opened.to_string();
+  StreamChecker checker(web, true);
+  for (int frame = 0; frame < 20; ++frame) {  // reads for `here` start and are on their way
+    ASSERT_EQ(checker.check(web.update({&here, 1})), "");
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_GT(web.stats().wanted_missing, 100u) << "the link is too fast for reads to be in progress";
+  ASSERT_EQ(settle_and_compare(web, checker, {&away, 1}), "");
+  const StreamerStats st = web.stats();
+  EXPECT_GT(st.reads_cancelled, 0u);
+  EXPECT_EQ(st.failed, 0u);
+  EXPECT_TRUE(checker.failures().empty());
+  HttpStats http;
+  ASSERT_TRUE(http_stats(*web.archive().source(), http));
+  EXPECT_EQ(http.cancelled, st.reads_cancelled);
+  EXPECT_EQ(http.failures, 0u);
+}
+
 // Issue 52's flight: a default cook of a shared SRTM tile read by URL through a link of 50 ms round
 // trips and 100 Mbit/s (tools/common/latency_proxy.h), the camera at 300 m/s in wall-clock time
 // (its position follows the clock, so a slow frame does not slow the flight), 300 m above the

@@ -73,7 +73,9 @@ class ArchiveReader {
   // into `out`, checking nothing; errors name the run's first node, its length and the range.
   // decode_payload() checks one node's stored bytes (size, CRC-32) and decodes `sections` into `out`;
   // errors name the node as above.
-  Status read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out) const;
+  // With `cancel`, the read gives up (`cancelled`) once it is set (ByteSource::read_cancellable).
+  Status read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out,
+                          const std::atomic<bool>* cancel = nullptr) const;
   Status decode_payload(size_t index, std::span<const uint8_t> stored, NodeData& out,
                         unsigned sections = kSectionAll) const;
   // True when node b's payload starts where node a's ends.

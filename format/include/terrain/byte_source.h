@@ -4,6 +4,7 @@
 // never a signal. Implementations: a local file read with pread(2), bytes held in memory; a remote
 // source (HTTP range requests) implements the same three calls.
 #pragma once
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -25,6 +26,12 @@ class ByteSource {
   // `truncated` when the data ends before the range does (the file shrank after open, a short
   // read), `io_read` for any other failure. On failure dst holds unspecified bytes.
   virtual Status read(uint64_t offset, std::span<uint8_t> dst) const = 0;
+  // read() that may give up early, with `cancelled`, once `cancel` is set: a remote source stops
+  // the transfer. This default, for sources whose reads are quick (a file, memory), reads all.
+  virtual Status read_cancellable(uint64_t offset, std::span<uint8_t> dst, const std::atomic<bool>& cancel) const {
+    (void)cancel;
+    return read(offset, dst);
+  }
   // What messages call the source: the path it was opened with, or "memory".
   virtual const std::string& name() const = 0;
 };

@@ -97,6 +97,11 @@ size_t on_body(char* data, size_t size, size_t n, void* user) {
   return len;
 }
 
+// libcurl's progress callback: a non-zero answer stops the transfer.
+int on_progress(void* cancel, curl_off_t, curl_off_t, curl_off_t, curl_off_t) {
+  return cancel && static_cast<const std::atomic<bool>*>(cancel)->load() ? 1 : 0;
+}
+
 bool transient_curl(CURLcode c) {
   switch (c) {
     case CURLE_OPERATION_TIMEDOUT:
@@ -132,32 +137,9 @@ class HttpSource final : public ByteSource {
   uint64_t size() const override { return size_; }
   const std::string& name() const override { return url_; }
 
-  Status read(uint64_t offset, std::span<uint8_t> dst) const override {
-    if (dst.empty()) return Status::success();
-    if (offset > size_ || dst.size() > size_ - offset)
-      return Status::failure(Error::truncated, url_ + ": " + range_text(offset, dst.size()) + " lies beyond its " +
-                                                   std::to_string(size_) + " bytes");
-    if (offset + dst.size() <= head_.size()) {  // the bytes open() fetched: no request
-      std::memcpy(dst.data(), head_.data() + offset, dst.size());
-      return Status::success();
-    }
-    if (cache_ && cache_->read(offset, dst)) return Status::success();
-    for (uint32_t attempt = 0;; ++attempt) {
-      Outcome o = fetch(offset, dst, true);
-      if (o.status.ok()) {
-        if (cache_) cache_->write(offset, dst);
-        return o.status;
-      }
-      if (o.transient && attempt < options_.retries) {
-        retries_.fetch_add(1, std::memory_order_relaxed);
-        std::this_thread::sleep_for(std::chrono::milliseconds(uint64_t(options_.backoff_ms) << std::min(attempt, 16u)));
-        continue;
-      }
-      failures_.fetch_add(1, std::memory_order_relaxed);
-      if (o.transient)
-        o.status.message += " (after " + std::to_string(attempt) + (attempt == 1 ? " retry)" : " retries)");
-      return o.status;
-    }
+  Status read(uint64_t offset, std::span<uint8_t> dst) const override { return read_until(offset, dst, nullptr); }
+  Status read_cancellable(uint64_t offset, std::span<uint8_t> dst, const std::atomic<bool>& cancel) const override {
+    return read_until(offset, dst, &cancel);
   }
 
   // The size and validator, from a request for the file's first bytes (retried as reads are):
@@ -190,7 +172,7 @@ class HttpSource final : public ByteSource {
 
   HttpStats stats() const {
     HttpStats s{.requests = requests_.load(), .bytes = bytes_.load(), .retries = retries_.load(),
-                .failures = failures_.load()};
+                .failures = failures_.load(), .cancelled = cancelled_.load()};
     if (cache_) {
       const detail::RangeCache::Stats c = cache_->stats();
       s.cached = true;
@@ -202,6 +184,39 @@ class HttpSource final : public ByteSource {
   }
 
  private:
+  // read(), giving up once `cancel` (when given) is set: before a request, or while its bytes come.
+  Status read_until(uint64_t offset, std::span<uint8_t> dst, const std::atomic<bool>* cancel) const {
+    if (dst.empty()) return Status::success();
+    if (offset > size_ || dst.size() > size_ - offset)
+      return Status::failure(Error::truncated, url_ + ": " + range_text(offset, dst.size()) + " lies beyond its " +
+                                                   std::to_string(size_) + " bytes");
+    if (offset + dst.size() <= head_.size()) {  // the bytes open() fetched: no request
+      std::memcpy(dst.data(), head_.data() + offset, dst.size());
+      return Status::success();
+    }
+    if (cache_ && cache_->read(offset, dst)) return Status::success();
+    for (uint32_t attempt = 0;; ++attempt) {
+      if (cancel && cancel->load()) {
+        cancelled_.fetch_add(1, std::memory_order_relaxed);
+        return Status::failure(Error::cancelled, url_ + ": " + range_text(offset, dst.size()) + ": no longer wanted");
+      }
+      Outcome o = fetch(offset, dst, true, cancel);
+      if (o.status.ok()) {
+        if (cache_) cache_->write(offset, dst);
+        return o.status;
+      }
+      if (o.transient && attempt < options_.retries) {
+        retries_.fetch_add(1, std::memory_order_relaxed);
+        std::this_thread::sleep_for(std::chrono::milliseconds(uint64_t(options_.backoff_ms) << std::min(attempt, 16u)));
+        continue;
+      }
+      (o.status.code == Error::cancelled ? cancelled_ : failures_).fetch_add(1, std::memory_order_relaxed);
+      if (o.transient)
+        o.status.message += " (after " + std::to_string(attempt) + (attempt == 1 ? " retry)" : " retries)");
+      return o.status;
+    }
+  }
+
   CURL* acquire() const {
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -220,7 +235,8 @@ class HttpSource final : public ByteSource {
 
   // One request for [offset, offset + dst.size()). `validate`: send the validator and check the
   // answer against what open() learnt; false (open() itself): learn the size and the validator.
-  Outcome fetch(uint64_t offset, std::span<uint8_t> dst, bool validate) const {
+  // With `cancel`, the transfer stops (cancelled) once it is set.
+  Outcome fetch(uint64_t offset, std::span<uint8_t> dst, bool validate, const std::atomic<bool>* cancel = nullptr) const {
     const std::string what = url_ + ": " + range_text(offset, dst.size());
     CURL* h = acquire();
     if (!h) return {Status::failure(Error::io_read, what + ": cannot start a request (curl_easy_init)"), false};
@@ -247,6 +263,9 @@ class HttpSource final : public ByteSource {
     curl_easy_setopt(h, CURLOPT_CONNECTTIMEOUT_MS, long(options_.connect_timeout_ms));
     curl_easy_setopt(h, CURLOPT_ACCEPT_ENCODING, nullptr);  // the bytes as stored, never re-encoded
     if (!options_.ca_file.empty()) curl_easy_setopt(h, CURLOPT_CAINFO, options_.ca_file.c_str());
+    curl_easy_setopt(h, CURLOPT_NOPROGRESS, cancel ? 0L : 1L);
+    curl_easy_setopt(h, CURLOPT_XFERINFOFUNCTION, on_progress);
+    curl_easy_setopt(h, CURLOPT_XFERINFODATA, const_cast<std::atomic<bool>*>(cancel));
     requests_.fetch_add(1, std::memory_order_relaxed);
     const CURLcode code = curl_easy_perform(h);
     curl_easy_setopt(h, CURLOPT_HTTPHEADER, nullptr);
@@ -256,6 +275,9 @@ class HttpSource final : public ByteSource {
     if (code != CURLE_OK) {
       // A connection in an unknown state is not reused.
       curl_easy_cleanup(h);
+      if (code == CURLE_ABORTED_BY_CALLBACK)
+        return {Status::failure(Error::cancelled, what + ": no longer wanted (stopped after " +
+                                                      std::to_string(r.received) + " bytes)"), false};
       if (r.overflow)
         return {Status::failure(Error::io_read, what + (r.status == 200 ? ": the server ignored the range (HTTP 200): it "
                                                                           "does not answer range requests"
@@ -315,7 +337,7 @@ class HttpSource final : public ByteSource {
   mutable std::string etag_, if_match_, last_modified_;
   mutable std::mutex mutex_;
   mutable std::vector<CURL*> idle_;
-  mutable std::atomic<uint64_t> requests_{0}, bytes_{0}, retries_{0}, failures_{0};
+  mutable std::atomic<uint64_t> requests_{0}, bytes_{0}, retries_{0}, failures_{0}, cancelled_{0};
 };
 
 }  // namespace

@@ -141,9 +141,10 @@ struct StreamerConfig {
   // the budget, workers can decode a whole new wanted set ahead of the per-frame delivery cap.
   // 0 = automatic: max(2 * worker_threads, budget_nodes / 32). Requests beyond the room wait in
   // the priority queue, which is rebuilt each update(): requests that are no longer wanted are
-  // dropped there without any work done, and a fetch thread holds at most one read and a worker
-  // one decode in progress, so a teleport waits behind at most max_fetches reads of the old
-  // position (a read already sent is not cancelled).
+  // dropped there without any work done; a read in progress whose nodes are all no longer wanted
+  // is stopped (over HTTP its transfer ends; a file's pread is short and runs to its end), and its
+  // nodes become idle, not failed. A worker holds one decode in progress, so a teleport never
+  // waits behind the old position's requests.
   uint32_t max_in_flight = 0;
   // Payload reads in flight at once: threads that only read (pread, or one HTTP range request each,
   // so round trips overlap), apart from the worker_threads that decode. A read takes along queued
@@ -239,6 +240,7 @@ struct StreamerStats {
   uint64_t loads_discarded = 0;      // decoded, but no longer wanted when they finished
   uint64_t requests_dropped = 0;     // queued requests dropped (no longer wanted) before any work
   uint64_t fetches = 0;              // source reads (a run of adjacent payloads is one)
+  uint64_t reads_cancelled = 0;      // reads stopped (HTTP: the transfer) once none of their nodes was wanted
   double fetch_seconds = 0;          // wall clock of those reads, summed over the fetch threads
   uint64_t bytes_read = 0;           // stored (compressed) payload bytes read
   uint64_t bytes_decoded = 0;        // raw bytes produced (requested sections)

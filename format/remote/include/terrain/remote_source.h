@@ -13,7 +13,8 @@
 //   - transient: a timeout, a reset or refused connection, 5xx, 408, 429: retried `retries` times,
 //     the k-th after backoff_ms * 2^(k-1), then io_read;
 //   - a short or overlong answer, or a Content-Range other than the one asked for: io_read;
-//   - changed since open (412, another total size): io_changed; beyond its end (416): truncated.
+//   - changed since open (412, another total size): io_changed; beyond its end (416): truncated;
+//   - a read_cancellable() whose flag was set stops its transfer: cancelled, never retried.
 // Reads may run on many threads at once; each takes an idle connection (kept alive) or opens one.
 #pragma once
 #include <cstdint>
@@ -49,6 +50,7 @@ struct HttpStats {
   uint64_t bytes = 0;     // body bytes received
   uint64_t retries = 0;   // requests repeated after a transient failure
   uint64_t failures = 0;  // reads that failed after their retries
+  uint64_t cancelled = 0;  // reads given up (ByteSource::read_cancellable) when the caller no longer wanted them
   bool cached = false;         // reads go through HttpOptions::cache_dir
   uint64_t cache_hits = 0;     // reads answered from it, without a request
   uint64_t cache_bytes = 0;    // ... their bytes
