@@ -34,6 +34,15 @@ class StreamerHttp : public NginxTest {
     local_ = (server_.root() / "deep.terrain").string();
     copy_file(synthetic_archive(deep_sparse_spec()), local_);
   }
+  // Starts `proxy` with `link` in front of the server and opens `name` through it (2 workers).
+  void open_through(tools::LatencyProxy& proxy, tools::LinkModel link, const std::string& name, Streamer& web) {
+    std::string error, host, path;
+    int port = 0;
+    ASSERT_TRUE(tools::parse_http_url(server_.url(name), host, port, path));
+    ASSERT_TRUE(proxy.start(host, port, link, error)) << error;
+    const Status opened = web.open(proxy.proxied(server_.url(name)), with_workers(2));
+    ASSERT_TRUE(opened.ok()) << opened.to_string();
+  }
   std::string local_;
 };
 
@@ -99,13 +108,8 @@ TEST_F(StreamerHttp, ReadsOfNodesNoLongerWantedAreStopped) {
   const View here = view_at(cx, cy, synthetic::surface_height_m(s, cx, cy) + 15);
   const View away = view_at(s.origin_x_m + 9000, s.origin_y_m + 500, 900);
   tools::LatencyProxy proxy;
-  std::string error, host, path;
-  int port = 0;
-  ASSERT_TRUE(tools::parse_http_url(server_.url("deep.terrain"), host, port, path));
-  ASSERT_TRUE(proxy.start(host, port, tools::LinkModel{20, 1}, error)) << error;
   Streamer web;
-  const Status opened = web.open(proxy.proxied(server_.url("deep.terrain")), with_workers(2));
-  ASSERT_TRUE(opened.ok()) << opened.to_string();
+  ASSERT_NO_FATAL_FAILURE(open_through(proxy, tools::LinkModel{20, 1}, "deep.terrain", web));
   StreamChecker checker(web, true);
   for (int frame = 0; frame < 20; ++frame) {  // reads for `here` start and are on their way
     ASSERT_EQ(checker.check(web.update({&here, 1})), "");
@@ -139,15 +143,8 @@ TEST_F(StreamerHttp, AFlightAt300MetresASecondOverA50MsLinkHasNoGapFrame) {
   const std::string cook = (bin_dir() / "terrain-cook").string() + " '" + tile.string() + "' -o '" + archive + "' --quiet";
   ASSERT_EQ(std::system(cook.c_str()), 0) << cook;
   tools::LatencyProxy proxy;
-  std::string error;
-  std::string host, path;
-  int port = 0;
-  ASSERT_TRUE(tools::parse_http_url(server_.url("n19w155.terrain"), host, port, path));
-  ASSERT_TRUE(proxy.start(host, port, tools::LinkModel{50, 100}, error)) << error;
-
   Streamer web;
-  const Status opened = web.open(proxy.proxied(server_.url("n19w155.terrain")), with_workers(2));
-  ASSERT_TRUE(opened.ok()) << opened.to_string();
+  ASSERT_NO_FATAL_FAILURE(open_through(proxy, tools::LinkModel{50, 100}, "n19w155.terrain", web));
   const ArchiveReader& reader = web.archive();
   const WorldInfo& w = reader.world();
   // West to east through the middle of the root of most relief (the tile is half sea).
