@@ -112,6 +112,17 @@ class Ground {
   SurfaceSampler sampler_;
 };
 
+// The streamer's configuration the options ask for.
+StreamerConfig streamer_config(const Options& o) {
+  StreamerConfig config;
+  config.budget_nodes = o.budget;
+  config.worker_threads = o.threads;
+  config.max_fetches = o.fetches;
+  config.error_target_px = o.target_px;
+  config.max_deliveries_per_frame = o.max_deliveries;
+  return config;
+}
+
 std::vector<Path> make_paths(const ArchiveReader& reader, const Options& o) {
   const WorldInfo& w = reader.world();
   // Paths start over the finest nodes of the archive (where detail, and so streaming, is).
@@ -492,12 +503,7 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
   }
   uint32_t roots = 0;
   for (const NodeRecord& r : reader.nodes()) roots += r.key.level == uint32_t(kRootLevel);
-  StreamerConfig config;
-  config.budget_nodes = o.budget;
-  config.worker_threads = o.threads;
-  config.max_fetches = o.fetches;
-  config.error_target_px = o.target_px;
-  config.max_deliveries_per_frame = o.max_deliveries;
+  const StreamerConfig config = streamer_config(o);
   const bool progress = !o.quiet && isatty(2);
   if (progress) std::fprintf(stderr, "%s: preparing paths...\n", archive.c_str());
   const std::vector<Path> paths = make_paths(reader, o);
@@ -740,12 +746,7 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
   const std::vector<Path> paths = make_paths(reader, o);
   const Path& teleports = paths[0];
   const Path& flight = paths[2];  // flight 300 m/s
-  StreamerConfig config;
-  config.budget_nodes = o.budget;
-  config.worker_threads = o.threads;
-  config.max_fetches = o.fetches;
-  config.error_target_px = o.target_px;
-  config.max_deliveries_per_frame = o.max_deliveries;
+  const StreamerConfig config = streamer_config(o);
   const std::string reads_in_flight = o.fetches ? std::to_string(o.fetches) : std::to_string(kRemoteFetches) + " (automatic)";
   if (!o.json)
     std::printf("\n%s over a link (LatencyProxy: rtt/2 each way, one link per direction shared by the connections), "
