@@ -6,15 +6,11 @@
 #include <vector>
 #include <fmt/format.h>
 
+#include "terrain/detail/bytes.h"
+
 namespace terrain::cook {
 
-uint64_t fnv1a(std::string_view s, uint64_t h) {
-  for (unsigned char c : s) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
-}
+uint64_t fnv1a(std::string_view s, uint64_t h) { return detail::fnv1a(s, h); }
 std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
 
 bool file_fnv1a(const std::string& path, uint64_t& h) {

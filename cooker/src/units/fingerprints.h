@@ -14,8 +14,8 @@
 
 namespace terrain::cook {
 
-inline constexpr uint64_t kFnv1aBasis = 1469598103934665603ull;
-// FNV-1a of `s`, continuing `h`.
+inline constexpr uint64_t kFnv1aBasis = 1469598103934665603ull;  // terrain/detail/bytes.h's
+// FNV-1a of `s`, continuing `h` (terrain/detail/bytes.h's fnv1a).
 uint64_t fnv1a(std::string_view s, uint64_t h = kFnv1aBasis);
 std::string hex64(uint64_t v);  // 16 lower-case hex digits
 // FNV-1a of a file's bytes, read in chunks; false when it cannot be read.

@@ -24,15 +24,6 @@ namespace fs = std::filesystem;
 
 constexpr size_t kRecordSize = 24;
 
-uint64_t fnv1a64(const std::string& text) {
-  uint64_t h = 0xcbf29ce484222325ull;
-  for (unsigned char c : text) {
-    h ^= c;
-    h *= 0x100000001b3ull;
-  }
-  return h;
-}
-
 std::string hex16(uint64_t v) {
   static const char digits[] = "0123456789abcdef";
   std::string s(16, '0');
@@ -79,7 +70,7 @@ Status RangeCache::open(const std::string& dir, uint64_t limit_bytes, const std:
   out.reset();
   busy = false;
   const std::string key = url + "\n" + std::to_string(size) + "\n" + validator + "\n";
-  const fs::path folder = fs::path(dir) / hex16(fnv1a64(key));
+  const fs::path folder = fs::path(dir) / hex16(fnv1a(key));
   auto fail = [&](const std::string& what) {
     return Status::failure(Error::io_open, "cache folder " + dir + ": " + what);
   };

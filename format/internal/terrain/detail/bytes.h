@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <span>
+#include <string_view>
 #include <vector>
 
 namespace terrain::detail {
@@ -32,6 +33,17 @@ inline void store_u64(uint8_t* p, uint64_t v) {
 inline void store_i32(uint8_t* p, int32_t v) { store_u32(p, uint32_t(v)); }
 inline void store_f32(uint8_t* p, float v) { store_u32(p, std::bit_cast<uint32_t>(v)); }
 inline void store_f64(uint8_t* p, double v) { store_u64(p, std::bit_cast<uint64_t>(v)); }
+
+// FNV-1a (64-bit) of `s`, continuing `h`: the fingerprints of the cooker's work units and the
+// names of the HTTP range cache's folders.
+inline constexpr uint64_t kFnv1aBasis = 1469598103934665603ull;
+inline uint64_t fnv1a(std::string_view s, uint64_t h = kFnv1aBasis) {
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
 
 // CRC-32 (ISO-HDLC, zlib's crc32) of a byte range of any length.
 uint32_t crc32_of(std::span<const uint8_t> bytes);
