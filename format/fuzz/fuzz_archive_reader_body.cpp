@@ -1,6 +1,7 @@
 #include "fuzz_archive_reader_body.h"
 
 #include <cstdio>
+#include <algorithm>
 #include <cstdlib>
 #include <memory>
 #include <vector>
@@ -51,7 +52,24 @@ bool repair_checksums(std::vector<uint8_t>& b) {
       for (int i = 3; i >= 0; --i) p_size = (p_size << 8) | b[size_t(e + layout::entry::payload_size) + size_t(i)];
       if (inside(p_off, p_size)) put_crc(b, size_t(e + layout::entry::payload_crc32), size_t(p_off), p_size);
     }
-    put_crc(b, layout::header::directory_crc32, size_t(dir_off), size_t(dir_size));
+    uint32_t version = 0, nodes = 0, per_page = 0;
+    for (int i = 3; i >= 0; --i) {
+      version = (version << 8) | b[layout::header::format_version + size_t(i)];
+      nodes = (nodes << 8) | b[layout::header::node_count + size_t(i)];
+      per_page = (per_page << 8) | b[layout::header::page_entries + size_t(i)];
+    }
+    const uint64_t table = dir_off + uint64_t(nodes) * layout::kEntrySize;
+    if (version >= layout::kFormatVersionV3 && per_page > 0 && table <= dir_off + dir_size) {  // SPEC 20: pages, then the table
+      for (uint64_t p = 0; p * per_page < nodes && table + (p + 1) * layout::kPageRecordSize <= dir_off + dir_size; ++p) {
+        const uint64_t first = dir_off + p * per_page * layout::kEntrySize;
+        const uint64_t count = std::min<uint64_t>(per_page, nodes - p * per_page);
+        put_crc(b, size_t(table + p * layout::kPageRecordSize + layout::page_record::page_crc32), size_t(first),
+                size_t(count * layout::kEntrySize));
+      }
+      put_crc(b, layout::header::directory_crc32, size_t(table), size_t(dir_off + dir_size - table));
+    } else {
+      put_crc(b, layout::header::directory_crc32, size_t(dir_off), size_t(dir_size));
+    }
   }
   if (inside(meta_off, meta_size)) put_crc(b, layout::header::metadata_crc32, size_t(meta_off), size_t(meta_size));
   put_crc(b, layout::header::header_crc32, 0, layout::header::header_crc32);
@@ -59,13 +77,18 @@ bool repair_checksums(std::vector<uint8_t>& b) {
 }
 
 int one_input(const uint8_t* data, size_t size);
+void one_input_by_page(const uint8_t* data, size_t size);
 
 }  // namespace
 
 int archive_reader_one_input(const uint8_t* data, size_t size) {
   const int opened = one_input(data, size);
+  one_input_by_page(data, size);
   std::vector<uint8_t> repaired(data, data + size);
-  if (repair_checksums(repaired)) one_input(repaired.data(), repaired.size());
+  if (repair_checksums(repaired)) {
+    one_input(repaired.data(), repaired.size());
+    one_input_by_page(repaired.data(), repaired.size());
+  }
   return opened;
 }
 
@@ -111,6 +134,34 @@ int one_input(const uint8_t* data, size_t size) {
   for (double f : {0.0, 0.37, 0.5, 1.0})
     (void)sampler.sample(w.origin_x_m + f * w.roots_x * node_size_m(kRootLevel), w.origin_y_m + f * w.roots_y * node_size_m(kRootLevel), got);
   return 1;
+}
+
+// The same bytes opened by page (SPEC 20): a page that fails its checks fails its own nodes, and a
+// directory whose cross-page rules are broken (child masks, parents) is never a crash.
+void one_input_by_page(const uint8_t* data, size_t size) {
+  if (size == 0) return;
+  ArchiveReader reader;
+  if (!reader.open(make_memory_source(std::vector<uint8_t>(data, data + size)), DirectoryLoad::by_page).ok()) return;
+  auto out = std::make_unique<NodeData>();
+  const uint64_t limit = std::min<uint64_t>(reader.node_count(), 64);
+  for (uint64_t i = 0; i < limit; ++i) {
+    NodeRecord r;
+    if (!reader.record(size_t(i), r).ok()) continue;
+    int64_t index = -1;
+    require(reader.lookup(r.key, index).ok() && index == int64_t(i), "lookup() misses a key its checked page holds");
+    for (int c = 0; c < 4 && r.key.level > 0; ++c) (void)reader.lookup(child_of(r.key, c), index);
+    (void)reader.decode_node(size_t(i), *out);
+  }
+  NodeRecord none;
+  require(!reader.record(size_t(reader.node_count()), none).ok(), "record() past the directory");
+  int64_t index = 0;
+  (void)reader.lookup({9, 0, 0}, index);
+  SurfaceSampler sampler(reader);
+  const WorldInfo& w = reader.world();
+  std::optional<SurfaceSample> got;
+  for (double f : {0.0, 0.37, 1.0})
+    (void)sampler.sample(w.origin_x_m + f * w.roots_x * node_size_m(kRootLevel), w.origin_y_m + f * w.roots_y * node_size_m(kRootLevel), got);
+  if (reader.load_directory().ok()) require(reader.nodes().size() == reader.node_count(), "load_directory() lost nodes");
 }
 
 }  // namespace

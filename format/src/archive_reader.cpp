@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstring>
+#include <mutex>
 
 #include "terrain/detail/bytes.h"
 #include "layout.h"
@@ -24,34 +26,116 @@ struct ArchiveReader::Impl {
   std::vector<NodeRecord> nodes;
   std::array<uint32_t, kMaxLevels> per_level{};
   std::array<size_t, kMaxLevels + 1> level_begin{};
+  // Opened by_page (SPEC 20): `nodes` is empty; pages are read on first use and kept until close.
+  bool by_page = false;
+  std::vector<detail::PageRecord> table;
+  std::unique_ptr<std::atomic<const NodeRecord*>[]> page_at;  // per page, null until read
+  mutable std::mutex page_mutex;
+  mutable std::vector<std::unique_ptr<NodeRecord[]>> page_owner;
+  mutable std::atomic<uint64_t> pages_read{0};
 
   Status read_section(uint64_t offset, uint64_t bytes, std::vector<uint8_t>& out) const {
     out.resize(size_t(bytes));  // inside the source's size: decode_header checked the layout
     return source->read(offset, out);
   }
 
-  Status parse() {
+  Status check_metadata(std::span<const uint8_t> metadata) {
+    if (detail::crc32_of(metadata) != header.metadata_crc32)
+      return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
+                                                           std::to_string(header.metadata_offset) + ")");
+    return detail::decode_metadata(metadata, header.format_version, world);
+  }
+
+  // By_page: the page table and the metadata end the file back to back: one read.
+  Status parse_page_table() {
+    std::vector<uint8_t> tail;
+    const uint64_t at = header.page_table_offset();
+    TERRAIN_TRY(read_section(at, size - at, tail));
+    const auto table_bytes = std::span<const uint8_t>(tail).first(size_t(header.metadata_offset - at));
+    TERRAIN_TRY(check_metadata(std::span<const uint8_t>(tail).subspan(table_bytes.size())));
+    if (detail::crc32_of(table_bytes) != header.directory_crc32)
+      return Status::failure(Error::directory_checksum, "page table CRC-32 mismatch (at offset " + std::to_string(at) + ")");
+    TERRAIN_TRY(detail::decode_page_table(table_bytes, world, header, table));
+    page_at = std::make_unique<std::atomic<const NodeRecord*>[]>(table.size());
+    for (size_t p = 0; p < table.size(); ++p) page_at[p].store(nullptr);
+    by_page = true;
+    return Status::success();
+  }
+
+  // The entry of node `index`; by_page, reads and checks its page first.
+  Status entry(size_t index, const NodeRecord*& out) const {
+    if (index >= header.node_count)
+      return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
+                                                        std::to_string(header.node_count) + " nodes)");
+    if (!by_page) {
+      out = &nodes[index];
+      return Status::success();
+    }
+    const uint64_t p = index / header.page_entries;
+    const NodeRecord* page = page_at[p].load(std::memory_order_acquire);
+    if (!page) TERRAIN_TRY(read_page(p, page));
+    out = page + index % header.page_entries;
+    return Status::success();
+  }
+
+  Status read_page(uint64_t p, const NodeRecord*& out) const {
+    const uint64_t first = p * header.page_entries;
+    const uint64_t count = std::min<uint64_t>(header.page_entries, header.node_count - first);
+    std::vector<uint8_t> bytes(size_t(count) * layout::kEntrySize);
+    if (Status s = source->read(header.directory_offset + first * layout::kEntrySize, bytes); !s.ok()) {
+      s.message = "directory page " + std::to_string(p) + ": " + s.message;
+      return s;
+    }
+    auto records = std::make_unique<NodeRecord[]>(size_t(count));
+    TERRAIN_TRY(detail::decode_page(bytes, p, table, world, header, records.get()));
+    std::lock_guard lock(page_mutex);
+    if (const NodeRecord* other = page_at[p].load(std::memory_order_acquire)) {  // another thread was first
+      out = other;
+      return Status::success();
+    }
+    out = records.get();
+    page_at[p].store(out, std::memory_order_release);
+    page_owner.push_back(std::move(records));
+    pages_read.fetch_add(1, std::memory_order_relaxed);
+    return Status::success();
+  }
+
+  // By_page: the index of `key`, or -1.
+  Status lookup(const NodeKey& key, int64_t& index) const {
+    index = -1;
+    const auto after = std::upper_bound(table.begin(), table.end(), key,
+                                        [](const NodeKey& k, const detail::PageRecord& r) { return directory_less(k, r.first); });
+    if (after == table.begin()) return Status::success();
+    const uint64_t p = uint64_t(after - table.begin()) - 1;
+    const NodeRecord* page = page_at[p].load(std::memory_order_acquire);
+    if (!page) TERRAIN_TRY(read_page(p, page));
+    const size_t count = size_t(std::min<uint64_t>(header.page_entries, header.node_count - p * header.page_entries));
+    const NodeRecord* it = std::lower_bound(page, page + count, key,
+                                            [](const NodeRecord& r, const NodeKey& k) { return directory_less(r.key, k); });
+    if (it != page + count && it->key == key) index = int64_t(p * header.page_entries) + (it - page);
+    return Status::success();
+  }
+
+  void count_levels() {
+    per_level.fill(0);
+    for (const NodeRecord& r : nodes) ++per_level[r.key.level];
+    level_begin[0] = 0;
+    for (int l = 0; l < kMaxLevels; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
+  }
+
+  Status parse(DirectoryLoad load) {
     std::vector<uint8_t> head(size_t(std::min<uint64_t>(size, layout::kHeaderSize)));
     TERRAIN_TRY(source->read(0, head));
     TERRAIN_TRY(detail::decode_header(head, size, header));
+    if (load == DirectoryLoad::by_page && header.page_entries != 0) return parse_page_table();
     // The directory and the metadata end the file back to back (decode_header checked it): one read,
     // so that a remote source opens in two round trips, this and the header's.
     std::vector<uint8_t> tail;
     TERRAIN_TRY(read_section(header.directory_offset, header.directory_size + header.metadata_size, tail));
     const auto directory = std::span<const uint8_t>(tail).first(size_t(header.directory_size));
-    const auto metadata = std::span<const uint8_t>(tail).subspan(size_t(header.directory_size));
-    if (detail::crc32_of(metadata) != header.metadata_crc32)
-      return Status::failure(Error::metadata_checksum, "metadata CRC-32 mismatch (section at offset " +
-                                                           std::to_string(header.metadata_offset) + ")");
-    TERRAIN_TRY(detail::decode_metadata(metadata, header.format_version, world));
-    if (detail::crc32_of(directory) != header.directory_crc32)
-      return Status::failure(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " +
-                                                            std::to_string(header.directory_offset) + ")");
-    TERRAIN_TRY(detail::decode_directory(directory, header.node_count, world, header, nodes));
-    per_level.fill(0);
-    for (const NodeRecord& r : nodes) ++per_level[r.key.level];
-    level_begin[0] = 0;
-    for (int l = 0; l < kMaxLevels; ++l) level_begin[size_t(l) + 1] = level_begin[size_t(l)] + per_level[size_t(l)];
+    TERRAIN_TRY(check_metadata(std::span<const uint8_t>(tail).subspan(size_t(header.directory_size))));
+    TERRAIN_TRY(detail::decode_directory(directory, world, header, nodes));
+    count_levels();
     return Status::success();
   }
 
@@ -60,15 +144,15 @@ struct ArchiveReader::Impl {
   }
 
   // Decodes stored bytes whose CRC-32 was checked. Errors name the node.
-  Status decode_checked(size_t index, std::span<const uint8_t> bytes, unsigned sections, NodeData& out) const {
+  Status decode_checked(const NodeRecord& r, std::span<const uint8_t> bytes, unsigned sections, NodeData& out) const {
     // Normals codec 4 is legal only in archives that declare it (SPEC 6.5, 16.7).
     constexpr size_t kNormalsCodecByte = 4 + size_t(layout::SectionId::normals) * layout::kPayloadTableEntrySize + 1;
     if (!world.derived_normals && bytes.size() > kNormalsCodecByte &&
         bytes[kNormalsCodecByte] == uint8_t(layout::Codec::normals_derived))
       return Status::failure(Error::payload_invalid,
-                             where(nodes[index]) + "normals section uses codec 4 (derived) but the archive has no derived_normals record");
+                             where(r) + "normals section uses codec 4 (derived) but the archive has no derived_normals record");
     if (Status s = decode_node_payload(bytes, sections, out); !s.ok()) {
-      s.message = where(nodes[index]) + s.message;
+      s.message = where(r) + s.message;
       return s;
     }
     return Status::success();
@@ -77,7 +161,9 @@ struct ArchiveReader::Impl {
   // The stored bytes of nodes[index] into out, CRC-32 checked unless `check_crc` is false. Errors
   // name the node.
   Status read_payload(size_t index, std::vector<uint8_t>& out, bool check_crc = true) const {
-    const NodeRecord& r = nodes[index];
+    const NodeRecord* entry_of = nullptr;
+    TERRAIN_TRY(entry(index, entry_of));
+    const NodeRecord& r = *entry_of;
     out.resize(r.payload_size);
     if (Status s = source->read(r.payload_offset, out); !s.ok()) {
       s.message = where(r) + s.message;
@@ -93,14 +179,14 @@ ArchiveReader::~ArchiveReader() = default;
 ArchiveReader::ArchiveReader(ArchiveReader&&) noexcept = default;
 ArchiveReader& ArchiveReader::operator=(ArchiveReader&&) noexcept = default;
 
-Status ArchiveReader::open(std::unique_ptr<ByteSource> source) {
+Status ArchiveReader::open(std::unique_ptr<ByteSource> source, DirectoryLoad load) {
   impl_.reset();
   if (!source) return Status::failure(Error::invalid_argument, "no byte source");
   auto impl = std::make_unique<Impl>();
   impl->size = source->size();
   impl->source = std::move(source);
   if (impl->size == 0) return Status::failure(Error::truncated, impl->source->name() + ": archive is empty");
-  if (Status s = impl->parse(); !s.ok()) {
+  if (Status s = impl->parse(load); !s.ok()) {
     // A file source names its path in read errors already; decode errors get it here.
     const std::string& name = impl->source->name();
     if (s.message.compare(0, name.size() + 2, name + ": ") != 0) s.message = name + ": " + s.message;
@@ -110,11 +196,11 @@ Status ArchiveReader::open(std::unique_ptr<ByteSource> source) {
   return Status::success();
 }
 
-Status ArchiveReader::open(const std::string& path) {
+Status ArchiveReader::open(const std::string& path, DirectoryLoad load) {
   impl_.reset();
   std::unique_ptr<ByteSource> source;
   TERRAIN_TRY(open_file_source(path, source));
-  return open(std::move(source));
+  return open(std::move(source), load);
 }
 
 Status ArchiveReader::open_memory(std::span<const uint8_t> bytes) {
@@ -141,11 +227,48 @@ std::span<const NodeRecord> ArchiveReader::nodes() const {
   return impl_->nodes;
 }
 
+uint64_t ArchiveReader::node_count() const { return impl_ ? impl_->header.node_count : 0; }
+uint64_t ArchiveReader::directory_pages() const { return impl_ ? impl_->header.page_count() : 0; }
+uint64_t ArchiveReader::directory_pages_read() const { return impl_ ? impl_->pages_read.load() : 0; }
+
+Status ArchiveReader::lookup(const NodeKey& key, int64_t& index) const {
+  index = -1;
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (key.level >= uint32_t(terrain::level_count(impl_->world))) return Status::success();
+  if (impl_->by_page) return impl_->lookup(key, index);
+  index = find(key);
+  return Status::success();
+}
+
+Status ArchiveReader::record(size_t index, NodeRecord& out) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  const NodeRecord* r = nullptr;
+  TERRAIN_TRY(impl_->entry(index, r));
+  out = *r;
+  return Status::success();
+}
+
+Status ArchiveReader::load_directory() {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  Impl& m = *impl_;
+  if (!m.by_page) return Status::success();
+  std::vector<uint8_t> directory;
+  TERRAIN_TRY(m.read_section(m.header.directory_offset, m.header.directory_size, directory));
+  TERRAIN_TRY(detail::decode_directory(directory, m.world, m.header, m.nodes));
+  m.count_levels();
+  m.by_page = false;  // pages read before stay owned (callers may hold their entries) but unused
+  return Status::success();
+}
+
 int64_t ArchiveReader::find(const NodeKey& key) const {
   if (!impl_ || key.level >= uint32_t(terrain::level_count(impl_->world))) return -1;
+  if (impl_->by_page) {
+    int64_t index = -1;
+    return impl_->lookup(key, index).ok() ? index : -1;
+  }
   const auto begin = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level]);
   const auto end = impl_->nodes.begin() + std::ptrdiff_t(impl_->level_begin[key.level + 1]);
-  const auto it = std::lower_bound(begin, end, key, [](const NodeRecord& r, const NodeKey& k) { return key_less(r.key, k); });
+  const auto it = std::lower_bound(begin, end, key, [](const NodeRecord& r, const NodeKey& k) { return directory_less(r.key, k); });
   if (it == end || !(it->key == key)) return -1;
   return it - impl_->nodes.begin();
 }
@@ -163,9 +286,6 @@ std::span<const NodeRecord> ArchiveReader::level_nodes(int level) const {
 
 Status ArchiveReader::read_payload(size_t index, std::vector<uint8_t>& out) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
-  if (index >= impl_->nodes.size())
-    return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
-                                                      std::to_string(impl_->nodes.size()) + " nodes)");
   return impl_->read_payload(index, out);
 }
 
@@ -173,31 +293,31 @@ Status ArchiveReader::decode_node(size_t index, NodeData& out, unsigned sections
   // One payload buffer per thread, reused: the largest payload is 1 MiB (SPEC 12).
   thread_local std::vector<uint8_t> bytes;
   TERRAIN_TRY(read_payload(index, bytes));
-  return impl_->decode_checked(index, bytes, sections, out);
+  const NodeRecord* r = nullptr;
+  TERRAIN_TRY(impl_->entry(index, r));
+  return impl_->decode_checked(*r, bytes, sections, out);
 }
 
 Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vector<uint8_t>& out,
                                        const std::atomic<bool>* cancel) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
-  const std::vector<NodeRecord>& nodes = impl_->nodes;
   if (run.empty()) return Status::failure(Error::invalid_argument, "empty payload run");
+  std::vector<const NodeRecord*> entries(run.size());
   uint64_t bytes = 0;
   for (size_t i = 0; i < run.size(); ++i) {
-    if (run[i] >= nodes.size())
-      return Status::failure(Error::node_not_found, "node index " + std::to_string(run[i]) + " out of range (" +
-                                                        std::to_string(nodes.size()) + " nodes)");
-    if (i > 0 && !payloads_adjacent(run[i - 1], run[i]))
-      return Status::failure(Error::invalid_argument, "payload run: node " + node_name(nodes[run[i]].key) +
-                                                          " does not follow node " + node_name(nodes[run[i - 1]].key));
-    bytes += nodes[run[i]].payload_size;
+    TERRAIN_TRY(impl_->entry(run[i], entries[i]));
+    if (i > 0 && entries[i]->payload_offset != entries[i - 1]->payload_offset + entries[i - 1]->payload_size)
+      return Status::failure(Error::invalid_argument, "payload run: node " + node_name(entries[i]->key) +
+                                                          " does not follow node " + node_name(entries[i - 1]->key));
+    bytes += entries[i]->payload_size;
   }
   out.resize(size_t(bytes));
-  const uint64_t at = nodes[run[0]].payload_offset;
+  const uint64_t at = entries[0]->payload_offset;
   if (Status s = cancel ? impl_->source->read_cancellable(at, out, *cancel) : impl_->source->read(at, out); !s.ok()) {
     const std::string more = run.size() > 1 ? "(and the " + std::to_string(run.size() - 1) + " nodes after it, " +
                                                   std::to_string(bytes) + " bytes) "
                                             : "";
-    s.message = impl_->where(nodes[run[0]]) + more + s.message;
+    s.message = impl_->where(*entries[0]) + more + s.message;
     return s;
   }
   return Status::success();
@@ -206,28 +326,28 @@ Status ArchiveReader::read_payload_run(std::span<const uint32_t> run, std::vecto
 Status ArchiveReader::decode_payload(size_t index, std::span<const uint8_t> stored, NodeData& out,
                                      unsigned sections) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
-  if (index >= impl_->nodes.size())
-    return Status::failure(Error::node_not_found, "node index " + std::to_string(index) + " out of range (" +
-                                                      std::to_string(impl_->nodes.size()) + " nodes)");
-  const NodeRecord& r = impl_->nodes[index];
+  const NodeRecord* entry = nullptr;
+  TERRAIN_TRY(impl_->entry(index, entry));
+  const NodeRecord& r = *entry;
   if (stored.size() != r.payload_size)
     return Status::failure(Error::invalid_argument, impl_->where(r) + std::to_string(stored.size()) +
                                                         " stored bytes given, the directory says " +
                                                         std::to_string(r.payload_size));
   if (detail::crc32_of(stored) != r.payload_crc32)
     return Status::failure(Error::payload_checksum, impl_->where(r) + "payload CRC-32 mismatch");
-  return impl_->decode_checked(index, stored, sections, out);
+  return impl_->decode_checked(r, stored, sections, out);
 }
 
 bool ArchiveReader::payloads_adjacent(size_t a, size_t b) const {
-  if (!impl_ || a >= impl_->nodes.size() || b >= impl_->nodes.size()) return false;
-  const NodeRecord& ra = impl_->nodes[a];
-  return impl_->nodes[b].payload_offset == ra.payload_offset + ra.payload_size;
+  const NodeRecord *ra = nullptr, *rb = nullptr;
+  if (!impl_ || !impl_->entry(a, ra).ok() || !impl_->entry(b, rb).ok()) return false;
+  return rb->payload_offset == ra->payload_offset + ra->payload_size;
 }
 
 Status ArchiveReader::section_bytes(SectionBytes& out) const {
   out = {};
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (impl_->by_page) return Status::failure(Error::invalid_argument, "the directory is read by page: load_directory() first");
   std::array<uint8_t, layout::kPayloadHeaderSize> head;
   for (size_t i = 0; i < impl_->nodes.size(); ++i) {
     const NodeRecord& r = impl_->nodes[i];
@@ -254,6 +374,7 @@ Status ArchiveReader::section_bytes(SectionBytes& out) const {
 
 Status ArchiveReader::verify(void (*progress)(double fraction, void* user), void* user) const {
   if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  if (impl_->by_page) return Status::failure(Error::invalid_argument, "the directory is read by page: load_directory() first");
   const auto& nodes = impl_->nodes;
   const WorldInfo& world = impl_->world;
   // Decoded heights (units) and hole masks of one node; neighbours are decoded on demand.

@@ -17,7 +17,6 @@
 #include <filesystem>
 #include <unordered_set>
 
-#include <zlib.h>
 
 #include "terrain/detail/bytes.h"
 #include "layout.h"
@@ -48,6 +47,83 @@ Status write_all(int fd, const uint8_t* data, size_t size, uint64_t offset, cons
     data += n;
     size -= size_t(n);
     offset += uint64_t(n);
+  }
+  return Status::success();
+}
+
+Status read_all(int fd, uint8_t* data, size_t size, uint64_t offset, const std::string& path) {
+  while (size > 0) {
+    const ssize_t n = ::pread(fd, data, size, off_t(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return Status::failure(Error::io_read, path + ": cannot read its directory back at offset " + std::to_string(offset) +
+                                                 (n < 0 ? ": " + errno_text() : ": short read"));
+    data += n;
+    size -= size_t(n);
+    offset += uint64_t(n);
+  }
+  return Status::success();
+}
+
+// An ordered writer's level directory, written in row order (key_less), put into directory order
+// (directory_less) in place: both orders keep each band of 32 rows contiguous, so one band at a
+// time is read, sorted and written back. Memory: one band of the level.
+Status reorder_level(int fd, uint64_t begin, uint64_t count, const std::string& path) {
+  namespace f = layout::entry;
+  constexpr size_t kChunk = 4096;  // entries per read while finding a band's end
+  std::vector<uint8_t> band;
+  std::vector<uint8_t> chunk;
+  uint64_t band_first = 0;  // index of band[0]
+  uint64_t next = 0;        // entries read so far
+  auto band_of = [](const uint8_t* e) { return detail::load_u32(e + f::y) >> kDirectoryTileLog2; };
+  auto flush = [&]() -> Status {
+    const size_t n = band.size() / layout::kEntrySize;
+    std::vector<uint32_t> order(n);
+    for (uint32_t i = 0; i < n; ++i) order[i] = i;
+    auto key = [&](uint32_t i) {
+      const uint8_t* e = band.data() + size_t(i) * layout::kEntrySize;
+      return NodeKey{0, detail::load_u32(e + f::x), detail::load_u32(e + f::y)};
+    };
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return directory_less(key(a), key(b)); });
+    std::vector<uint8_t> sorted(band.size());
+    for (size_t i = 0; i < n; ++i)
+      std::memcpy(sorted.data() + i * layout::kEntrySize, band.data() + size_t(order[i]) * layout::kEntrySize, layout::kEntrySize);
+    TERRAIN_TRY(write_all(fd, sorted.data(), sorted.size(), begin + band_first * layout::kEntrySize, path));
+    band_first += n;
+    band.clear();
+    return Status::success();
+  };
+  while (next < count) {
+    const size_t n = size_t(std::min<uint64_t>(kChunk, count - next));
+    chunk.resize(n * layout::kEntrySize);
+    TERRAIN_TRY(read_all(fd, chunk.data(), chunk.size(), begin + next * layout::kEntrySize, path));
+    for (size_t i = 0; i < n; ++i) {
+      const uint8_t* e = chunk.data() + i * layout::kEntrySize;
+      if (!band.empty() && band_of(e) != band_of(band.data())) TERRAIN_TRY(flush());
+      band.insert(band.end(), e, e + layout::kEntrySize);
+    }
+    next += n;
+  }
+  if (!band.empty()) TERRAIN_TRY(flush());
+  return Status::success();
+}
+
+// The page table (SPEC 20) of the `count` entries at `begin`, read back page by page.
+Status page_table_of(int fd, uint64_t begin, uint64_t count, uint32_t page_entries, const std::string& path,
+                     std::vector<uint8_t>& out) {
+  namespace f = layout::page_record;
+  const uint64_t pages = (count + page_entries - 1) / page_entries;
+  out.assign(size_t(pages) * layout::kPageRecordSize, 0);
+  std::vector<uint8_t> page;
+  for (uint64_t p = 0; p < pages; ++p) {
+    const uint64_t first = p * page_entries, n = std::min<uint64_t>(page_entries, count - first);
+    page.resize(size_t(n) * layout::kEntrySize);
+    TERRAIN_TRY(read_all(fd, page.data(), page.size(), begin + first * layout::kEntrySize, path));
+    uint8_t* e = out.data() + size_t(p) * layout::kPageRecordSize;
+    e[f::level] = page[layout::entry::level];
+    std::memcpy(e + f::x, page.data() + layout::entry::x, 4);
+    std::memcpy(e + f::y, page.data() + layout::entry::y, 4);
+    detail::store_u32(e + f::page_crc32, detail::crc32_of(page));
   }
   return Status::success();
 }
@@ -163,7 +239,6 @@ struct ArchiveWriter::Impl {
   ArchiveShape shape;
   std::array<uint64_t, kMaxLevels> dir_start{};  // file offset of each level's directory
   std::array<uint64_t, kMaxLevels> added{};      // nodes of each level added so far
-  std::array<uint32_t, kMaxLevels> dir_crc{};    // CRC-32 of each level's directory bytes
   std::array<uint32_t, kMaxLevels> max_x{}, max_y{};
   int level = -1;  // the level being added
   NodeKey last{};
@@ -321,7 +396,7 @@ struct ArchiveWriter::Impl {
 
   // Directory and node count of an ordered writer at finish(): every check default mode makes on
   // the whole directory was made as the nodes came, but the grid bounds, which need the world.
-  Status finish_ordered(const WorldInfo& world, uint32_t& directory_crc, uint64_t& node_count) {
+  Status finish_ordered(const WorldInfo& world, std::vector<uint8_t>& page_table, uint64_t& node_count) {
     Impl& w = *this;
     const int top = top_level(world);
     for (int l = top + 1; l < kMaxLevels; ++l)
@@ -342,17 +417,15 @@ struct ArchiveWriter::Impl {
       return Status::failure(Error::directory_invalid, "the top level " + std::to_string(top) + " has " +
                                                            std::to_string(w.shape.level_nodes[size_t(top)]) + " nodes, more than " +
                                                            std::to_string(kMaxTopNodes) + " (SPEC 19)");
-    directory_crc = 0;
     node_count = 0;
     for (size_t l = 0; l <= size_t(top); ++l) {
       const uint64_t n = w.shape.level_nodes[l];
       if (n && (w.max_x[l] >= level_grid_cells(world.roots_x, int(l)) || w.max_y[l] >= level_grid_cells(world.roots_y, int(l))))
         return Status::failure(Error::directory_invalid, "level " + std::to_string(l) + " has a node outside its node grid");
-      // The directory's CRC from the levels', in file order (zlib's crc32_combine).
-      directory_crc = uint32_t(::crc32_combine(directory_crc, w.dir_crc[l], z_off_t(n * layout::kEntrySize)));
+      TERRAIN_TRY(reorder_level(w.fd, w.dir_start[l], n, w.temp_path));
       node_count += n;
     }
-    return Status::success();
+    return page_table_of(w.fd, w.dir_start[0], node_count, layout::page_entries_for(node_count), w.temp_path, page_table);
   }
 
   void close_and_remove() {
@@ -405,7 +478,7 @@ Status ArchiveWriter::open(const std::string& path) {
 Status ArchiveWriter::open_ordered(const std::string& path, const ArchiveShape& shape) {
   uint64_t nodes = 0;
   for (uint64_t n : shape.level_nodes) nodes += n;
-  if (nodes > layout::kMaxNodeCount) return Status::failure(Error::invalid_argument, "too many nodes");
+  if (nodes > layout::kMaxNodeCountV3) return Status::failure(Error::invalid_argument, "too many nodes");
   TERRAIN_TRY(open(path));
   Impl& w = *impl_;
   w.ordered = true;
@@ -454,7 +527,6 @@ Status ArchiveWriter::add_node(const NodeRecord& record, std::span<const uint8_t
     const auto l = size_t(r.key.level);
     uint8_t entry[layout::kEntrySize];
     detail::encode_entry(r, entry);
-    w.dir_crc[l] = uint32_t(::crc32(w.dir_crc[l], entry, layout::kEntrySize));
     w.dir.insert(w.dir.end(), entry, entry + layout::kEntrySize);
     if (w.dir.size() >= (size_t(64) << 10))
       if (Status s = w.flush_dir(); !s.ok()) return w.fail(s);
@@ -475,42 +547,44 @@ Status ArchiveWriter::finish(const WorldInfo& world) {
   if (Status s = detail::validate_world(world); !s.ok()) return w.fail(s);
   if (Status s = w.flush_out(); !s.ok()) return w.fail(s);
   const uint64_t payload_size = w.offset - layout::kHeaderSize;
-  std::vector<uint8_t> directory;
-  uint32_t directory_crc = 0;
+  std::vector<uint8_t> directory;   // the entries (default mode; an ordered writer wrote them)
+  std::vector<uint8_t> page_table;  // SPEC 20
   uint64_t node_count = 0;
   if (w.ordered) {
-    if (Status s = w.finish_ordered(world, directory_crc, node_count); !s.ok()) return w.fail(s);
+    if (Status s = w.finish_ordered(world, page_table, node_count); !s.ok()) return w.fail(s);
   } else {
-    if (w.records.size() > layout::kMaxNodeCount) return w.fail(Status::failure(Error::invalid_argument, "too many nodes"));
-    std::sort(w.records.begin(), w.records.end(), [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+    if (w.records.size() > layout::kMaxNodeCountV3) return w.fail(Status::failure(Error::invalid_argument, "too many nodes"));
+    std::sort(w.records.begin(), w.records.end(), [](const NodeRecord& a, const NodeRecord& b) { return directory_less(a.key, b.key); });
     for (const NodeRecord& r : w.records)
       if (Status s = detail::validate_record(r, &world); !s.ok()) return w.fail(s);
     if (Status s = detail::validate_directory(w.records, layout::kHeaderSize, payload_size, top_level(world)); !s.ok()) return w.fail(s);
     directory.resize(w.records.size() * layout::kEntrySize);
     for (size_t i = 0; i < w.records.size(); ++i) detail::encode_entry(w.records[i], directory.data() + i * layout::kEntrySize);
-    directory_crc = detail::crc32_of(directory);
     node_count = w.records.size();
+    detail::encode_page_table(directory, w.records, layout::page_entries_for(node_count), page_table);
   }
   std::vector<uint8_t> metadata;
   detail::encode_metadata(world, metadata);
 
   detail::Header h;
-  h.format_version = detail::required_format_version(world);
+  h.format_version = layout::kFormatVersionV3;
+  h.page_entries = layout::page_entries_for(node_count);
   h.node_count = uint32_t(node_count);
   h.payload_offset = layout::kHeaderSize;
   h.payload_size = payload_size;
   h.directory_offset = w.offset;
-  h.directory_size = node_count * layout::kEntrySize;
+  h.directory_size = node_count * layout::kEntrySize + page_table.size();
   h.metadata_offset = h.directory_offset + h.directory_size;
   h.metadata_size = metadata.size();
   h.file_size = h.metadata_offset + h.metadata_size;
-  h.directory_crc32 = directory_crc;
+  h.directory_crc32 = detail::crc32_of(page_table);
   h.metadata_crc32 = detail::crc32_of(metadata);
   uint8_t header[layout::kHeaderSize];
   detail::encode_header(h, header);
 
   if (!w.ordered)
     if (Status s = write_all(w.fd, directory.data(), directory.size(), h.directory_offset, w.temp_path); !s.ok()) return w.fail(s);
+  if (Status s = write_all(w.fd, page_table.data(), page_table.size(), h.page_table_offset(), w.temp_path); !s.ok()) return w.fail(s);
   if (Status s = write_all(w.fd, metadata.data(), metadata.size(), h.metadata_offset, w.temp_path); !s.ok()) return w.fail(s);
   if (::ftruncate(w.fd, off_t(h.file_size)) != 0)  // drop leftovers of an earlier failed attempt (none expected)
     return w.fail(Status::failure(Error::io_write, w.temp_path + ": truncate failed: " + errno_text()));

@@ -120,6 +120,7 @@ void encode_header(const Header& h, uint8_t out[layout::kHeaderSize]) {
   store_u32(out + f::header_size, layout::kHeaderSize);
   store_u32(out + f::header_flags, 0);
   header_fields(h, storer(out));
+  if (h.format_version >= layout::kFormatVersionV3) store_u32(out + f::page_entries, h.page_entries);
   store_u32(out + f::header_crc32, crc32_of({out, f::header_crc32}));
 }
 
@@ -132,7 +133,7 @@ Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& 
   h.format_version = load_u32(p + f::format_version);
   if (h.format_version < layout::kFormatVersion || h.format_version > layout::kMaxFormatVersion)
     return fail(Error::unsupported_version, "archive format version " + std::to_string(h.format_version) +
-                                                ", this reader supports versions 1 and 2");
+                                                ", this reader supports versions 1, 2 and 3");
   if (head.size() < layout::kHeaderSize)
     return fail(Error::truncated, "file ends inside the header (" + std::to_string(head.size()) + " of 128 bytes)");
   const uint32_t stored_crc = load_u32(p + f::header_crc32);
@@ -141,9 +142,17 @@ Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& 
   if (load_u32(p + f::header_size) != layout::kHeaderSize)
     return fail(Error::header_invalid, "header_size is " + std::to_string(load_u32(p + f::header_size)) + ", expected 128");
   if (load_u32(p + f::header_flags) != 0) return fail(Error::header_invalid, "reserved header_flags bits are set");
-  if (!all_zero(p + f::reserved, f::header_crc32 - f::reserved))
+  const bool v3 = h.format_version >= layout::kFormatVersionV3;
+  if (!v3 && !all_zero(p + f::reserved, f::header_crc32 - f::reserved))
     return fail(Error::header_invalid, "reserved header bytes 88..123 are not zero");
+  if (v3 && !all_zero(p + f::reserved_v3, f::header_crc32 - f::reserved_v3))
+    return fail(Error::header_invalid, "reserved header bytes 92..123 are not zero");
   header_fields(h, loader(p));
+  h.page_entries = v3 ? load_u32(p + f::page_entries) : 0;
+  if (v3 && (h.page_entries < layout::kMinPageEntries || h.page_entries > layout::kMaxPageEntries ||
+             (h.page_entries & (h.page_entries - 1)) != 0))
+    return fail(Error::header_invalid, "page_entries " + std::to_string(h.page_entries) +
+                                           " is not a power of two in 1024 .. 2^20 (SPEC 20)");
 
   if (h.file_size > file_size)
     return fail(Error::truncated, "file is " + std::to_string(file_size) + " bytes, the header says " +
@@ -152,9 +161,10 @@ Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& 
     return fail(Error::header_invalid, std::to_string(file_size - h.file_size) +
                                            " trailing bytes after the end the header declares (" +
                                            std::to_string(h.file_size) + ")");
-  if (h.node_count > layout::kMaxNodeCount)
+  const uint32_t max_nodes = v3 ? layout::kMaxNodeCountV3 : layout::kMaxNodeCount;
+  if (h.node_count > max_nodes)
     return fail(Error::header_invalid, "node_count " + std::to_string(h.node_count) + " exceeds the limit " +
-                                           std::to_string(layout::kMaxNodeCount));
+                                           std::to_string(max_nodes));
   // Sections are contiguous: header | payloads | directory | metadata (sizes are bounded by the
   // file size before any sum, so nothing overflows).
   auto section_bad = [&](uint64_t off, uint64_t size) { return off > h.file_size || size > h.file_size - off; };
@@ -164,9 +174,10 @@ Status decode_header(std::span<const uint8_t> head, uint64_t file_size, Header& 
   if (h.directory_offset != h.payload_offset + h.payload_size || section_bad(h.directory_offset, h.directory_size))
     return fail(Error::section_out_of_bounds, "directory section at " + std::to_string(h.directory_offset) + " size " +
                                                   std::to_string(h.directory_size) + " does not follow the payloads inside the file");
-  if (h.directory_size != uint64_t(h.node_count) * layout::kEntrySize)
+  if (h.directory_size != uint64_t(h.node_count) * layout::kEntrySize + h.page_count() * layout::kPageRecordSize)
     return fail(Error::section_out_of_bounds, "directory_size " + std::to_string(h.directory_size) + " is not node_count (" +
-                                                  std::to_string(h.node_count) + ") x 48");
+                                                  std::to_string(h.node_count) + ") x 48" +
+                                                  (v3 ? " + " + std::to_string(h.page_count()) + " pages x 16" : ""));
   if (h.metadata_offset != h.directory_offset + h.directory_size || section_bad(h.metadata_offset, h.metadata_size) ||
       h.metadata_offset + h.metadata_size != h.file_size)
     return fail(Error::section_out_of_bounds, "metadata section at " + std::to_string(h.metadata_offset) + " size " +
@@ -292,11 +303,6 @@ Status decode_extensions(std::span<const uint8_t> bytes, WorldInfo& w) {
 }
 }  // namespace
 
-uint32_t required_format_version(const WorldInfo& w) {
-  const bool v2 = w.crs.kind == ProjectionKind::proj || !w.overview_step_log2.empty() || w.derived_normals;
-  return v2 ? layout::kFormatVersionV2 : layout::kFormatVersion;
-}
-
 void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
   namespace f = layout::metadata;
   const std::vector<uint8_t> ext = encode_extensions(w);
@@ -325,7 +331,7 @@ void encode_metadata(const WorldInfo& w, std::vector<uint8_t>& out) {
   }
   std::memcpy(p + at, w.cook_info_json.data(), w.cook_info_json.size());
   at += w.cook_info_json.size();
-  if (!ext.empty()) {  // v2 only (required_format_version): a v1 file keeps 0 here
+  if (!ext.empty()) {  // versions 2 and 3; 0 when there are no records
     store_u32(p + f::extension_size, uint32_t(ext.size()));
     std::memcpy(p + at, ext.data(), ext.size());
   }
@@ -416,34 +422,131 @@ Status validate_record(const NodeRecord& r, const WorldInfo* world) {
   return Status::success();
 }
 
-Status decode_directory(std::span<const uint8_t> bytes, uint32_t node_count, const WorldInfo& world, const Header& header,
-                        std::vector<NodeRecord>& out) {
+namespace {
+Status decode_entries(std::span<const uint8_t> bytes, size_t first_index, const WorldInfo& world, const Header& header,
+                      NodeRecord* out) {
   namespace f = layout::entry;
-  out.clear();
-  if (bytes.size() != uint64_t(node_count) * layout::kEntrySize) return fail(Error::directory_invalid, "directory size mismatch");
-  out.resize(node_count);
-  for (uint32_t n = 0; n < node_count; ++n) {
-    const uint8_t* e = bytes.data() + size_t(n) * layout::kEntrySize;
+  const size_t count = bytes.size() / layout::kEntrySize;
+  for (size_t n = 0; n < count; ++n) {
+    const uint8_t* e = bytes.data() + n * layout::kEntrySize;
     NodeRecord& r = out[n];
+    r = NodeRecord{};
     r.key.level = e[f::level];
     entry_fields(r, loader(e));
     if (e[f::reserved0] != 0 || load_u32(e + f::reserved1) != 0)
-      return fail(Error::directory_invalid, "entry " + std::to_string(n) + " (node " + node_name(r.key) + "): reserved bytes are not zero");
+      return fail(Error::directory_invalid, "entry " + std::to_string(first_index + n) + " (node " + node_name(r.key) +
+                                                "): reserved bytes are not zero");
     TERRAIN_TRY(validate_record(r, &world));
     if (r.payload_offset < header.payload_offset || r.payload_offset - header.payload_offset > header.payload_size ||
         r.payload_size > header.payload_size - (r.payload_offset - header.payload_offset))
       return fail(Error::payload_out_of_bounds, "node " + node_name(r.key) + ": payload [" + std::to_string(r.payload_offset) +
                                                     ", +" + std::to_string(r.payload_size) + ") is outside the payload section");
   }
+  return Status::success();
+}
+
+bool directory_record_less(const NodeRecord& a, const NodeRecord& b) { return directory_less(a.key, b.key); }
+}  // namespace
+
+Status decode_directory(std::span<const uint8_t> bytes, const WorldInfo& world, const Header& header,
+                        std::vector<NodeRecord>& out) {
+  out.clear();
+  if (bytes.size() != header.directory_size) return fail(Error::directory_invalid, "directory size mismatch");
+  out.resize(header.node_count);
+  if (header.page_entries == 0) {  // versions 1 and 2: one CRC, row order; sorted into directory order
+    if (crc32_of(bytes) != header.directory_crc32)
+      return fail(Error::directory_checksum, "directory CRC-32 mismatch (section at offset " + std::to_string(header.directory_offset) + ")");
+    TERRAIN_TRY(decode_entries(bytes, 0, world, header, out.data()));
+    for (size_t i = 1; i < out.size(); ++i)
+      if (!key_less(out[i - 1].key, out[i].key))
+        return fail(Error::directory_invalid, "entry " + std::to_string(i) + " (node " + node_name(out[i].key) +
+                                                  ") is not after node " + node_name(out[i - 1].key) +
+                                                  " (keys must be unique and sorted by level, y, x)");
+    std::sort(out.begin(), out.end(), directory_record_less);
+  } else {
+    const size_t entries = size_t(header.node_count) * layout::kEntrySize;
+    const auto table_bytes = bytes.subspan(entries);
+    if (crc32_of(table_bytes) != header.directory_crc32)
+      return fail(Error::directory_checksum, "page table CRC-32 mismatch (at offset " + std::to_string(header.page_table_offset()) + ")");
+    std::vector<PageRecord> table;
+    TERRAIN_TRY(decode_page_table(table_bytes, world, header, table));
+    const size_t page_bytes = size_t(header.page_entries) * layout::kEntrySize;
+    for (uint64_t p = 0; p < table.size(); ++p) {
+      const size_t at = size_t(p) * page_bytes;
+      TERRAIN_TRY(decode_page(bytes.subspan(at, std::min(page_bytes, entries - at)), p, table, world, header,
+                              out.data() + size_t(p) * header.page_entries));
+    }
+  }
   return validate_directory(out, header.payload_offset, header.payload_size, top_level(world));
+}
+
+Status decode_page_table(std::span<const uint8_t> bytes, const WorldInfo& world, const Header& header, std::vector<PageRecord>& out) {
+  namespace f = layout::page_record;
+  out.clear();
+  if (bytes.size() != header.page_count() * layout::kPageRecordSize) return fail(Error::directory_invalid, "page table size mismatch");
+  out.resize(size_t(header.page_count()));
+  const int levels = level_count(world);
+  for (size_t p = 0; p < out.size(); ++p) {
+    const uint8_t* e = bytes.data() + p * layout::kPageRecordSize;
+    PageRecord& r = out[p];
+    r.first = {e[f::level], load_u32(e + f::x), load_u32(e + f::y)};
+    r.crc32 = load_u32(e + f::page_crc32);
+    const std::string where = "directory page " + std::to_string(p) + " (first node " + node_name(r.first) + "): ";
+    if (!all_zero(e + f::reserved, 3)) return fail(Error::directory_invalid, where + "reserved bytes are not zero");
+    if (r.first.level >= uint32_t(levels) || r.first.x >= level_grid_cells(world.roots_x, int(r.first.level)) ||
+        r.first.y >= level_grid_cells(world.roots_y, int(r.first.level)))
+      return fail(Error::directory_invalid, where + "the first key is outside the archive's levels and grids");
+    if (p > 0 && !directory_less(out[p - 1].first, r.first))
+      return fail(Error::directory_invalid, where + "the first key is not after page " + std::to_string(p - 1) + "'s (SPEC 20)");
+  }
+  return Status::success();
+}
+
+Status decode_page(std::span<const uint8_t> bytes, uint64_t page, std::span<const PageRecord> table, const WorldInfo& world,
+                   const Header& header, NodeRecord* out) {
+  const uint64_t first = page * header.page_entries;
+  const uint64_t count = std::min<uint64_t>(header.page_entries, header.node_count - first);
+  const std::string where = "directory page " + std::to_string(page) + ": ";
+  if (bytes.size() != count * layout::kEntrySize) return fail(Error::directory_invalid, where + "size mismatch");
+  if (crc32_of(bytes) != table[size_t(page)].crc32)
+    return fail(Error::directory_checksum, where + "CRC-32 mismatch (at offset " +
+                                               std::to_string(header.directory_offset + first * layout::kEntrySize) + ")");
+  TERRAIN_TRY(decode_entries(bytes, size_t(first), world, header, out));
+  if (!(out[0].key == table[size_t(page)].first))
+    return fail(Error::directory_invalid, where + "its first node " + node_name(out[0].key) + " is not the page table's " +
+                                              node_name(table[size_t(page)].first));
+  for (size_t i = 1; i < count; ++i)
+    if (!directory_less(out[i - 1].key, out[i].key))
+      return fail(Error::directory_invalid, "entry " + std::to_string(first + i) + " (node " + node_name(out[i].key) +
+                                                ") is not after node " + node_name(out[i - 1].key) +
+                                                " (keys must be unique and in directory order, SPEC 20)");
+  if (page + 1 < table.size() && !directory_less(out[count - 1].key, table[size_t(page) + 1].first))
+    return fail(Error::directory_invalid, where + "its last node " + node_name(out[count - 1].key) +
+                                              " is not before the next page's first node " + node_name(table[size_t(page) + 1].first));
+  return Status::success();
+}
+
+void encode_page_table(std::span<const uint8_t> entries, std::span<const NodeRecord> nodes, uint32_t page_entries,
+                       std::vector<uint8_t>& out) {
+  namespace f = layout::page_record;
+  const size_t pages = (nodes.size() + page_entries - 1) / page_entries;
+  out.assign(pages * layout::kPageRecordSize, 0);
+  for (size_t p = 0; p < pages; ++p) {
+    const size_t first = p * page_entries, count = std::min<size_t>(page_entries, nodes.size() - first);
+    uint8_t* e = out.data() + p * layout::kPageRecordSize;
+    e[f::level] = uint8_t(nodes[first].key.level);
+    store_u32(e + f::x, nodes[first].key.x);
+    store_u32(e + f::y, nodes[first].key.y);
+    store_u32(e + f::page_crc32, crc32_of(entries.subspan(first * layout::kEntrySize, count * layout::kEntrySize)));
+  }
 }
 
 Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_offset, uint64_t payload_size, int top) {
   for (size_t i = 1; i < nodes.size(); ++i)
-    if (!key_less(nodes[i - 1].key, nodes[i].key))
+    if (!directory_less(nodes[i - 1].key, nodes[i].key))
       return fail(Error::directory_invalid, "entry " + std::to_string(i) + " (node " + node_name(nodes[i].key) +
                                                 ") is not after node " + node_name(nodes[i - 1].key) +
-                                                " (keys must be unique and sorted by level, y, x)");
+                                                " (keys must be unique and in directory order, SPEC 20)");
   // Payloads tile the payload section exactly: no gaps, no overlaps.
   std::vector<std::pair<uint64_t, uint32_t>> spans;
   spans.reserve(nodes.size());
@@ -462,7 +565,7 @@ Status validate_directory(std::span<const NodeRecord> nodes, uint64_t payload_of
                                                   std::to_string(payload_offset + payload_size));
   auto exists = [&](const NodeKey& k) {
     return std::binary_search(nodes.begin(), nodes.end(), NodeRecord{.key = k},
-                              [](const NodeRecord& a, const NodeRecord& b) { return key_less(a.key, b.key); });
+                              directory_record_less);
   };
   for (const NodeRecord& r : nodes) {
     if (r.key.level > 0)

@@ -34,7 +34,8 @@ struct SurfaceSampler::Impl {
       }
     TERRAIN_TRY(reader.decode_node(index, *scratch, kSectionHeights | kSectionAlbedo));
     Cached c{index, std::vector<int32_t>(size_t(kHeightCount)), std::vector<uint8_t>(size_t(kHeightCount))};
-    const NodeRecord& r = reader.nodes()[index];
+    NodeRecord r;
+    TERRAIN_TRY(reader.record(index, r));
     const int step = reader.world().step_log2[r.key.level];
     for (size_t k = 0; k < size_t(kHeightCount); ++k) c.units[k] = vertex_units(r.height_offset, scratch->heights[k], step);
     decode_hole_mask(*scratch, c.holes.data());
@@ -71,7 +72,8 @@ Status SurfaceSampler::sample(double frame_x, double frame_y, std::optional<Surf
     for (int k = 0; k < holding_count; ++k) {
       const NodeKey key = holding[k];
       const double cx = key.x, cy = key.y;
-      const int64_t index = impl_->reader.find(key);
+      int64_t index = -1;
+      TERRAIN_TRY(impl_->reader.lookup(key, index));  // a directory page that fails its checks is an error
       if (index < 0) continue;
       any_node = true;
       const Impl::Cached* node = nullptr;

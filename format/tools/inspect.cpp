@@ -97,8 +97,10 @@ Status summary_text(const ArchiveReader& reader, const std::string& path, std::s
   TERRAIN_TRY(gather(reader, f));
   const WorldInfo& w = reader.world();
   std::ostringstream o;
-  o << fmt::format("{}: terrain archive v{}, {} bytes, {} nodes\n", path, reader.format_version(), reader.file_size(),
+  o << fmt::format("{}: terrain archive v{}, {} bytes, {} nodes", path, reader.format_version(), reader.file_size(),
                    reader.nodes().size());
+  if (reader.directory_pages()) o << fmt::format(" in {} directory pages", reader.directory_pages());
+  o << "\n";
   const FrameCrs& c = w.crs;
   o << fmt::format("frame      {} \"{}\"", kind_name(c.kind), c.name);
   if (c.epsg) o << fmt::format(" EPSG:{}", c.epsg);
@@ -161,6 +163,7 @@ Status summary_json(const ArchiveReader& reader, const std::string& path, std::s
   j["format_version"] = reader.format_version();
   j["file_bytes"] = reader.file_size();
   j["nodes"] = reader.nodes().size();
+  j["directory_pages"] = reader.directory_pages();  // SPEC 20; 0 in versions 1 and 2
   const FrameCrs& c = w.crs;
   j["frame"] = {{"kind", kind_name(c.kind)}, {"epsg", c.epsg}, {"name", c.name}, {"semi_major_m", c.semi_major_m},
                 {"inverse_flattening", c.inverse_flattening}, {"lat0_deg", c.lat0_deg}, {"lon0_deg", c.lon0_deg},
@@ -310,14 +313,16 @@ Status write_image(const std::string& path, int w, int h, int channels, TerrainP
 }  // namespace
 
 Status export_node(const ArchiveReader& reader, const NodeKey& key, const std::string& dir, std::vector<std::string>& written) {
-  const int64_t index = reader.find(key);
+  int64_t index = -1;
+  TERRAIN_TRY(reader.lookup(key, index));
   if (index < 0) return Status::failure(Error::node_not_found, "no node " + key_text(key) + " in the archive");
   auto d = std::make_unique<NodeData>();
   TERRAIN_TRY(reader.decode_node(size_t(index), *d));
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::failure(Error::io_write, dir + ": cannot create: " + ec.message());
-  const NodeRecord& r = reader.nodes()[size_t(index)];
+  NodeRecord r;
+  TERRAIN_TRY(reader.record(size_t(index), r));
   const WorldInfo& w = reader.world();
   const int step = level_step_log2(w, int(key.level));
   std::vector<uint8_t> holes(static_cast<size_t>(kHeightCount));

@@ -97,8 +97,12 @@ int run(int argc, char** argv) {
   if (!export_args.empty())
     if (terrain::Status s = check_export_dir(path, export_args[1]); !s.ok()) return fail(s);
 
+  // Samples and an export need a few nodes: their directory pages are read as needed (SPEC 20), so
+  // a URL of a national archive costs a few requests, not its whole directory.
+  const bool summary = points.empty() && export_args.empty() && !do_verify;
+  const auto load = summary || do_verify ? terrain::DirectoryLoad::whole : terrain::DirectoryLoad::by_page;
   terrain::ArchiveReader reader;
-  if (terrain::Status s = terrain::open_archive(reader, path); !s.ok()) {
+  if (terrain::Status s = terrain::open_archive(reader, path, {}, load); !s.ok()) {
     // --json --verify promises its document for every file, an unreadable or foreign one too.
     if (json && do_verify) {
       const nlohmann::json doc = {{"file", path}, {"valid", false}, {"nodes", 0},
@@ -108,7 +112,6 @@ int run(int argc, char** argv) {
     return fail(s);
   }
 
-  const bool summary = points.empty() && export_args.empty() && !do_verify;
   if (summary) {
     std::string text;
     const terrain::Status s = json ? terrain::inspect::summary_json(reader, path, text) : terrain::inspect::summary_text(reader, path, text);

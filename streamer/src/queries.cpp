@@ -63,7 +63,7 @@ std::shared_ptr<const NodeSurface> make_node_surface(const ArchiveReader& reader
 
 int32_t SurfaceSnapshot::find(const NodeKey& key) const {
   auto it = std::lower_bound(nodes.begin(), nodes.end(), key,
-                             [](const SnapshotNode& n, const NodeKey& k) { return key_less(n.s->key, k); });
+                             [](const SnapshotNode& n, const NodeKey& k) { return directory_less(n.s->key, k); });
   return it != nodes.end() && it->s->key == key ? int32_t(it - nodes.begin()) : -1;
 }
 
@@ -240,7 +240,7 @@ SurfacePoint resident_height_on_edge(const SurfaceSnapshot& S, double rx, double
       const double cx = nx - (cand & 1), cy = ny - ((cand >> 1) & 1);
       if (cx < 0 || cy < 0) continue;
       const NodeKey k{uint32_t(level), uint32_t(cx), uint32_t(cy)};
-      if (std::binary_search(keys.begin(), keys.end(), k, key_less)) out.finer_not_resident = true;
+      if (std::binary_search(keys.begin(), keys.end(), k, directory_less)) out.finer_not_resident = true;
     }
   }
   return out;

@@ -45,7 +45,7 @@ struct SurfaceSnapshot {
   int top_level = kRootLevel;        // the archive's top level (roots, or the top overview level)
   uint32_t top_x = 0, top_y = 0;     // its node grid
   std::vector<std::shared_ptr<const NodeSurface>> owned;  // keeps every node's data alive
-  std::vector<SnapshotNode> nodes;                        // directory order (sorted by key_less)
+  std::vector<SnapshotNode> nodes;                        // directory order (sorted by directory_less)
   std::vector<int32_t> top_grid;                          // top_y * top_x, snapshot index or -1
   std::shared_ptr<const std::vector<NodeKey>> archive_keys;  // every node of the archive, directory order
   int32_t find(const NodeKey& key) const;                 // snapshot index or -1

@@ -159,7 +159,7 @@ TEST_P(NonTmFrame, InputCrsIsTheFrameAndTheOracleHolds) {
   CookedArchive ca;
   ASSERT_TRUE(ca.open(archive.string()).ok());
   const FrameCrs& f = ca.reader.world().crs;
-  EXPECT_EQ(ca.reader.format_version(), 2u);
+  EXPECT_EQ(ca.reader.format_version(), 3u);
   EXPECT_EQ(f.kind, ProjectionKind::proj);
   EXPECT_EQ(f.epsg, c.epsg);
   EXPECT_NE(f.definition.find(c.method), std::string::npos) << f.definition;
@@ -218,7 +218,7 @@ TEST(NonTmFrameChoice, WebMercatorFarFromTheEquatorFallsBackToTransverseMercator
   const FrameCrs& f = ca.reader.world().crs;
   // Version 2 for the derived normals alone (SPEC 16.7), not for the frame.
   EXPECT_TRUE(ca.reader.world().derived_normals);
-  EXPECT_EQ(ca.reader.format_version(), 2u);
+  EXPECT_EQ(ca.reader.format_version(), 3u);
   EXPECT_EQ(f.kind, ProjectionKind::transverse_mercator);
   EXPECT_NEAR(f.lon0_deg, 10.865, 0.05);  // the data's centre longitude (source 10.62 .. 11.11 E)
   EXPECT_EQ(f.scale_k0, 1.0);

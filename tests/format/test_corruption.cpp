@@ -172,9 +172,9 @@ TEST(Corruption, SyntheticArchiveNeverCrashesAndNeverLies) {
   std::filesystem::remove_all(dir);
 }
 
-// The same on a version-2 archive (proj frame, format/SPEC.md section 17): its extension record
+// The same on an archive with a proj frame (format/SPEC.md section 17): its extension record
 // is inside the metadata CRC, so any damage to it is caught at open.
-TEST(Corruption, SyntheticVersionTwoArchiveNeverCrashesAndNeverLies) {
+TEST(Corruption, SyntheticProjFrameArchiveNeverCrashesAndNeverLies) {
   const auto dir = test::scratch_dir("corruption-v2");
   const auto path = (dir / "a.terrain").string();
   WorldInfo w = test::make_world();
@@ -187,7 +187,7 @@ TEST(Corruption, SyntheticVersionTwoArchiveNeverCrashesAndNeverLies) {
   ASSERT_TRUE(test::write_archive_of(path, w, test::sparse_keys(), PayloadOptions{},
                                      [&](const NodeKey& k) { return test::make_seed_node(w, k); })
                   .ok());
-  ASSERT_EQ(slurp(path)[8], 2);
+  ASSERT_EQ(slurp(path)[8], 3);
   const Outcome o = attack_archive("synthetic v2", path, 1500, 43);
   EXPECT_EQ(o.trials, 1500);
   EXPECT_GT(o.rejected_at_open, 300);
@@ -222,7 +222,7 @@ TEST(Corruption, NamedFieldDamageGivesTheNamedError) {
     return r.open_memory(b).code;
   };
   EXPECT_EQ(open_with([](auto& b) { b[0] = 'X'; }), Error::bad_magic);
-  EXPECT_EQ(open_with([](auto& b) { b[8] = 3; }), Error::unsupported_version);  // readers open 1 and 2
+  EXPECT_EQ(open_with([](auto& b) { b[8] = 4; }), Error::unsupported_version);  // readers open 1, 2 and 3
   EXPECT_EQ(open_with([](auto& b) { b.resize(100); }), Error::truncated);
   EXPECT_EQ(open_with([](auto& b) { b.resize(b.size() - 1); }), Error::truncated);
   EXPECT_EQ(open_with([](auto& b) { b.push_back(0); }), Error::header_invalid);
@@ -234,7 +234,8 @@ TEST(Corruption, NamedFieldDamageGivesTheNamedError) {
   };
   const size_t directory_offset = u64_at(48), metadata_offset = u64_at(64);
   EXPECT_EQ(open_with([&](auto& b) { b[metadata_offset + 10] ^= 0x20; }), Error::metadata_checksum);
-  EXPECT_EQ(open_with([&](auto& b) { b[directory_offset + 5] ^= 0x01; }), Error::directory_checksum);
+  EXPECT_EQ(open_with([&](auto& b) { b[directory_offset + 5] ^= 0x01; }), Error::directory_checksum);  // a page
+  EXPECT_EQ(open_with([&](auto& b) { b[metadata_offset - 3] ^= 0x01; }), Error::directory_checksum);    // the page table
   ArchiveReader r;
   ASSERT_TRUE(r.open_memory(good).ok());
   std::vector<uint8_t> b = good;

@@ -241,7 +241,7 @@ TEST_F(DerivedNormalsArchive, OnlyArchivesWithTheRecordMayUseCodec4) {
   ArchiveReader r;
   ASSERT_TRUE(r.open(with).ok());
   EXPECT_TRUE(r.world().derived_normals);
-  EXPECT_EQ(r.format_version(), 2u);
+  EXPECT_EQ(r.format_version(), 3u);
   auto data = std::make_unique<NodeData>();
   ASSERT_TRUE(r.decode_node(0, *data).ok());
   EXPECT_TRUE(std::equal(expected.begin(), expected.end(), data->normals_bc3.begin()));

@@ -1,5 +1,6 @@
-// Format version 2 (format/SPEC.md section 17): written only for a proj frame, so today's archives
-// stay version 1; read back with its WKT2 definition; every damaged v2 field named.
+// Format versions 2 and 3 (format/SPEC.md sections 17, 20): the extension records of version 2 (a
+// proj frame with its WKT2 definition) read back from what writers write today (version 3), every
+// damaged field named; files of versions 1 and 2 still open, with the same nodes in the same order.
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -58,8 +59,10 @@ class FormatV2 : public ::testing::Test {
     ext_ = good_.size() - get_u32(good_, meta_ + layout::metadata::extension_size);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
-  Error open_with(const std::function<void(std::vector<uint8_t>&)>& mutate, std::string* message = nullptr) {
-    std::vector<uint8_t> b = good_;
+  // Opens good_ (or its version-`legacy` bytes, legacy_bytes()) changed by `mutate`, re-sealed.
+  Error open_with(const std::function<void(std::vector<uint8_t>&)>& mutate, std::string* message = nullptr,
+                  uint32_t legacy = 0) {
+    std::vector<uint8_t> b = legacy ? legacy_bytes(good_, legacy) : good_;
     mutate(b);
     reseal(b);
     ArchiveReader r;
@@ -72,20 +75,31 @@ class FormatV2 : public ::testing::Test {
   size_t meta_ = 0, ext_ = 0;  // metadata offset, first extension record
 };
 
-TEST_F(FormatV2, TmFrameStaysVersionOne) {
+TEST_F(FormatV2, TmFrameIsVersionThreeAndItsVersionOneBytesReadTheSame) {
   const auto path = (dir_ / "tm.terrain").string();
   ASSERT_TRUE(test::write_synthetic_archive(path, test::make_world(), test::sparse_keys()).ok());
   const auto b = slurp(path);
-  EXPECT_EQ(get_u32(b, layout::header::format_version), 1u);
+  EXPECT_EQ(get_u32(b, layout::header::format_version), 3u);
   EXPECT_EQ(get_u32(b, size_t(get_u64(b, layout::header::metadata_offset)) + layout::metadata::reserved3), 0u);
   ArchiveReader r;
   ASSERT_TRUE(r.open(path).ok());
-  EXPECT_EQ(r.format_version(), 1u);
+  EXPECT_EQ(r.format_version(), 3u);
   EXPECT_TRUE(r.world().crs.definition.empty());
+  // The same archive as a version-1 writer made it: row order on disk, directory order in the reader.
+  ArchiveReader v1;
+  ASSERT_TRUE(v1.open_memory(legacy_bytes(b, 1)).ok());
+  EXPECT_EQ(v1.format_version(), 1u);
+  ASSERT_EQ(v1.nodes().size(), r.nodes().size());
+  for (size_t i = 0; i < r.nodes().size(); ++i) {
+    EXPECT_EQ(v1.nodes()[i].key, r.nodes()[i].key) << i;
+    EXPECT_EQ(v1.nodes()[i].payload_offset, r.nodes()[i].payload_offset) << i;
+    EXPECT_EQ(v1.find(r.nodes()[i].key), int64_t(i));
+  }
+  EXPECT_TRUE(v1.verify().ok());
 }
 
-TEST_F(FormatV2, ProjFrameIsVersionTwoAndRoundTrips) {
-  EXPECT_EQ(get_u32(good_, layout::header::format_version), 2u);
+TEST_F(FormatV2, ProjFrameRoundTripsInVersionThreeAndTwo) {
+  EXPECT_EQ(get_u32(good_, layout::header::format_version), 3u);
   const size_t def_size = std::strlen(kLccWkt);
   ASSERT_EQ(def_size % 4, 1u);  // the padding test below needs padding
   // One record: tag 1, size, the text, padding to 4.
@@ -94,25 +108,30 @@ TEST_F(FormatV2, ProjFrameIsVersionTwoAndRoundTrips) {
   EXPECT_EQ(get_u32(good_, ext_ + 4), def_size);
   ArchiveReader r;
   ASSERT_TRUE(r.open_memory(good_).ok());
-  EXPECT_EQ(r.format_version(), 2u);
+  EXPECT_EQ(r.format_version(), 3u);
   EXPECT_EQ(r.world().crs.kind, ProjectionKind::proj);
   EXPECT_EQ(r.world().crs.definition, kLccWkt);
   EXPECT_EQ(r.world().crs.epsg, 2154);
   EXPECT_TRUE(r.verify().ok());
+  ArchiveReader v2;
+  ASSERT_TRUE(v2.open_memory(legacy_bytes(good_, 2)).ok());
+  EXPECT_EQ(v2.format_version(), 2u);
+  EXPECT_EQ(v2.world().crs.definition, kLccWkt);
+  EXPECT_TRUE(v2.verify().ok());
 }
 
 TEST_F(FormatV2, DamagedVersionTwoFieldsAreNamed) {
   namespace m = layout::metadata;
   std::string msg;
-  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 3); }), Error::unsupported_version);
+  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 4); }), Error::unsupported_version);
   // A proj frame in a version-1 file: offset 164 is then reserved.
-  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 1); }, &msg), Error::metadata_invalid);
+  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 1); }, &msg, 2), Error::metadata_invalid);
   EXPECT_NE(msg.find("reserved"), std::string::npos) << msg;
   EXPECT_EQ(open_with([&](auto& b) {
               put_u32(b, layout::header::format_version, 1);
-              put_u32(b, meta_ + m::extension_size, 0);
-              b.resize(ext_);
-            }, &msg),
+              put_u32(b, b.size() - (good_.size() - meta_) + m::extension_size, 0);
+              b.resize(b.size() - (good_.size() - ext_));
+            }, &msg, 2),
             Error::metadata_invalid);
   EXPECT_NE(msg.find("version 1"), std::string::npos) << msg;
   // Without its definition record.

@@ -106,6 +106,37 @@ TEST_F(HttpArchive, PayloadsByUrlAreTheFileBytes) {
   EXPECT_FALSE(http_stats(*file.source(), none));  // a file is no HTTP source
 }
 
+// Opened by page (SPEC 20), an archive costs two requests, the header and then the page table with
+// the metadata, and no directory entry; a node then costs one request for its page, once.
+TEST_F(HttpArchive, OpeningByPageCostsTwoRequestsAndAPageOneMore) {
+  ArchiveReader file, web;
+  ASSERT_TRUE(file.open(local_).ok());
+  const Status st = open_archive(web, server_.url("a.terrain"), quick(), DirectoryLoad::by_page);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  HttpStats open;
+  ASSERT_TRUE(http_stats(*web.source(), open));
+  EXPECT_EQ(open.requests, 2u);
+  uint64_t payloads_end = 0;
+  for (const NodeRecord& r : file.nodes()) payloads_end = std::max<uint64_t>(payloads_end, r.payload_offset + r.payload_size);
+  const uint64_t entries = file.nodes().size() * 48;  // the directory starts where the payloads end
+  EXPECT_EQ(open.bytes, 128 + file.file_size() - (payloads_end + entries))
+      << "the header, page table and metadata: no entry";
+  const NodeRecord& last = file.nodes().back();
+  int64_t index = -1;
+  ASSERT_TRUE(web.lookup(last.key, index).ok());
+  EXPECT_EQ(index, int64_t(file.nodes().size() - 1));
+  std::vector<uint8_t> a, b;
+  ASSERT_TRUE(web.read_payload(size_t(index), b).ok());
+  ASSERT_TRUE(file.read_payload(size_t(index), a).ok());
+  EXPECT_EQ(a, b);
+  HttpStats after;
+  ASSERT_TRUE(http_stats(*web.source(), after));
+  EXPECT_EQ(after.requests, 4u) << "its page, then its payload";
+  EXPECT_EQ(web.find(file.nodes().front().key), 0);  // the same (only) page: no request
+  ASSERT_TRUE(http_stats(*web.source(), after));
+  EXPECT_EQ(after.requests, 4u);
+}
+
 // A missing file fails open with io_open, naming the URL and the status.
 TEST_F(HttpArchive, AMissingFileIsANamedError) {
   ArchiveReader web;

@@ -76,8 +76,10 @@ class OverviewLevels : public test::ScratchArchiveTest {
     meta_ = size_t(get_u64(good_, layout::header::metadata_offset));
     ext_ = good_.size() - get_u32(good_, meta_ + layout::metadata::extension_size);
   }
-  Error open_with(const std::function<void(std::vector<uint8_t>&)>& mutate, std::string* message = nullptr) {
-    std::vector<uint8_t> b = good_;
+  // Opens good_ (or its version-`legacy` bytes, legacy_bytes()) changed by `mutate`, re-sealed.
+  Error open_with(const std::function<void(std::vector<uint8_t>&)>& mutate, std::string* message = nullptr,
+                  uint32_t legacy = 0) {
+    std::vector<uint8_t> b = legacy ? legacy_bytes(good_, legacy) : good_;
     mutate(b);
     reseal(b);
     ArchiveReader r;
@@ -118,7 +120,7 @@ TEST_F(OverviewLevels, NeededLevelsKeepTheTopSmall) {
 TEST_F(OverviewLevels, RoundTripAndVerify) {
   ArchiveReader r;
   ASSERT_TRUE(r.open(path_).ok());
-  EXPECT_EQ(r.format_version(), 2u);
+  EXPECT_EQ(r.format_version(), 3u);
   EXPECT_EQ(r.level_count(), 9);
   EXPECT_EQ(r.top_level(), 8);
   EXPECT_EQ(r.world().overview_step_log2, (std::vector<uint8_t>{7, 7, 7}));
@@ -182,7 +184,7 @@ TEST_F(OverviewLevels, WithoutTheRecordReadsAsBefore) {
   const auto path = (dir_ / "plain.terrain").string();
   ASSERT_TRUE(synthetic::write_archive(path, s).ok());
   const auto b = slurp(path);
-  EXPECT_EQ(get_u32(b, layout::header::format_version), 1u);  // no v2 feature: still version 1
+  EXPECT_EQ(get_u32(b, layout::header::format_version), 3u);  // every writer writes version 3 (SPEC 20)
   ArchiveReader r;
   ASSERT_TRUE(r.open(path).ok());
   EXPECT_EQ(r.level_count(), 6);
@@ -222,7 +224,7 @@ TEST_F(OverviewLevels, DamagedRecordsAreNamed) {
   // An unknown required tag 3 in place of 2 (a newer writer's record).
   EXPECT_EQ(open_with([&](auto& b) { put_u32(b, ext_, 3); }, &msg), Error::metadata_invalid);
   // In a version-1 file the extension_size field is reserved: the file is invalid, never misread.
-  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 1); }, &msg), Error::metadata_invalid);
+  EXPECT_EQ(open_with([](auto& b) { put_u32(b, layout::header::format_version, 1); }, &msg, 2), Error::metadata_invalid);
   EXPECT_NE(msg.find("reserved"), std::string::npos) << msg;
   // Too many levels: the writer refuses a WorldInfo the reader would reject.
   WorldInfo w = world_.world;

@@ -9,9 +9,10 @@ namespace terrain::layout {
 
 // ---- File header (SPEC "Header"): 128 bytes at offset 0 -----------------------------------------
 inline constexpr std::array<uint8_t, 8> kMagic = {'T', 'E', 'R', 'R', 'A', 'I', 'N', 0x1A};
-inline constexpr uint32_t kFormatVersion = 1;        // what writers write unless a v2 feature is used
-inline constexpr uint32_t kFormatVersionV2 = 2;      // extension records (SPEC 6.5); readers open 1 and 2
-inline constexpr uint32_t kMaxFormatVersion = kFormatVersionV2;
+inline constexpr uint32_t kFormatVersion = 1;        // the first version; readers open 1, 2 and 3
+inline constexpr uint32_t kFormatVersionV2 = 2;      // extension records (SPEC 6.5)
+inline constexpr uint32_t kFormatVersionV3 = 3;      // the paged directory (SPEC 20): what writers write
+inline constexpr uint32_t kMaxFormatVersion = kFormatVersionV3;
 inline constexpr uint32_t kHeaderSize = 128;
 namespace header {
 inline constexpr uint32_t magic = 0;             // 8 bytes
@@ -29,6 +30,8 @@ inline constexpr uint32_t metadata_size = 72;    // u64
 inline constexpr uint32_t directory_crc32 = 80;  // u32
 inline constexpr uint32_t metadata_crc32 = 84;   // u32
 inline constexpr uint32_t reserved = 88;         // 36 bytes, reserved (0)
+inline constexpr uint32_t page_entries = 88;     // v3: u32, entries per directory page (SPEC 20)
+inline constexpr uint32_t reserved_v3 = 92;      // v3: 32 bytes, reserved (0)
 inline constexpr uint32_t header_crc32 = 124;    // u32, CRC-32 of bytes 0..123
 }  // namespace header
 
@@ -50,6 +53,29 @@ inline constexpr uint32_t payload_offset = 32;    // u64
 inline constexpr uint32_t payload_size = 40;      // u32
 inline constexpr uint32_t reserved1 = 44;         // u32, reserved (0)
 }  // namespace entry
+
+// ---- Directory pages (SPEC 20, format v3) --------------------------------------------------------
+// The directory's node_count entries are cut into pages of page_entries entries (the last may be
+// shorter); a page table of one 16-byte record per page follows the last page.
+inline constexpr uint32_t kPageRecordSize = 16;
+namespace page_record {
+inline constexpr uint32_t level = 0;      // u8: the page's first key
+inline constexpr uint32_t reserved = 1;   // u8[3], reserved (0)
+inline constexpr uint32_t x = 4;          // u32
+inline constexpr uint32_t y = 8;          // u32
+inline constexpr uint32_t page_crc32 = 12;  // u32, CRC-32 of the page's entries
+}  // namespace page_record
+inline constexpr uint32_t kMinPageEntries = 1024;
+inline constexpr uint32_t kMaxPageEntries = 1u << 20;
+// Writers keep the page table within this many records (512 KiB).
+inline constexpr uint32_t kMaxPageTableRecords = 1u << 15;
+// The page size a writer chooses (SPEC 20): the smallest power of two >= 1024 entries whose page
+// table holds at most kMaxPageTableRecords records.
+inline constexpr uint32_t page_entries_for(uint64_t node_count) {
+  uint32_t e = kMinPageEntries;
+  while (e < kMaxPageEntries && (node_count + e - 1) / e > kMaxPageTableRecords) e *= 2;
+  return e;
+}
 
 // ---- Metadata (SPEC "Metadata"): 168-byte fixed part, then variable data ------------------------
 inline constexpr uint32_t kMetadataFixedSize = 168;
@@ -120,7 +146,8 @@ inline constexpr std::array<const char*, kSectionCount> kSectionName = {"heights
 
 // ---- Reader limits (SPEC "Limits") --------------------------------------------------------------
 inline constexpr uint32_t kMaxPayloadSize = 1u << 20;      // bytes per node payload
-inline constexpr uint32_t kMaxNodeCount = 1u << 24;
+inline constexpr uint32_t kMaxNodeCount = 1u << 24;         // versions 1 and 2
+inline constexpr uint32_t kMaxNodeCountV3 = 1u << 31;       // version 3 (node indices fit an int32 + 1)
 inline constexpr uint32_t kMaxRoots = 1u << 16;            // per axis
 inline constexpr uint32_t kMaxCrsNameSize = 1024;
 inline constexpr uint32_t kMaxPaletteCount = 256;

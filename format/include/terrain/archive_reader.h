@@ -1,6 +1,8 @@
 // Archive reader. open() copies header, metadata and directory out of a ByteSource (a file read with
 // pread, bytes in memory, ...) and validates them (checksums, bounds, ordering) before anything is
-// trusted; payloads are read into buffers and checked when decoded. Nothing is memory-mapped: when
+// trusted; payloads are read into buffers and checked when decoded. A version-3 archive (SPEC 20)
+// may instead be opened DirectoryLoad::by_page: the open reads the header, the page table and the
+// metadata only, and each directory page is read and checked the first time a node in it is used. Nothing is memory-mapped: when
 // the file shrinks or fails after open(), the reads that reach past its end return `truncated` (or
 // `io_read`) naming the node, and the caller decides (the streamer marks the node failed).
 // All const methods are safe to call concurrently from many threads.
@@ -24,6 +26,13 @@ struct SectionBytes {  // stored (compressed) and raw bytes per section, summed 
   uint64_t nodes_by_level[kMaxLevels] = {};
 };
 
+// How open() reads the directory. `whole`: every page at open, with every rule of SPEC 8 and 11
+// checked (versions 1 and 2 always open so). `by_page` (version 3): the header, then the page table
+// with the metadata in one read; pages as lookup() and the node methods need them. In a reader
+// opened by_page, nodes(), level_nodes() and nodes_per_level() are empty and verify() and
+// section_bytes() refuse until load_directory().
+enum class DirectoryLoad { whole, by_page };
+
 class ArchiveReader {
  public:
   ArchiveReader();
@@ -32,9 +41,9 @@ class ArchiveReader {
   ArchiveReader& operator=(ArchiveReader&&) noexcept;
 
   // Opens a file (open_file_source(): regular files only, read with pread).
-  Status open(const std::string& path);
+  Status open(const std::string& path, DirectoryLoad load = DirectoryLoad::whole);
   // Opens an archive from any byte source; the reader owns it from here on. Same checks as open().
-  Status open(std::unique_ptr<ByteSource> source);
+  Status open(std::unique_ptr<ByteSource> source, DirectoryLoad load = DirectoryLoad::whole);
   // Opens an archive held in memory (the bytes are copied; used by the fuzzer and tests).
   // Same checks as open().
   Status open_memory(std::span<const uint8_t> bytes);
@@ -47,10 +56,26 @@ class ArchiveReader {
   // The byte source (null when not open), e.g. to read raw ranges for a copy.
   const ByteSource* source() const;
 
-  // Directory, sorted by key_less. Empty until open() succeeded.
+  // Directory, sorted by directory_less (SPEC 20) for every format version. Empty until open()
+  // succeeded, and in a reader opened by_page until load_directory().
   std::span<const NodeRecord> nodes() const;
-  // Index into nodes(), or -1 when no node (level, x, y) exists. O(log n), reads no payload.
+  // Entries in the directory (also in a reader opened by_page).
+  uint64_t node_count() const;
+  // Index into the directory, or -1 when no node (level, x, y) exists. O(log n), reads no payload.
+  // In a reader opened by_page it reads the node's page when needed, and a page that cannot be read
+  // or fails its checks is -1 too: lookup() tells them apart.
   int64_t find(const NodeKey& key) const;
+  // find() that reports why a page could not be used (io_read, truncated, directory_checksum,
+  // directory_invalid, naming the page). `index` is -1 when the node does not exist.
+  Status lookup(const NodeKey& key, int64_t& index) const;
+  // The directory entry of node `index` (reads its page in a reader opened by_page).
+  Status record(size_t index, NodeRecord& out) const;
+  // By_page: reads every page not read yet in one read and checks the whole directory as a whole
+  // open does; afterwards the reader is one opened whole. Not concurrent with other calls.
+  Status load_directory();
+  // Directory pages (0 for versions 1 and 2), and how many have been read since open().
+  uint64_t directory_pages() const;
+  uint64_t directory_pages_read() const;
   // Number of nodes per level, level_count() entries (levels 0 .. top_level()).
   std::vector<uint32_t> nodes_per_level() const;
   // Levels of the tree: 6, or 6 + K with K overview levels (SPEC 19); 0 when not open.

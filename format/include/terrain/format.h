@@ -149,9 +149,23 @@ struct NodeKey {
   uint32_t y = 0;      // north
   friend constexpr bool operator==(const NodeKey&, const NodeKey&) = default;
 };
-// Directory order: level ascending, then y, then x.
+// Row order: level ascending, then y, then x. The order of a level's nodes in the payload section
+// (SPEC 18) and of version 1 and 2 directories.
 inline constexpr bool key_less(const NodeKey& a, const NodeKey& b) {
   if (a.level != b.level) return a.level < b.level;
+  if (a.y != b.y) return a.y < b.y;
+  return a.x < b.x;
+}
+// Directory order (SPEC 20, version 3): level ascending, then by tiles of 32 x 32 nodes of the level
+// (tile row, tile column), then by y and x inside the tile. A directory page of 1024 entries then
+// covers one tile where the data is dense, so the nodes a camera wants lie in few pages. A band of
+// 32 rows of a level is contiguous in both this order and row order (key_less).
+inline constexpr uint32_t kDirectoryTileLog2 = 5;
+inline constexpr bool directory_less(const NodeKey& a, const NodeKey& b) {
+  if (a.level != b.level) return a.level < b.level;
+  constexpr uint32_t t = kDirectoryTileLog2;
+  if ((a.y >> t) != (b.y >> t)) return (a.y >> t) < (b.y >> t);
+  if ((a.x >> t) != (b.x >> t)) return (a.x >> t) < (b.x >> t);
   if (a.y != b.y) return a.y < b.y;
   return a.x < b.x;
 }

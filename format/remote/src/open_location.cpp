@@ -20,10 +20,10 @@ Status open_location(const std::string& location, std::unique_ptr<ByteSource>& o
   return open_file_source(location, out);
 }
 
-Status open_archive(ArchiveReader& reader, const std::string& location, const HttpOptions& options) {
+Status open_archive(ArchiveReader& reader, const std::string& location, const HttpOptions& options, DirectoryLoad load) {
   std::unique_ptr<ByteSource> source;
   TERRAIN_TRY(open_location(location, source, options));
-  return reader.open(std::move(source));
+  return reader.open(std::move(source), load);
 }
 
 }  // namespace terrain

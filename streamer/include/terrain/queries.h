@@ -93,7 +93,7 @@ class ResidentSurface {
 
   bool empty() const;
   uint64_t frame() const;  // the update() that published this snapshot (0 if empty)
-  // Resident nodes in this snapshot, directory order (level ascending, then y, then x).
+  // Resident nodes in this snapshot, directory order (directory_less: level, tiles of 32 x 32 nodes, y, x).
   std::vector<NodeKey> nodes() const;
 
   // Height, normal and flags at frame point (x, y). Non-finite input: a miss.

@@ -306,7 +306,7 @@ class Streamer {
   int32_t slot_of(const NodeKey& key) const;
   // Decoded data of a resident node (same lifetime as NodeDelivery::data), or nullptr.
   const NodeData* resident_data(const NodeKey& key) const;
-  // Keys in directory order (level ascending, then y, then x).
+  // Keys in directory order (directory_less: level, tiles of 32 x 32 nodes, y, x).
   std::vector<NodeKey> resident_nodes() const;
   std::vector<NodeKey> wanted_nodes() const;
   std::vector<NodeKey> required_nodes() const;

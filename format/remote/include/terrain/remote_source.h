@@ -67,8 +67,10 @@ Status open_http_source(const std::string& url, const HttpOptions& options, std:
 // A URL through open_http_source, anything else through open_file_source.
 Status open_location(const std::string& location, std::unique_ptr<ByteSource>& out,
                      const HttpOptions& options = {});
-// reader.open() of open_location(location): an archive by path or URL.
-Status open_archive(ArchiveReader& reader, const std::string& location, const HttpOptions& options = {});
+// reader.open() of open_location(location): an archive by path or URL, its directory read as `load`
+// says (DirectoryLoad::by_page: the header and one read of page table and metadata, SPEC 20).
+Status open_archive(ArchiveReader& reader, const std::string& location, const HttpOptions& options = {},
+                    DirectoryLoad load = DirectoryLoad::whole);
 // The counters of an HTTP source; false (out untouched) for any other source.
 bool http_stats(const ByteSource& source, HttpStats& out);
 
