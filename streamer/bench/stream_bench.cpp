@@ -729,7 +729,10 @@ int bench_archive(const std::string& archive, const Options& o, nlohmann::json& 
 // the link divided by its bandwidth plus one round trip, as if every request went out at once),
 // and the 300 m/s flight paced at --fps (gap frames: a required node not resident). Columns:
 // settle_ms / req_ms: until the wanted / required set is resident; x: settle_ms over limit_ms
-// (teleports that fetched anything); reqs and KB: HTTP requests and bytes per teleport.
+// (teleports that fetched anything); reqs and KB: HTTP requests and bytes per teleport. Before the
+// streamer, a reader opened by page (SPEC 20: header, then page table and metadata): pg_open_ms,
+// reqs, KB; then its descent from the top to the finest node under the first teleport, one lookup
+// per level: descend_ms and the directory pages it read.
 int bench_links(const std::string& url, const Options& o, nlohmann::json& json_out) {
   std::string host, path;
   int port = 0;
@@ -751,9 +754,9 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
   if (!o.json)
     std::printf("\n%s over a link (LatencyProxy: rtt/2 each way, one link per direction shared by the connections), "
                 "%u workers, %s reads in flight, budget %u, %d teleports (medians), %s paced at %.0f fps for %.0f s\n\n"
-                "%6s %6s | %8s %5s %8s | %9s %9s %9s %6s %6s %8s %5s | %10s\n",
+                "%6s %6s | %10s %4s %6s %10s %5s | %8s %5s %8s | %9s %9s %9s %6s %6s %8s %5s | %10s\n",
                 url.c_str(), o.threads, reads_in_flight.c_str(), o.budget, o.teleports, flight.name.c_str(), o.fps, o.seconds, "rtt_ms", "Mbit",
-                "open_ms", "reqs", "open_KB", "settle_ms", "req_ms", "limit_ms", "x", "reqs", "KB", "amp", "gap frames");
+                "pg_open_ms", "reqs", "KB", "descend_ms", "pages", "open_ms", "reqs", "open_KB", "settle_ms", "req_ms", "limit_ms", "x", "reqs", "KB", "amp", "gap frames");
   int rc = 0;
   for (const double rtt : o.rtt_ms)
     for (const double mbit : o.mbit) {
@@ -764,6 +767,32 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
         return 1;
       }
       const std::string through = proxy.proxied(url);
+      // A reader by page, and the page of the finest node under the first teleport.
+      const auto tp = Clock::now();
+      ArchiveReader paged;
+      if (Status st = open_archive(paged, through, {}, DirectoryLoad::by_page); !st.ok()) {
+        std::fprintf(stderr, "terrain-stream-bench: %s\n", st.to_string().c_str());
+        return 1;
+      }
+      const double page_open_ms = ms_since(tp);
+      const tools::ProxyStats paged_open = proxy.stats();
+      // From the top down to the finest node under the first teleport, one lookup per level, as a
+      // runtime reading by page would descend: each level's page is one read the first time.
+      const View& first = teleports.views.front();
+      const auto tq = Clock::now();
+      for (int level = reader.top_level(); level >= 0; --level) {
+        const NodeKey key{uint32_t(level), uint32_t(std::max(0.0, (first.x - reader.world().origin_x_m) / node_size_m(level))),
+                          uint32_t(std::max(0.0, (first.y - reader.world().origin_y_m) / node_size_m(level)))};
+        int64_t index = -1;
+        if (Status st = paged.lookup(key, index); !st.ok()) {
+          std::fprintf(stderr, "terrain-stream-bench: %s\n", st.to_string().c_str());
+          return 1;
+        }
+        if (index < 0) break;
+      }
+      const double page_ms = ms_since(tq);
+      const uint64_t pages_read = paged.directory_pages_read();
+      const tools::ProxyStats before_open = proxy.stats();
       Streamer s;
       const auto t0 = Clock::now();
       if (Status st = s.open(through, config); !st.ok()) {
@@ -771,7 +800,9 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
         return 1;
       }
       const double open_ms = ms_since(t0);
-      const tools::ProxyStats opened = proxy.stats();
+      tools::ProxyStats opened = proxy.stats();
+      opened.requests -= before_open.requests;
+      opened.bytes_down -= before_open.bytes_down;
       std::vector<double> settle, required, limit, ratio, reqs, kb;
       // Read amplification over the teleports: bytes that crossed the link (HTTP headers included)
       // per stored payload byte the streamer read.
@@ -830,13 +861,16 @@ int bench_links(const std::string& url, const Options& o, nlohmann::json& json_o
       proxy.stop();
       if (!ok || final_stats.failed > 0) rc = 1;
       if (!o.json)
-        std::printf("%6.0f %6s | %8.1f %5llu %8.1f | %9.1f %9.1f %9.1f %6.1f %6.0f %8.0f %5.2f | %4d of %d%s\n", rtt,
-                    mbit > 0 ? fmt("%.0f", mbit).c_str() : "inf", open_ms, (unsigned long long)opened.requests,
+        std::printf("%6.0f %6s | %10.1f %4llu %6.1f %10.1f %5llu | %8.1f %5llu %8.1f | %9.1f %9.1f %9.1f %6.1f %6.0f %8.0f %5.2f | %4d of %d%s\n", rtt,
+                    mbit > 0 ? fmt("%.0f", mbit).c_str() : "inf", page_open_ms, (unsigned long long)paged_open.requests,
+                    double(paged_open.bytes_down) / 1024, page_ms, (unsigned long long)pages_read, open_ms, (unsigned long long)opened.requests,
                     double(opened.bytes_down) / 1024, median(settle), median(required), median(limit), ratio.empty() ? 0.0 : median(ratio),
                     median(reqs), median(kb), amplification, gaps, frames,
                     !ok ? "  (a teleport did not settle in 120 s)"
                         : final_stats.failed ? "  (failed nodes)" : "");
       json_out.push_back({{"archive", url}, {"rtt_ms", rtt}, {"mbit", mbit}, {"open_ms", open_ms},
+                          {"by_page_open_ms", page_open_ms}, {"by_page_open_requests", paged_open.requests},
+                          {"by_page_open_bytes", paged_open.bytes_down}, {"descend_ms", page_ms}, {"descend_pages", pages_read},
                           {"open_requests", opened.requests}, {"open_bytes", opened.bytes_down},
                           {"settle_ms", median(settle)}, {"required_ms", median(required)},
                           {"limit_ms", median(limit)}, {"settle_over_limit", ratio.empty() ? 0.0 : median(ratio)},
