@@ -192,8 +192,24 @@ void RangeCache::write(uint64_t offset, std::span<const uint8_t> bytes) {
   stats_.stored_bytes += bytes.size();
 }
 
+uint64_t RangeCache::others_bytes(bool fresh) {
+  const auto now = std::chrono::steady_clock::now();
+  if (fresh || others_scanned_ == std::chrono::steady_clock::time_point{} || now - others_scanned_ > std::chrono::seconds(1)) {
+    others_bytes_ = 0;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(root_, ec))
+      if (e.is_directory() && e.path() != fs::path(folder_)) others_bytes_ += data_disk_bytes(e.path() / "data");
+    others_scanned_ = now;
+  }
+  return others_bytes_;
+}
+
 bool RangeCache::make_room(uint64_t bytes) {
-  if (disk_bytes() + bytes <= limit_) return true;
+  // This version's disk by one fstat; the others' from the last scan, unless that says no.
+  struct stat st {};
+  const uint64_t own = ::fstat(data_fd_, &st) == 0 ? uint64_t(st.st_blocks) * 512 : 0;
+  if (own + others_bytes(false) + bytes <= limit_) return true;
+  if (own + others_bytes(true) + bytes <= limit_) return true;
   // Other versions, least recently opened first; one another process holds stays.
   struct Version {
     fs::path folder;
@@ -216,7 +232,7 @@ bool RangeCache::make_room(uint64_t bytes) {
     fs::remove_all(v.folder, ec);
     if (fd >= 0) ::close(fd);
     ++stats_.evicted;
-    if (disk_bytes() + bytes <= limit_) return true;
+    if (own + others_bytes(true) + bytes <= limit_) return true;
   }
   return false;
 }

@@ -15,6 +15,7 @@
 // range is not kept (the cache stays as it is). One process uses a version at a time (an
 // exclusive lock on its journal); another process opening it reads without the cache.
 #pragma once
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -63,6 +64,9 @@ class RangeCache {
     bool verified = false;
   };
   bool make_room(uint64_t bytes);  // under mutex_
+  // The disk the other versions take: a scan of the folder, at most once a second (other processes
+  // may grow theirs), and always before anything is evicted. Under mutex_.
+  uint64_t others_bytes(bool fresh);
 
   std::string root_, folder_;
   uint64_t limit_ = 0, size_ = 0;
@@ -70,6 +74,8 @@ class RangeCache {
   mutable std::mutex mutex_;
   std::map<uint64_t, Record> records_;  // by offset; ranges may overlap
   uint32_t largest_ = 0;                // the largest record's size
+  uint64_t others_bytes_ = 0;           // other versions' disk at the last scan
+  std::chrono::steady_clock::time_point others_scanned_{};  // when; default: never
   Stats stats_;
 };
 
