@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstring>
 #include <mutex>
+#include <thread>
 
 #include "terrain/detail/bytes.h"
 #include "layout.h"
@@ -100,13 +101,19 @@ struct ArchiveReader::Impl {
     return Status::success();
   }
 
+  // By_page: the page that holds `key` if any page does (from the page table alone), or -1.
+  int64_t page_of(const NodeKey& key) const {
+    const auto after = std::upper_bound(table.begin(), table.end(), key,
+                                        [](const NodeKey& k, const detail::PageRecord& r) { return directory_less(k, r.first); });
+    return after == table.begin() ? -1 : int64_t(after - table.begin()) - 1;
+  }
+
   // By_page: the index of `key`, or -1.
   Status lookup(const NodeKey& key, int64_t& index) const {
     index = -1;
-    const auto after = std::upper_bound(table.begin(), table.end(), key,
-                                        [](const NodeKey& k, const detail::PageRecord& r) { return directory_less(k, r.first); });
-    if (after == table.begin()) return Status::success();
-    const uint64_t p = uint64_t(after - table.begin()) - 1;
+    const int64_t page_index = page_of(key);
+    if (page_index < 0) return Status::success();
+    const auto p = uint64_t(page_index);
     const NodeRecord* page = page_at[p].load(std::memory_order_acquire);
     if (!page) TERRAIN_TRY(read_page(p, page));
     const size_t count = size_t(std::min<uint64_t>(header.page_entries, header.node_count - p * header.page_entries));
@@ -245,6 +252,37 @@ Status ArchiveReader::record(size_t index, NodeRecord& out) const {
   const NodeRecord* r = nullptr;
   TERRAIN_TRY(impl_->entry(index, r));
   out = *r;
+  return Status::success();
+}
+
+Status ArchiveReader::prefetch(std::span<const NodeKey> keys) const {
+  if (!impl_) return Status::failure(Error::invalid_argument, "archive is not open");
+  const Impl& m = *impl_;
+  if (!m.by_page) return Status::success();
+  std::vector<uint64_t> pages;
+  for (const NodeKey& k : keys) {
+    if (k.level >= uint32_t(terrain::level_count(m.world))) continue;
+    const int64_t p = m.page_of(k);
+    if (p >= 0 && !m.page_at[size_t(p)].load(std::memory_order_acquire)) pages.push_back(uint64_t(p));
+  }
+  std::sort(pages.begin(), pages.end());
+  pages.erase(std::unique(pages.begin(), pages.end()), pages.end());
+  constexpr size_t kInFlight = 16;
+  std::vector<Status> results(pages.size());
+  for (size_t begin = 0; begin < pages.size(); begin += kInFlight) {
+    const size_t end = std::min(pages.size(), begin + kInFlight);
+    std::vector<std::thread> readers;
+    for (size_t i = begin + 1; i < end; ++i)
+      readers.emplace_back([&m, &pages, &results, i] {
+        const NodeRecord* page = nullptr;
+        results[i] = m.read_page(pages[i], page);
+      });
+    const NodeRecord* page = nullptr;
+    results[begin] = m.read_page(pages[begin], page);  // one on this thread
+    for (std::thread& t : readers) t.join();
+  }
+  for (const Status& s : results)
+    if (!s.ok()) return s;
   return Status::success();
 }
 

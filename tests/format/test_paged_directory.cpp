@@ -148,6 +148,34 @@ TEST_F(PagedDirectory, AWideArchiveOpensWithTwoReadsAndEachLookupReadsAtMostOneP
   for (size_t i = 0; i < paged.nodes().size(); i += 97) EXPECT_EQ(paged.nodes()[i].key, whole_.nodes()[i].key);
 }
 
+// A descent from the top to a point: every level's page named by the page table and read at once;
+// the lookups after it read nothing.
+TEST_F(PagedDirectory, PrefetchReadsEveryLevelsPageAtOnceAndLookupsThenReadNothing) {
+  auto source = counting(path_);
+  const CountingSource& io = *source;
+  ArchiveReader paged;
+  ASSERT_TRUE(paged.open(std::move(source), DirectoryLoad::by_page).ok());
+  std::vector<NodeKey> path;
+  const double x = 100.5 * 2048, y = 37.25 * 2048;  // metres from the origin
+  for (int level = paged.top_level(); level >= 0; --level)
+    path.push_back({uint32_t(level), uint32_t(x / node_size_m(level)), uint32_t(y / node_size_m(level))});
+  path.push_back(path.back());  // twice: one read
+  const int before = io.reads.load();
+  ASSERT_TRUE(paged.prefetch(path).ok());
+  // Levels 9..7 share the last page (336 entries), level 6 is page 84 (1024 entries), 5, 4 and 3
+  // have a page each under the point; levels 2..0 come before every page: no page holds them.
+  EXPECT_EQ(io.reads.load() - before, 5);
+  EXPECT_EQ(paged.directory_pages_read(), 5u);
+  for (const NodeKey& k : path) {
+    int64_t index = -2;
+    ASSERT_TRUE(paged.lookup(k, index).ok());
+    EXPECT_EQ(index, whole_.find(k)) << node_name(k);
+  }
+  EXPECT_EQ(io.reads.load() - before, 5);
+  ASSERT_TRUE(paged.prefetch(path).ok());  // all read: nothing to do
+  EXPECT_EQ(io.reads.load() - before, 5);
+}
+
 TEST_F(PagedDirectory, DirectoryOrderGoesByLevelThenTilesOf32x32) {
   const auto nodes = whole_.nodes();
   for (size_t i = 1; i < nodes.size(); ++i) ASSERT_TRUE(directory_less(nodes[i - 1].key, nodes[i].key)) << i;

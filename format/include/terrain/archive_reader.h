@@ -70,6 +70,12 @@ class ArchiveReader {
   Status lookup(const NodeKey& key, int64_t& index) const;
   // The directory entry of node `index` (reads its page in a reader opened by_page).
   Status record(size_t index, NodeRecord& out) const;
+  // By_page: reads the pages that hold `keys` or would hold them (the page table alone names a
+  // key's page) and are not read yet, all at once (one read each, up to 16 in flight), and checks
+  // them; later lookups of those keys read nothing. A runtime descending from the top to a camera
+  // pays one round trip for every level's page this way instead of one per level. Returns the
+  // first page's failure; the other pages are kept. Nothing to do in a reader opened whole.
+  Status prefetch(std::span<const NodeKey> keys) const;
   // By_page: reads every page not read yet in one read and checks the whole directory as a whole
   // open does; afterwards the reader is one opened whole. Not concurrent with other calls.
   Status load_directory();
