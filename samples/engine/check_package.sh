@@ -32,10 +32,12 @@ pcfile=$(find "$prefix" -name terrain-streamer.pc -print -quit)
 # 0.3 changed the streamer's API (issue 49: the residency index); 0.4 the format library's
 # (WorldInfo::derived_normals, format version 2 archives whose normals readers derive); 0.5 the
 # layout of StreamerConfig, StreamerStats, HttpOptions, HttpStats and ByteSource's virtuals (issue
-# 52: reads apart from decodes, the range cache): the version file says so and refuses a request
-# for an older minor version (SameMinorVersion).
-grep -q 'PACKAGE_VERSION "0.5.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
-  fail "terrainConfigVersion.cmake does not say 0.5.0"
+# 52: reads apart from decodes, the range cache); 0.6 format version 3 (the paged directory, SPEC
+# 20: archives that 0.5 readers refuse) and ArchiveReader's DirectoryLoad, lookup(), record(),
+# prefetch(): the version file says so and refuses a request for an older minor version
+# (SameMinorVersion).
+grep -q 'PACKAGE_VERSION "0.6.0"' "$(dirname "$config")/terrainConfigVersion.cmake" ||
+  fail "terrainConfigVersion.cmake does not say 0.6.0"
 # The tools' shared helpers (tools/common: CLI11 flag checks, progress bar, charts) stay out of the package.
 for f in cli_checks.h terminal_progress.h bench_chart.h bench_paths.h tool_module.h; do
   [ -z "$(find "$prefix" -name "$f" -print -quit)" ] || fail "$f (tools only) was installed"
