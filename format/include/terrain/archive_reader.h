@@ -76,7 +76,7 @@ class ArchiveReader {
   // pays one round trip for every level's page this way instead of one per level. Returns the
   // first page's failure; the other pages are kept. Nothing to do in a reader opened whole.
   Status prefetch(std::span<const NodeKey> keys) const;
-  // By_page: reads every page not read yet in one read and checks the whole directory as a whole
+  // By_page: reads the whole directory section in one read (pages read before included) and checks it as a whole
   // open does; afterwards the reader is one opened whole. Not concurrent with other calls.
   Status load_directory();
   // Directory pages (0 for versions 1 and 2), and how many have been read since open().
